@@ -1,0 +1,248 @@
+"""A simulated skin: the paper's semi-infinite contact model behind the paper's ADC.
+
+`SkinSimulator` turns a `Scene` into frames.  Each taxel's sensor body, when free, relaxes
+towards the heated steady state (eq. 2) with the lumped time constant l^2 / alpha_s; when an
+object touches it, the thermistor follows eq. 5 from the temperature it had at that moment,
+so initial conditions vary with each taxel's recent contacts.  Readings get Gaussian noise and
+pass through the thermistor divider and the 10-bit ADC.
+
+`SimDriver` hands those frames over directly (``sim://``); `PtySerialDevice` writes them, as
+wire-protocol bytes, into a real pseudo-terminal, so that the serial driver reads them exactly
+as it reads a board.
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import threading
+import time
+import tty
+from collections.abc import Iterator
+
+import numpy as np
+
+from skin.calibration import Calibration
+from skin.drivers.base import Driver
+from skin.drivers.protocol import encode_sample
+from skin.errors import SceneError
+from skin.frame import Frame
+from skin.scene import Scene
+
+
+class SkinSimulator:
+    """Simulate every taxel of a scene's layout.
+
+    Parameters
+    ----------
+    scene : Scene
+        What touches what, when.
+    duration : float, optional
+        Simulated time, s; the scene's duration by default.
+    """
+
+    def __init__(self, scene: Scene, duration: float | None = None) -> None:
+        from skin.models.materials import load_materials
+        from skin.models.physics import SensorConstants, heated_temperature
+
+        self.scene = scene
+        self.layout = scene.layout
+        if len(self.layout.boards) != 1:
+            raise SceneError(f"{scene.source}: the simulator drives one board for now")
+        self.board = next(iter(self.layout.boards.values()))
+        self.sample_rate = self.board.sample_rate
+        self.duration = scene.duration if duration is None else float(duration)
+        self.n_samples = int(round(self.duration * self.sample_rate))
+        self.sensor = SensorConstants.from_board(self.board)
+        self.calibration = Calibration.from_layout(self.layout)
+        materials = load_materials()
+        self.heated = float(heated_temperature(scene.ambient, self.sensor))
+        self._touches = []
+        for touch in scene.touches:
+            obj = scene.objects[touch.object]
+            if obj.material not in materials:
+                raise SceneError(f"{scene.source}: object {obj.name!r}: unknown material "
+                                 f"{obj.material!r} (known: {', '.join(sorted(materials))})")
+            mat = materials[obj.material]
+            if obj.temperature is not None:
+                t_obj = obj.temperature
+            elif mat.temperature is not None:
+                t_obj = float(np.mean(mat.temperature))
+            else:
+                t_obj = scene.ambient
+            idx = np.array([self.layout.index(t) for t in touch.taxels])
+            k0 = int(round(touch.start * self.sample_rate))
+            k1 = int(round(touch.end * self.sample_rate))
+            self._touches.append((k0, k1, idx, t_obj, mat.effusivity))
+        self._idx, self._addr = self.layout.channel_map(self.board.id)
+        self._channels = int(self._addr.max()) + 1
+
+    def temperatures(self) -> np.ndarray:
+        """Noise-free thermistor temperatures, shape (n_samples, n_taxels), deg C."""
+        from skin.models.physics import contact_temperature, depth_response
+
+        n = len(self.layout)
+        rng = np.random.default_rng(self.scene.seed)
+        lo, hi = self.scene.initial_temperature
+        free = np.minimum(rng.uniform(lo, hi, n), self.heated)
+        decay = np.exp(-1.0 / (self.sample_rate * self.sensor.reheat_time_constant))
+        touching = np.zeros(n, dtype=bool)
+        t0 = np.zeros(n)
+        ts = np.zeros(n)
+        start = np.zeros(n)
+        out = np.empty((self.n_samples, n))
+        starts: dict[int, list] = {}
+        ends: dict[int, list] = {}
+        for touch in self._touches:
+            starts.setdefault(touch[0], []).append(touch)
+            ends.setdefault(touch[1], []).append(touch)
+        reading = free.copy()
+        for k in range(self.n_samples):
+            t = k / self.sample_rate
+            for _, _, idx, _, _ in ends.get(k, ()):
+                touching[idx] = False
+                free[idx] = reading[idx]
+            for _, _, idx, t_obj, e_obj in starts.get(k, ()):
+                touching[idx] = True
+                t0[idx] = free[idx]
+                ts[idx] = contact_temperature(free[idx], t_obj, self.sensor.effusivity, e_obj)
+                start[idx] = t
+            free = np.where(touching, free, self.heated + (free - self.heated) * decay)
+            if touching.any():
+                resp = depth_response(t - start[touching], self.sensor)
+                reading = free.copy()
+                reading[touching] = t0[touching] + (ts[touching] - t0[touching]) * resp
+            else:
+                reading = free
+            out[k] = reading
+        return out
+
+    def frames(self) -> Iterator[Frame]:
+        """Yield the frames of the whole simulation, with noise and ADC quantisation."""
+        rng = np.random.default_rng(self.scene.seed + 1)
+        temps = self.temperatures()
+        noisy = temps + rng.normal(0.0, self.scene.noise, temps.shape)
+        counts = np.clip(np.rint(self.calibration.counts(noisy)), 0, self.board.adc_max)
+        ambient = self.scene.ambient + rng.normal(0.0, 0.05, self.n_samples)
+        duty = np.full(self._channels, 255, dtype=np.uint8)
+        channel_counts = np.zeros((self.n_samples, self._channels), dtype=np.uint16)
+        channel_counts[:, self._addr] = counts[:, self._idx]
+        for k in range(self.n_samples):
+            t = k / self.sample_rate
+            yield Frame(k, t, time.monotonic(), channel_counts[k], float(ambient[k]), duty, 0,
+                        self.board.id)
+
+
+class _Pacer:
+    """Release items at ``speed`` times real time (speed <= 0: as fast as possible)."""
+
+    def __init__(self, speed: float) -> None:
+        self.speed = speed
+        self.t0 = time.monotonic()
+
+    def wait(self, device_time: float, stop: threading.Event | None = None) -> None:
+        if self.speed <= 0:
+            return
+        delay = self.t0 + device_time / self.speed - time.monotonic()
+        if delay > 0:
+            if stop is None:
+                time.sleep(delay)
+            else:
+                stop.wait(delay)
+
+
+class SimDriver(Driver):
+    """Frames straight from a `SkinSimulator` (``sim://``), paced at ``speed`` x real time."""
+
+    def __init__(self, simulator: SkinSimulator, speed: float = 1.0) -> None:
+        super().__init__()
+        self.url = f"sim://{simulator.scene.name}"
+        self.simulator = simulator
+        self._frames = simulator.frames()
+        self._pacer = _Pacer(speed)
+
+    def _recv_internal(self, timeout: float | None) -> Frame | None:
+        frame = next(self._frames, None)
+        if frame is None:
+            self.finished = True
+            return None
+        self._pacer.wait(frame.device_time)
+        self.stats.frames += 1
+        return frame
+
+
+class PtySerialDevice:
+    """Serve a simulator's frames as protocol bytes on a pseudo-terminal, like a real board.
+
+    The slave end (``port``) is what a serial driver opens.  A background thread writes the
+    frames at ``speed`` x real time (speed <= 0: as fast as the reader takes them).
+
+    Parameters
+    ----------
+    simulator : SkinSimulator
+        Source of frames.
+    speed : float
+        Pacing relative to real time.
+    """
+
+    def __init__(self, simulator: SkinSimulator, speed: float = 1.0) -> None:
+        self.simulator = simulator
+        self.speed = speed
+        self._master, self._slave = os.openpty()
+        tty.setraw(self._slave)  # no line discipline: bytes pass unchanged, no echo
+        os.set_blocking(self._master, False)
+        self.port = os.ttyname(self._slave)
+        self.frames_sent = 0
+        self.done = threading.Event()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._serve, name="pty-skin", daemon=True)
+        self._thread.start()
+
+    def _write(self, data: bytes) -> bool:
+        view = memoryview(data)
+        while view:
+            if self._stop.is_set():
+                return False
+            _, ready, _ = select.select([], [self._master], [], 0.1)
+            if ready:
+                try:
+                    view = view[os.write(self._master, view) :]
+                except BlockingIOError:
+                    continue
+        return True
+
+    def _serve(self) -> None:
+        pacer = _Pacer(self.speed)
+        chunk: list[bytes] = []
+        try:
+            for frame in self.simulator.frames():
+                chunk.append(encode_sample(frame.seq, int(round(frame.device_time * 1e6)),
+                                           frame.counts, frame.ambient, frame.duty, frame.flags))
+                if len(chunk) >= 10:  # 50 ms of frames per write
+                    pacer.wait(frame.device_time, self._stop)
+                    if not self._write(b"".join(chunk)):
+                        return
+                    self.frames_sent += len(chunk)
+                    chunk = []
+            if chunk and self._write(b"".join(chunk)):
+                self.frames_sent += len(chunk)
+        finally:
+            self.done.set()
+
+    def close(self) -> None:
+        """Stop writing and close both ends; calling it again does nothing."""
+        if self._stop.is_set():
+            return
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        for fd in (self._master, self._slave):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+
+    def __enter__(self) -> PtySerialDevice:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,136 @@
+"""The materials table: thermal property ranges, effusivity ranges, colours, sources."""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from skin.errors import MaterialsError
+from skin.models.physics import effusivity
+
+_RANGES = ("k", "rho", "c")
+
+
+@dataclass(frozen=True)
+class Material:
+    """One material of the table.
+
+    Attributes
+    ----------
+    name : str
+        Key of the material (``"pine"``).
+    k, rho, c : tuple of float
+        (min, max) conductivity W/(m K), density kg/m^3, specific heat J/(kg K).
+    nominal : dict
+        Nominal ``k``, ``rho``, ``c`` inside those ranges.
+    colour : str
+        Hex colour used by every view.
+    classify : bool
+        Whether it is a candidate of the default classifiers.
+    temperature : tuple of float or None
+        Surface temperature range of a heat-generating material, deg C.
+    source : str
+        Where the numbers come from.
+    """
+
+    name: str
+    k: tuple[float, float]
+    rho: tuple[float, float]
+    c: tuple[float, float]
+    nominal: dict
+    colour: str
+    classify: bool
+    temperature: tuple[float, float] | None
+    source: str
+
+    @property
+    def effusivity_range(self) -> tuple[float, float]:
+        """(min, max) effusivity sqrt(k rho c)."""
+        lo = float(effusivity(self.k[0], self.rho[0], self.c[0]))
+        hi = float(effusivity(self.k[1], self.rho[1], self.c[1]))
+        return lo, hi
+
+    @property
+    def effusivity(self) -> float:
+        """Nominal effusivity."""
+        return float(effusivity(self.nominal["k"], self.nominal["rho"], self.nominal["c"]))
+
+    @property
+    def log_effusivity_range(self) -> tuple[float, float]:
+        """(min, max) of log10 effusivity."""
+        lo, hi = self.effusivity_range
+        return float(np.log10(lo)), float(np.log10(hi))
+
+    @property
+    def rgb(self) -> tuple[float, float, float]:
+        """Colour as RGB in 0-1."""
+        return hex_to_rgb(self.colour)
+
+
+def hex_to_rgb(colour: str) -> tuple[float, float, float]:
+    """Convert ``"#RRGGBB"`` to an RGB tuple in 0-1."""
+    h = colour.lstrip("#")
+    return tuple(int(h[i : i + 2], 16) / 255.0 for i in (0, 2, 4))  # type: ignore[return-value]
+
+
+def _pair(value: object, where: str, field: str) -> tuple[float, float]:
+    if (
+        not isinstance(value, list)
+        or len(value) != 2
+        or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
+        or not 0 < value[0] <= value[1]
+    ):
+        raise MaterialsError(f"{where}: field {field!r} must be [min, max] with 0 < min <= max")
+    return float(value[0]), float(value[1])
+
+
+def parse_materials(text: str, source: str = "<string>") -> dict[str, Material]:
+    """Parse and validate a materials table (TOML text)."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise MaterialsError(f"{source}: not valid TOML: {exc}") from None
+    table: dict[str, Material] = {}
+    for name, raw in data.items():
+        where = f"{source}: material {name!r}"
+        if not isinstance(raw, dict):
+            raise MaterialsError(f"{where}: must be a table")
+        ranges = {f: _pair(raw.get(f), where, f) for f in _RANGES}
+        nominal = raw.get("nominal")
+        if not isinstance(nominal, dict) or set(nominal) != set(_RANGES):
+            raise MaterialsError(f"{where}: field 'nominal' must give k, rho and c")
+        for f in _RANGES:
+            lo, hi = ranges[f]
+            if not lo <= nominal[f] <= hi:
+                raise MaterialsError(f"{where}: nominal {f} = {nominal[f]} lies outside "
+                                     f"[{lo}, {hi}]")
+        temperature = raw.get("temperature")
+        colour = raw.get("colour", "#777777")
+        if not (isinstance(colour, str) and len(colour) == 7 and colour.startswith("#")):
+            raise MaterialsError(f"{where}: field 'colour' must be '#RRGGBB'")
+        table[name] = Material(
+            name=name,
+            nominal={f: float(nominal[f]) for f in _RANGES},
+            colour=colour,
+            classify=bool(raw.get("classify", True)),
+            temperature=None if temperature is None else _pair(temperature, where, "temperature"),
+            source=str(raw.get("source", "")),
+            **ranges,
+        )
+    return table
+
+
+def load_materials(path: str | Path | None = None) -> dict[str, Material]:
+    """Load the materials table: the shipped one, or a user's TOML file."""
+    if path is None:
+        res = resources.files("skin.models") / "data" / "materials.toml"
+        return parse_materials(res.read_text(encoding="utf-8"), source="materials.toml")
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise MaterialsError(f"{path}: cannot read materials table: {exc.strerror}") from None
+    return parse_materials(text, source=str(path))

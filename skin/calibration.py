@@ -1,0 +1,103 @@
+"""Per-taxel calibration: ADC counts to deg C through the thermistor divider (paper eqs. 7-8).
+
+The thermistor ``Rth`` and the reference resistor ``R_REF`` form a divider from ``V+``; the
+ADC reads the voltage across ``R_REF``::
+
+    V = counts / adc_max * V_REF,    Rth = R_REF (V+ / V - 1),    1/T = C0 + C1 ln Rth.
+
+Counts at 0 (no current: open thermistor or wire) and at full scale (ADC saturated: shorted
+thermistor, or hotter than the range) have no temperature: they are flagged per taxel.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from skin.layout import Layout
+
+KELVIN = 273.15
+
+# Per-taxel status bits returned by Calibration.temperature
+TAXEL_OPEN = 1 << 0
+TAXEL_SATURATED = 1 << 1
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """Vectorised counts <-> temperature conversion for all taxels of a layout.
+
+    Each attribute is an array with one value per taxel, in layout order.
+    """
+
+    c0: np.ndarray
+    c1: np.ndarray
+    divider_resistor: np.ndarray
+    supply_voltage: np.ndarray
+    adc_reference: np.ndarray
+    adc_max: np.ndarray
+    source: str = "nominal board constants"
+
+    @classmethod
+    def from_layout(cls, layout: Layout) -> Calibration:
+        """Build the nominal calibration from each taxel's board constants."""
+        return cls(
+            c0=layout.board_array("thermistor_c0"),
+            c1=layout.board_array("thermistor_c1"),
+            divider_resistor=layout.board_array("divider_resistor"),
+            supply_voltage=layout.board_array("supply_voltage"),
+            adc_reference=layout.board_array("adc_reference"),
+            adc_max=layout.board_array("adc_max"),
+            source=f"nominal constants of {layout.source}",
+        )
+
+    def temperature(self, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Convert ADC counts to deg C.
+
+        Parameters
+        ----------
+        counts : array_like, shape (..., n_taxels)
+            Raw ADC counts.
+
+        Returns
+        -------
+        temperature : numpy.ndarray
+            deg C; NaN exactly where ``status`` is non-zero.
+        status : numpy.ndarray of uint8
+            ``TAXEL_OPEN`` where counts <= 0, ``TAXEL_SATURATED`` where counts >= full scale.
+        """
+        c = np.asarray(counts, dtype=float)
+        status = np.where(c <= 0, TAXEL_OPEN, 0) | np.where(c >= self.adc_max, TAXEL_SATURATED, 0)
+        status = status.astype(np.uint8)
+        ok = status == 0
+        v = np.where(ok, c, 1.0) / self.adc_max * self.adc_reference
+        r = self.divider_resistor * (self.supply_voltage / v - 1.0)
+        ok &= r > 0  # V above V+ cannot come from the divider
+        status = np.where(ok | (status != 0), status, TAXEL_SATURATED).astype(np.uint8)
+        inv_t = self.c0 + self.c1 * np.log(np.where(ok, r, 1.0))
+        temp = np.where(ok, 1.0 / inv_t - KELVIN, np.nan)
+        return temp, status
+
+    def counts(self, temperature: np.ndarray) -> np.ndarray:
+        """Convert deg C to (real-valued, unrounded) ADC counts: the inverse of `temperature`."""
+        t = np.asarray(temperature, dtype=float) + KELVIN
+        r = np.exp((1.0 / t - self.c0) / self.c1)
+        v = self.supply_voltage * self.divider_resistor / (self.divider_resistor + r)
+        return v / self.adc_reference * self.adc_max
+
+    def range(self) -> tuple[np.ndarray, np.ndarray]:
+        """Return the (lowest, highest) measurable temperature per taxel, deg C."""
+        lo, _ = self.temperature(np.ones_like(self.adc_max))
+        hi, _ = self.temperature(self.adc_max - 1)
+        return lo, hi
+
+
+def ambient_from_counts(counts: float, adc_max: int = 1023, adc_reference: float = 1.1) -> float:
+    """Convert an LM35 reading (10 mV per deg C) to deg C."""
+    return float(counts) / adc_max * adc_reference * 100.0
+
+
+def ambient_to_counts(temperature: float, adc_max: int = 1023, adc_reference: float = 1.1) -> int:
+    """Convert deg C to the LM35's ADC counts (rounded, clipped to the ADC range)."""
+    return int(np.clip(round(temperature / 100.0 / adc_reference * adc_max), 0, adc_max))

@@ -1,0 +1,256 @@
+"""Simulation scenes: which objects touch which taxels, when, and for how long.
+
+A scene is a TOML file that users copy and edit; ``skin/data/scenes/default.toml`` ships.
+It names a layout, the ambient conditions, the objects with their materials and temperatures,
+and the touches.  It is validated on load (materials are checked by the simulator, which owns
+the materials table).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from skin.errors import SceneError
+from skin.layout import Layout, load_layout
+
+
+@dataclass(frozen=True)
+class SceneObject:
+    """An object the arm touches.
+
+    Attributes
+    ----------
+    name : str
+        Unique name.
+    material : str
+        Key in the materials table.
+    temperature : float or None
+        Object temperature, deg C; None: the material's own (heat-generating) or ambient.
+    """
+
+    name: str
+    material: str
+    temperature: float | None
+
+
+@dataclass(frozen=True)
+class Touch:
+    """One object touching a set of taxels.
+
+    Attributes
+    ----------
+    object : str
+        Name of the object.
+    taxels : tuple of int
+        Taxel ids.
+    start, duration : float
+        When the touch begins and how long it lasts, s.
+    line : int
+        Line of the ``[[touches]]`` table in the scene file.
+    """
+
+    object: str
+    taxels: tuple[int, ...]
+    start: float
+    duration: float
+    line: int = 0
+
+    @property
+    def end(self) -> float:
+        """When the touch ends, s."""
+        return self.start + self.duration
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated simulation scene."""
+
+    name: str
+    source: str
+    layout: Layout
+    duration: float
+    ambient: float
+    noise: float
+    seed: int
+    initial_temperature: tuple[float, float]
+    objects: dict[str, SceneObject]
+    touches: tuple[Touch, ...]
+
+    def material_of(self, touch: Touch) -> str:
+        """Material of the object of a touch."""
+        return self.objects[touch.object].material
+
+
+def _number(raw: dict, key: str, where: str, default: Any = None, positive: bool = False) -> float:
+    value = raw.get(key, default)
+    if value is None:
+        raise SceneError(f"{where}: missing field {key!r}")
+    if not isinstance(value, int | float) or isinstance(value, bool):
+        raise SceneError(f"{where}: field {key!r} must be a number, got {value!r}")
+    if positive and not value > 0:
+        raise SceneError(f"{where}: field {key!r} must be positive, got {value!r}")
+    return float(value)
+
+
+def _lines(text: str, header: str) -> list[int]:
+    out, pos = [], 0
+    while (pos := text.find(header, pos)) >= 0:
+        out.append(text.count("\n", 0, pos) + 1)
+        pos += 1
+    return out
+
+
+def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -> Scene:
+    """Parse and validate scene TOML text.
+
+    Parameters
+    ----------
+    text : str
+        TOML text.
+    source : str
+        File name for messages.
+    base : Path, optional
+        Folder that a relative ``layout`` path is resolved against.
+    """
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{source}: not valid TOML: {exc}") from None
+    layout_ref = data.get("layout", "arm")
+    if not isinstance(layout_ref, str):
+        raise SceneError(f"{source}: field 'layout' must be a layout name or path")
+    ref = Path(layout_ref)
+    if base is not None and ref.suffix and not ref.is_absolute():
+        ref = base / ref
+    layout = load_layout(ref)
+    duration = _number(data, "duration", source, 20.0, positive=True)
+    ambient = _number(data, "ambient", source, 25.0)
+    noise = _number(data, "noise", source, 0.02)
+    seed = int(_number(data, "seed", source, 0))
+    init = data.get("initial_temperature", [ambient + 6.0, ambient + 14.0])
+    if not (isinstance(init, list) and len(init) == 2 and init[0] <= init[1]):
+        raise SceneError(f"{source}: field 'initial_temperature' must be [low, high]")
+    objects: dict[str, SceneObject] = {}
+    for k, raw in enumerate(data.get("objects", [])):
+        where = f"{source}:{_lines(text, '[[objects]]')[k]}: object #{k}"
+        name = raw.get("name")
+        if not isinstance(name, str) or not name:
+            raise SceneError(f"{where}: missing field 'name'")
+        if name in objects:
+            raise SceneError(f"{where}: duplicate object name {name!r}")
+        material = raw.get("material")
+        if not isinstance(material, str):
+            raise SceneError(f"{where} ({name}): missing field 'material'")
+        temp = raw.get("temperature")
+        if temp is not None:
+            temp = _number(raw, "temperature", f"{where} ({name})")
+        objects[name] = SceneObject(name, material, temp)
+    touches: list[Touch] = []
+    touch_lines = _lines(text, "[[touches]]")
+    for k, raw in enumerate(data.get("touches", [])):
+        line = touch_lines[k]
+        where = f"{source}:{line}: touch #{k}"
+        obj = raw.get("object")
+        if obj not in objects:
+            raise SceneError(f"{where}: field 'object' names {obj!r}, which is not in [[objects]]")
+        taxels = raw.get("taxels")
+        if not isinstance(taxels, list) or not taxels:
+            raise SceneError(f"{where}: field 'taxels' must be a non-empty list of taxel ids")
+        for tid in taxels:
+            if not isinstance(tid, int) or tid not in layout._index:
+                raise SceneError(f"{where}: field 'taxels': no taxel {tid!r} in {layout.source}")
+        start = _number(raw, "start", where)
+        length = _number(raw, "duration", where, positive=True)
+        if start < 0 or start + length > duration:
+            raise SceneError(f"{where}: the touch ({start} s + {length} s) does not fit in the "
+                             f"scene's {duration} s")
+        touches.append(Touch(obj, tuple(taxels), start, length, line))
+    touches.sort(key=lambda t: t.start)
+    for i, a in enumerate(touches):
+        for b in touches[i + 1 :]:
+            if b.start >= a.end:
+                break
+            common = set(a.taxels) & set(b.taxels)
+            if common:
+                raise SceneError(f"{source}:{b.line}: touch overlaps the touch on line {a.line} "
+                                 f"at taxel {min(common)}")
+    return Scene(
+        name=str(data.get("name", Path(source).stem)),
+        source=source,
+        layout=layout,
+        duration=duration,
+        ambient=ambient,
+        noise=noise,
+        seed=seed,
+        initial_temperature=(float(init[0]), float(init[1])),
+        objects=objects,
+        touches=tuple(touches),
+    )
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Load a scene file, or a shipped scene by name (``"default"``)."""
+    p = Path(path)
+    if not p.suffix and not p.exists():
+        res = resources.files("skin") / "data" / "scenes" / f"{p.name}.toml"
+        if not res.is_file():
+            raise SceneError(f"no scene file {str(path)!r} and no shipped scene of that name")
+        return parse_scene(res.read_text(encoding="utf-8"), source=f"{p.name}.toml")
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read scene: {exc.strerror}") from None
+    return parse_scene(text, source=str(path), base=p.parent)
+
+
+@dataclass(frozen=True)
+class Match:
+    """A scene touch and the detected contact that matches it (if any)."""
+
+    touch: Touch
+    material: str
+    contact_index: int | None
+
+
+def match_touches(
+    scene: Scene, taxels: list[list[int]], onsets: list[float], tolerance: float = 0.5
+) -> tuple[list[Match], list[int]]:
+    """Match detected contacts to the scene's touches.
+
+    A contact matches a touch when they share a taxel and the contact's onset lies within
+    ``tolerance`` seconds of the touch's start; each contact matches at most one touch.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene with the truth.
+    taxels : list of list of int
+        Taxel ids of each detected contact.
+    onsets : list of float
+        Onset of each detected contact, s.
+    tolerance : float
+        Largest onset error accepted, s.
+
+    Returns
+    -------
+    matches : list of Match
+        One per touch, in time order.
+    unmatched : list of int
+        Indices of detected contacts that match no touch (false contacts).
+    """
+    used: set[int] = set()
+    matches = []
+    for touch in scene.touches:
+        best, best_err = None, tolerance
+        for i, (tx, t0) in enumerate(zip(taxels, onsets, strict=True)):
+            err = abs(t0 - touch.start)
+            if i not in used and set(tx) & set(touch.taxels) and err <= best_err:
+                best, best_err = i, err
+        if best is not None:
+            used.add(best)
+        matches.append(Match(touch, scene.material_of(touch), best))
+    return matches, [i for i in range(len(taxels)) if i not in used]
