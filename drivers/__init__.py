@@ -42,7 +42,7 @@ def _float(opts: dict[str, str], key: str, default: float | None, url: str) -> f
         raise DeviceError(f"{url}: option {key!r} must be a number, got {opts[key]!r}") from None
 
 
-def open(url: str) -> Driver:  # noqa: A001 - the natural name, as in builtins.open
+def open(url: str) -> Driver:
     """Open a frame source by URL (see the module docstring for the schemes).
 
     Raises

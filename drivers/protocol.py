@@ -76,7 +76,7 @@ def encode_sample(
         _HEADER.pack(VERSION, TYPE_SAMPLE, seq % (1 << 32), device_time_us % (1 << 32), n),
         np.asarray(counts, dtype="<u2").tobytes(),
         np.asarray(duty, dtype=np.uint8).tobytes(),
-        _TAIL.pack(int(round(ambient * 100)), flags & 0xFFFF),
+        _TAIL.pack(round(ambient * 100), flags & 0xFFFF),
     ))
     return _cobs().encode(body + _CRC.pack(crc16(body))) + b"\x00"
 

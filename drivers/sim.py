@@ -52,7 +52,7 @@ class SkinSimulator:
         self.board = next(iter(self.layout.boards.values()))
         self.sample_rate = self.board.sample_rate
         self.duration = scene.duration if duration is None else float(duration)
-        self.n_samples = int(round(self.duration * self.sample_rate))
+        self.n_samples = round(self.duration * self.sample_rate)
         self.sensor = SensorConstants.from_board(self.board)
         self.calibration = Calibration.from_layout(self.layout)
         materials = load_materials()
@@ -71,8 +71,8 @@ class SkinSimulator:
             else:
                 t_obj = scene.ambient
             idx = np.array([self.layout.index(t) for t in touch.taxels])
-            k0 = int(round(touch.start * self.sample_rate))
-            k1 = int(round(touch.end * self.sample_rate))
+            k0 = round(touch.start * self.sample_rate)
+            k1 = round(touch.end * self.sample_rate)
             self._touches.append((k0, k1, idx, t_obj, mat.effusivity))
         self._idx, self._addr = self.layout.channel_map(self.board.id)
         self._channels = int(self._addr.max()) + 1
@@ -216,7 +216,7 @@ class PtySerialDevice:
         chunk: list[bytes] = []
         try:
             for frame in self.simulator.frames():
-                chunk.append(encode_sample(frame.seq, int(round(frame.device_time * 1e6)),
+                chunk.append(encode_sample(frame.seq, round(frame.device_time * 1e6),
                                            frame.counts, frame.ambient, frame.duty, frame.flags))
                 if len(chunk) >= 10:  # 50 ms of frames per write
                     pacer.wait(frame.device_time, self._stop)

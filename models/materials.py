@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import tomllib
 from dataclasses import dataclass
 from importlib import resources
@@ -101,8 +102,13 @@ def parse_materials(text: str, source: str = "<string>") -> dict[str, Material]:
             raise MaterialsError(f"{where}: must be a table")
         ranges = {f: _pair(raw.get(f), where, f) for f in _RANGES}
         nominal = raw.get("nominal")
-        if not isinstance(nominal, dict) or set(nominal) != set(_RANGES):
-            raise MaterialsError(f"{where}: field 'nominal' must give k, rho and c")
+        if (
+            not isinstance(nominal, dict)
+            or set(nominal) != set(_RANGES)
+            or not all(isinstance(v, int | float) and not isinstance(v, bool)
+                       for v in nominal.values())
+        ):
+            raise MaterialsError(f"{where}: field 'nominal' must give numbers k, rho and c")
         for f in _RANGES:
             lo, hi = ranges[f]
             if not lo <= nominal[f] <= hi:
@@ -110,13 +116,16 @@ def parse_materials(text: str, source: str = "<string>") -> dict[str, Material]:
                                      f"[{lo}, {hi}]")
         temperature = raw.get("temperature")
         colour = raw.get("colour", "#777777")
-        if not (isinstance(colour, str) and len(colour) == 7 and colour.startswith("#")):
+        if not (isinstance(colour, str) and re.fullmatch(r"#[0-9A-Fa-f]{6}", colour)):
             raise MaterialsError(f"{where}: field 'colour' must be '#RRGGBB'")
+        classify = raw.get("classify", True)
+        if not isinstance(classify, bool):
+            raise MaterialsError(f"{where}: field 'classify' must be true or false")
         table[name] = Material(
             name=name,
             nominal={f: float(nominal[f]) for f in _RANGES},
             colour=colour,
-            classify=bool(raw.get("classify", True)),
+            classify=classify,
             temperature=None if temperature is None else _pair(temperature, where, "temperature"),
             source=str(raw.get("source", "")),
             **ranges,

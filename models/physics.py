@@ -40,7 +40,7 @@ class SensorConstants:
 
     @property
     def reheat_time_constant(self) -> float:
-        """Lumped time constant l^2 / alpha of the sensor layer, s (used by the simple simulator)."""
+        """Lumped time constant l^2 / alpha of the sensor layer, s (the simple simulator)."""
         return self.thickness**2 / self.diffusivity
 
     @classmethod
@@ -98,7 +98,7 @@ def thermistor_temperature(
     t_surface: np.ndarray | float,
     sensor: SensorConstants,
 ) -> np.ndarray:
-    """Reading of the thermistor at depth x, t seconds after contact (eq. 5)."""
+    """Return the thermistor reading at depth x, t seconds after contact (eq. 5)."""
     return t_sensor + (np.asarray(t_surface) - t_sensor) * depth_response(t, sensor)
 
 

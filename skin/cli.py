@@ -253,7 +253,7 @@ def _print_table(records: list[dict[str, Any]], summary: dict[str, Any], out: Pa
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of the ``skin`` command."""
+    """Build the argument parser of the ``skin`` command."""
     parser = argparse.ArgumentParser(
         prog="skin", description="Material recognition from heat transfer across a robot skin.")
     sub = parser.add_subparsers(dest="command", required=True)

@@ -6,6 +6,7 @@ per taxel.  It is validated on load; every error names the file, the taxel and t
 
 from __future__ import annotations
 
+import re
 import tomllib
 from dataclasses import dataclass
 from importlib import resources
@@ -188,17 +189,17 @@ class Layout:
         return near
 
 
-def _header_lines(text: str, header: str) -> list[int]:
-    """Return the 1-based line number of each occurrence of an array-of-tables header."""
-    lines, pos = [], 0
-    while (pos := text.find(header, pos)) >= 0:
-        lines.append(text.count("\n", 0, pos) + 1)
-        pos += 1
-    return lines
+def header_lines(text: str, name: str) -> list[int]:
+    """Return the 1-based line of each ``[[name]]`` array-of-tables header (comments skipped)."""
+    pattern = re.compile(rf"^[ \t]*\[\[[ \t]*{re.escape(name)}[ \t]*\]\]", re.MULTILINE)
+    return [text.count("\n", 0, m.start()) + 1 for m in pattern.finditer(text)]
 
 
 def _vector(value: Any, where: str, field: str) -> tuple[float, float, float]:
-    arr = np.asarray(value, dtype=float) if isinstance(value, list) else None
+    numbers = isinstance(value, list) and all(
+        isinstance(v, int | float) and not isinstance(v, bool) for v in value
+    )
+    arr = np.asarray(value, dtype=float) if numbers else None
     if arr is None or arr.shape != (3,) or not np.all(np.isfinite(arr)):
         raise LayoutError(f"{where}: field {field!r} must be a list of 3 finite numbers, "
                           f"got {value!r}")
@@ -253,7 +254,8 @@ def _parse_taxel(raw: Any, where: str, boards: dict[int, Board]) -> Taxel:
     normal = _vector(raw["normal"], where, "normal")
     norm = float(np.linalg.norm(normal))
     if abs(norm - 1.0) > 1e-3:
-        raise LayoutError(f"{where}: field 'normal' must be a unit vector, its length is {norm:.4g}")
+        raise LayoutError(f"{where}: field 'normal' must be a unit vector, "
+                          f"its length is {norm:.4g}")
     return Taxel(raw["id"], raw["board"], raw["address"], raw["link"], position, normal)
 
 
@@ -284,7 +286,7 @@ def parse_layout(text: str, source: str = "<string>") -> Layout:
     if not isinstance(raw_boards, list) or not raw_boards:
         raise LayoutError(f"{source}: 'boards' must be an array of tables ([[boards]])")
     boards: dict[int, Board] = {}
-    board_lines = _header_lines(text, "[[boards]]")
+    board_lines = header_lines(text, "boards")
     for k, raw in enumerate(raw_boards):
         line = board_lines[k] if k < len(board_lines) else 1
         where = f"{source}:{line}: board #{k}"
@@ -295,7 +297,7 @@ def parse_layout(text: str, source: str = "<string>") -> Layout:
     raw_taxels = data.get("taxels")
     if not isinstance(raw_taxels, list) or not raw_taxels:
         raise LayoutError(f"{source}: no taxels: add one [[taxels]] table per taxel")
-    lines = _header_lines(text, "[[taxels]]")
+    lines = header_lines(text, "taxels")
     taxels: list[Taxel] = []
     seen_ids: dict[int, int] = {}
     seen_addr: dict[tuple[int, int], int] = {}

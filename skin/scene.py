@@ -14,8 +14,10 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from skin.errors import SceneError
-from skin.layout import Layout, load_layout
+from skin.layout import Layout, header_lines, load_layout
 
 
 @dataclass(frozen=True)
@@ -85,23 +87,22 @@ class Scene:
         return self.objects[touch.object].material
 
 
+def _tables(data: dict, key: str, source: str) -> list[dict]:
+    items = data.get(key, [])
+    if not isinstance(items, list) or not all(isinstance(x, dict) for x in items):
+        raise SceneError(f"{source}: {key!r} must be an array of tables ([[{key}]])")
+    return items
+
+
 def _number(raw: dict, key: str, where: str, default: Any = None, positive: bool = False) -> float:
     value = raw.get(key, default)
     if value is None:
         raise SceneError(f"{where}: missing field {key!r}")
-    if not isinstance(value, int | float) or isinstance(value, bool):
-        raise SceneError(f"{where}: field {key!r} must be a number, got {value!r}")
+    if not isinstance(value, int | float) or isinstance(value, bool) or not np.isfinite(value):
+        raise SceneError(f"{where}: field {key!r} must be a finite number, got {value!r}")
     if positive and not value > 0:
         raise SceneError(f"{where}: field {key!r} must be positive, got {value!r}")
     return float(value)
-
-
-def _lines(text: str, header: str) -> list[int]:
-    out, pos = [], 0
-    while (pos := text.find(header, pos)) >= 0:
-        out.append(text.count("\n", 0, pos) + 1)
-        pos += 1
-    return out
 
 
 def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -> Scene:
@@ -132,11 +133,18 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
     noise = _number(data, "noise", source, 0.02)
     seed = int(_number(data, "seed", source, 0))
     init = data.get("initial_temperature", [ambient + 6.0, ambient + 14.0])
-    if not (isinstance(init, list) and len(init) == 2 and init[0] <= init[1]):
+    if not (
+        isinstance(init, list)
+        and len(init) == 2
+        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in init)
+        and init[0] <= init[1]
+    ):
         raise SceneError(f"{source}: field 'initial_temperature' must be [low, high]")
     objects: dict[str, SceneObject] = {}
-    for k, raw in enumerate(data.get("objects", [])):
-        where = f"{source}:{_lines(text, '[[objects]]')[k]}: object #{k}"
+    object_lines = header_lines(text, "objects")
+    for k, raw in enumerate(_tables(data, "objects", source)):
+        line = object_lines[k] if k < len(object_lines) else 0
+        where = f"{source}:{line}: object #{k}"
         name = raw.get("name")
         if not isinstance(name, str) or not name:
             raise SceneError(f"{where}: missing field 'name'")
@@ -150,22 +158,22 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
             temp = _number(raw, "temperature", f"{where} ({name})")
         objects[name] = SceneObject(name, material, temp)
     touches: list[Touch] = []
-    touch_lines = _lines(text, "[[touches]]")
-    for k, raw in enumerate(data.get("touches", [])):
-        line = touch_lines[k]
+    touch_lines = header_lines(text, "touches")
+    for k, raw in enumerate(_tables(data, "touches", source)):
+        line = touch_lines[k] if k < len(touch_lines) else 0
         where = f"{source}:{line}: touch #{k}"
         obj = raw.get("object")
-        if obj not in objects:
+        if not isinstance(obj, str) or obj not in objects:
             raise SceneError(f"{where}: field 'object' names {obj!r}, which is not in [[objects]]")
         taxels = raw.get("taxels")
         if not isinstance(taxels, list) or not taxels:
             raise SceneError(f"{where}: field 'taxels' must be a non-empty list of taxel ids")
         for tid in taxels:
-            if not isinstance(tid, int) or tid not in layout._index:
+            if not isinstance(tid, int) or isinstance(tid, bool) or tid not in layout._index:
                 raise SceneError(f"{where}: field 'taxels': no taxel {tid!r} in {layout.source}")
         start = _number(raw, "start", where)
         length = _number(raw, "duration", where, positive=True)
-        if start < 0 or start + length > duration:
+        if not 0 <= start <= duration - length:
             raise SceneError(f"{where}: the touch ({start} s + {length} s) does not fit in the "
                              f"scene's {duration} s")
         touches.append(Touch(obj, tuple(taxels), start, length, line))

@@ -22,7 +22,8 @@ class _Member:
     coarse: float
     baseline: float
     slope: float
-    release: float | None = None
+    release: float | None = None  # when the temperature stopped falling
+    released_at: float | None = None  # when the release was recognised
 
 
 @dataclass
@@ -97,7 +98,8 @@ class ContactTracker:
         self.depth = layout.board_array("sensor_depth")
         self.diffusivity = layout.board_array("sensor_diffusivity")
         capacity = int(np.ceil((window + search + join_window + 2.0) * sample_rate))
-        self._history = _History(capacity, len(layout))
+        self._piece = int(sample_rate)  # a chunk is taken in pieces of at most 1 s
+        self._history = _History(capacity + self._piece, len(layout))
         self._open: list[_OpenContact] = []
         self._owner: dict[int, _OpenContact] = {}
         self._next_id = 0
@@ -112,23 +114,40 @@ class ContactTracker:
         self, times: np.ndarray, temperature: np.ndarray, ambient: np.ndarray,
         events: list[OnsetEvent],
     ) -> list[Contact]:
-        """Take a chunk of samples and the detector's events for it; return decided contacts."""
-        if len(times):
-            self._history.append(np.asarray(times, float), np.asarray(temperature, float),
-                                 np.asarray(ambient, float))
-            self.now = float(times[-1])
-        for ev in events:
-            if ev.kind == "onset":
-                self._on_onset(ev)
-            elif ev.kind == "release":
-                owner = self._owner.get(ev.taxel)
-                if owner is not None:
-                    owner.members[ev.taxel].release = ev.time
-        return self._decide(force=False)
+        """Take a chunk of samples and the detector's events for it; return decided contacts.
+
+        Contacts are decided at instants fixed by the events (never by where a chunk ends),
+        so any chunking of a stream gives the same contacts.
+        """
+        times = np.asarray(times, float)
+        temperature = np.asarray(temperature, float)
+        ambient = np.asarray(ambient, float)
+        decided: list[Contact] = []
+        step = self._piece
+        for i in range(0, len(times), step):  # pieces keep the history long enough
+            t_end = float(times[min(i + step, len(times)) - 1])
+            t_begin = float(times[i])
+            self._history.append(times[i : i + step], temperature[i : i + step],
+                                 ambient[i : i + step])
+            for ev in events:
+                if t_begin <= ev.detected_at <= t_end:
+                    decided += self._decide(before=ev.detected_at, inclusive=False)
+                    self._on_event(ev)
+            self.now = t_end
+            decided += self._decide(before=t_end, inclusive=True)
+        return decided
 
     def flush(self) -> list[Contact]:
         """Decide every open contact now (end of stream)."""
-        return self._decide(force=True)
+        out = self._decide(before=np.inf, inclusive=True, at=self.now)
+        return out
+
+    def _on_event(self, ev: OnsetEvent) -> None:
+        if ev.kind == "onset":
+            self._on_onset(ev)
+        elif ev.kind == "release" and (owner := self._owner.get(ev.taxel)) is not None:
+            owner.members[ev.taxel].release = ev.time
+            owner.members[ev.taxel].released_at = ev.detected_at
 
     def _on_onset(self, ev: OnsetEvent) -> None:
         member = _Member(ev.time, ev.baseline, ev.slope)
@@ -145,25 +164,35 @@ class ContactTracker:
         self._open.append(contact)
         self._owner[ev.taxel] = contact
 
-    def _decide(self, force: bool) -> list[Contact]:
+    def _decision_time(self, contact: _OpenContact) -> float:
+        """When a contact is decided: all taxels released (and joining over), or the window cut."""
+        cut = contact.first + self.window
+        released = [m.released_at for m in contact.members.values()]
+        if all(r is not None for r in released):
+            return min(cut, max(contact.first + self.join_window, max(released)))
+        return cut
+
+    def _decide(self, before: float, inclusive: bool, at: float | None = None) -> list[Contact]:
+        due = []
+        for contact in self._open:
+            when = self._decision_time(contact)
+            if when < before or (inclusive and when <= before):
+                due.append((when if at is None else min(when, at), contact))
+        due.sort(key=lambda item: (item[0], item[1].id))
         done = []
-        for contact in list(self._open):
-            all_released = all(m.release is not None for m in contact.members.values())
-            joined = self.now >= contact.first + self.join_window
-            due = self.now >= contact.first + self.window
-            if force or (all_released and joined) or due:
-                done.append(self._finish(contact))
-                self._open.remove(contact)
-                for k in contact.members:
-                    if self._owner.get(k) is contact:
-                        del self._owner[k]
+        for when, contact in due:
+            done.append(self._finish(contact, when))
+            self._open.remove(contact)
+            for k in contact.members:
+                if self._owner.get(k) is contact:
+                    del self._owner[k]
         return done
 
-    def _finish(self, contact: _OpenContact) -> Contact:
+    def _finish(self, contact: _OpenContact, when: float) -> Contact:
         h = self._history
         windows, onsets, ambients = [], [], []
         for k, m in sorted(contact.members.items()):
-            end = min(m.release if m.release is not None else self.now, m.coarse + self.window)
+            end = min(m.release if m.release is not None else when, m.coarse + self.window)
             idx = h.between(m.coarse - self.search, end)
             onset, initial = refine_onset(h.t[idx], h.y[idx, k], m.coarse, m.baseline, m.slope,
                                           self.depth[k], self.diffusivity[k], search=self.search)
@@ -186,5 +215,5 @@ class ContactTracker:
             release=max(releases) if all(r is not None for r in releases) else None,
             ambient=float(amb.mean()) if amb.size else float("nan"),
             windows=windows,
-            decided_at=self.now,
+            decided_at=when,
         )

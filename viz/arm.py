@@ -40,7 +40,7 @@ def _pose(angle_deg: float, origin: tuple[float, float, float]) -> np.ndarray:
 
 
 def default_arm() -> dict[str, LinkGeometry]:
-    """The procedural two-link arm that matches ``skin/data/layouts/arm.toml``."""
+    """Return the procedural two-link arm that matches ``skin/data/layouts/arm.toml``."""
     upper = LinkGeometry(0.055, 0.30, _pose(90.0, (0.0, 0.0, 0.0)))
     elbow = upper.pose[:3, 3] + upper.pose[:3, 2] * (upper.length + 0.055)
     fore = LinkGeometry(0.045, 0.26, _pose(120.0, tuple(elbow)))
@@ -183,7 +183,7 @@ class ArmView:
 
     def screenshot(self, path: str | Path, title: str | None = None) -> Path:
         """Render to a PNG with a legend of the painted materials."""
-        entries = self.legend_entries() + [("not touched", BARE)]
+        entries = [*self.legend_entries(), ("not touched", BARE)]
         self.plotter.subplot(0, 1)
         self.plotter.add_legend(labels=[[name, colour] for name, colour in entries],
                                 bcolor="white", face="rectangle", size=(0.22, 0.05 * len(entries)),
@@ -203,7 +203,7 @@ class ArmView:
 
 
 def _tube(pv, radius: float, length: float, around: int = 96, along: int = 120):
-    """An open cylinder along z from 0 to ``length`` as triangles, with smooth normals."""
+    """Make an open cylinder along z from 0 to ``length``, as triangles."""
     theta = np.linspace(0, 2 * np.pi, around, endpoint=False)
     z = np.linspace(0, length, along)
     tt, zz = np.meshgrid(theta, z)

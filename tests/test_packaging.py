@@ -1,0 +1,92 @@
+import json
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+OPTIONAL = ("scipy", "serial", "can", "sklearn", "hmmlearn", "skops", "pyvista", "vtk",
+            "matplotlib", "cobs")
+
+
+def run_py(code: str, cwd: Path | None = None, env: dict | None = None) -> str:
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         cwd=cwd, env=env, check=True)
+    return out.stdout
+
+
+def test_import_skin_loads_numpy_alone():
+    code = (
+        "import sys, json, skin\n"
+        f"print(json.dumps(sorted({{m.split('.')[0] for m in sys.modules}} & set({OPTIONAL!r}))))"
+    )
+    assert json.loads(run_py(code)) == []
+
+
+@pytest.mark.parametrize("module", ["skin.drivers", "skin.models", "skin.viz"])
+def test_subpackages_do_not_load_optional_dependencies_at_import(module):
+    heavy = {"serial", "can", "sklearn", "pyvista", "vtk", "matplotlib"}
+    code = (
+        f"import sys, json, {module}\n"
+        "loaded = {m.split('.')[0] for m in sys.modules}\n"
+        f"print(json.dumps(sorted(loaded & set({sorted(heavy)!r}))))"
+    )
+    assert json.loads(run_py(code)) == []
+
+
+def test_missing_extra_gives_install_hint():
+    # block pyserial's import as if it were not installed, then use the serial driver
+    code = (
+        "import sys\n"
+        "class Block:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name == 'serial' or name.startswith('serial.'):\n"
+        "            raise ImportError('blocked')\n"
+        "sys.meta_path.insert(0, Block())\n"
+        "import skin.drivers\n"
+        "from skin.errors import MissingDependencyError\n"
+        "try:\n"
+        "    skin.drivers.open('serial+loop://')\n"
+        "except MissingDependencyError as exc:\n"
+        "    print(exc)\n"
+    )
+    out = run_py(code)
+    assert "pyserial" in out and "pip install 'thermoskin[serial]'" in out
+
+
+def test_python_dash_m_skin_shows_help():
+    out = subprocess.run([sys.executable, "-m", "skin", "--help"], capture_output=True,
+                         text=True, check=True).stdout
+    assert "run" in out
+
+
+@pytest.mark.slow
+def test_wheel_installs_and_imports_subpackages(tmp_path):
+    wheels = tmp_path / "wheels"
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--quiet", "-w",
+                    str(wheels), str(ROOT)], check=True, capture_output=True)
+    (wheel,) = wheels.glob("thermoskin-*.whl")
+    names = zipfile.ZipFile(wheel).namelist()
+    tops = {n.split("/")[0] for n in names}
+    assert not tops & {"drivers", "models", "viz", "tests"}
+    assert "skin/drivers/serial_port.py" in names
+    assert "skin/data/layouts/arm.toml" in names
+    assert "skin/models/data/materials.toml" in names
+    target = tmp_path / "site"
+    subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "--quiet", "--target",
+                    str(target), str(wheel)], check=True, capture_output=True)
+    code = (
+        "import skin, skin.drivers, skin.models, skin.viz\n"
+        "from skin.layout import load_layout\n"
+        "from skin.models import load_materials\n"
+        "print(skin.__file__); print(skin.drivers.__file__); "
+        "print(len(load_layout('arm')), len(load_materials()))"
+    )
+    import os
+
+    env = dict(os.environ, PYTHONPATH=str(target))
+    out = run_py(code, cwd=tmp_path, env=env).split()
+    assert out[0].startswith(str(target)) and out[1].startswith(str(target))
+    assert out[2] == "72" and int(out[3]) >= 12
