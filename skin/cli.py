@@ -59,7 +59,7 @@ def _event_record(result: ContactResult, truth: str | None = None) -> dict[str, 
         "taxels": c.taxels,
         "onset": round(c.onset, 4),
         "release": None if c.release is None else round(c.release, 4),
-        "duration": round(c.duration, 4),
+        "duration": None if c.duration is None else round(c.duration, 4),
         "decided_at": round(c.decided_at, 4),
         "label": e.label,
         "confidence": round(e.confidence, 3),
@@ -237,7 +237,8 @@ def _print_table(records: list[dict[str, Any]], summary: dict[str, Any], out: Pa
     for rec in records:
         eff = "-" if rec["effusivity"] is None else f"{rec['effusivity']:.0f}"
         truth = rec.get("truth") or ("-" if "truth" not in rec else "(none)")
-        print(f"{rec['contact']:>3} {rec['onset']:>8.2f} {rec['duration']:>6.2f} "
+        dur = "open" if rec["duration"] is None else f"{rec['duration']:.2f}"
+        print(f"{rec['contact']:>3} {rec['onset']:>8.2f} {dur:>6} "
               f"{','.join(map(str, rec['taxels'])):<18} {rec['label']:<11} "
               f"{rec['confidence']:>5.2f} {eff:>7} {truth:<11}")
     print(f"\n{summary['frames']} frames in {summary['wall_time']:.1f} s wall time, "

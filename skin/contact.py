@@ -68,10 +68,9 @@ class Contact:
     decided_at: float = 0.0
 
     @property
-    def duration(self) -> float:
-        """Length of the contact, s (up to the decision if it was not released by then)."""
-        end = self.release if self.release is not None else self.decided_at
-        return max(0.0, end - self.onset)
+    def duration(self) -> float | None:
+        """Length of the contact, s; None while it has not been released."""
+        return None if self.release is None else max(0.0, self.release - self.onset)
 
 
 @dataclass(frozen=True)

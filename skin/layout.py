@@ -9,12 +9,12 @@ from __future__ import annotations
 import re
 import tomllib
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from skin.datafiles import read_data_file
 from skin.errors import LayoutError
 
 
@@ -331,14 +331,5 @@ def load_layout(path: str | Path) -> Layout:
     -------
     Layout
     """
-    p = Path(path)
-    if not p.suffix and not p.exists():
-        res = resources.files("skin") / "data" / "layouts" / f"{p.name}.toml"
-        if not res.is_file():
-            raise LayoutError(f"no layout file {str(path)!r} and no shipped layout of that name")
-        return parse_layout(res.read_text(encoding="utf-8"), source=f"{p.name}.toml")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise LayoutError(f"{path}: cannot read layout: {exc.strerror}") from None
-    return parse_layout(text, source=str(path))
+    text, source, _ = read_data_file(path, "layouts", "layout", LayoutError)
+    return parse_layout(text, source=source)

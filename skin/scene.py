@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import tomllib
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from skin.datafiles import read_data_file
 from skin.errors import SceneError
 from skin.layout import Layout, header_lines, load_layout
 
@@ -202,17 +202,8 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
 
 def load_scene(path: str | Path) -> Scene:
     """Load a scene file, or a shipped scene by name (``"default"``)."""
-    p = Path(path)
-    if not p.suffix and not p.exists():
-        res = resources.files("skin") / "data" / "scenes" / f"{p.name}.toml"
-        if not res.is_file():
-            raise SceneError(f"no scene file {str(path)!r} and no shipped scene of that name")
-        return parse_scene(res.read_text(encoding="utf-8"), source=f"{p.name}.toml")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise SceneError(f"{path}: cannot read scene: {exc.strerror}") from None
-    return parse_scene(text, source=str(path), base=p.parent)
+    text, source, base = read_data_file(path, "scenes", "scene", SceneError)
+    return parse_scene(text, source=source, base=base)
 
 
 @dataclass(frozen=True)

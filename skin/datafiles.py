@@ -1,0 +1,45 @@
+"""Read a data file given either as a path or as the name of a file shipped with the package."""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+
+from skin.errors import SkinError
+
+
+def read_data_file(
+    path: str | Path, folder: str, what: str, error: type[SkinError]
+) -> tuple[str, str, Path | None]:
+    """Read a TOML data file: a path, or the name of a file in ``skin/data/<folder>``.
+
+    Parameters
+    ----------
+    path : str or Path
+        A file path, or a bare name such as ``"arm"`` for ``skin/data/<folder>/arm.toml``.
+    folder : str
+        Folder of the shipped files (``"layouts"``, ``"scenes"``).
+    what : str
+        What the file is, for messages (``"layout"``).
+    error : type
+        The `SkinError` subclass to raise.
+
+    Returns
+    -------
+    text : str
+        The file's text.
+    source : str
+        The name to use in messages.
+    folder : Path or None
+        The folder of a user's file (for relative references), None for a shipped one.
+    """
+    p = Path(path)
+    if not p.suffix and not p.exists():
+        res = resources.files("skin") / "data" / folder / f"{p.name}.toml"
+        if not res.is_file():
+            raise error(f"no {what} file {str(path)!r} and no shipped {what} of that name")
+        return res.read_text(encoding="utf-8"), f"{p.name}.toml", None
+    try:
+        return p.read_text(encoding="utf-8"), str(path), p.parent
+    except OSError as exc:
+        raise error(f"{path}: cannot read {what}: {exc.strerror}") from None
