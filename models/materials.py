@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from skin.datafiles import is_number
 from skin.errors import MaterialsError
 from skin.models.physics import effusivity
 
@@ -82,7 +83,7 @@ def _pair(value: object, where: str, field: str) -> tuple[float, float]:
     if (
         not isinstance(value, list)
         or len(value) != 2
-        or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
+        or not all(map(is_number, value))
         or not 0 < value[0] <= value[1]
     ):
         raise MaterialsError(f"{where}: field {field!r} must be [min, max] with 0 < min <= max")
@@ -105,8 +106,7 @@ def parse_materials(text: str, source: str = "<string>") -> dict[str, Material]:
         if (
             not isinstance(nominal, dict)
             or set(nominal) != set(_RANGES)
-            or not all(isinstance(v, int | float) and not isinstance(v, bool)
-                       for v in nominal.values())
+            or not all(map(is_number, nominal.values()))
         ):
             raise MaterialsError(f"{where}: field 'nominal' must give numbers k, rho and c")
         for f in _RANGES:

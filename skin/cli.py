@@ -186,6 +186,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             records[m.contact_index]["truth"] = m.material
         for i in unmatched:
             records[i]["truth"] = None
+        # the truth is known only once all contacts are matched: rewrite the file with it
         with events_path.open("w", encoding="utf-8") as events:
             for rec in records:
                 events.write(json.dumps(rec) + "\n")

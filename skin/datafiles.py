@@ -1,9 +1,12 @@
-"""Read a data file given either as a path or as the name of a file shipped with the package."""
+"""Helpers shared by the TOML data files (layouts, scenes, materials): reading, checks, lines."""
 
 from __future__ import annotations
 
+import math
+import re
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 from skin.errors import SkinError
 
@@ -43,3 +46,14 @@ def read_data_file(
         return p.read_text(encoding="utf-8"), str(path), p.parent
     except OSError as exc:
         raise error(f"{path}: cannot read {what}: {exc.strerror}") from None
+
+
+def is_number(value: Any) -> bool:
+    """Return True for a finite int or float (TOML's booleans are not numbers here)."""
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def header_lines(text: str, name: str) -> list[int]:
+    """Return the 1-based line of each ``[[name]]`` array-of-tables header (comments skipped)."""
+    pattern = re.compile(rf"^[ \t]*\[\[[ \t]*{re.escape(name)}[ \t]*\]\]", re.MULTILINE)
+    return [text.count("\n", 0, m.start()) + 1 for m in pattern.finditer(text)]

@@ -6,7 +6,6 @@ per taxel.  It is validated on load; every error names the file, the taxel and t
 
 from __future__ import annotations
 
-import re
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -14,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from skin.datafiles import read_data_file
+from skin.datafiles import header_lines, is_number, read_data_file
 from skin.errors import LayoutError
 
 
@@ -189,21 +188,11 @@ class Layout:
         return near
 
 
-def header_lines(text: str, name: str) -> list[int]:
-    """Return the 1-based line of each ``[[name]]`` array-of-tables header (comments skipped)."""
-    pattern = re.compile(rf"^[ \t]*\[\[[ \t]*{re.escape(name)}[ \t]*\]\]", re.MULTILINE)
-    return [text.count("\n", 0, m.start()) + 1 for m in pattern.finditer(text)]
-
-
 def _vector(value: Any, where: str, field: str) -> tuple[float, float, float]:
-    numbers = isinstance(value, list) and all(
-        isinstance(v, int | float) and not isinstance(v, bool) for v in value
-    )
-    arr = np.asarray(value, dtype=float) if numbers else None
-    if arr is None or arr.shape != (3,) or not np.all(np.isfinite(arr)):
+    if not (isinstance(value, list) and len(value) == 3 and all(map(is_number, value))):
         raise LayoutError(f"{where}: field {field!r} must be a list of 3 finite numbers, "
                           f"got {value!r}")
-    return (float(arr[0]), float(arr[1]), float(arr[2]))
+    return (float(value[0]), float(value[1]), float(value[2]))
 
 
 def _parse_board(raw: Any, where: str) -> Board:
@@ -220,7 +209,7 @@ def _parse_board(raw: Any, where: str) -> Board:
                 raise LayoutError(f"{where}: field {name!r} must be a non-negative integer, "
                                   f"got {value!r}")
         else:
-            if not isinstance(value, int | float) or isinstance(value, bool) or not value > 0:
+            if not is_number(value) or not value > 0:
                 raise LayoutError(f"{where}: field {name!r} must be a positive number, "
                                   f"got {value!r}")
             value = float(value)

@@ -13,11 +13,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from skin.datafiles import read_data_file
+from skin.datafiles import header_lines, is_number, read_data_file
 from skin.errors import SceneError
-from skin.layout import Layout, header_lines, load_layout
+from skin.layout import Layout, load_layout
 
 
 @dataclass(frozen=True)
@@ -98,7 +96,7 @@ def _number(raw: dict, key: str, where: str, default: Any = None, positive: bool
     value = raw.get(key, default)
     if value is None:
         raise SceneError(f"{where}: missing field {key!r}")
-    if not isinstance(value, int | float) or isinstance(value, bool) or not np.isfinite(value):
+    if not is_number(value):
         raise SceneError(f"{where}: field {key!r} must be a finite number, got {value!r}")
     if positive and not value > 0:
         raise SceneError(f"{where}: field {key!r} must be positive, got {value!r}")
@@ -136,7 +134,7 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
     if not (
         isinstance(init, list)
         and len(init) == 2
-        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in init)
+        and all(map(is_number, init))
         and init[0] <= init[1]
     ):
         raise SceneError(f"{source}: field 'initial_temperature' must be [low, high]")

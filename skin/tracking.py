@@ -139,8 +139,7 @@ class ContactTracker:
 
     def flush(self) -> list[Contact]:
         """Decide every open contact now (end of stream)."""
-        out = self._decide(before=np.inf, inclusive=True, at=self.now)
-        return out
+        return self._decide(before=np.inf, inclusive=True, at=self.now)
 
     def _on_event(self, ev: OnsetEvent) -> None:
         if ev.kind == "onset":
