@@ -1,257 +1,18 @@
-"""The ``skin`` command.
+"""The ``skin`` command: parses the arguments and dispatches to `skin.commands`.
 
-``skin run`` is the main job: read a skin (a device, or a simulated skin served on a real
-pseudo-terminal when no device is given), detect contacts, label their materials, and write
-``events.jsonl``, ``summary.json`` and ``contact_map.png``.
+Every subcommand lives in its own module under `skin.commands`; each module registers its
+parser with ``add_parser`` and runs with ``main``. Heavy imports happen inside ``main``.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-import time
-from pathlib import Path
-from typing import Any, TextIO
 
-import numpy as np
-
+from skin.commands import run
 from skin.errors import SkinError
-from skin.pipeline import ContactResult, Pipeline
 
-
-class _Progress:
-    """One status line on stderr (redrawn in place on a terminal) plus printed messages."""
-
-    def __init__(self, stream: TextIO, every: float = 2.0) -> None:
-        self.stream = stream
-        self.tty = stream.isatty()
-        self.every = every
-        self._last = -np.inf
-        self._shown = False
-
-    def status(self, text: str, now: float) -> None:
-        if self.tty:
-            self.stream.write("\r\x1b[2K" + text)
-            self.stream.flush()
-            self._shown = True
-        elif now - self._last >= self.every:
-            self.stream.write(text + "\n")
-            self._last = now
-
-    def message(self, text: str) -> None:
-        if self._shown:
-            self.stream.write("\r\x1b[2K")
-            self._shown = False
-        self.stream.write(text + "\n")
-        self.stream.flush()
-
-    def done(self) -> None:
-        if self._shown:
-            self.stream.write("\n")
-            self._shown = False
-
-
-def _event_record(result: ContactResult, truth: str | None = None) -> dict[str, Any]:
-    c, e = result.contact, result.estimate
-    rec: dict[str, Any] = {
-        "contact": c.id,
-        "taxels": c.taxels,
-        "onset": round(c.onset, 4),
-        "release": None if c.release is None else round(c.release, 4),
-        "duration": None if c.duration is None else round(c.duration, 4),
-        "decided_at": round(c.decided_at, 4),
-        "label": e.label,
-        "confidence": round(e.confidence, 3),
-        "effusivity": None if e.effusivity is None else round(e.effusivity, 1),
-        "method": e.method,
-        "initial_temperature": {str(w.taxel): round(w.initial, 3) for w in c.windows},
-        "ambient": round(c.ambient, 3),
-    }
-    if truth is not None:
-        rec["truth"] = truth
-    return rec
-
-
-def _contact_line(rec: dict[str, Any]) -> str:
-    eff = "-" if rec["effusivity"] is None else f"{rec['effusivity']:.0f}"
-    line = (f"contact {rec['contact']:3d}  t={rec['onset']:7.2f} s  taxels "
-            f"{','.join(map(str, rec['taxels'])):<16s} {rec['label']:<11s} e={eff:>6s}")
-    if "truth" in rec:
-        line += f"  truth {rec['truth']:<11s} {'ok' if rec['truth'] == rec['label'] else 'x'}"
-    return line
-
-
-def cmd_run(args: argparse.Namespace) -> int:
-    """Run the main job (see the module docstring)."""
-    from skin import drivers
-    from skin.layout import load_layout
-    from skin.models import HistogramClassifier, load_materials
-    from skin.scene import load_scene, match_touches
-
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    progress = _Progress(sys.stderr)
-    device = None
-    scene = None
-    if args.port is None:
-        from skin.drivers.sim import PtySerialDevice, SkinSimulator
-
-        scene = load_scene(args.scene)
-        layout = scene.layout if args.layout is None else load_layout(args.layout)
-        sim = SkinSimulator(scene, duration=args.duration)
-        device = PtySerialDevice(sim, speed=args.speed)
-        url = f"serial://{device.port}"
-        duration = sim.duration
-        progress.message(f"simulated skin '{scene.name}' ({len(layout)} taxels, "
-                         f"{len(scene.touches)} touches) served on {device.port}")
-    else:
-        layout = load_layout(args.layout or "arm")
-        url = args.port
-        duration = args.duration
-    materials = load_materials()
-    pipeline = Pipeline(layout, HistogramClassifier(layout, materials))
-    results: list[ContactResult] = []
-    events_path = out / "events.jsonl"
-    t_wall = time.monotonic()
-    first_time: float | None = None
-    records: list[dict[str, Any]] = []
-    try:
-        with drivers.open(url) as driver, events_path.open("w", encoding="utf-8") as events:
-            def emit(batch: list[ContactResult]) -> None:
-                for r in batch:
-                    rec = _event_record(r)
-                    records.append(rec)
-                    results.append(r)
-                    events.write(json.dumps(rec) + "\n")
-                    events.flush()  # a killed run keeps every contact already decided
-                    progress.message(_contact_line(rec))
-
-            chunk: list = []
-            now = 0.0
-            while True:
-                frame = driver.recv(timeout=0.2)
-                if frame is not None:
-                    if first_time is None:
-                        first_time = frame.device_time
-                    chunk.append(frame)
-                    now = frame.device_time - first_time
-                idle = frame is None
-                if chunk and (len(chunk) >= 20 or idle):
-                    emit(pipeline.process(chunk))
-                    chunk = []
-                    progress.status(
-                        f"[{now:6.1f}/{duration:.1f} s] frames {pipeline.stats.frames}  "
-                        f"in contact {int(pipeline.in_contact().sum()):2d}  "
-                        f"contacts {len(results)}  crc errors {driver.stats.crc_errors}", now)
-                end_of_sim = device is not None and device.done.is_set() and idle
-                if now >= duration - 1e-9 or end_of_sim:
-                    break
-                if device is None and time.monotonic() - t_wall > duration + 5 and idle:
-                    break
-            emit(pipeline.flush())
-            link = driver.stats
-    except KeyboardInterrupt:
-        progress.message("interrupted: writing what was received")
-        link = None
-    finally:
-        progress.done()
-        if device is not None:
-            device.close()
-    wall = time.monotonic() - t_wall
-
-    summary: dict[str, Any] = {
-        "source": "simulation" if scene is not None else url,
-        "scene": None if scene is None else scene.source,
-        "duration": duration,
-        "wall_time": round(wall, 3),
-        "frames": pipeline.stats.frames,
-        "gaps": pipeline.stats.gaps,
-        "crc_errors": None if link is None else link.crc_errors,
-        "malformed": None if link is None else link.malformed,
-        "flagged_taxels": [int(layout.ids[k]) for k in np.flatnonzero(pipeline.stats.flagged)],
-        "contacts": len(results),
-    }
-    if scene is not None:
-        in_time = [t for t in scene.touches if t.start < duration]
-        trimmed = scene if len(in_time) == len(scene.touches) else _with_touches(scene, in_time)
-        matches, unmatched = match_touches(trimmed, [r.contact.taxels for r in results],
-                                           [r.contact.onset for r in results])
-        detected = [m for m in matches if m.contact_index is not None]
-        correct = [m for m in detected if results[m.contact_index].estimate.label == m.material]
-        errors = [abs(np.log10(results[m.contact_index].estimate.effusivity
-                               / materials[m.material].effusivity))
-                  for m in detected if results[m.contact_index].estimate.effusivity]
-        for m in detected:
-            records[m.contact_index]["truth"] = m.material
-        for i in unmatched:
-            records[i]["truth"] = None
-        # the truth is known only once all contacts are matched: rewrite the file with it
-        with events_path.open("w", encoding="utf-8") as events:
-            for rec in records:
-                events.write(json.dumps(rec) + "\n")
-        summary.update({
-            "touches": len(matches),
-            "detected": len(detected),
-            "correct": len(correct),
-            "false_contacts": len(unmatched),
-            "accuracy": round(len(correct) / len(matches), 4) if matches else None,
-            "median_onset_error": round(float(np.median(
-                [abs(results[m.contact_index].contact.onset - m.touch.start) for m in detected]
-            )), 4) if detected else None,
-            "median_log10_effusivity_error": round(float(np.median(errors)), 4) if errors else None,
-            "per_touch": [
-                {"start": m.touch.start, "taxels": list(m.touch.taxels), "truth": m.material,
-                 "label": None if m.contact_index is None
-                 else results[m.contact_index].estimate.label}
-                for m in matches
-            ],
-        })
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
-
-    if not args.no_map:
-        from skin.viz import ArmView
-
-        view = ArmView(layout, {m.name: m.colour for m in materials.values()})
-        for r in results:
-            view.paint(r.contact.taxels, r.estimate.label)
-        title = f"contact map: {len(results)} contacts in {duration:g} s"
-        view.screenshot(out / "contact_map.png", title=title)
-        view.close()
-
-    if args.json:
-        print(json.dumps(summary))
-    else:
-        _print_table(records, summary, out)
-    return 0
-
-
-def _with_touches(scene: Any, touches: list) -> Any:
-    from dataclasses import replace
-
-    return replace(scene, touches=tuple(touches))
-
-
-def _print_table(records: list[dict[str, Any]], summary: dict[str, Any], out: Path) -> None:
-    print(f"\n{'id':>3} {'onset s':>8} {'dur s':>6} {'taxels':<18} {'label':<11} {'conf':>5} "
-          f"{'e':>7} {'truth':<11}")
-    for rec in records:
-        eff = "-" if rec["effusivity"] is None else f"{rec['effusivity']:.0f}"
-        truth = rec.get("truth") or ("-" if "truth" not in rec else "(none)")
-        dur = "open" if rec["duration"] is None else f"{rec['duration']:.2f}"
-        print(f"{rec['contact']:>3} {rec['onset']:>8.2f} {dur:>6} "
-              f"{','.join(map(str, rec['taxels'])):<18} {rec['label']:<11} "
-              f"{rec['confidence']:>5.2f} {eff:>7} {truth:<11}")
-    print(f"\n{summary['frames']} frames in {summary['wall_time']:.1f} s wall time, "
-          f"{summary['contacts']} contacts, {summary['crc_errors']} CRC errors")
-    if "touches" in summary:
-        print(f"scene truth: {summary['detected']}/{summary['touches']} touches detected, "
-              f"{summary['correct']}/{summary['touches']} labelled correctly "
-              f"(accuracy {summary['accuracy']:.0%}), {summary['false_contacts']} false contacts; "
-              f"median onset error {summary['median_onset_error']} s, median effusivity error "
-              f"{summary['median_log10_effusivity_error']} decades")
-    print(f"outputs: {out / 'events.jsonl'}, {out / 'summary.json'}"
-          + ("" if not (out / "contact_map.png").exists() else f", {out / 'contact_map.png'}"))
+COMMANDS = (run,)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -259,31 +20,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="skin", description="Material recognition from heat transfer across a robot skin.")
     sub = parser.add_subparsers(dest="command", required=True)
-    run = sub.add_parser("run", help="read a skin, detect contacts, label materials (main job)",
-                         description=cmd_run.__doc__)
-    run.add_argument("--port", metavar="URL",
-                     help="device URL (serial:///dev/ttyACM0, sim://default, ...); "
-                          "default: a simulated skin served on a pseudo-terminal")
-    run.add_argument("--scene", default="default",
-                     help="simulation scene: a shipped name or a TOML file (default: default)")
-    run.add_argument("--layout", help="layout TOML file (default: the scene's, or 'arm')")
-    run.add_argument("--duration", type=float, default=None,
-                     help="seconds to run (default: the scene's duration; 20 for a device)")
-    run.add_argument("--speed", type=float, default=1.0,
-                     help="simulation pace relative to real time; 0 = as fast as possible")
-    run.add_argument("--out", default="out/run", help="output folder (default: out/run)")
-    run.add_argument("--no-map", action="store_true", help="do not render contact_map.png")
-    run.add_argument("--json", action="store_true",
-                     help="print one JSON summary on stdout and nothing else")
-    run.set_defaults(func=cmd_run)
+    for command in COMMANDS:
+        command.add_parser(sub)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``skin`` command."""
     args = build_parser().parse_args(argv)
-    if getattr(args, "duration", 0) is None and args.port is not None:
-        args.duration = 20.0
     try:
         return args.func(args)
     except SkinError as exc:

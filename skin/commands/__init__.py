@@ -1,0 +1,1 @@
+"""The subcommands of ``skin``: one module each, with ``add_parser(sub)`` and ``main(args)``."""
