@@ -7,6 +7,17 @@ Forward::
     T_surf = (e_s T_sens(0) + e_o T_obj) / (e_s + e_o)     (3), e = k / sqrt(alpha)
     T(x, t) = T_sens(0) + (T_surf - T_sens(0)) erfc(x / (2 sqrt(alpha_s t)))   (5)
 
+With a finite contact conductance h (W/(m^2 K)) between the two surfaces (Carslaw and Jaeger's
+composite solid with contact resistance, solved by Laplace transform), the thermistor reads::
+
+    T(x, t) = T_sens(0) + (T_surf - T_sens(0)) R(x, t),
+    R = exp(-xi^2) (erfcx(xi) - erfcx(xi + H sqrt(t))),   xi = x / (2 sqrt(alpha_s t)),
+    H = h (e_s + e_o) / (e_s e_o),
+
+which is eq. 5 as h -> infinity (erfcx -> 0) and no heat flow at h = 0. The scaled
+complementary error function erfcx(z) = exp(z^2) erfc(z) keeps it finite where exp(h x + h^2 t)
+would overflow. Both surfaces approach T_surf as 1 - erfcx(H sqrt(t)).
+
 Inverse (pointwise, eqs. 10-11): from one reading T(x, t) recover T_surf, then the object's
 effusivity ``e_o = e_s (T_sens(0) - T_surf) / (T_surf - T_obj)``.  It is undefined at t -> 0
 (erfc -> 0 amplifies noise without bound), when the surface sits at the object's temperature,
@@ -18,7 +29,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import erfc
+from scipy.special import erfc, erfcx
 
 
 @dataclass(frozen=True)
@@ -151,3 +162,90 @@ def effusivity_estimates(
     keep &= np.sign(num) == np.sign(den)  # surface between sensor and object, else unphysical
     e = sensor.effusivity * np.divide(num, den, out=np.ones_like(num), where=keep)
     return t[keep], e[keep]
+
+
+def _xi(t: np.ndarray, sensor: SensorConstants) -> tuple[np.ndarray, np.ndarray]:
+    """Similarity variable x / (2 sqrt(alpha_s t)), +inf where t <= 0, and the mask t > 0."""
+    t = np.asarray(t, dtype=float)
+    pos = t > 0
+    safe = np.where(pos, t, 1.0)
+    return np.where(pos, sensor.depth / (2.0 * np.sqrt(sensor.diffusivity * safe)), np.inf), pos
+
+
+def conductance_rate(
+    conductance: np.ndarray | float, e_sensor: np.ndarray | float, e_object: np.ndarray | float
+) -> np.ndarray:
+    """H = h (e_s + e_o) / (e_s e_o), s^-0.5: how fast a finite contact conductance closes.
+
+    Infinite for perfect contact (h = inf). After t seconds the interface has closed the
+    fraction 1 - erfcx(H sqrt(t)) of the step to the contact temperature.
+    """
+    h = np.asarray(conductance, dtype=float)
+    e_s = np.asarray(e_sensor, dtype=float)
+    e_o = np.asarray(e_object, dtype=float)
+    return h * (1.0 / e_s + 1.0 / e_o)
+
+
+def contact_response(
+    t: np.ndarray | float,
+    rate: np.ndarray | float,
+    sensor: SensorConstants,
+) -> np.ndarray:
+    """Fraction of the step T_surf - T_sens(0) seen at the thermistor with contact conductance.
+
+    Parameters
+    ----------
+    t : array_like
+        Time since contact, s (0 before contact).
+    rate : array_like
+        ``conductance_rate(h, e_s, e_o)``, s^-0.5; ``inf`` gives `depth_response` (eq. 5).
+    sensor : SensorConstants
+        Sensor constants (depth and diffusivity of the thermistor).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``exp(-xi^2) (erfcx(xi) - erfcx(xi + H sqrt(t)))``, in [0, 1), broadcast over the inputs.
+    """
+    xi, pos = _xi(t, sensor)
+    rate = np.asarray(rate, dtype=float)
+    with np.errstate(invalid="ignore", over="ignore"):
+        u = np.where(pos, rate * np.sqrt(np.where(pos, t, 1.0)), 0.0)
+        # exp(-xi^2) erfcx(xi) is erfc(xi): writing it so avoids 0 * inf when xi is large
+        r = erfc(xi) - np.exp(-(xi**2)) * erfcx(np.where(np.isinf(u), np.inf, xi + u))
+    return np.where(pos & (rate > 0), np.clip(r, 0.0, 1.0), 0.0)
+
+
+def contact_trace(
+    t: np.ndarray | float,
+    t_sensor: np.ndarray | float,
+    t_object: np.ndarray | float,
+    e_object: np.ndarray | float,
+    sensor: SensorConstants,
+    conductance: np.ndarray | float = np.inf,
+) -> np.ndarray:
+    """Thermistor temperature after contact with an object (eqs. 3 and 5, with conductance h).
+
+    Parameters
+    ----------
+    t : array_like
+        Time since contact, s; before contact (t <= 0) the reading is ``t_sensor``.
+    t_sensor, t_object : array_like
+        Uniform initial temperatures of the sensor and the object, deg C.
+    e_object : array_like
+        Object effusivity, W s^0.5 / (m^2 K).
+    sensor : SensorConstants
+        Sensor constants.
+    conductance : array_like
+        Contact conductance h, W/(m^2 K); ``inf`` (default) is the paper's perfect contact.
+
+    Returns
+    -------
+    numpy.ndarray
+        Readings, broadcast over all inputs (e.g. ``t`` of shape (n,) against parameters of
+        shape (m, 1) gives (m, n)).
+    """
+    e_s = sensor.effusivity
+    surface = contact_temperature(t_sensor, t_object, e_s, e_object)
+    rate = conductance_rate(conductance, e_s, e_object)
+    return t_sensor + (surface - t_sensor) * contact_response(t, rate, sensor)
