@@ -131,11 +131,11 @@ class SensorStack:
         the thermistor at depth ``x``; behind it a 25 um polyimide heater foil and 3 mm of
         polyurethane foam. ``front_loss`` stands for natural convection and radiation from the
         free face (about 10-15 W/(m^2 K)) plus the edge and lead losses a 1-D column cannot
-        see; 45 W/(m^2 K) gives a reheat time constant near 65 s, the value that reproduces
-        the paper's initial temperatures (26-40 C, mean 30 C, after 2-60 s reheats). The
-        heater power is set so that the free steady state at the thermistor is eq. 2's
-        T_sens(0) (38.96 C at 25 C ambient): about 14 % of V^2 / (R A), the power a 1-D column
-        with these losses can hold at that temperature.
+        see; 45 W/(m^2 K) gives a reheat time constant of about 70 s, near the 65 s that
+        reproduces the paper's initial temperatures (26-40 C, mean 30 C, after 2-60 s
+        reheats). The heater power is set so that the free steady state at the thermistor is
+        eq. 2's T_sens(0) (38.96 C at 25 C ambient): about a third of V^2 / (R A), the power
+        a 1-D column with these losses can hold at that temperature.
 
         Parameters
         ----------
