@@ -375,6 +375,25 @@ class MultilayerModel:
         u[: self.surface] = amb if obj is None else np.asarray(obj, dtype=float)
         return ColumnState(u)
 
+    def reheat_time_constant(self) -> np.ndarray:
+        """Slowest time constant of the free taxel (heater on, no contact), s, per trial.
+
+        The smallest eigenvalue of ``C^-1 (-A)`` over the taxel's cells, from the symmetric
+        tridiagonal ``C^-1/2 (-A) C^-1/2``.
+        """
+        from scipy.linalg import eigh_tridiagonal
+
+        lower, diag, _, _ = self._system(0.0, 1.0, False, 1.0, np.inf)
+        s = self.surface
+        out = np.empty(self.batch)
+        for b in range(self.batch):
+            scale = 1.0 / np.sqrt(self.capacity[s:, b])
+            d = diag[s:, b] * scale**2
+            e = lower[s:, b] * scale[:-1] * scale[1:]
+            lam = eigh_tridiagonal(d, e, eigvals_only=True, select="i", select_range=(0, 0))
+            out[b] = 1.0 / lam[0]
+        return out
+
     # ---------------------------------------------------------------------- the operator
     def _system(self, capacity_factor: float, theta_dt: float, contact: bool,
                 heater: float | np.ndarray, conductance: float | np.ndarray

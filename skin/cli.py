@@ -9,10 +9,10 @@ from __future__ import annotations
 import argparse
 import sys
 
-from skin.commands import run
+from skin.commands import run, simulate
 from skin.errors import SkinError
 
-COMMANDS = (run,)
+COMMANDS = (run, simulate)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,263 @@
+"""Inverse estimators: the object's effusivity (and more) from a thermistor trace after contact.
+
+Two estimators, both vectorised over trials:
+
+- `paper_effusivity`: the paper's pointwise estimate (eqs. 9-11) at every sample, undefined
+  samples dropped, summarised by the median; "unknown" (NaN with ``valid`` False) when fewer
+  than ``min_samples`` remain. It assumes perfect contact and an object at ambient.
+- `fit_contact`: non-linear least squares of log10 effusivity, object temperature and
+  log10 contact conductance (optionally the sensor's initial temperature) over the whole window,
+  with the finite-conductance closed form (`skin.models.physics.contact_trace`). A batched
+  Levenberg-Marquardt with Gaussian priors (maximum a posteriori): the semi-infinite model
+  sees only an amplitude and a time scale, so effusivity, object temperature and conductance
+  are not all identifiable from one trace; the priors (object near ambient, conductance of a
+  light touch) resolve what the data cannot, and the reported uncertainty says how much did.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from skin.models.physics import SensorConstants, contact_trace, effusivity_estimates
+
+_LOG_E_BOUNDS = (0.5, 5.5)  # 3 .. 3e5 W s^0.5/(m^2 K): aerogel to diamond
+_LOG_H_BOUNDS = (1.0, 7.0)
+_T_BOUNDS = (-40.0, 150.0)
+
+
+@dataclass(frozen=True)
+class Priors:
+    """Gaussian priors of `fit_contact` (means and standard deviations).
+
+    Attributes
+    ----------
+    log10_effusivity : tuple of float
+        Mean and std of log10 e; weak by default (3.0 +- 1.5 decades: foam to metal).
+    object_offset : tuple of float
+        Mean and std of the object's temperature minus ambient, K (0 +- 3: objects sit near
+        ambient; a hand at 33 C in a 25 C room is 2.7 std away, still reachable).
+    log10_conductance : tuple of float
+        Mean and std of log10 h, W/(m^2 K) (3.5 +- 0.75: a light touch of a foil sensor).
+    sensor_temperature_std : float
+        Std of the sensor's initial temperature around the pre-contact reading, K.
+    """
+
+    log10_effusivity: tuple[float, float] = (3.0, 1.5)
+    object_offset: tuple[float, float] = (0.0, 3.0)
+    log10_conductance: tuple[float, float] = (3.5, 0.75)
+    sensor_temperature_std: float = 0.05
+
+
+@dataclass
+class ContactFit:
+    """Result of `fit_contact`, one value per trial.
+
+    Attributes
+    ----------
+    effusivity : numpy.ndarray
+        Object effusivity, W s^0.5 / (m^2 K).
+    log10_effusivity_std : numpy.ndarray
+        Posterior standard deviation of log10 effusivity, decades.
+    object_temperature, object_temperature_std : numpy.ndarray
+        deg C, K.
+    conductance, log10_conductance_std : numpy.ndarray
+        Contact conductance h, W/(m^2 K), and the std of its log10.
+    sensor_temperature : numpy.ndarray
+        Sensor temperature at contact, deg C (fitted or as given).
+    rms : numpy.ndarray
+        RMS residual of the readings, K.
+    iterations : int
+        Levenberg-Marquardt iterations taken.
+    """
+
+    effusivity: np.ndarray
+    log10_effusivity_std: np.ndarray
+    object_temperature: np.ndarray
+    object_temperature_std: np.ndarray
+    conductance: np.ndarray
+    log10_conductance_std: np.ndarray
+    sensor_temperature: np.ndarray
+    rms: np.ndarray
+    iterations: int
+
+
+def paper_effusivity(
+    t: np.ndarray,
+    temperature: np.ndarray,
+    t_sensor: np.ndarray | float,
+    t_object: np.ndarray | float,
+    sensor: SensorConstants | None = None,
+    min_samples: int = 5,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Paper's pointwise effusivity estimate (eqs. 10-11), median over a trial's samples.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Time since contact of each sample, s, shape (n_samples,).
+    temperature : numpy.ndarray
+        Readings, shape (n_trials, n_samples) or (n_samples,).
+    t_sensor, t_object : array_like
+        Sensor temperature at contact and object temperature (the paper: ambient), per trial.
+    sensor : SensorConstants, optional
+        Sensor constants (default: the paper's).
+    min_samples : int
+        Fewest valid samples for an estimate.
+
+    Returns
+    -------
+    effusivity : numpy.ndarray
+        Median estimate per trial (NaN where unknown).
+    valid : numpy.ndarray
+        Whether the trial has an estimate.
+    """
+    s = SensorConstants() if sensor is None else sensor
+    y = np.atleast_2d(np.asarray(temperature, dtype=float))
+    n = y.shape[0]
+    t0 = np.broadcast_to(np.asarray(t_sensor, dtype=float), (n,))
+    tobj = np.broadcast_to(np.asarray(t_object, dtype=float), (n,))
+    out = np.full(n, np.nan)
+    for i in range(n):  # the estimate drops a different set of samples in every trial
+        _, e = effusivity_estimates(t, y[i], float(t0[i]), float(tobj[i]), s)
+        if e.size >= min_samples:
+            out[i] = float(np.exp(np.median(np.log(e))))
+    return out, np.isfinite(out)
+
+
+def fit_contact(
+    t: np.ndarray,
+    temperature: np.ndarray,
+    t_sensor: np.ndarray | float,
+    ambient: np.ndarray | float,
+    sensor: SensorConstants | None = None,
+    priors: Priors | None = None,
+    fit_sensor_temperature: bool = False,
+    noise: float | None = None,
+    max_iter: int = 60,
+) -> ContactFit:
+    """Fit effusivity, object temperature and contact conductance to traces after contact.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Time since contact of each sample, s, shape (n_samples,); samples at t <= 0 are used
+        as they are (they pin the sensor's temperature).
+    temperature : numpy.ndarray
+        Readings, deg C, shape (n_trials, n_samples) or (n_samples,).
+    t_sensor : array_like
+        Sensor temperature just before contact, deg C, per trial.
+    ambient : array_like
+        Ambient temperature, deg C, per trial (the centre of the object-temperature prior).
+    sensor : SensorConstants, optional
+        Sensor constants (default: the paper's).
+    priors : Priors, optional
+        Gaussian priors (default `Priors()`).
+    fit_sensor_temperature : bool
+        Also fit the sensor's initial temperature (prior: ``t_sensor`` +- its std).
+    noise : float, optional
+        Reading noise std, K; default: estimated from the residuals (at least 0.01 K).
+    max_iter : int
+        Levenberg-Marquardt iterations at most.
+
+    Returns
+    -------
+    ContactFit
+        Estimates and posterior standard deviations per trial.
+    """
+    s = SensorConstants() if sensor is None else sensor
+    pr = Priors() if priors is None else priors
+    t = np.asarray(t, dtype=float)
+    y = np.atleast_2d(np.asarray(temperature, dtype=float))
+    n_trials, n_samples = y.shape
+    if t.shape != (n_samples,):
+        raise ValueError(f"t has shape {t.shape}, the readings have {n_samples} samples")
+    if not np.all(np.isfinite(y)):
+        bad = int(np.flatnonzero(~np.all(np.isfinite(y), axis=1))[0])
+        raise ValueError(f"trial {bad}: readings contain NaN or inf")
+    t0 = np.broadcast_to(np.asarray(t_sensor, dtype=float), (n_trials,)).copy()
+    amb = np.broadcast_to(np.asarray(ambient, dtype=float), (n_trials,)).copy()
+
+    n_par = 4 if fit_sensor_temperature else 3
+    mean = np.stack([np.full(n_trials, pr.log10_effusivity[0]),
+                     amb + pr.object_offset[0],
+                     np.full(n_trials, pr.log10_conductance[0]),
+                     t0][:n_par], axis=1)
+    std = np.array([pr.log10_effusivity[1], pr.object_offset[1], pr.log10_conductance[1],
+                    pr.sensor_temperature_std][:n_par])
+    lo = np.array([_LOG_E_BOUNDS[0], _T_BOUNDS[0], _LOG_H_BOUNDS[0], _T_BOUNDS[0]][:n_par])
+    hi = np.array([_LOG_E_BOUNDS[1], _T_BOUNDS[1], _LOG_H_BOUNDS[1], _T_BOUNDS[1]][:n_par])
+
+    def model(p: np.ndarray) -> np.ndarray:
+        ts = p[:, 3:4] if fit_sensor_temperature else t0[:, None]
+        return contact_trace(t, ts, p[:, 1:2], 10.0 ** p[:, 0:1], s, 10.0 ** p[:, 2:3])
+
+    sigma = 0.05 if noise is None else float(noise)
+
+    def residuals(p: np.ndarray, sig: np.ndarray | float) -> np.ndarray:
+        data = (y - model(p)) / np.reshape(sig, (-1, 1))
+        return np.concatenate([data, (p - mean) / std], axis=1)
+
+    def jacobian(p: np.ndarray, r: np.ndarray, sig: np.ndarray | float) -> np.ndarray:
+        jac = np.empty((n_trials, r.shape[1], n_par))
+        for j in range(n_par):
+            step = np.zeros(n_par)
+            step[j] = 1e-4 if j in (0, 2) else 1e-3
+            jac[:, :, j] = (residuals(p + step, sig) - r) / step[j]
+        return jac
+
+    # start: the prior mean, with the effusivity from the last sample's paper estimate
+    p = mean.copy()
+    e_paper, ok = paper_effusivity(t[-min(20, n_samples):], y[:, -min(20, n_samples):], t0,
+                                   amb, s, min_samples=1)
+    p[ok, 0] = np.clip(np.log10(e_paper[ok]), *_LOG_E_BOUNDS)
+    sig = np.full(n_trials, sigma)
+    lam = np.full(n_trials, 1e-2)
+    r = residuals(p, sig)
+    cost = np.sum(r**2, axis=1)
+    active = np.ones(n_trials, dtype=bool)
+    it = 0
+    for it in range(1, max_iter + 1):
+        jac = jacobian(p, r, sig)
+        jtj = np.einsum("bki,bkj->bij", jac, jac)
+        grad = np.einsum("bki,bk->bi", jac, r)
+        damp = lam[:, None, None] * (jtj * np.eye(n_par) + 1e-9 * np.eye(n_par))
+        delta = -np.linalg.solve(jtj + damp, grad[:, :, None])[:, :, 0]
+        trial = np.clip(p + delta, lo, hi)
+        r_new = residuals(trial, sig)
+        cost_new = np.sum(r_new**2, axis=1)
+        better = (cost_new < cost) & active
+        p[better], r[better] = trial[better], r_new[better]
+        gain = np.where(better, (cost - cost_new) / np.maximum(cost, 1e-300), 0.0)
+        cost[better] = cost_new[better]
+        lam = np.where(better, lam / 3.0, lam * 4.0)
+        active &= ~(better & (gain < 1e-8)) & (lam < 1e10)
+        if noise is None and it in (5, 15):  # re-estimate the noise from the residuals
+            data_r = (y - model(p))
+            sig = np.maximum(np.sqrt(np.mean(data_r**2, axis=1)), 0.01)
+            r = residuals(p, sig)
+            cost = np.sum(r**2, axis=1)
+            active[:] = True
+        if not active.any():
+            break
+
+    data_r = y - model(p)
+    rms = np.sqrt(np.mean(data_r**2, axis=1))
+    if noise is None:
+        sig = np.maximum(rms, 0.01)
+    r = residuals(p, sig)
+    jac = jacobian(p, r, sig)
+    cov = np.linalg.inv(np.einsum("bki,bkj->bij", jac, jac))
+    sd = np.sqrt(np.maximum(np.diagonal(cov, axis1=1, axis2=2), 0.0))
+    return ContactFit(
+        effusivity=10.0 ** p[:, 0],
+        log10_effusivity_std=sd[:, 0],
+        object_temperature=p[:, 1],
+        object_temperature_std=sd[:, 1],
+        conductance=10.0 ** p[:, 2],
+        log10_conductance_std=sd[:, 2],
+        sensor_temperature=p[:, 3] if fit_sensor_temperature else t0,
+        rms=rms,
+        iterations=it,
+    )

@@ -1,0 +1,295 @@
+"""Synthetic trial datasets that follow the paper's data-collection protocol.
+
+The paper (section III-B/C) touched each material 500 times with a heated taxel, holding the
+contact until the reading settled (at most 35 s), reheating for a random 2-60 s between
+contacts and resting 10 minutes every 10 trials; initial sensor temperatures spread over
+26-40 C (mean 30 C) in a 25 C room, and the samples had not fully cooled between touches.
+`simulate_trials` reproduces that protocol, then records each trial as the paper's rig did:
+
+- **Sensor history** (lumped): after a contact the taxel reheats towards its free steady
+  state with the multilayer column's slowest time constant (about 68 s); a rest restores it.
+- **Object history**: a touch warms the object's surface; after release the excess decays as
+  ``sqrt(D / (D + t))`` (diffusion of a layer warmed for D seconds), so the next touch meets
+  an object slightly above ambient. Heat-generating materials (skin) hold their own
+  temperature (30-34 C).
+- **Contact** (``model``): ``"contact"`` (default) uses the closed form with a finite contact
+  conductance h, log-uniform in 1e3-1e4 W/(m^2 K) per trial (a foil pressed lightly on a
+  rigid flat surface; Madhusudana's polymer-interface range); ``"semi-infinite"`` is the
+  paper's perfect contact (h = inf); ``"multilayer"`` runs the finite-volume column through
+  the whole protocol (heater on throughout, non-uniform profiles, slower).
+- **Taxels**: each recording run (``group``, 50 trials) uses one of ``n_taxels`` taxels whose
+  thermistor depth, diffusivity and conductivity are drawn within +-10 % of the paper's.
+- **Readout**: the 0.5 s before onset, then ``duration`` s of contact at 200 Hz, through the
+  paper's divider and 10-bit ADC: Gaussian noise of 0.5 LSB before rounding (the ADC's
+  specified noise), then quantisation (about 0.07 C per count at 39 C).
+- **Onset jitter**: the recorded onset sample lies within +-10 ms of the true contact (the
+  paper's limit switch, read at 200 Hz).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from skin.calibration import Calibration
+from skin.dataset import TrialSet
+from skin.layout import Board
+from skin.models.materials import Material
+from skin.models.physics import SensorConstants, contact_trace, heated_temperature
+
+MODELS = ("contact", "semi-infinite", "multilayer")
+PAPER_MATERIALS = ("acrylic", "aluminium", "brick", "cardboard", "glass", "mdf", "neoprene",
+                   "porcelain", "pine", "rubber", "steel")
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """The data-collection protocol and the recording chain (defaults: the paper's).
+
+    Attributes
+    ----------
+    trials : int
+        Trials per material.
+    ambient : float
+        Room temperature, deg C.
+    duration : float
+        Seconds of contact recorded after onset.
+    pre : float
+        Seconds recorded before onset.
+    reheat : tuple of float
+        Range of the random reheat time between contacts, s.
+    rest_every, rest : int, float
+        A rest of ``rest`` s after every ``rest_every`` trials.
+    hold : tuple of float
+        Range of how long a contact is held before release, s (until it settles, <= 35 s).
+    conductance : tuple of float
+        Range of log10 contact conductance, W/(m^2 K) (log-uniform).
+    run_length : int
+        Trials per recording run (one taxel, one ``group``).
+    n_taxels : int
+        Number of distinct taxels.
+    taxel_spread : float
+        Relative spread of each taxel's depth, diffusivity and conductivity (uniform +-).
+    adc_noise : float
+        Reading noise before quantisation, ADC counts (std).
+    onset_jitter : float
+        Half-width of the uniform onset error, s.
+    fs : float
+        Sampling rate, Hz.
+    reheat_time_constant : float
+        Lumped reheat time constant of the free taxel, s (the multilayer column's slowest mode).
+    """
+
+    trials: int = 500
+    ambient: float = 25.0
+    duration: float = 3.0
+    pre: float = 0.5
+    reheat: tuple[float, float] = (2.0, 60.0)
+    rest_every: int = 10
+    rest: float = 600.0
+    hold: tuple[float, float] = (5.0, 35.0)
+    conductance: tuple[float, float] = (3.0, 4.0)
+    run_length: int = 50
+    n_taxels: int = 8
+    taxel_spread: float = 0.10
+    adc_noise: float = 0.5
+    onset_jitter: float = 0.010
+    fs: float = 200.0
+    reheat_time_constant: float = 67.6
+
+
+def _adc(temperature: np.ndarray, rng: np.random.Generator, noise: float) -> np.ndarray:
+    """Pass readings through the paper's divider and 10-bit ADC (noise, then rounding)."""
+    b = Board()
+    one = np.ones(1)
+    cal = Calibration(c0=b.thermistor_c0 * one, c1=b.thermistor_c1 * one,
+                      divider_resistor=b.divider_resistor * one,
+                      supply_voltage=b.supply_voltage * one, adc_reference=b.adc_reference * one,
+                      adc_max=b.adc_max * one, source="paper board constants")
+    counts = cal.counts(temperature) + rng.normal(0.0, noise, temperature.shape)
+    counts = np.clip(np.rint(counts), 1, cal.adc_max[0] - 1)
+    return cal.temperature(counts)[0]
+
+
+def _taxels(protocol: Protocol, rng: np.random.Generator) -> list[SensorConstants]:
+    base = SensorConstants()
+    out = []
+    for _ in range(protocol.n_taxels):
+        f = 1.0 + rng.uniform(-protocol.taxel_spread, protocol.taxel_spread, 3)
+        out.append(SensorConstants(depth=base.depth * f[0], diffusivity=base.diffusivity * f[1],
+                                   conductivity=base.conductivity * f[2]))
+    return out
+
+
+def simulate_trials(
+    materials: Sequence[Material],
+    protocol: Protocol | None = None,
+    model: str = "contact",
+    seed: int = 0,
+    progress: Callable[[int, int], None] | None = None,
+) -> TrialSet:
+    """Simulate the paper's protocol for each material; return a trial dataset.
+
+    Parameters
+    ----------
+    materials : sequence of Material
+        The classes (e.g. the paper's 11, plus human skin).
+    protocol : Protocol, optional
+        Protocol and recording chain (default: the paper's).
+    model : str
+        ``"contact"``, ``"semi-infinite"`` or ``"multilayer"`` (see the module docstring).
+    seed : int
+        Seed: the same seed gives the same dataset.
+    progress : callable, optional
+        Called as ``progress(done, total)`` with trials done so far.
+
+    Returns
+    -------
+    TrialSet
+        With the truth in ``true_`` extra keys.
+    """
+    if model not in MODELS:
+        raise ValueError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
+    p = Protocol() if protocol is None else protocol
+    rng = np.random.default_rng(seed)
+    taxels = _taxels(p, rng)
+    n_mat, n = len(materials), p.trials
+    total = n_mat * n
+    # the protocol's schedule: per trial, the hold before release and the reheat after it
+    hold = rng.uniform(*p.hold, (n_mat, n))
+    reheat = rng.uniform(*p.reheat, (n_mat, n))
+    rest = (np.arange(n) + 1) % p.rest_every == 0
+    after = np.where(rest[None, :], p.rest, reheat)  # time from release to the next contact
+    run = np.arange(n) // p.run_length
+    run_taxel = rng.integers(0, p.n_taxels, (n_mat, run.max() + 1))
+    h = 10.0 ** rng.uniform(*p.conductance, (n_mat, n))
+    jitter = rng.uniform(-p.onset_jitter, p.onset_jitter, (n_mat, n))
+    amb = p.ambient + rng.normal(0.0, 0.1, (n_mat, n))  # the room drifts a little
+
+    n_pre = round(p.pre * p.fs)
+    n_post = round(p.duration * p.fs)
+    t = (np.arange(n_pre + n_post) - n_pre) / p.fs  # relative to the recorded onset
+    temp = np.empty((n_mat, n, t.size))
+    t_sensor = np.empty((n_mat, n))
+    t_object = np.empty((n_mat, n))
+    if model == "multilayer":
+        _multilayer_protocol(materials, p, taxels, run_taxel, run, hold, after, h, jitter, amb,
+                             t, temp, t_sensor, t_object, progress)
+    else:
+        for i, mat in enumerate(materials):
+            _closed_form_protocol(mat, p, taxels, run_taxel[i], run, hold[i], after[i],
+                                  np.inf if model == "semi-infinite" else h[i], jitter[i],
+                                  amb[i], t, temp[i], t_sensor[i], t_object[i], rng)
+            if progress is not None:
+                progress((i + 1) * n, total)
+    readings = _adc(temp.reshape(total, -1), rng, p.adc_noise)
+    label = np.repeat([m.name for m in materials], n)
+    groups = (np.arange(n_mat)[:, None] * (run.max() + 1) + run[None, :]).ravel()
+    taxel = np.take_along_axis(run_taxel, np.broadcast_to(run, (n_mat, n)), axis=1).ravel()
+    eff = np.repeat([m.effusivity for m in materials], n)
+    return TrialSet(
+        temperature=readings, fs=p.fs, label=label,
+        onset=np.full(total, n_pre, dtype=np.int64), ambient=amb.ravel(), group=groups,
+        taxel=taxel.astype(np.int64),
+        extra={"true_onset_time": (p.pre + jitter).ravel(),
+               "true_sensor_temperature": t_sensor.ravel(),
+               "true_object_temperature": t_object.ravel(),
+               "true_effusivity": eff,
+               "true_conductance": (np.full_like(h, np.inf) if model == "semi-infinite"
+                                    else h).ravel()},
+        source=f"simulated ({model}, seed {seed})",
+    )
+
+
+def _object_temperature(mat: Material, ambient: float, rng: np.random.Generator) -> float:
+    if mat.temperature is not None:  # heat-generating: holds its own temperature
+        return float(rng.uniform(*mat.temperature))
+    return ambient
+
+
+def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorConstants],
+                          run_taxel: np.ndarray, run: np.ndarray, hold: np.ndarray,
+                          after: np.ndarray, h: np.ndarray | float, jitter: np.ndarray,
+                          amb: np.ndarray, t: np.ndarray, out: np.ndarray,
+                          t_sensor: np.ndarray, t_object: np.ndarray,
+                          rng: np.random.Generator) -> None:
+    """Walk one material's protocol with the closed forms; fill ``out`` (n, samples)."""
+    e_o = mat.effusivity
+    h = np.broadcast_to(np.asarray(h, dtype=float), hold.shape)
+    tau = p.reheat_time_constant
+    sensor_now = None
+    excess = 0.0  # object surface temperature above ambient at the next contact
+    heat = np.empty(hold.size)
+    for j in range(hold.size):
+        s = taxels[run_taxel[run[j]]]
+        full = float(heated_temperature(amb[j], s))
+        if j == 0 or run[j] != run[j - 1]:  # a run starts rested, with a cool object
+            sensor_now, excess = full, 0.0
+        t0 = sensor_now
+        base = _object_temperature(mat, amb[j], rng)
+        tobj = base + (excess if mat.temperature is None else 0.0)
+        t_sensor[j], t_object[j] = t0, tobj
+        heat[j] = full
+        # the trace: flat (still reheating slowly) before contact, then the contact response
+        since = t - jitter[j]
+        pre_slope = (full - t0) / tau
+        pre = t0 + pre_slope * np.minimum(since, 0.0)
+        out[j] = np.where(since > 0, contact_trace(since, t0, tobj, e_o, s, h[j]), pre)
+        # release after the hold, then reheat; the object keeps some of the heat it took
+        end = float(contact_trace(hold[j], t0, tobj, e_o, s, h[j]))
+        surf = float((s.effusivity * t0 + e_o * tobj) / (s.effusivity + e_o))
+        warm = (surf - amb[j]) * np.sqrt(hold[j] / (hold[j] + after[j])) * 0.5
+        excess = max(warm, 0.0)
+        sensor_now = full - (full - end) * np.exp(-after[j] / tau)
+
+
+def _multilayer_protocol(materials: Sequence[Material], p: Protocol,
+                         taxels: list[SensorConstants], run_taxel: np.ndarray, run: np.ndarray,
+                         hold: np.ndarray, after: np.ndarray, h: np.ndarray, jitter: np.ndarray,
+                         amb: np.ndarray, t: np.ndarray, out: np.ndarray, t_sensor: np.ndarray,
+                         t_object: np.ndarray,
+                         progress: Callable[[int, int], None] | None) -> None:
+    """Run the protocol through the finite-volume column, all materials in lockstep.
+
+    The materials share one schedule (the first material's hold and reheat times) so that one
+    batched model steps them together; each run uses its taxel's column for every material.
+    """
+    from skin.models.multilayer import MultilayerModel, ObjectBody, Phase, SensorStack
+
+    n_mat, n = hold.shape
+    k = np.array([m.nominal["k"] for m in materials], dtype=float)
+    rho_c = np.array([m.nominal["rho"] * m.nominal["c"] for m in materials], dtype=float)
+    own = [m.temperature for m in materials]
+    body = ObjectBody(k, k / rho_c)
+    total, done = n_mat * n, 0
+    dt_contact = 1.0 / p.fs
+    for r in range(run.max() + 1):
+        idx = np.flatnonzero(run == r)
+        # one taxel per run; in lockstep every material uses the first material's taxel
+        s = taxels[run_taxel[0, r]]
+        model = MultilayerModel(SensorStack.paper(s), body, ambient=amb[:, idx[0]],
+                                dt=dt_contact)
+        heated = model.steady_state(1.0)
+        obj_t = np.array([amb[i, idx[0]] if own[i] is None else np.mean(own[i])
+                          for i in range(n_mat)])
+        state = model.state(lambda d, st=heated, s0=model.surface: st.u[s0:], obj_t)
+        for j in idx:
+            shift = p.pre + jitter[0, j]  # true contact after the recorded onset's start
+            phases = [Phase(shift, False), Phase(p.duration + p.pre - shift, True,
+                                                 conductance=h[:, j]),
+                      Phase(max(hold[0, j] - (p.duration + p.pre - shift), 0.0), True,
+                            conductance=h[:, j], record=False),
+                      Phase(after[0, j], False, record=False)]
+            t_sensor[:, j] = model.thermistor(state)
+            t_object[:, j] = state.u[model.surface - 1]
+            res = model.run(state, phases, fs=p.fs)
+            out[:, j] = res.thermistor[:, : t.size]
+            state = res.state
+            for i in range(n_mat):  # heat-generating objects hold their temperature
+                if own[i] is not None:
+                    state.u[: model.surface, i] = obj_t[i]
+            done += n_mat
+            if progress is not None:
+                progress(done, total)

@@ -1,0 +1,150 @@
+"""``skin simulate``: thermistor traces and trial datasets from the physics.
+
+``skin simulate trace --material NAME`` prints one contact's thermistor trace at 200 Hz;
+``skin simulate trials -o trials.npz`` writes a dataset that follows the paper's protocol.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+import numpy as np
+
+from skin.errors import SkinError
+from skin.progress import Progress
+
+TRACE_MODELS = ("semi-infinite", "contact", "multilayer")
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register ``skin simulate trace`` and ``skin simulate trials``."""
+    sim = sub.add_parser("simulate", help="simulate contact traces and trial datasets",
+                         description=__doc__)
+    kinds = sim.add_subparsers(dest="kind", required=True)
+
+    trace = kinds.add_parser("trace", help="one contact's thermistor trace at 200 Hz")
+    trace.add_argument("--material", required=True, help="a name from the materials table")
+    trace.add_argument("--t-sensor", type=float, default=None,
+                       help="sensor temperature at contact, C (default: eq. 2's heated value)")
+    trace.add_argument("--t-object", type=float, default=None,
+                       help="object temperature, C (default: ambient, or the material's own)")
+    trace.add_argument("--ambient", type=float, default=25.0, help="ambient, C (default 25)")
+    trace.add_argument("--duration", type=float, default=2.5, help="seconds (default 2.5)")
+    trace.add_argument("--model", choices=TRACE_MODELS, default="semi-infinite",
+                       help="semi-infinite (the paper), contact (finite conductance) or "
+                            "multilayer (finite volumes); default semi-infinite")
+    trace.add_argument("--conductance", type=float, default=3000.0,
+                       help="contact conductance h, W/(m^2 K), for contact and multilayer "
+                            "(default 3000)")
+    trace.add_argument("--fs", type=float, default=200.0, help="sampling rate, Hz")
+    trace.add_argument("--json", action="store_true", help="print one JSON document")
+    trace.set_defaults(func=main_trace)
+
+    trials = kinds.add_parser("trials", help="a trial dataset following the paper's protocol")
+    trials.add_argument("-o", "--out", required=True, help="output .npz")
+    trials.add_argument("--trials", type=int, default=500, help="trials per material (500)")
+    trials.add_argument("--ambient", type=float, default=25.0, help="room temperature, C")
+    trials.add_argument("--human", action="store_true", help="add human skin as a 12th class")
+    trials.add_argument("--materials", default=None,
+                        help="comma-separated materials (default: the paper's 11)")
+    trials.add_argument("--model", choices=("contact", "semi-infinite", "multilayer"),
+                        default="contact", help="contact physics (default: contact)")
+    trials.add_argument("--duration", type=float, default=3.0,
+                        help="seconds recorded after onset (default 3)")
+    trials.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    trials.add_argument("--json", action="store_true", help="print one JSON summary")
+    trials.set_defaults(func=main_trials)
+
+
+def main_trace(args: argparse.Namespace) -> int:
+    """Print one contact's trace."""
+    from skin.models import load_materials
+    from skin.models.physics import SensorConstants, contact_trace, heated_temperature
+
+    materials = load_materials()
+    if args.material not in materials:
+        raise SkinError(f"unknown material {args.material!r}; known: {', '.join(materials)}")
+    if not (args.duration > 0 and args.fs > 0):
+        raise SkinError("--duration and --fs must be positive")
+    mat = materials[args.material]
+    s = SensorConstants()
+    t_sensor = float(heated_temperature(args.ambient, s)) if args.t_sensor is None \
+        else args.t_sensor
+    if args.t_object is not None:
+        t_object = args.t_object
+    elif mat.temperature is not None:
+        t_object = float(np.mean(mat.temperature))
+    else:
+        t_object = args.ambient
+    t = np.arange(round(args.duration * args.fs) + 1) / args.fs
+    if args.model == "multilayer":
+        from skin.models.multilayer import MultilayerModel, ObjectBody, Phase, SensorStack
+
+        body = ObjectBody.of(mat.nominal["k"], mat.nominal["rho"], mat.nominal["c"])
+        model = MultilayerModel(SensorStack.paper(s), body, ambient=args.ambient,
+                                dt=1.0 / args.fs)
+        state = model.state(t_sensor, t_object)
+        res = model.run(state, [Phase(args.duration, True, heater=1.0,
+                                      conductance=args.conductance)], fs=args.fs)
+        y = res.thermistor[0][: t.size]
+    else:
+        h = np.inf if args.model == "semi-infinite" else args.conductance
+        y = contact_trace(t, t_sensor, t_object, mat.effusivity, s, h)
+    doc = {"material": mat.name, "model": args.model, "fs": args.fs,
+           "t_sensor": t_sensor, "t_object": t_object, "ambient": args.ambient,
+           "effusivity": mat.effusivity,
+           "conductance": None if args.model == "semi-infinite" else args.conductance,
+           "t": [round(float(v), 6) for v in t], "temperature": [round(float(v), 5) for v in y]}
+    if args.json:
+        print(json.dumps(doc))
+    else:
+        print(f"# {mat.name}: {args.model}, T_sens(0) = {t_sensor:.3f} C, "
+              f"T_obj = {t_object:.3f} C, e = {mat.effusivity:.0f}")
+        print("t_s,temperature_C")
+        for ti, yi in zip(t, y, strict=True):
+            print(f"{ti:.4f},{yi:.5f}")
+    return 0
+
+
+def main_trials(args: argparse.Namespace) -> int:
+    """Write a trial dataset."""
+    from skin.models import load_materials
+    from skin.models.trials import PAPER_MATERIALS, Protocol, simulate_trials
+
+    materials = load_materials()
+    names = list(PAPER_MATERIALS) if args.materials is None \
+        else [m.strip() for m in args.materials.split(",") if m.strip()]
+    if args.human and "human_skin" not in names:
+        names.append("human_skin")
+    unknown = [m for m in names if m not in materials]
+    if unknown:
+        raise SkinError(f"unknown material(s) {', '.join(unknown)}; known: {', '.join(materials)}")
+    if args.trials < 1:
+        raise SkinError("--trials must be at least 1")
+    protocol = Protocol(trials=args.trials, ambient=args.ambient, duration=args.duration)
+    progress = Progress()
+    started = time.monotonic()
+    ds = simulate_trials([materials[m] for m in names], protocol, model=args.model,
+                         seed=args.seed,
+                         progress=lambda d, n: progress.bar(d, n, "trials", started))
+    progress.done()
+    wall = time.monotonic() - started
+    path = ds.save(args.out)
+    t0 = ds.extra["true_sensor_temperature"]
+    summary = {"out": str(path), "trials": len(ds), "classes": names, "model": args.model,
+               "samples": ds.temperature.shape[1], "fs": ds.fs, "seed": args.seed,
+               "wall_time": round(wall, 3), "trials_per_second": round(len(ds) / wall, 1),
+               "initial_temperature": {"min": round(float(t0.min()), 2),
+                                       "mean": round(float(t0.mean()), 2),
+                                       "max": round(float(t0.max()), 2)}}
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(f"wrote {path}: {len(ds)} trials of {len(names)} materials, "
+              f"{ds.temperature.shape[1]} samples at {ds.fs:g} Hz ({summary['trials_per_second']}"
+              f" trials/s); initial sensor temperature {t0.min():.1f}-{t0.max():.1f} C, "
+              f"mean {t0.mean():.1f} C", file=sys.stdout)
+    return 0
