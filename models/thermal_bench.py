@@ -1,0 +1,165 @@
+"""Error against run time for the forward models and the inverse estimators.
+
+`forward` runs every forward model and discretisation on a 2.5 s contact and reports the RMS
+error against the closed form (in the closed form's own limit: thick sensor body, heater off,
+uniform start) or against a converged reference (the paper's real stack, heater on), with the
+run time per trial. `inverse` runs the estimators on simulated trials of the paper's protocol
+and reports the effusivity error against contact duration, with the run time per trial.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from skin.models.multilayer import SCHEMES, MultilayerModel, ObjectBody, Phase, SensorStack
+from skin.models.physics import SensorConstants, contact_trace
+
+CASES = {"aluminium": (80.0, 3.55e-5), "pine": (0.15, 2.05e-7)}  # the paper's k, alpha
+CONTACT = 2.5
+T_SENSOR, T_OBJECT = 38.963, 25.0
+
+
+def _timed(fn: Callable[[], np.ndarray], repeat: int) -> tuple[np.ndarray, float]:
+    """Best-of-``repeat`` wall time of ``fn`` and its result."""
+    best, out = np.inf, None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return out, best
+
+
+def _limit_stack(cells: int) -> SensorStack:
+    """Return the paper's stack with a 1 mm sensor body: semi-infinite over 2.5 s."""
+    stack = SensorStack.paper(cells=cells)
+    body = dataclasses.replace(stack.layers[0], thickness=1e-3, cells=4 * cells)
+    return dataclasses.replace(stack, layers=(body, *stack.layers[1:]))
+
+
+def _multilayer(stack: SensorStack, k: float, alpha: float, cells: int, scheme: str, dt: float,
+                heater: float, conductance: float, fs: float = 200.0,
+                ) -> tuple[Callable[[], np.ndarray], int]:
+    """Return a closure running one 2.5 s contact, and the model's number of cells."""
+    body = ObjectBody(k, alpha, thickness=max(4e-3, 8.0 * np.sqrt(alpha * CONTACT)),
+                      cells=cells, grading=300.0)
+    model = MultilayerModel(stack, body, T_OBJECT, scheme=scheme, dt=dt)
+
+    def run() -> np.ndarray:
+        state = model.state(T_SENSOR, T_OBJECT)
+        return model.run(state, [Phase(CONTACT, True, heater=heater, conductance=conductance)],
+                         fs=fs).thermistor[0]
+    return run, model.width.size
+
+
+def forward(cells: tuple[int, ...] = (12, 24, 48),
+            dts: tuple[float, ...] = (0.1, 0.02, 0.005, 0.001),
+            progress: Callable[[int, int], None] | None = None) -> list[dict]:
+    """Work-precision rows for the closed forms and every multilayer discretisation."""
+    s = SensorConstants()
+    fs = 200.0
+    t = np.arange(round(CONTACT * fs) + 1) / fs
+    rows: list[dict] = []
+    batch = 1000
+    for name, (k, alpha) in CASES.items():
+        e = k / np.sqrt(alpha)
+        for label, h in (("semi-infinite", np.inf), ("contact", 3000.0)):
+            _, wall = _timed(lambda h=h, e=e: contact_trace(
+                t, np.full((batch, 1), T_SENSOR), T_OBJECT, e, s, h), 5)
+            rows.append({"case": name, "model": label, "scheme": "closed form", "cells": None,
+                         "dt": None, "reference": "itself (exact)", "rms_error": 0.0,
+                         "time_per_trial_ms": 1e3 * wall / batch})
+    total = len(CASES) * 2 * len(cells) * len(dts) * len(SCHEMES)
+    done = 0
+    for name, (k, alpha) in CASES.items():
+        e = k / np.sqrt(alpha)
+        # (a) the closed form's limit: thick sensor, heater off, uniform start
+        for h in (np.inf, 3000.0):
+            ref = contact_trace(t, T_SENSOR, T_OBJECT, e, s, h)
+            for n in cells:
+                stack = _limit_stack(n)
+                for scheme in SCHEMES:
+                    for dt in dts:
+                        run, size = _multilayer(stack, k, alpha, 2 * n, scheme, dt, 0.0, h)
+                        y, wall = _timed(run, 2)
+                        rows.append({
+                            "case": name, "model": "multilayer (semi-infinite limit)",
+                            "conductance": None if np.isinf(h) else h, "scheme": scheme,
+                            "cells": size, "dt": dt,
+                            "reference": "contact" if np.isfinite(h) else "semi-infinite",
+                            "rms_error": float(np.sqrt(np.mean((y - ref) ** 2))),
+                            "time_per_trial_ms": 1e3 * wall})
+                        done += 1
+                        if progress is not None:
+                            progress(done, total)
+    # (b) the paper's real stack, heater on: against a converged reference
+    for name, (k, alpha) in CASES.items():
+        ref = _multilayer(SensorStack.paper(cells=192), k, alpha, 240, "tr-bdf2", 2.5e-4, 1.0,
+                          3000.0)[0]()
+        for n in cells:
+            for scheme in SCHEMES:
+                run, size = _multilayer(SensorStack.paper(cells=n), k, alpha, 2 * n, scheme,
+                                        0.005, 1.0, 3000.0)
+                y, wall = _timed(run, 2)
+                rows.append({"case": name, "model": "multilayer (paper stack, heater on)",
+                             "conductance": 3000.0, "scheme": scheme, "cells": size, "dt": 0.005,
+                             "reference": "converged multilayer",
+                             "rms_error": float(np.sqrt(np.mean((y - ref) ** 2))),
+                             "time_per_trial_ms": 1e3 * wall})
+    return rows
+
+
+def inverse(durations: tuple[float, ...] = (0.25, 0.5, 1.0, 2.5), trials: int = 60,
+            seed: int = 0, progress: Callable[[int, int], None] | None = None) -> list[dict]:
+    """Effusivity error against contact duration and run time, per estimator.
+
+    Trials follow the paper's protocol (`skin.models.trials`, contact model, per-trial
+    conductance, ADC quantisation, onset jitter) for the paper's 11 materials, objects at
+    ambient: the estimators' own assumption, so the errors measure the estimators.
+    """
+    from skin.models.inverse import fit_contact, paper_effusivity
+    from skin.models.materials import load_materials
+    from skin.models.trials import PAPER_MATERIALS, Protocol, simulate_trials
+
+    mats = load_materials()
+    data = simulate_trials([mats[m] for m in PAPER_MATERIALS], Protocol(trials=trials),
+                           seed=seed)
+    truth = data.extra["true_effusivity"]
+    pre = data.temperature[:, data.onset[0] - 10: data.onset[0]].mean(axis=1)
+    rows = []
+    total, done = 2 * len(durations), 0
+    for d in durations:
+        n = round(d * data.fs)
+        idx = data.onset[:, None] + 1 + np.arange(n)[None, :]
+        y = np.take_along_axis(data.temperature, idx, axis=1)
+        tt = (np.arange(n) + 1) / data.fs
+        for name in ("paper (eqs. 10-11, median)", "least squares (MAP)"):
+            t0 = time.perf_counter()
+            if name.startswith("paper"):
+                est, ok = paper_effusivity(tt, y, pre, data.ambient)
+                std = None
+            else:
+                fit = fit_contact(tt, y, pre, data.ambient)
+                est, ok = fit.effusivity, np.ones(len(data), dtype=bool)
+                std = fit.log10_effusivity_std
+            wall = time.perf_counter() - t0
+            err = np.abs(np.log10(est[ok] / truth[ok]))
+            row = {"estimator": name, "duration": d, "trials": len(data),
+                   "valid": round(float(ok.mean()), 4),
+                   "median_abs_log10_error": round(float(np.median(err)), 4) if err.size else None,
+                   "p90_abs_log10_error": round(float(np.percentile(err, 90)), 4)
+                   if err.size else None,
+                   "median_relative_error": round(float(np.median(10**err - 1)), 4)
+                   if err.size else None,
+                   "time_per_trial_ms": round(1e3 * wall / len(data), 4)}
+            if std is not None:
+                row["median_reported_std"] = round(float(np.median(std)), 4)
+                row["within_2_std"] = round(float(np.mean(err <= 2 * std[ok])), 4)
+            rows.append(row)
+            done += 1
+            if progress is not None:
+                progress(done, total)
+    return rows

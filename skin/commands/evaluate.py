@@ -1,0 +1,130 @@
+"""``skin evaluate``: cross-validated accuracy of a classifier against contact duration.
+
+For now the paper's method: PCA (10 components) of the raw temperature window after onset,
+then a linear SVM (``svm-pca``), with stratified K-fold cross-validation (``--groups`` keeps the
+trials of one recording run on one side). For each duration: accuracy (mean and std over the
+folds), per-class recall, the confusion matrix, and fit and predict time per trial.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+from skin.errors import SkinError
+from skin.progress import Progress
+
+METHODS = ("svm-pca",)
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register ``skin evaluate``."""
+    ev = sub.add_parser("evaluate", help="cross-validated accuracy against contact duration",
+                        description=__doc__)
+    ev.add_argument("--data", required=True, help="trial dataset (.npz)")
+    ev.add_argument("--methods", default="svm-pca",
+                    help=f"comma-separated methods ({', '.join(METHODS)})")
+    ev.add_argument("--durations", default="0.5,1.5,2.5",
+                    help="comma-separated contact durations, s (default 0.5,1.5,2.5)")
+    ev.add_argument("--cv", type=int, default=3, help="number of folds (default 3)")
+    ev.add_argument("--groups", action="store_true",
+                    help="folds follow the dataset's 'group' column")
+    ev.add_argument("--seed", type=int, default=0, help="seed of the fold split")
+    ev.add_argument("--json", action="store_true", help="print one JSON document")
+    ev.set_defaults(func=main)
+
+
+def make_method(name: str):
+    """Return a fresh, unfitted estimator for ``name``."""
+    from skin._optional import require
+
+    require("sklearn", "ml")
+    from sklearn.decomposition import PCA
+    from sklearn.pipeline import make_pipeline
+    from sklearn.svm import SVC
+
+    if name == "svm-pca":
+        return make_pipeline(PCA(n_components=10), SVC(kernel="linear"))
+    raise SkinError(f"unknown method {name!r}; choose from {', '.join(METHODS)}")
+
+
+def evaluate(data, method: str, duration: float, folds: int, groups: bool,
+             seed: int = 0) -> dict:
+    """Cross-validate ``method`` on the first ``duration`` s after onset; return the figures."""
+    from sklearn.metrics import confusion_matrix
+    from sklearn.model_selection import GroupKFold, StratifiedKFold
+
+    from skin.models.features import window
+
+    x = window(data, duration)
+    y = data.label
+    classes = data.classes
+    if groups:
+        if data.group is None:
+            raise SkinError(f"{data.source}: --groups needs a 'group' column")
+        splits = GroupKFold(n_splits=folds).split(x, y, data.group)
+    else:
+        splits = StratifiedKFold(n_splits=folds, shuffle=True, random_state=seed).split(x, y)
+    acc, fit_t, pred_t = [], [], []
+    conf = np.zeros((len(classes), len(classes)), dtype=int)
+    for train, test in splits:
+        model = make_method(method)
+        t0 = time.perf_counter()
+        model.fit(x[train], y[train])
+        t1 = time.perf_counter()
+        pred = model.predict(x[test])
+        t2 = time.perf_counter()
+        acc.append(float(np.mean(pred == y[test])))
+        fit_t.append((t1 - t0) / len(train))
+        pred_t.append((t2 - t1) / len(test))
+        conf += confusion_matrix(y[test], pred, labels=classes)
+    recall = conf.diagonal() / np.maximum(conf.sum(axis=1), 1)
+    return {"method": method, "duration": duration, "folds": folds,
+            "accuracy": round(float(np.mean(acc)), 4), "accuracy_std": round(float(np.std(acc)), 4),
+            "recall": {c: round(float(r), 4) for c, r in zip(classes, recall, strict=True)},
+            "confusion": conf.tolist(), "classes": classes,
+            "fit_ms_per_trial": round(1e3 * float(np.mean(fit_t)), 4),
+            "predict_ms_per_trial": round(1e3 * float(np.mean(pred_t)), 4)}
+
+
+def main(args: argparse.Namespace) -> int:
+    """Run the evaluation and print a table (or JSON)."""
+    from skin.dataset import load_trials
+
+    data = load_trials(args.data)
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    for m in methods:
+        if m not in METHODS:
+            raise SkinError(f"unknown method {m!r}; choose from {', '.join(METHODS)}")
+    try:
+        durations = [float(d) for d in args.durations.split(",") if d.strip()]
+    except ValueError:
+        raise SkinError(f"--durations must be numbers, got {args.durations!r}") from None
+    if args.cv < 2:
+        raise SkinError("--cv must be at least 2")
+    progress = Progress()
+    started = time.monotonic()
+    results = []
+    total = len(methods) * len(durations)
+    for m in methods:
+        for d in durations:
+            progress.bar(len(results), total, f"evaluate {m} {d:g} s", started)
+            results.append(evaluate(data, m, d, args.cv, args.groups, args.seed))
+    progress.done()
+    doc = {"data": str(args.data), "trials": len(data), "classes": data.classes,
+           "cv": args.cv, "groups": args.groups, "results": results}
+    if args.json:
+        print(json.dumps(doc))
+        return 0
+    print(f"{len(data)} trials, {len(data.classes)} classes, {args.cv}-fold"
+          f"{' grouped' if args.groups else ''} cross-validation")
+    print(f"{'method':<10} {'duration s':>10} {'accuracy':>14} {'fit ms/trial':>13} "
+          f"{'predict ms/trial':>17}")
+    for r in results:
+        print(f"{r['method']:<10} {r['duration']:>10g} {r['accuracy']:>8.3f} +- "
+              f"{r['accuracy_std']:.3f} {r['fit_ms_per_trial']:>13.3f} "
+              f"{r['predict_ms_per_trial']:>17.4f}")
+    return 0
