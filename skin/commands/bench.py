@@ -25,6 +25,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     thermal = kinds.add_parser("thermal", help="forward models and inverse estimators")
     thermal.add_argument("--full", action="store_true",
                          help="also the finest grid (96 sensor cells; slower)")
+    thermal.add_argument("--quick", action="store_true",
+                         help="one coarse grid, two time steps, few trials (a smoke run)")
     thermal.add_argument("--trials", type=int, default=60,
                          help="simulated trials per material for the estimators (default 60)")
     thermal.add_argument("--plot", metavar="DIR", help="write the figures (PNG) into DIR")
@@ -48,13 +50,16 @@ def main_thermal(args: argparse.Namespace) -> int:
 
     progress = Progress()
     started = time.monotonic()
-    cells = (12, 24, 48, 96) if args.full else (12, 24, 48)
+    cells = (12, 24, 48, 96) if args.full else (12,) if args.quick else (12, 24, 48)
+    dts = (0.1, 0.02) if args.quick else (0.1, 0.02, 0.005, 0.001)
     forward = thermal_bench.forward(
-        cells=cells, progress=lambda d, n: progress.bar(d, n, "forward", started))
+        cells=cells, dts=dts, progress=lambda d, n: progress.bar(d, n, "forward", started))
     progress.done()
     started_inv = time.monotonic()
     inverse = thermal_bench.inverse(
-        trials=args.trials, progress=lambda d, n: progress.bar(d, n, "inverse", started_inv))
+        durations=(0.25, 2.5) if args.quick else (0.25, 0.5, 1.0, 2.5),
+        trials=3 if args.quick else args.trials,
+        progress=lambda d, n: progress.bar(d, n, "inverse", started_inv))
     progress.done()
     doc = {"machine": machine(), "wall_time": round(time.monotonic() - started, 2),
            "forward": forward, "inverse": inverse}

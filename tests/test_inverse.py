@@ -1,0 +1,89 @@
+import numpy as np
+import pytest
+
+from skin.models.inverse import Priors, fit_contact, paper_effusivity
+from skin.models.physics import SensorConstants, contact_trace
+
+S = SensorConstants()
+T = (np.arange(500) + 1) / 200.0  # 2.5 s after onset
+
+
+def traces(e, t0, t_obj=25.0, h=3000.0, noise=0.0, seed=0, t=T):
+    rng = np.random.default_rng(seed)
+    e, t0, h = (np.atleast_1d(np.asarray(v, dtype=float))[:, None] for v in (e, t0, h))
+    y = contact_trace(t, t0, t_obj, e, S, h)
+    return y + rng.normal(0.0, noise, y.shape)
+
+
+def test_fit_recovers_effusivity_of_insulators_within_its_uncertainty():
+    e = np.array([207.0, 331.0, 573.0, 1074.0, 1620.0])
+    t0 = np.array([38.9, 33.0, 36.0, 30.0, 37.5])
+    fit = fit_contact(T, traces(e, t0, noise=0.02), t0, 25.0)
+    err = np.abs(np.log10(fit.effusivity / e))
+    assert np.all(err < 0.05)
+    assert np.all(err < 3 * fit.log10_effusivity_std)
+    assert np.all(np.abs(fit.object_temperature - 25.0) < 0.5)
+    assert np.all(fit.rms < 0.03)
+
+
+def test_metals_are_reported_with_a_wide_uncertainty_not_a_confident_wrong_value():
+    fit = fit_contact(T, traces([13400.0], [38.9], noise=0.02), 38.9, 25.0)
+    err = abs(np.log10(fit.effusivity[0] / 13400.0))
+    assert fit.log10_effusivity_std[0] > 0.4  # e >> e_s: the trace barely depends on e
+    assert err < 2.5 * fit.log10_effusivity_std[0]
+
+
+def test_uncertainty_shrinks_with_contact_duration():
+    e, t0 = [331.0], [38.9]
+    stds = []
+    for d in (0.25, 0.5, 1.0, 2.5):
+        t = (np.arange(int(d * 200)) + 1) / 200.0
+        stds.append(fit_contact(t, traces(e, t0, noise=0.02, t=t), t0, 25.0)
+                    .log10_effusivity_std[0])
+    assert stds == sorted(stds, reverse=True)
+    assert stds[0] > 1.5 * stds[-1]
+
+
+def test_usable_from_a_quarter_second():
+    t = (np.arange(50) + 1) / 200.0
+    e = np.array([207.0, 1620.0])
+    fit = fit_contact(t, traces(e, [38.9, 38.9], noise=0.02, t=t), 38.9, 25.0)
+    assert np.all(np.isfinite(fit.effusivity))
+    assert np.all(np.isfinite(fit.log10_effusivity_std))
+    err = np.abs(np.log10(fit.effusivity / e))
+    assert np.all(err < 2.5 * fit.log10_effusivity_std)  # wrong only as far as it says
+
+
+def test_fitting_the_sensor_temperature_recovers_it():
+    fit = fit_contact(T, traces([573.0], [36.0], noise=0.02), 36.3, 25.0,
+                      fit_sensor_temperature=True, priors=Priors(sensor_temperature_std=0.5))
+    assert abs(fit.sensor_temperature[0] - 36.0) < 0.1
+
+
+def test_sensor_at_the_object_temperature_gives_a_finite_answer_with_the_prior_width():
+    y = np.full((1, T.size), 25.0)
+    fit = fit_contact(T, y, 25.0, 25.0)
+    assert np.isfinite(fit.effusivity[0])
+    assert fit.log10_effusivity_std[0] > 1.0  # nothing learned: the prior's 1.5 decades remain
+
+
+def test_fit_rejects_nan_and_mismatched_times():
+    y = traces([331.0], [38.9])
+    y[0, 10] = np.nan
+    with pytest.raises(ValueError, match="trial 0"):
+        fit_contact(T, y, 38.9, 25.0)
+    with pytest.raises(ValueError, match="samples"):
+        fit_contact(T[:-1], traces([331.0], [38.9]), 38.9, 25.0)
+
+
+def test_paper_estimate_is_exact_on_ideal_data_and_unknown_without_signal():
+    t = T
+    y = traces([331.0, 13400.0], [38.963, 38.963], h=np.inf)
+    e, ok = paper_effusivity(t, y, 38.963, 25.0)
+    assert ok.all()
+    assert np.allclose(e, [331.0, 13400.0], rtol=1e-6)
+    flat = np.full((1, t.size), 25.0)
+    e, ok = paper_effusivity(t, flat, 25.0, 25.0)
+    assert not ok[0] and np.isnan(e[0])
+    e, ok = paper_effusivity(t[:2], traces([331.0], [38.9], t=t[:2]), 38.9, 25.0)
+    assert not ok[0]  # t -> 0: every sample is below the response floor

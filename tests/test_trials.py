@@ -1,0 +1,205 @@
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from skin.dataset import DatasetError, TrialSet, load_trials
+from skin.models import load_materials
+from skin.models.trials import PAPER_MATERIALS, Protocol, simulate_trials
+
+MATS = load_materials()
+PAPER = [MATS[m] for m in PAPER_MATERIALS]
+
+
+def small(model="contact", trials=20, seed=3, **kw):
+    return simulate_trials(PAPER, Protocol(trials=trials, **kw), model=model, seed=seed)
+
+
+def test_protocol_dataset_has_the_designed_shape_and_truth():
+    ds = small()
+    assert len(ds) == 11 * 20
+    assert ds.temperature.shape == (220, 700)  # 0.5 s before onset + 3 s at 200 Hz
+    assert ds.fs == 200.0 and np.all(ds.onset == 100)
+    assert ds.classes == sorted(PAPER_MATERIALS)
+    assert set(ds.extra) >= {"true_effusivity", "true_sensor_temperature",
+                             "true_object_temperature", "true_conductance", "true_onset_time"}
+    t0 = ds.extra["true_sensor_temperature"]
+    assert 25.0 < t0.min() and t0.max() < 41.0  # the paper: 26-40 C in a 25 C room
+    # objects are at or above ambient (warmed by earlier touches, never colder)
+    assert np.all(ds.extra["true_object_temperature"] >= ds.ambient - 1e-9)
+    # before onset the reading sits near the initial temperature; after it, it falls
+    pre = ds.temperature[:, 90:100].mean(axis=1)
+    assert np.median(np.abs(pre - t0)) < 0.1
+    assert np.all(ds.temperature[:, -1] < pre)
+
+
+def test_same_seed_same_dataset_other_seed_other_dataset():
+    a, b, c = small(seed=5), small(seed=5), small(seed=6)
+    assert np.array_equal(a.temperature, b.temperature)
+    assert not np.array_equal(a.temperature, c.temperature)
+
+
+def test_readings_are_quantised_by_the_paper_adc():
+    ds = small(trials=10)
+    # a 10-bit ADC gives few distinct readings: steps of 0.05-0.1 C near 25-40 C
+    steps = np.diff(np.unique(ds.temperature[0]))
+    assert steps.min() > 0.03
+
+
+def test_human_skin_holds_its_own_temperature():
+    ds = simulate_trials([MATS["pine"], MATS["human_skin"]], Protocol(trials=20), seed=1)
+    tobj = ds.extra["true_object_temperature"][ds.label == "human_skin"]
+    assert np.all((tobj >= 30.0) & (tobj <= 34.0))
+
+
+def test_warm_room_shifts_the_initial_temperatures():
+    ds = small(ambient=35.0)
+    assert ds.extra["true_sensor_temperature"].min() > 35.0
+
+
+def test_multilayer_path_runs_the_protocol_with_the_heater_on():
+    ds = simulate_trials([MATS["aluminium"], MATS["pine"]], Protocol(trials=12), seed=2,
+                         model="multilayer")
+    assert ds.temperature.shape == (24, 700)
+    assert np.all(np.isfinite(ds.temperature))
+    t0 = ds.extra["true_sensor_temperature"]
+    al = ds.label == "aluminium"
+    # aluminium drains the taxel more than pine, so it starts its next contact colder
+    assert t0[al][1:10].mean() < t0[~al][1:10].mean()
+
+
+def test_closed_form_path_is_fast_enough():
+    import time
+
+    started = time.perf_counter()
+    ds = small(trials=100)
+    rate = len(ds) / (time.perf_counter() - started)
+    assert rate > 500  # the issue asks for 1000/s; leave room for a loaded CI machine
+
+
+def test_dataset_round_trip_and_no_pickles(tmp_path):
+    ds = small(trials=5)
+    path = ds.save(tmp_path / "t.npz")
+    back = load_trials(path)
+    assert np.array_equal(back.temperature, ds.temperature)
+    assert list(back.label) == list(ds.label)
+    assert np.array_equal(back.group, ds.group)
+    assert set(back.extra) == set(ds.extra)
+    np.savez(tmp_path / "obj.npz", temperature=np.zeros((2, 3)), fs=200.0, onset=[0, 0],
+             label=np.array([{"a": 1}, {"b": 2}], dtype=object))
+    with pytest.raises(DatasetError, match="plain-array"):
+        load_trials(tmp_path / "obj.npz")
+
+
+def make(**kw):
+    base = dict(temperature=np.full((3, 10), 30.0), fs=200.0,
+                label=np.array(["a", "b", "a"]), onset=np.array([2, 2, -1]))
+    base.update(kw)
+    return TrialSet(**base)
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    (dict(temperature=np.full((3,), 30.0)), "n_trials, n_samples"),
+    (dict(onset=np.array([2, 10, 0])), "trial 1 is 10"),
+    (dict(onset=np.array([2.0, 1.0, 0.0])), "integer"),
+    (dict(label=np.array(["a", "a", "a"])), "fewer than two classes"),
+    (dict(label=np.array(["a", "b"])), "'label' must have one value per trial"),
+    (dict(fs=0.0), "'fs'"),
+    (dict(ambient=np.array([25.0, np.nan, 25.0])), "'ambient' of trial 1"),
+])
+def test_bad_datasets_are_rejected_naming_key_and_trial(change, message):
+    with pytest.raises(DatasetError, match=message):
+        make(**change)
+
+
+def test_nan_reading_is_rejected_with_its_trial_and_sample():
+    temp = np.full((3, 10), 30.0)
+    temp[2, 7] = np.nan
+    with pytest.raises(DatasetError, match="trial 2 is not finite at sample 7"):
+        make(temperature=temp)
+
+
+def test_missing_key_is_named(tmp_path):
+    np.savez(tmp_path / "m.npz", temperature=np.zeros((2, 3)), fs=200.0)
+    with pytest.raises(DatasetError, match="missing key.*label.*onset"):
+        load_trials(tmp_path / "m.npz")
+
+
+def skin(*args):
+    return subprocess.run([sys.executable, "-m", "skin", *args], capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_simulate_trace_reproduces_the_paper_numbers():
+    out = skin("simulate", "trace", "--material", "aluminium", "--json")
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout)
+    t, y = np.array(doc["t"]), np.array(doc["temperature"])
+    assert doc["t_sensor"] == pytest.approx(38.963, abs=1e-3)
+    assert y[np.searchsorted(t, 0.5)] == pytest.approx(37.229, abs=1e-3)
+    assert y[np.searchsorted(t, 2.5)] == pytest.approx(32.327, abs=1e-3)
+    pine = json.loads(skin("simulate", "trace", "--material", "pine", "--json").stdout)
+    assert pine["temperature"][-1] == pytest.approx(36.636, abs=1e-3)
+
+
+@pytest.mark.parametrize("model", ["contact", "multilayer"])
+def test_simulate_trace_other_models_fall_slower_than_perfect_contact(model):
+    ideal = json.loads(skin("simulate", "trace", "--material", "glass", "--json").stdout)
+    other = json.loads(skin("simulate", "trace", "--material", "glass", "--model", model,
+                            "--json").stdout)
+    assert len(other["temperature"]) == len(ideal["temperature"]) == 501
+    assert other["temperature"][100] > ideal["temperature"][100]
+
+
+def test_simulate_trace_unknown_material_is_a_clear_error():
+    out = skin("simulate", "trace", "--material", "unobtainium")
+    assert out.returncode == 2
+    assert "unknown material 'unobtainium'" in out.stderr
+
+
+def test_simulate_trials_and_evaluate_the_paper_svm(tmp_path):
+    path = tmp_path / "trials.npz"
+    out = skin("simulate", "trials", "-o", str(path), "--trials", "30", "--materials",
+               "aluminium,pine,cardboard", "--json")
+    assert out.returncode == 0, out.stderr
+    summary = json.loads(out.stdout)
+    assert summary["trials"] == 90 and path.exists()
+    out = skin("evaluate", "--data", str(path), "--durations", "0.5,2.5", "--json")
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout)
+    assert [r["duration"] for r in doc["results"]] == [0.5, 2.5]
+    for r in doc["results"]:
+        conf = np.array(r["confusion"])
+        assert conf.sum() == 90 and conf.shape == (3, 3)
+        assert r["accuracy"] == pytest.approx(np.trace(conf) / 90, abs=0.02)
+    assert doc["results"][-1]["accuracy"] > 0.9  # three well-separated materials
+    grouped = skin("evaluate", "--data", str(path), "--durations", "1", "--groups", "--json")
+    assert grouped.returncode == 0, grouped.stderr
+
+
+def test_evaluate_rejects_a_window_longer_than_the_trials(tmp_path):
+    path = tmp_path / "t.npz"
+    skin("simulate", "trials", "-o", str(path), "--trials", "3", "--duration", "1")
+    out = skin("evaluate", "--data", str(path), "--durations", "2.5")
+    assert out.returncode == 2
+    assert "trial 0 has 200 samples after onset" in out.stderr
+
+
+def test_bench_thermal_quick_prints_work_precision_json():
+    out = skin("bench", "thermal", "--quick", "--json")
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout)
+    assert doc["machine"]["cpus"] >= 1
+    fw = doc["forward"]
+    assert {r["scheme"] for r in fw} >= {"closed form", "tr-bdf2", "crank-nicolson", "euler"}
+    assert all(np.isfinite(r["rms_error"]) and r["time_per_trial_ms"] > 0 for r in fw)
+    euler = {r["dt"]: r["rms_error"] for r in fw if r["scheme"] == "euler"
+             and r["case"] == "pine" and r["model"].endswith("limit)")
+             and r.get("conductance") is None}
+    assert euler[0.02] < euler[0.1]  # a smaller step is more accurate
+    inv = doc["inverse"]
+    assert {r["estimator"] for r in inv} == {"paper (eqs. 10-11, median)",
+                                            "least squares (MAP)"}
+    assert {r["duration"] for r in inv} == {0.25, 2.5}
