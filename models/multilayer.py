@@ -78,8 +78,10 @@ class Layer:
             value = getattr(self, key)
             if not (np.isfinite(value) and value > 0):
                 raise ModelError(f"layer {self.name!r}: {key} must be positive, got {value!r}")
-        if self.cells < 1:
-            raise ModelError(f"layer {self.name!r}: needs at least one cell, got {self.cells}")
+        if isinstance(self.cells, bool) or not isinstance(self.cells, (int, np.integer)) \
+                or self.cells < 1:
+            raise ModelError(f"layer {self.name!r}: cells must be a whole number >= 1, "
+                             f"got {self.cells!r}")
 
     def widths(self) -> np.ndarray:
         """Cell widths from the contact side inwards (geometric when graded), summing to l."""
@@ -116,6 +118,17 @@ class SensorStack:
     heater_power: float
     front_loss: float
     back_loss: float
+
+    def __post_init__(self) -> None:
+        if not self.layers:
+            raise ModelError("a sensor stack needs at least one layer")
+        if not 0 <= self.heater_layer < len(self.layers):
+            raise ModelError(f"heater layer {self.heater_layer} is not one of the stack's "
+                             f"{len(self.layers)} layers (0..{len(self.layers) - 1})")
+        for key in ("heater_power", "front_loss", "back_loss"):
+            value = getattr(self, key)
+            if not (np.isfinite(value) and value >= 0):
+                raise ModelError(f"sensor stack: {key} must be >= 0 and finite, got {value!r}")
 
     @classmethod
     def paper(
@@ -352,13 +365,14 @@ class MultilayerModel:
         """
         u = np.empty((self.width.size, self.batch))
         d = self.depth
-        for sl, value, depth in ((slice(0, self.surface), obj, -d[: self.surface]),
-                                 (slice(self.surface, None), sensor, d[self.surface:])):
+        for sl, value, depth, name in (
+                (slice(0, self.surface), obj, -d[: self.surface], "object"),
+                (slice(self.surface, None), sensor, d[self.surface:], "sensor")):
             if callable(value):
                 prof = np.asarray(value(depth), dtype=float)
                 u[sl] = prof if prof.ndim == 2 else prof[:, None]
             else:
-                u[sl] = np.asarray(value, dtype=float)
+                u[sl] = _per_trial(value, self.batch, f"per-trial {name} temperature")
         if not np.all(np.isfinite(u)):
             raise ModelError("initial temperatures must be finite")
         return ColumnState(u)
@@ -406,7 +420,7 @@ class MultilayerModel:
         s = self.surface
         loss = np.zeros_like(self.capacity)
         amb = np.broadcast_to(self.ambient, (self.batch,))
-        h_c = np.broadcast_to(np.asarray(conductance, dtype=float), (self.batch,))
+        h_c = _per_trial(conductance, self.batch, "per-trial contact conductance")
         if contact:
             if np.any(~(h_c > 0)):
                 raise ModelError("contact conductance must be positive (inf = perfect)")
@@ -418,7 +432,7 @@ class MultilayerModel:
         loss[-1] = 1.0 / (self._half[-1] + 1.0 / self.stack.back_loss)
         if self.body.back == "ambient":
             loss[0] = 1.0 / self._half[0]
-        duty = np.broadcast_to(np.asarray(heater, dtype=float), (self.batch,))
+        duty = _per_trial(heater, self.batch, "per-trial heater duty")
         b = loss * amb + self.heater_share[:, None] * (self.stack.heater_power * duty)
         diag = capacity_factor * self.capacity + theta_dt * loss
         diag[:-1] += theta_dt * link
@@ -436,6 +450,8 @@ class MultilayerModel:
         ``record`` is set (interpolated linearly between steps when a step is longer than
         the sample period); the first sample is the state at t = 0 if the first phase records.
         """
+        if not (np.isfinite(fs) and fs > 0):
+            raise ModelError(f"sampling rate fs must be positive, got {fs!r}")
         u = np.array(state.u, dtype=float)
         if u.shape != (self.width.size, self.batch):
             raise ModelError(f"state has shape {u.shape}, expected {(self.width.size, self.batch)}")
@@ -571,6 +587,15 @@ def _power_apply(p: np.ndarray, q: np.ndarray, v: np.ndarray, m: int) -> np.ndar
             q = p @ q + q
             p = p @ p
     return v
+
+
+def _per_trial(value: object, batch: int, what: str) -> np.ndarray:
+    """Broadcast a scalar or one-per-trial array to (batch,), or raise `ModelError`."""
+    a = np.asarray(value, dtype=float)
+    if a.ndim > 1 or (a.ndim == 1 and a.size not in (1, batch)):
+        raise ModelError(f"{what}: expected a scalar or one value per trial ({batch}), "
+                         f"got shape {a.shape}")
+    return np.broadcast_to(a.reshape(-1) if a.ndim else a, (batch,))
 
 
 def _factor(lower: np.ndarray, diag: np.ndarray, upper: np.ndarray

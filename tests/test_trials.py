@@ -123,7 +123,7 @@ def test_nan_reading_is_rejected_with_its_trial_and_sample():
 
 def test_missing_key_is_named(tmp_path):
     np.savez(tmp_path / "m.npz", temperature=np.zeros((2, 3)), fs=200.0)
-    with pytest.raises(DatasetError, match="missing key.*label.*onset"):
+    with pytest.raises(DatasetError, match=r"missing key.*label.*onset"):
         load_trials(tmp_path / "m.npz")
 
 
