@@ -117,3 +117,18 @@ def test_matplotlib_is_imported_only_when_drawing(tmp_path):
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=120)
     assert proc.returncode == 0, proc.stderr
+
+
+def test_bench_figures_are_written(tmp_path):
+    from skin.models.thermal_bench import forward
+    from skin.viz.plots import plot_estimator_errors, plot_work_precision
+
+    rows = forward(cells=(12,), dts=(0.1, 0.02))
+    path = plot_work_precision(rows, tmp_path / "wp.png")
+    assert path.stat().st_size > 10_000
+    inverse_rows = [
+        {"estimator": name, "duration": d, "median_abs_log10_error": e,
+         "p90_abs_log10_error": 2 * e, "time_per_trial_ms": ms}
+        for name, ms in (("paper", 0.1), ("fit", 5.0)) for d, e in ((0.25, 0.4), (2.5, 0.1))]
+    path = plot_estimator_errors(inverse_rows, tmp_path / "est.svg")
+    assert "<svg" in path.read_text()[:500]

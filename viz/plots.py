@@ -2,6 +2,7 @@
 
 `plot_materials` draws the effusivity range of each material, like Fig. 10 of the paper
 (Bhattacharjee, Wade, Kemp 2015): one horizontal bar per material on a log10 effusivity axis.
+`plot_work_precision` and `plot_estimator_errors` draw the figures of ``skin bench thermal``.
 """
 
 from __future__ import annotations
@@ -9,6 +10,8 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from skin._optional import require
 from skin.errors import SkinError
@@ -194,11 +197,8 @@ def plot_materials(
     MissingDependencyError
         When matplotlib is not installed (``pip install 'thermoskin[viz]'``).
     """
-    out = output_path(path)
-    fig = materials_figure(materials, include_all, sensor=sensor)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=150, metadata=_metadata(out))
-    return out
+    out = output_path(path)  # check the format before drawing
+    return _save(materials_figure(materials, include_all, sensor=sensor), out)
 
 
 def _metadata(path: Path) -> dict[str, Any] | None:
@@ -209,3 +209,101 @@ def _metadata(path: Path) -> dict[str, Any] | None:
     if suffix == ".pdf":
         return {"CreationDate": None}
     return None
+
+
+def _save(fig: Any, path: str | Path) -> Path:
+    out = output_path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=150, metadata=_metadata(out))
+    return out
+
+
+_SCHEME_STYLE = {"tr-bdf2": ("#0072B2", "o"), "crank-nicolson": ("#E69F00", "s"),
+                 "euler": ("#CC79A7", "^")}
+
+
+def plot_work_precision(rows: list[dict], path: str | Path) -> Path:
+    """Draw the forward models' work-precision diagram (``skin bench thermal``) into a file.
+
+    One panel per test case: RMS error against run time per trial (log-log) for each scheme
+    and grid, lines joining the time steps of one grid; the closed forms as reference lines.
+
+    Parameters
+    ----------
+    rows : list of dict
+        The ``forward`` rows of `skin.models.thermal_bench.forward`.
+    path : str or Path
+        Output file (``.png``, ``.svg`` or ``.pdf``).
+
+    Returns
+    -------
+    Path
+        The path written.
+    """
+    figure_cls, canvas_cls = _figure_class()
+    cases = sorted({r["case"] for r in rows})
+    fig = figure_cls(figsize=(5.5 * len(cases), 4.8), layout="constrained")
+    canvas_cls(fig)
+    axes = fig.subplots(1, len(cases), squeeze=False)[0]
+    for ax, case in zip(axes, cases, strict=True):
+        mine = [r for r in rows if r["case"] == case and r["scheme"] != "closed form"
+                and r["model"].endswith("limit)") and r.get("conductance") is None]
+        for scheme, (colour, marker) in _SCHEME_STYLE.items():
+            for cells in sorted({r["cells"] for r in mine}):
+                pts = sorted((-r["dt"], r["time_per_trial_ms"], r["rms_error"]) for r in mine
+                             if r["scheme"] == scheme and r["cells"] == cells)
+                if not pts:
+                    continue
+                _, x, y = zip(*pts, strict=True)  # joined from the largest step to the smallest
+                ax.plot(x, y, color=colour, marker=marker, alpha=0.35 + 0.65 * cells / max(
+                    r["cells"] for r in mine), label=f"{scheme}, {cells} cells")
+        closed = [r for r in rows if r["case"] == case and r["model"] == "semi-infinite"]
+        for r in closed:
+            ax.axvline(r["time_per_trial_ms"], color=_EDGE, ls=":", lw=1)
+            ax.annotate("closed form", (r["time_per_trial_ms"], 1.0), rotation=90,
+                        xycoords=("data", "axes fraction"), va="top", ha="right",
+                        fontsize="x-small")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("run time per 2.5 s trial, ms (one trial, this machine)")
+        ax.set_ylabel("RMS error against eq. 5, K")
+        ax.set_title(f"{case}: multilayer model in the semi-infinite limit")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize="x-small", ncol=1)
+    return _save(fig, path)
+
+
+def plot_estimator_errors(rows: list[dict], path: str | Path) -> Path:
+    """Draw the inverse estimators' effusivity error against contact duration into a file.
+
+    Parameters
+    ----------
+    rows : list of dict
+        The ``inverse`` rows of `skin.models.thermal_bench.inverse`.
+    path : str or Path
+        Output file (``.png``, ``.svg`` or ``.pdf``).
+
+    Returns
+    -------
+    Path
+        The path written.
+    """
+    figure_cls, canvas_cls = _figure_class()
+    fig = figure_cls(figsize=(6.5, 4.5), layout="constrained")
+    canvas_cls(fig)
+    ax = fig.subplots()
+    colours = ("#0072B2", "#D55E00", "#009E73")
+    for colour, name in zip(colours, sorted({r["estimator"] for r in rows}), strict=False):
+        mine = sorted((r for r in rows if r["estimator"] == name), key=lambda r: r["duration"])
+        d = [r["duration"] for r in mine]
+        med = [r["median_abs_log10_error"] for r in mine]
+        p90 = [r["p90_abs_log10_error"] for r in mine]
+        cost = np.mean([r["time_per_trial_ms"] for r in mine])
+        ax.plot(d, med, color=colour, marker="o", label=f"{name}: median ({cost:.2g} ms/trial)")
+        ax.plot(d, p90, color=colour, marker="o", ls="--", alpha=0.6, label=f"{name}: 90th pct")
+    ax.set_xlabel("contact duration, s")
+    ax.set_ylabel("|log10 estimated / true effusivity|, decades")
+    ax.set_title("effusivity estimators on simulated protocol trials")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="x-small")
+    return _save(fig, path)
