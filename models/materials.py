@@ -15,6 +15,7 @@ from skin.errors import MaterialsError
 from skin.models.physics import effusivity
 
 _RANGES = ("k", "rho", "c")
+AIR_CONDUCTIVITY = 0.026  # W/(m K), air at 25-40 C: what a light contact conducts through
 
 
 @dataclass(frozen=True)
@@ -37,6 +38,8 @@ class Material:
         Surface temperature range of a heat-generating material, deg C.
     source : str
         Where the numbers come from.
+    gap : tuple of float
+        (min, max) effective air gap of a light touch, um; sets the contact conductance.
     """
 
     name: str
@@ -48,6 +51,7 @@ class Material:
     classify: bool
     temperature: tuple[float, float] | None
     source: str
+    gap: tuple[float, float] = (2.0, 20.0)
 
     @property
     def effusivity_range(self) -> tuple[float, float]:
@@ -66,6 +70,11 @@ class Material:
         """(min, max) of log10 effusivity."""
         lo, hi = self.effusivity_range
         return float(np.log10(lo)), float(np.log10(hi))
+
+    @property
+    def conductance_range(self) -> tuple[float, float]:
+        """(min, max) contact conductance of a light touch, k_air / gap, W/(m^2 K)."""
+        return AIR_CONDUCTIVITY / (self.gap[1] * 1e-6), AIR_CONDUCTIVITY / (self.gap[0] * 1e-6)
 
     @property
     def rgb(self) -> tuple[float, float, float]:
@@ -128,6 +137,7 @@ def parse_materials(text: str, source: str = "<string>") -> dict[str, Material]:
             classify=classify,
             temperature=None if temperature is None else _pair(temperature, where, "temperature"),
             source=str(raw.get("source", "")),
+            gap=_pair(raw["gap"], where, "gap") if "gap" in raw else (2.0, 20.0),
             **ranges,
         )
     return table

@@ -13,10 +13,11 @@ contacts and resting 10 minutes every 10 trials; initial sensor temperatures spr
   an object slightly above ambient. Heat-generating materials (skin) hold their own
   temperature (30-34 C).
 - **Contact** (``model``): ``"contact"`` (default) uses the closed form with a finite contact
-  conductance h, log-uniform in 1e3-1e4 W/(m^2 K) per trial (a foil pressed lightly on a
-  rigid flat surface; Madhusudana's polymer-interface range); ``"semi-infinite"`` is the
-  paper's perfect contact (h = inf); ``"multilayer"`` runs the finite-volume column through
-  the whole protocol (heater on throughout, non-uniform profiles, slower).
+  conductance h per trial, k_air / gap with the gap log-uniform in the material's range
+  (`Material.gap`: smooth glass 1-5 um, machined metal 2-10 um, wood 10-50 um, brick
+  30-150 um, conforming rubber 0.5-2 um; see the materials table); ``"semi-infinite"`` is
+  the paper's perfect contact (h = inf); ``"multilayer"`` runs the finite-volume column
+  through the whole protocol (heater on throughout, non-uniform profiles, slower).
 - **Taxels**: each recording run (``group``, 50 trials) uses one of ``n_taxels`` taxels whose
   thermistor depth, diffusivity and conductivity are drawn within +-10 % of the paper's.
 - **Readout**: the 0.5 s before onset, then ``duration`` s of contact at 200 Hz, through the
@@ -64,8 +65,9 @@ class Protocol:
         A rest of ``rest`` s after every ``rest_every`` trials.
     hold : tuple of float
         Range of how long a contact is held before release, s (until it settles, <= 35 s).
-    conductance : tuple of float
-        Range of log10 contact conductance, W/(m^2 K) (log-uniform).
+    conductance : tuple of float or None
+        Range of log10 contact conductance, W/(m^2 K), log-uniform, for every material; None
+        (default): each material's own range from its air gap (`Material.conductance_range`).
     run_length : int
         Trials per recording run (one taxel, one ``group``).
     n_taxels : int
@@ -90,7 +92,7 @@ class Protocol:
     rest_every: int = 10
     rest: float = 600.0
     hold: tuple[float, float] = (5.0, 35.0)
-    conductance: tuple[float, float] = (3.0, 4.0)
+    conductance: tuple[float, float] | None = None
     run_length: int = 50
     n_taxels: int = 8
     taxel_spread: float = 0.10
@@ -164,7 +166,11 @@ def simulate_trials(
     after = np.where(rest[None, :], p.rest, reheat)  # time from release to the next contact
     run = np.arange(n) // p.run_length
     run_taxel = rng.integers(0, p.n_taxels, (n_mat, run.max() + 1))
-    h = 10.0 ** rng.uniform(*p.conductance, (n_mat, n))
+    if p.conductance is None:
+        lo_hi = np.log10([m.conductance_range for m in materials])  # (n_mat, 2)
+    else:
+        lo_hi = np.tile(np.asarray(p.conductance, dtype=float), (n_mat, 1))
+    h = 10.0 ** rng.uniform(lo_hi[:, :1], lo_hi[:, 1:], (n_mat, n))
     jitter = rng.uniform(-p.onset_jitter, p.onset_jitter, (n_mat, n))
     amb = p.ambient + rng.normal(0.0, 0.1, (n_mat, n))  # the room drifts a little
 

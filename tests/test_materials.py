@@ -133,3 +133,18 @@ def test_invalid_toml():
 def test_load_missing_file(tmp_path):
     with pytest.raises(MaterialsError, match=r"none\.toml"):
         load_materials(tmp_path / "none.toml")
+
+
+def test_every_material_has_an_air_gap_and_soft_ones_conduct_best(table):
+    assert all(m.gap[0] <= m.gap[1] for m in table.values())
+    h_rubber = table["rubber"].conductance_range
+    h_glass = table["glass"].conductance_range
+    h_brick = table["brick"].conductance_range
+    assert h_rubber[0] > h_glass[0] > h_brick[1]  # conforming > smooth > rough
+    assert h_glass == pytest.approx((0.026 / 5e-6, 0.026 / 1e-6))
+
+
+def test_gap_defaults_and_is_validated():
+    assert parse_materials(GOOD)["pine"].gap == (2.0, 20.0)
+    with pytest.raises(MaterialsError, match="'gap'"):
+        parse_materials(GOOD + "gap = [5, 1]\n")
