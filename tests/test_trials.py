@@ -175,8 +175,12 @@ def test_simulate_trials_and_evaluate_the_paper_svm(tmp_path):
         assert conf.sum() == 90 and conf.shape == (3, 3)
         assert r["accuracy"] == pytest.approx(np.trace(conf) / 90, abs=0.02)
     assert doc["results"][-1]["accuracy"] > 0.9  # three well-separated materials
-    grouped = skin("evaluate", "--data", str(path), "--durations", "1", "--groups", "--json")
+    grouped = skin("evaluate", "--data", str(path), "--durations", "1", "--groups", "--json",
+                   "--merge", "aluminium+pine+cardboard")
     assert grouped.returncode == 0, grouped.stderr
+    assert json.loads(grouped.stdout)["results"][0]["merged_accuracy"] == 1.0
+    bad = skin("evaluate", "--data", str(path), "--merge", "aluminium+unobtainium")
+    assert bad.returncode == 2 and "unobtainium" in bad.stderr
 
 
 def test_evaluate_rejects_a_window_longer_than_the_trials(tmp_path):

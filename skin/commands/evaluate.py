@@ -33,6 +33,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--groups", action="store_true",
                     help="folds follow the dataset's 'group' column")
     ev.add_argument("--seed", type=int, default=0, help="seed of the fold split")
+    ev.add_argument("--merge", default=None, metavar="A+B,C+D",
+                    help="also report the accuracy with these classes merged (from the "
+                         "confusion matrix), e.g. aluminium+steel,glass+porcelain")
     ev.add_argument("--json", action="store_true", help="print one JSON document")
     ev.set_defaults(func=main)
 
@@ -90,6 +93,26 @@ def evaluate(data, method: str, duration: float, folds: int, groups: bool,
             "predict_ms_per_trial": round(1e3 * float(np.mean(pred_t)), 4)}
 
 
+def merged_accuracy(result: dict, merge: list[set[str]]) -> float:
+    """Accuracy when each set of ``merge`` counts as one class (from the confusion matrix)."""
+    classes = result["classes"]
+    group = {c: next((i for i, g in enumerate(merge) if c in g), len(merge) + k)
+             for k, c in enumerate(classes)}
+    conf = np.asarray(result["confusion"])
+    same = np.array([[group[a] == group[b] for b in classes] for a in classes])
+    return float(conf[same].sum() / conf.sum())
+
+
+def _parse_merge(text: str | None, classes: list[str]) -> list[set[str]]:
+    if not text:
+        return []
+    merge = [set(part.split("+")) for part in text.split(",") if part.strip()]
+    unknown = sorted(set().union(*merge) - set(classes))
+    if unknown:
+        raise SkinError(f"--merge names classes not in the dataset: {', '.join(unknown)}")
+    return merge
+
+
 def main(args: argparse.Namespace) -> int:
     """Run the evaluation and print a table (or JSON)."""
     from skin.dataset import load_trials
@@ -105,6 +128,7 @@ def main(args: argparse.Namespace) -> int:
         raise SkinError(f"--durations must be numbers, got {args.durations!r}") from None
     if args.cv < 2:
         raise SkinError("--cv must be at least 2")
+    merge = _parse_merge(args.merge, data.classes)
     progress = Progress()
     started = time.monotonic()
     results = []
@@ -113,18 +137,22 @@ def main(args: argparse.Namespace) -> int:
         for d in durations:
             progress.bar(len(results), total, f"evaluate {m} {d:g} s", started)
             results.append(evaluate(data, m, d, args.cv, args.groups, args.seed))
+            if merge:
+                results[-1]["merged_accuracy"] = round(merged_accuracy(results[-1], merge), 4)
     progress.done()
     doc = {"data": str(args.data), "trials": len(data), "classes": data.classes,
-           "cv": args.cv, "groups": args.groups, "results": results}
+           "cv": args.cv, "groups": args.groups, "merge": [sorted(g) for g in merge],
+           "results": results}
     if args.json:
         print(json.dumps(doc))
         return 0
     print(f"{len(data)} trials, {len(data.classes)} classes, {args.cv}-fold"
           f"{' grouped' if args.groups else ''} cross-validation")
     print(f"{'method':<10} {'duration s':>10} {'accuracy':>14} {'fit ms/trial':>13} "
-          f"{'predict ms/trial':>17}")
+          f"{'predict ms/trial':>17}" + (f" {'merged':>7}" if merge else ""))
     for r in results:
         print(f"{r['method']:<10} {r['duration']:>10g} {r['accuracy']:>8.3f} +- "
               f"{r['accuracy_std']:.3f} {r['fit_ms_per_trial']:>13.3f} "
-              f"{r['predict_ms_per_trial']:>17.4f}")
+              f"{r['predict_ms_per_trial']:>17.4f}"
+              + (f" {r['merged_accuracy']:>7.3f}" if merge else ""))
     return 0
