@@ -110,6 +110,9 @@ class SensorStack:
         Loss coefficient of the free contact surface to ambient, W/(m^2 K).
     back_loss : float
         Loss coefficient of the back face to ambient, W/(m^2 K).
+    edge_loss : float
+        Loss through the taxel's edges and leads, W/(m^2 K) of face area, spread over the
+        layers in front of the foam (by thickness); unlike ``front_loss`` it stays in contact.
     """
 
     layers: tuple[Layer, ...]
@@ -118,6 +121,7 @@ class SensorStack:
     heater_power: float
     front_loss: float
     back_loss: float
+    edge_loss: float = 0.0
 
     def __post_init__(self) -> None:
         if not self.layers:
@@ -125,7 +129,7 @@ class SensorStack:
         if not 0 <= self.heater_layer < len(self.layers):
             raise ModelError(f"heater layer {self.heater_layer} is not one of the stack's "
                              f"{len(self.layers)} layers (0..{len(self.layers) - 1})")
-        for key in ("heater_power", "front_loss", "back_loss"):
+        for key in ("heater_power", "front_loss", "back_loss", "edge_loss"):
             value = getattr(self, key)
             if not (np.isfinite(value) and value >= 0):
                 raise ModelError(f"sensor stack: {key} must be >= 0 and finite, got {value!r}")
@@ -135,20 +139,22 @@ class SensorStack:
         cls,
         sensor: SensorConstants | None = None,
         cells: int = 24,
-        front_loss: float = 45.0,
+        front_loss: float = 12.0,
         back_loss: float = 10.0,
+        edge_loss: float = 33.0,
     ) -> SensorStack:
         """Build the paper's taxel as a column: sensor body, heater foil, foam backing.
 
         The sensor body has the paper's fitted ``k_s`` and ``alpha_s`` and thickness ``l``, with
         the thermistor at depth ``x``; behind it a 25 um polyimide heater foil and 3 mm of
-        polyurethane foam. ``front_loss`` stands for natural convection and radiation from the
-        free face (about 10-15 W/(m^2 K)) plus the edge and lead losses a 1-D column cannot
-        see; 45 W/(m^2 K) gives a reheat time constant of about 70 s, near the 65 s that
-        reproduces the paper's initial temperatures (26-40 C, mean 30 C, after 2-60 s
-        reheats). The heater power is set so that the free steady state at the thermistor is
-        eq. 2's T_sens(0) (38.96 C at 25 C ambient): about a third of V^2 / (R A), the power
-        a 1-D column with these losses can hold at that temperature.
+        polyurethane foam. ``front_loss`` is natural convection and radiation from the free face
+        (about 12 W/(m^2 K) for a small plate); ``edge_loss`` stands for the edges and leads a
+        1-D column cannot see, which keep losing heat during a contact. Together, 45
+        W/(m^2 K) give a reheat time constant of about 63 s, near the 65 s that reproduces the
+        paper's initial temperatures (26-40 C, mean 30 C, after 2-60 s reheats). The heater
+        power is set so that the free steady state at the thermistor is eq. 2's T_sens(0)
+        (38.96 C at 25 C ambient): about a third of V^2 / (R A), the power a 1-D column with
+        these losses can hold at that temperature.
 
         Parameters
         ----------
@@ -156,8 +162,8 @@ class SensorStack:
             The taxel's constants (default: the paper's).
         cells : int
             Cells across the sensor body (the foil and foam get a quarter each, at least 4).
-        front_loss, back_loss : float
-            Loss coefficients of the free face and the back, W/(m^2 K).
+        front_loss, back_loss, edge_loss : float
+            Loss coefficients of the free face, the back and the edges, W/(m^2 K).
         """
         s = SensorConstants() if sensor is None else sensor
         if not 0 < s.depth < s.thickness:
@@ -166,10 +172,11 @@ class SensorStack:
         body = Layer("sensor body", s.thickness, s.conductivity, s.diffusivity, cells)
         foil = Layer("heater foil", 25e-6, 0.12, 0.12 / (1420 * 1090), max(4, cells // 4))
         foam = Layer("foam backing", 3e-3, 0.03, 0.03 / (30 * 1400), max(4, cells // 4), 8.0)
-        stack = cls((body, foil, foam), 1, s.depth, 1.0, front_loss, back_loss)
+        stack = cls((body, foil, foam), 1, s.depth, 1.0, front_loss, back_loss, edge_loss)
         rise = float(heated_temperature(0.0, s))
         per_watt = _steady_thermistor_rise(stack)
-        return cls((body, foil, foam), 1, s.depth, rise / per_watt, front_loss, back_loss)
+        return cls((body, foil, foam), 1, s.depth, rise / per_watt, front_loss, back_loss,
+                   edge_loss)
 
     @property
     def thickness(self) -> float:
@@ -320,8 +327,13 @@ class MultilayerModel:
         rho_c[: body.cells] = k_o / a_o
         i = body.cells
         self.heater_share = np.zeros(n)  # fraction of the heater power each cell dissipates
+        self.edge_share = np.zeros(n)  # fraction of the edge loss each cell carries
+        front = stack.layers[:-1] if len(stack.layers) > 1 else stack.layers
+        front_thickness = sum(layer.thickness for layer in front)
         for j, layer in enumerate(stack.layers):
             sl = slice(i, i + layer.cells)
+            if j < len(front):
+                self.edge_share[sl] = self.width[sl] / front_thickness
             k[sl] = layer.conductivity
             rho_c[sl] = layer.conductivity / layer.diffusivity
             if j == stack.heater_layer:
@@ -430,6 +442,7 @@ class MultilayerModel:
             loss[s - 1] = 1.0 / (self._half[s - 1] + 1.0 / self.body.surface_loss)
             loss[s] = 1.0 / (self._half[s] + 1.0 / self.stack.front_loss)
         loss[-1] = 1.0 / (self._half[-1] + 1.0 / self.stack.back_loss)
+        loss += self.edge_share[:, None] * self.stack.edge_loss
         if self.body.back == "ambient":
             loss[0] = 1.0 / self._half[0]
         duty = _per_trial(heater, self.batch, "per-trial heater duty")

@@ -7,7 +7,7 @@ contacts and resting 10 minutes every 10 trials; initial sensor temperatures spr
 `simulate_trials` reproduces that protocol, then records each trial as the paper's rig did:
 
 - **Sensor history** (lumped): after a contact the taxel reheats towards its free steady
-  state with the multilayer column's slowest time constant (about 68 s); a rest restores it.
+  state with the multilayer column's slowest time constant (about 63 s); a rest restores it.
 - **Object history**: a touch warms the object's surface; after release the excess decays as
   ``sqrt(D / (D + t))`` (diffusion of a layer warmed for D seconds), so the next touch meets
   an object slightly above ambient. Heat-generating materials (skin) hold their own
@@ -99,7 +99,7 @@ class Protocol:
     adc_noise: float = 0.5
     onset_jitter: float = 0.010
     fs: float = 200.0
-    reheat_time_constant: float = 67.6
+    reheat_time_constant: float = 62.5
 
 
 def _adc(temperature: np.ndarray, rng: np.random.Generator, noise: float) -> np.ndarray:

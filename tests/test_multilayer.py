@@ -65,10 +65,11 @@ def eq5(t, e_object, t_object=AMBIENT, t_sensor=T_SENSOR):
 
 
 def thick_stack(body_cells):
-    """The paper's taxel with a 1 mm sensor body: semi-infinite over a few seconds."""
+    """The paper's taxel with a 1 mm sensor body and no edge loss: eq. 5's semi-infinite solid
+    over a few seconds."""
     stack = SensorStack.paper()
     body = dataclasses.replace(stack.layers[0], thickness=1e-3, cells=body_cells)
-    return dataclasses.replace(stack, layers=(body, *stack.layers[1:]))
+    return dataclasses.replace(stack, layers=(body, *stack.layers[1:]), edge_loss=0.0)
 
 
 def semi_infinite_error(material, body_cells, object_cells, conductance=np.inf, dt=4e-3,
@@ -301,8 +302,9 @@ def test_stiff_objects_cool_the_thermistor_monotonically(scheme, dt):
 @pytest.mark.parametrize("scheme", SCHEMES)
 def test_a_hotter_object_warms_the_thermistor_within_bounds(scheme):
     hot = 45.0
-    model = MultilayerModel(SensorStack.paper(), stiff_body(), ambient=AMBIENT, scheme=scheme,
-                            dt=0.01)
+    # without the edge loss (a sink at ambient) the reading can only rise towards the object
+    stack = dataclasses.replace(SensorStack.paper(), edge_loss=0.0)
+    model = MultilayerModel(stack, stiff_body(), ambient=AMBIENT, scheme=scheme, dt=0.01)
     run = model.run(model.state(T_SENSOR, hot), [Phase(5.0, True, heater=0.0)], fs=100)
     y = run.thermistor
     tol = BOUND_TOL[scheme]
@@ -339,8 +341,8 @@ def test_an_hour_of_contact_stays_finite_and_bounded(scheme, dt):
     assert np.all(np.isfinite(u))
     assert u.min() >= AMBIENT - BOUND_TOL[scheme]
     assert u.max() <= T_SENSOR + BOUND_TOL[scheme]
-    # measured: the thermistor reads 25.4646 C after the hour with copper, for every dt
-    assert model.thermistor(run.state)[0] == pytest.approx(25.4646, abs=1e-3)
+    # measured: the thermistor reads 25.0928 C after the hour with copper, for every dt
+    assert model.thermistor(run.state)[0] == pytest.approx(25.0928, abs=1e-3)
     # heater on: with an insulated object all its power leaves through the foil, the foam
     # and the back, so no cell can exceed that path's steady rise (155.7 C; measured 154.0 C
     # in the polyurethane foam column after the hour)
