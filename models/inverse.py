@@ -1,6 +1,6 @@
 """Inverse estimators: the object's effusivity (and more) from a thermistor trace after contact.
 
-Two estimators, both vectorised over trials:
+Two estimators, taking many trials at once (the fit is vectorised over them):
 
 - `paper_effusivity`: the paper's pointwise estimate (eqs. 9-11) at every sample, undefined
   samples dropped, summarised by the median; "unknown" (NaN with ``valid`` False) when fewer
@@ -80,6 +80,7 @@ class ContactFit:
     log10_conductance_std: np.ndarray
     sensor_temperature: np.ndarray
     rms: np.ndarray
+    converged: np.ndarray
     iterations: int
 
 
@@ -157,9 +158,10 @@ def fit_contact(
     fit_sensor_temperature : bool
         Also fit the sensor's initial temperature (prior: ``t_sensor`` +- its std).
     noise : float, optional
-        Reading noise std, K; default: estimated from the residuals (at least 0.01 K).
+        Reading noise std, K; default: each trial's own, from the residuals of a first fit
+        (at least 0.01 K), then fitted again with it.
     max_iter : int
-        Levenberg-Marquardt iterations at most.
+        Levenberg-Marquardt iterations at most (per pass).
 
     Returns
     -------
@@ -193,7 +195,10 @@ def fit_contact(
         ts = p[:, 3:4] if fit_sensor_temperature else t0[:, None]
         return contact_trace(t, ts, p[:, 1:2], 10.0 ** p[:, 0:1], s, 10.0 ** p[:, 2:3])
 
-    sigma = 0.05 if noise is None else float(noise)
+    if noise is not None and not (np.isfinite(noise) and noise > 0):
+        raise ValueError(f"noise must be a positive standard deviation, got {noise!r}")
+    if n_samples < 3 or not np.all(np.isfinite(t)):
+        raise ValueError(f"need at least 3 samples at finite times, got {n_samples}")
 
     def residuals(p: np.ndarray, sig: np.ndarray | float) -> np.ndarray:
         data = (y - model(p)) / np.reshape(sig, (-1, 1))
@@ -207,45 +212,51 @@ def fit_contact(
             jac[:, :, j] = (residuals(p + step, sig) - r) / step[j]
         return jac
 
-    # start: the prior mean, with the effusivity from the last sample's paper estimate
-    p = mean.copy()
+    def solve(p: np.ndarray, sig: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+        """Levenberg-Marquardt for every trial independently (a trial stops on its own)."""
+        p = p.copy()
+        lam = np.full(n_trials, 1e-2)
+        r = residuals(p, sig)
+        cost = np.sum(r**2, axis=1)
+        active = np.ones(n_trials, dtype=bool)
+        done = np.zeros(n_trials, dtype=bool)
+        it = 0
+        for it in range(1, max_iter + 1):  # noqa: B007 - the count is returned
+            jac = jacobian(p, r, sig)
+            jtj = np.einsum("bki,bkj->bij", jac, jac)
+            grad = np.einsum("bki,bk->bi", jac, r)
+            damp = lam[:, None, None] * (jtj * np.eye(n_par) + 1e-9 * np.eye(n_par))
+            delta = -np.linalg.solve(jtj + damp, grad[:, :, None])[:, :, 0]
+            trial = np.clip(p + delta, lo, hi)
+            r_new = residuals(trial, sig)
+            cost_new = np.sum(r_new**2, axis=1)
+            better = (cost_new < cost) & active
+            gain = np.where(better, (cost - cost_new) / np.maximum(cost, 1e-300), 0.0)
+            p[better], r[better], cost[better] = trial[better], r_new[better], cost_new[better]
+            lam = np.where(active, np.where(better, lam / 3.0, lam * 4.0), lam)
+            small_step = np.max(np.abs(delta), axis=1) < 1e-6
+            done |= active & ((better & (gain < 1e-9)) | small_step)
+            active &= ~done & (lam < 1e10)
+            if not active.any():
+                break
+        return p, done, it
+
+    # start: the prior mean, with the effusivity from the last samples' paper estimate
+    start = mean.copy()
     e_paper, ok = paper_effusivity(t[-min(20, n_samples):], y[:, -min(20, n_samples):], t0,
                                    amb, s, min_samples=1)
-    p[ok, 0] = np.clip(np.log10(e_paper[ok]), *_LOG_E_BOUNDS)
-    sig = np.full(n_trials, sigma)
-    lam = np.full(n_trials, 1e-2)
-    r = residuals(p, sig)
-    cost = np.sum(r**2, axis=1)
-    active = np.ones(n_trials, dtype=bool)
-    it = 0
-    for it in range(1, max_iter + 1):
-        jac = jacobian(p, r, sig)
-        jtj = np.einsum("bki,bkj->bij", jac, jac)
-        grad = np.einsum("bki,bk->bi", jac, r)
-        damp = lam[:, None, None] * (jtj * np.eye(n_par) + 1e-9 * np.eye(n_par))
-        delta = -np.linalg.solve(jtj + damp, grad[:, :, None])[:, :, 0]
-        trial = np.clip(p + delta, lo, hi)
-        r_new = residuals(trial, sig)
-        cost_new = np.sum(r_new**2, axis=1)
-        better = (cost_new < cost) & active
-        p[better], r[better] = trial[better], r_new[better]
-        gain = np.where(better, (cost - cost_new) / np.maximum(cost, 1e-300), 0.0)
-        cost[better] = cost_new[better]
-        lam = np.where(better, lam / 3.0, lam * 4.0)
-        active &= ~(better & (gain < 1e-8)) & (lam < 1e10)
-        if noise is None and it in (5, 15):  # re-estimate the noise from the residuals
-            data_r = (y - model(p))
-            sig = np.maximum(np.sqrt(np.mean(data_r**2, axis=1)), 0.01)
-            r = residuals(p, sig)
-            cost = np.sum(r**2, axis=1)
-            active[:] = True
-        if not active.any():
-            break
-
-    data_r = y - model(p)
-    rms = np.sqrt(np.mean(data_r**2, axis=1))
+    start[ok, 0] = np.clip(np.log10(e_paper[ok]), *_LOG_E_BOUNDS)
     if noise is None:
-        sig = np.maximum(rms, 0.01)
+        # fit with a nominal noise, estimate each trial's noise from its residuals, refit
+        p, _, it1 = solve(start, np.full(n_trials, 0.05))
+        sig = np.maximum(np.sqrt(np.mean((y - model(p)) ** 2, axis=1)), 0.01)
+        p, converged, it2 = solve(p, sig)
+        iterations = it1 + it2
+    else:
+        sig = np.full(n_trials, float(noise))
+        p, converged, iterations = solve(start, sig)
+
+    rms = np.sqrt(np.mean((y - model(p)) ** 2, axis=1))
     r = residuals(p, sig)
     jac = jacobian(p, r, sig)
     cov = np.linalg.inv(np.einsum("bki,bkj->bij", jac, jac))
@@ -259,5 +270,6 @@ def fit_contact(
         log10_conductance_std=sd[:, 2],
         sensor_temperature=p[:, 3] if fit_sensor_temperature else t0,
         rms=rms,
-        iterations=it,
+        converged=converged,
+        iterations=iterations,
     )

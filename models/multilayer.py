@@ -443,8 +443,8 @@ class MultilayerModel:
             loss[s] = 1.0 / (self._half[s] + 1.0 / self.stack.front_loss)
         loss[-1] = 1.0 / (self._half[-1] + 1.0 / self.stack.back_loss)
         loss += self.edge_share[:, None] * self.stack.edge_loss
-        if self.body.back == "ambient":
-            loss[0] = 1.0 / self._half[0]
+        if self.body.back == "ambient":  # added: a one-cell object also has its free surface
+            loss[0] += 1.0 / self._half[0]
         duty = _per_trial(heater, self.batch, "per-trial heater duty")
         b = loss * amb + self.heater_share[:, None] * (self.stack.heater_power * duty)
         diag = capacity_factor * self.capacity + theta_dt * loss

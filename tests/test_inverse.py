@@ -33,15 +33,29 @@ def test_metals_are_reported_with_a_wide_uncertainty_not_a_confident_wrong_value
     assert err < 2.5 * fit.log10_effusivity_std[0]
 
 
-def test_uncertainty_shrinks_with_contact_duration():
+def test_uncertainty_shrinks_with_contact_duration_and_covers_the_error():
     e, t0 = [331.0], [38.9]
-    stds = []
+    stds, errs = [], []
     for d in (0.25, 0.5, 1.0, 2.5):
         t = (np.arange(int(d * 200)) + 1) / 200.0
-        stds.append(fit_contact(t, traces(e, t0, noise=0.02, t=t), t0, 25.0)
-                    .log10_effusivity_std[0])
+        fit = fit_contact(t, traces(e, t0, noise=0.02, t=t), t0, 25.0)
+        assert fit.converged[0]
+        stds.append(fit.log10_effusivity_std[0])
+        errs.append(abs(np.log10(fit.effusivity[0] / e[0])))
     assert stds == sorted(stds, reverse=True)
-    assert stds[0] > 1.5 * stds[-1]
+    assert all(err < 2.5 * sd for err, sd in zip(errs, stds, strict=True))
+    assert errs[-1] < 0.05
+
+
+def test_a_trial_fits_the_same_alone_and_in_a_batch():
+    e = np.array([24000.0, 331.0, 573.0, 1620.0])
+    y = traces(e, [38.9] * 4, noise=0.02)
+    batch = fit_contact(T, y, 38.9, 25.0)
+    for i in range(4):
+        alone = fit_contact(T, y[i:i + 1], 38.9, 25.0)
+        assert alone.effusivity[0] == pytest.approx(batch.effusivity[i], rel=1e-6)
+        assert alone.log10_effusivity_std[0] == pytest.approx(batch.log10_effusivity_std[i],
+                                                              rel=1e-6)
 
 
 def test_usable_from_a_quarter_second():
@@ -67,6 +81,12 @@ def test_sensor_at_the_object_temperature_gives_a_finite_answer_with_the_prior_w
     assert fit.log10_effusivity_std[0] > 1.0  # nothing learned: the prior's 1.5 decades remain
 
 
+@pytest.mark.parametrize("noise", [0.0, -0.1, np.nan])
+def test_fit_rejects_a_non_positive_noise(noise):
+    with pytest.raises(ValueError, match="noise"):
+        fit_contact(T, traces([331.0], [38.9]), 38.9, 25.0, noise=noise)
+
+
 def test_fit_rejects_nan_and_mismatched_times():
     y = traces([331.0], [38.9])
     y[0, 10] = np.nan
@@ -74,6 +94,8 @@ def test_fit_rejects_nan_and_mismatched_times():
         fit_contact(T, y, 38.9, 25.0)
     with pytest.raises(ValueError, match="samples"):
         fit_contact(T[:-1], traces([331.0], [38.9]), 38.9, 25.0)
+    with pytest.raises(ValueError, match="at least 3 samples"):
+        fit_contact(T[:2], traces([331.0], [38.9], t=T[:2]), 38.9, 25.0)
 
 
 def test_paper_estimate_is_exact_on_ideal_data_and_unknown_without_signal():

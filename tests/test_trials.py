@@ -207,3 +207,33 @@ def test_bench_thermal_quick_prints_work_precision_json():
     assert {r["estimator"] for r in inv} == {"paper (eqs. 10-11, median)",
                                             "least squares (MAP)"}
     assert {r["duration"] for r in inv} == {0.25, 2.5}
+
+
+def test_multilayer_path_labels_the_taxel_and_ambient_it_simulated():
+    ds = simulate_trials([MATS["glass"], MATS["pine"]], Protocol(trials=4, run_length=2),
+                         seed=4, model="multilayer")
+    per_material = ds.taxel.reshape(2, -1)
+    assert np.array_equal(per_material[0], per_material[1])  # lockstep: one taxel per run
+    amb = ds.ambient.reshape(2, -1)
+    assert np.array_equal(amb[0], amb[1])
+    # the initial temperature is read at the contact, not 0.5 s before it
+    t0 = ds.extra["true_sensor_temperature"]
+    at_onset = ds.temperature[:, 99:102].mean(axis=1)
+    assert np.max(np.abs(t0 - at_onset)) < 0.15
+
+
+def test_evaluate_explains_too_few_trials(tmp_path):
+    path = tmp_path / "few.npz"
+    skin("simulate", "trials", "-o", str(path), "--trials", "2", "--materials", "pine,glass")
+    out = skin("evaluate", "--data", str(path), "--cv", "3")
+    assert out.returncode == 2 and "fewer than the 3 folds" in out.stderr
+    out = skin("evaluate", "--data", str(path), "--cv", "2")
+    assert out.returncode == 2 and "PCA with 10 components" in out.stderr
+    out = skin("evaluate", "--data", str(path), "--cv", "3", "--groups")
+    assert out.returncode == 2 and "groups cannot make 3 folds" in out.stderr
+
+
+def test_simulate_trace_rejects_a_non_positive_conductance():
+    out = skin("simulate", "trace", "--material", "pine", "--model", "contact",
+               "--conductance", "0")
+    assert out.returncode == 2 and "--conductance must be positive" in out.stderr

@@ -65,12 +65,24 @@ def evaluate(data, method: str, duration: float, folds: int, groups: bool,
     x = window(data, duration)
     y = data.label
     classes = data.classes
+    smallest = min(int(np.sum(y == c)) for c in classes)
     if groups:
         if data.group is None:
             raise SkinError(f"{data.source}: --groups needs a 'group' column")
+        n_groups = len(np.unique(data.group))
+        if n_groups < folds:
+            raise SkinError(f"{data.source}: {n_groups} groups cannot make {folds} folds")
         splits = GroupKFold(n_splits=folds).split(x, y, data.group)
     else:
+        if smallest < folds:
+            raise SkinError(f"{data.source}: a class has only {smallest} trials, fewer than "
+                            f"the {folds} folds")
         splits = StratifiedKFold(n_splits=folds, shuffle=True, random_state=seed).split(x, y)
+    n_train = len(y) - int(np.ceil(len(y) / folds))
+    if method == "svm-pca" and min(n_train, x.shape[1]) < 10:
+        raise SkinError(f"{data.source}: PCA with 10 components needs at least 10 training "
+                        f"trials and 10 samples per window; a {duration} s window with "
+                        f"{folds} folds has {n_train} trials of {x.shape[1]} samples")
     acc, fit_t, pred_t = [], [], []
     conf = np.zeros((len(classes), len(classes)), dtype=int)
     for train, test in splits:

@@ -69,6 +69,8 @@ def main_trace(args: argparse.Namespace) -> int:
         raise SkinError(f"unknown material {args.material!r}; known: {', '.join(materials)}")
     if not (args.duration > 0 and args.fs > 0):
         raise SkinError("--duration and --fs must be positive")
+    if not args.conductance > 0:
+        raise SkinError(f"--conductance must be positive (W/(m^2 K)), got {args.conductance}")
     mat = materials[args.material]
     s = SensorConstants()
     t_sensor = float(heated_temperature(args.ambient, s)) if args.t_sensor is None \
