@@ -42,12 +42,15 @@ class Priors:
         Mean and std of log10 h, W/(m^2 K) (3.5 +- 0.75: a light touch of a foil sensor).
     sensor_temperature_std : float
         Std of the sensor's initial temperature around the pre-contact reading, K.
+    onset_std : float
+        Std of the true contact instant around the given onset, s (two samples at 200 Hz).
     """
 
     log10_effusivity: tuple[float, float] = (3.0, 1.5)
     object_offset: tuple[float, float] = (0.0, 3.0)
     log10_conductance: tuple[float, float] = (3.5, 0.75)
     sensor_temperature_std: float = 0.05
+    onset_std: float = 0.01
 
 
 @dataclass
@@ -79,6 +82,7 @@ class ContactFit:
     conductance: np.ndarray
     log10_conductance_std: np.ndarray
     sensor_temperature: np.ndarray
+    onset_shift: np.ndarray
     rms: np.ndarray
     converged: np.ndarray
     iterations: int
@@ -135,6 +139,7 @@ def fit_contact(
     sensor: SensorConstants | None = None,
     priors: Priors | None = None,
     fit_sensor_temperature: bool = False,
+    fit_onset: bool = False,
     noise: float | None = None,
     max_iter: int = 60,
 ) -> ContactFit:
@@ -157,6 +162,9 @@ def fit_contact(
         Gaussian priors (default `Priors()`).
     fit_sensor_temperature : bool
         Also fit the sensor's initial temperature (prior: ``t_sensor`` +- its std).
+    fit_onset : bool
+        Also fit a shift of the contact instant against ``t = 0`` (prior: 0 +- ``onset_std``),
+        for onsets known only to a few samples.
     noise : float, optional
         Reading noise std, K; default: each trial's own, from the residuals of a first fit
         (at least 0.01 K), then fitted again with it.
@@ -181,19 +189,26 @@ def fit_contact(
     t0 = np.broadcast_to(np.asarray(t_sensor, dtype=float), (n_trials,)).copy()
     amb = np.broadcast_to(np.asarray(ambient, dtype=float), (n_trials,)).copy()
 
-    n_par = 4 if fit_sensor_temperature else 3
-    mean = np.stack([np.full(n_trials, pr.log10_effusivity[0]),
-                     amb + pr.object_offset[0],
-                     np.full(n_trials, pr.log10_conductance[0]),
-                     t0][:n_par], axis=1)
-    std = np.array([pr.log10_effusivity[1], pr.object_offset[1], pr.log10_conductance[1],
-                    pr.sensor_temperature_std][:n_par])
-    lo = np.array([_LOG_E_BOUNDS[0], _T_BOUNDS[0], _LOG_H_BOUNDS[0], _T_BOUNDS[0]][:n_par])
-    hi = np.array([_LOG_E_BOUNDS[1], _T_BOUNDS[1], _LOG_H_BOUNDS[1], _T_BOUNDS[1]][:n_par])
+    names = ["log10_e", "t_object", "log10_h"]
+    names += ["t_sensor"] * fit_sensor_temperature + ["onset"] * fit_onset
+    n_par = len(names)
+    prior = {"log10_e": (pr.log10_effusivity[0], pr.log10_effusivity[1], _LOG_E_BOUNDS),
+             "t_object": (amb + pr.object_offset[0], pr.object_offset[1], _T_BOUNDS),
+             "log10_h": (pr.log10_conductance[0], pr.log10_conductance[1], _LOG_H_BOUNDS),
+             "t_sensor": (t0, pr.sensor_temperature_std, _T_BOUNDS),
+             "onset": (0.0, pr.onset_std, (-5 * pr.onset_std, 5 * pr.onset_std))}
+    mean = np.stack([np.broadcast_to(prior[k][0], (n_trials,)) for k in names], axis=1)
+    std = np.array([prior[k][1] for k in names])
+    lo = np.array([prior[k][2][0] for k in names])
+    hi = np.array([prior[k][2][1] for k in names])
+    step_size = np.array([{"t_object": 1e-3, "t_sensor": 1e-3, "onset": 1e-4}.get(k, 1e-4)
+                          for k in names])
 
     def model(p: np.ndarray) -> np.ndarray:
         ts = p[:, 3:4] if fit_sensor_temperature else t0[:, None]
-        return contact_trace(t, ts, p[:, 1:2], 10.0 ** p[:, 0:1], s, 10.0 ** p[:, 2:3])
+        shift = p[:, -1:] if fit_onset else 0.0
+        return contact_trace(t - shift, ts, p[:, 1:2], 10.0 ** p[:, 0:1], s,
+                             10.0 ** p[:, 2:3])
 
     if noise is not None and not (np.isfinite(noise) and noise > 0):
         raise ValueError(f"noise must be a positive standard deviation, got {noise!r}")
@@ -208,7 +223,7 @@ def fit_contact(
         jac = np.empty((n_trials, r.shape[1], n_par))
         for j in range(n_par):
             step = np.zeros(n_par)
-            step[j] = 1e-4 if j in (0, 2) else 1e-3
+            step[j] = step_size[j]
             jac[:, :, j] = (residuals(p + step, sig) - r) / step[j]
         return jac
 
@@ -269,6 +284,7 @@ def fit_contact(
         conductance=10.0 ** p[:, 2],
         log10_conductance_std=sd[:, 2],
         sensor_temperature=p[:, 3] if fit_sensor_temperature else t0,
+        onset_shift=p[:, -1] if fit_onset else np.zeros(n_trials),
         rms=rms,
         converged=converged,
         iterations=iterations,

@@ -132,19 +132,21 @@ def inverse(durations: tuple[float, ...] = (0.25, 0.5, 1.0, 2.5), trials: int = 
     truth = data.extra["true_effusivity"]
     pre = data.temperature[:, data.onset[0] - 10: data.onset[0]].mean(axis=1)
     rows = []
-    total, done = 2 * len(durations), 0
+    estimators = ("paper (eqs. 10-11, median)", "least squares (MAP)",
+                  "least squares + onset (MAP)")
+    total, done = len(estimators) * len(durations), 0
     for d in durations:
         n = round(d * data.fs)
         idx = data.onset[:, None] + 1 + np.arange(n)[None, :]
         y = np.take_along_axis(data.temperature, idx, axis=1)
         tt = (np.arange(n) + 1) / data.fs
-        for name in ("paper (eqs. 10-11, median)", "least squares (MAP)"):
+        for name in estimators:
             t0 = time.perf_counter()
             if name.startswith("paper"):
                 est, ok = paper_effusivity(tt, y, pre, data.ambient)
                 std = None
             else:
-                fit = fit_contact(tt, y, pre, data.ambient)
+                fit = fit_contact(tt, y, pre, data.ambient, fit_onset="onset" in name)
                 est, ok = fit.effusivity, np.ones(len(data), dtype=bool)
                 std = fit.log10_effusivity_std
             wall = time.perf_counter() - t0
@@ -158,6 +160,7 @@ def inverse(durations: tuple[float, ...] = (0.25, 0.5, 1.0, 2.5), trials: int = 
                    if err.size else None,
                    "time_per_trial_ms": round(1e3 * wall / len(data), 4)}
             if std is not None:
+                row["converged"] = round(float(fit.converged.mean()), 4)
                 row["median_reported_std"] = round(float(np.median(std)), 4)
                 row["within_2_std"] = round(float(np.mean(err <= 2 * std[ok])), 4)
             rows.append(row)

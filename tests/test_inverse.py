@@ -74,6 +74,13 @@ def test_fitting_the_sensor_temperature_recovers_it():
     assert abs(fit.sensor_temperature[0] - 36.0) < 0.1
 
 
+def test_fitting_the_onset_recovers_a_late_contact():
+    late = traces([573.0], [38.9], noise=0.01, t=T - 0.012)  # contact 12 ms after t = 0
+    fit = fit_contact(T, late, 38.9, 25.0, fit_onset=True)
+    assert fit.onset_shift[0] == pytest.approx(0.012, abs=0.004)
+    assert abs(np.log10(fit.effusivity[0] / 573.0)) < 0.05
+
+
 def test_sensor_at_the_object_temperature_gives_a_finite_answer_with_the_prior_width():
     y = np.full((1, T.size), 25.0)
     fit = fit_contact(T, y, 25.0, 25.0)

@@ -205,7 +205,8 @@ def test_bench_thermal_quick_prints_work_precision_json():
     assert euler[0.02] < euler[0.1]  # a smaller step is more accurate
     inv = doc["inverse"]
     assert {r["estimator"] for r in inv} == {"paper (eqs. 10-11, median)",
-                                            "least squares (MAP)"}
+                                            "least squares (MAP)",
+                                            "least squares + onset (MAP)"}
     assert {r["duration"] for r in inv} == {0.25, 2.5}
 
 
