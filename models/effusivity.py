@@ -49,7 +49,6 @@ class HistogramClassifier:
         self.bins = bins
         self.min_estimates = min_estimates
         self.max_distance = max_distance
-        self._ranges = np.array([m.log_effusivity_range for m in self.candidates])
         self._sensors = {
             int(t.id): SensorConstants.from_board(layout.boards[t.board]) for t in layout.taxels
         }
@@ -69,23 +68,52 @@ class HistogramClassifier:
 
     def classify_estimates(self, log_e: np.ndarray) -> MaterialEstimate:
         """Label a set of log10 effusivity estimates."""
-        if log_e.size < self.min_estimates:
-            return MaterialEstimate(UNKNOWN, {}, 0.0, None, self.method)
-        hist, edges = np.histogram(log_e, bins=self.bins)
-        mode = int(np.argmax(hist))
-        lo, hi = edges[mode], edges[mode + 1]
-        in_mode = log_e[(log_e >= lo) & (log_e <= hi)]
-        estimate = float(10 ** np.median(in_mode))
-        r_lo, r_hi = self._ranges[:, 0], self._ranges[:, 1]
-        gap = np.maximum(0.0, np.maximum(r_lo - hi, lo - r_hi))
-        centre = np.abs((r_lo + r_hi) / 2 - (lo + hi) / 2)
-        best = int(np.lexsort((centre, gap))[0])
-        inside = ((log_e[:, None] >= r_lo) & (log_e[:, None] <= r_hi)).sum(axis=0)
-        total = inside.sum()
-        probs = {m.name: float(c / total) for m, c in zip(self.candidates, inside, strict=True)
-                 } if total else {}
-        if gap[best] > self.max_distance:
-            return MaterialEstimate(UNKNOWN, probs, 0.0, estimate, self.method)
-        label = self.candidates[best].name
-        confidence = float(inside[best] / log_e.size)
-        return MaterialEstimate(label, probs, confidence, estimate, self.method)
+        return classify_log_effusivity(log_e, self.candidates, self.bins, self.min_estimates,
+                                       self.max_distance)
+
+
+def classify_log_effusivity(log_e: np.ndarray, candidates: list[Material], bins: int = 10,
+                            min_estimates: int = 10, max_distance: float = 0.25
+                            ) -> MaterialEstimate:
+    """Label log10 effusivity estimates by the paper's histogram method.
+
+    Parameters
+    ----------
+    log_e : numpy.ndarray
+        Valid pointwise log10 effusivity estimates (of one contact, pooled over taxels).
+    candidates : list of Material
+        The materials to choose among.
+    bins : int
+        Histogram bins.
+    min_estimates : int
+        Fewer estimates give ``"unknown"``.
+    max_distance : float
+        A mode bin farther than this (decades) from every candidate range is ``"unknown"``.
+
+    Returns
+    -------
+    MaterialEstimate
+        Label, per-material share of the estimates inside its range, confidence, and the
+        effusivity of the mode bin.
+    """
+    method = HistogramClassifier.method
+    if log_e.size < min_estimates:
+        return MaterialEstimate(UNKNOWN, {}, 0.0, None, method)
+    ranges = np.array([m.log_effusivity_range for m in candidates])
+    hist, edges = np.histogram(log_e, bins=bins)
+    mode = int(np.argmax(hist))
+    lo, hi = edges[mode], edges[mode + 1]
+    in_mode = log_e[(log_e >= lo) & (log_e <= hi)]
+    estimate = float(10 ** np.median(in_mode))
+    r_lo, r_hi = ranges[:, 0], ranges[:, 1]
+    gap = np.maximum(0.0, np.maximum(r_lo - hi, lo - r_hi))
+    centre = np.abs((r_lo + r_hi) / 2 - (lo + hi) / 2)
+    best = int(np.lexsort((centre, gap))[0])
+    inside = ((log_e[:, None] >= r_lo) & (log_e[:, None] <= r_hi)).sum(axis=0)
+    total = inside.sum()
+    probs = {m.name: float(c / total) for m, c in zip(candidates, inside, strict=True)
+             } if total else {}
+    if gap[best] > max_distance:
+        return MaterialEstimate(UNKNOWN, probs, 0.0, estimate, method)
+    confidence = float(inside[best] / log_e.size)
+    return MaterialEstimate(candidates[best].name, probs, confidence, estimate, method)

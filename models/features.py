@@ -1,4 +1,17 @@
-"""Features of a contact: the window of samples after onset (the paper's section III-D)."""
+"""Features of a contact: the window of samples after onset and its slope (paper III-D).
+
+Classifiers take one row per trial laid out by `trial_matrix`::
+
+    [ambient, T0, T(onset), T(onset + 1), ..., T(onset + n - 1)]
+
+``T0`` is the sensor temperature just before contact (the mean of up to ``PRE`` samples
+before onset). Keeping ambient and T0 in the row lets every method, physical or learned,
+be a plain scikit-learn estimator on a 2-D array.
+
+The slope is the first difference through a causal 8th-order Butterworth low-pass (2 Hz at
+200 Hz) in second-order sections: the transfer-function form of this filter has its poles
+so close to 1 that rounding puts them outside the unit circle (`slope` documents the test).
+"""
 
 from __future__ import annotations
 
@@ -7,12 +20,15 @@ import numpy as np
 from skin.dataset import TrialSet
 from skin.errors import SkinError
 
+PRE = 10  # samples before onset averaged into T0
+KINDS = ("raw", "slope", "both")
+
 
 def window(data: TrialSet, duration: float) -> np.ndarray:
     """Return the first ``duration`` seconds after each trial's onset, (n_trials, n).
 
     Raises `skin.errors.SkinError` naming the trial when a trial is too short or its onset
-    is unknown (-1; onset detection on datasets comes with the classifiers' evaluation).
+    is unknown (-1: run `skin.models.features.detect_onsets` first).
     """
     n = round(duration * data.fs)
     if n < 1:
@@ -28,3 +44,56 @@ def window(data: TrialSet, duration: float) -> np.ndarray:
                         f" samples after onset, fewer than the {n} of a {duration} s window")
     idx = data.onset[:, None] + np.arange(n)[None, :]
     return np.take_along_axis(data.temperature, idx, axis=1)
+
+
+def trial_matrix(data: TrialSet, duration: float) -> np.ndarray:
+    """Rows ``[ambient, T0, window...]`` for every trial (see the module docstring)."""
+    w = window(data, duration)
+    first = np.maximum(data.onset - PRE, 0)
+    t0 = np.array([data.temperature[i, first[i]:max(data.onset[i], first[i] + 1)].mean()
+                   for i in range(len(data))])
+    amb = data.ambient if data.ambient is not None else np.full(len(data), np.nan)
+    if np.isnan(amb).any():
+        raise SkinError(f"{data.source}: the classifiers need the 'ambient' column")
+    return np.column_stack([amb, t0, w])
+
+
+def split_rows(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Split `trial_matrix` rows into (ambient, T0, window)."""
+    x = np.asarray(x, dtype=float)
+    if x.ndim != 2 or x.shape[1] < 4:
+        raise ValueError(f"expected rows [ambient, T0, window...] of at least 4 values, got "
+                         f"shape {x.shape}")
+    return x[:, 0], x[:, 1], x[:, 2:]
+
+
+def slope_filter(fs: float = 200.0, cutoff: float = 2.0, order: int = 8) -> np.ndarray:
+    """Return the paper's causal Butterworth low-pass as second-order sections."""
+    from scipy.signal import butter
+
+    return butter(order, cutoff, fs=fs, output="sos")
+
+
+def slope(window: np.ndarray, t0: np.ndarray, fs: float = 200.0) -> np.ndarray:
+    """Return the filtered first difference of each window, K/s, shaped like ``window``.
+
+    The filter starts at rest on the flat pre-contact signal (difference 0 at T0), the state
+    a causal filter running on the stream would be in at onset.
+    """
+    from scipy.signal import sosfilt
+
+    w = np.asarray(window, dtype=float)
+    prev = np.column_stack([np.asarray(t0, dtype=float), w[:, :-1]])
+    diff = (w - prev) * fs
+    return sosfilt(slope_filter(fs), diff, axis=1)
+
+
+def trace_features(x: np.ndarray, kind: str = "raw", fs: float = 200.0) -> np.ndarray:
+    """Return the paper's feature vector: raw window, its slope, or both concatenated."""
+    if kind not in KINDS:
+        raise ValueError(f"unknown feature kind {kind!r}; choose one of {', '.join(KINDS)}")
+    _, t0, w = split_rows(x)
+    if kind == "raw":
+        return w
+    s = slope(w, t0, fs)
+    return s if kind == "slope" else np.hstack([w, s])

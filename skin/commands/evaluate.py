@@ -1,9 +1,10 @@
-"""``skin evaluate``: cross-validated accuracy of a classifier against contact duration.
+"""``skin evaluate``: cross-validated accuracy of classifiers against contact duration.
 
-For now the paper's method: PCA (10 components) of the raw temperature window after onset,
-then a linear SVM (``svm-pca``), with stratified K-fold cross-validation (``--groups`` keeps the
-trials of one recording run on one side). For each duration: accuracy (mean and std over the
-folds), per-class recall, the confusion matrix, and fit and predict time per trial.
+Methods (`skin.models.classifiers`): ``svm-pca``, ``knn-pca``, ``hmm``, ``model``, each with
+``:raw``, ``:slope`` or ``:both`` features (``svm-pca:both``). Stratified K-fold
+cross-validation (``--groups`` keeps the trials of one recording run on one side). For each
+method and duration: accuracy (mean and std over the folds), per-class recall, the confusion
+matrix, and fit and predict time per trial.
 """
 
 from __future__ import annotations
@@ -17,8 +18,6 @@ import numpy as np
 from skin.errors import SkinError
 from skin.progress import Progress
 
-METHODS = ("svm-pca",)
-
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register ``skin evaluate``."""
@@ -26,7 +25,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         description=__doc__)
     ev.add_argument("--data", required=True, help="trial dataset (.npz)")
     ev.add_argument("--methods", default="svm-pca",
-                    help=f"comma-separated methods ({', '.join(METHODS)})")
+                    help="comma-separated methods: svm-pca, knn-pca, hmm, model, each with "
+                         "optional :raw, :slope or :both features (default svm-pca)")
     ev.add_argument("--durations", default="0.5,1.5,2.5",
                     help="comma-separated contact durations, s (default 0.5,1.5,2.5)")
     ev.add_argument("--cv", type=int, default=3, help="number of folds (default 3)")
@@ -40,29 +40,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.set_defaults(func=main)
 
 
-def make_method(name: str):
-    """Return a fresh, unfitted estimator for ``name``."""
-    from skin._optional import require
-
-    require("sklearn", "ml")
-    from sklearn.decomposition import PCA
-    from sklearn.pipeline import make_pipeline
-    from sklearn.svm import SVC
-
-    if name == "svm-pca":
-        return make_pipeline(PCA(n_components=10), SVC(kernel="linear"))
-    raise SkinError(f"unknown method {name!r}; choose from {', '.join(METHODS)}")
-
-
 def evaluate(data, method: str, duration: float, folds: int, groups: bool,
              seed: int = 0) -> dict:
     """Cross-validate ``method`` on the first ``duration`` s after onset; return the figures."""
     from sklearn.metrics import confusion_matrix
     from sklearn.model_selection import GroupKFold, StratifiedKFold
 
-    from skin.models.features import window
+    from skin.models.classifiers import make_method
+    from skin.models.features import trial_matrix
 
-    x = window(data, duration)
+    x = trial_matrix(data, duration)
     y = data.label
     classes = data.classes
     smallest = min(int(np.sum(y == c)) for c in classes)
@@ -79,14 +66,15 @@ def evaluate(data, method: str, duration: float, folds: int, groups: bool,
                             f"the {folds} folds")
         splits = StratifiedKFold(n_splits=folds, shuffle=True, random_state=seed).split(x, y)
     n_train = len(y) - int(np.ceil(len(y) / folds))
-    if method == "svm-pca" and min(n_train, x.shape[1]) < 10:
+    if "pca" in method and min(n_train, x.shape[1] - 2) < 10:
         raise SkinError(f"{data.source}: PCA with 10 components needs at least 10 training "
                         f"trials and 10 samples per window; a {duration} s window with "
-                        f"{folds} folds has {n_train} trials of {x.shape[1]} samples")
+                        f"{folds} folds has {n_train} trials of {x.shape[1] - 2} samples")
     acc, fit_t, pred_t = [], [], []
+    unknown = 0
     conf = np.zeros((len(classes), len(classes)), dtype=int)
     for train, test in splits:
-        model = make_method(method)
+        model = make_method(method, fs=data.fs)
         t0 = time.perf_counter()
         model.fit(x[train], y[train])
         t1 = time.perf_counter()
@@ -96,11 +84,12 @@ def evaluate(data, method: str, duration: float, folds: int, groups: bool,
         fit_t.append((t1 - t0) / len(train))
         pred_t.append((t2 - t1) / len(test))
         conf += confusion_matrix(y[test], pred, labels=classes)
+        unknown += int(np.sum(pred == "unknown"))
     recall = conf.diagonal() / np.maximum(conf.sum(axis=1), 1)
     return {"method": method, "duration": duration, "folds": folds,
             "accuracy": round(float(np.mean(acc)), 4), "accuracy_std": round(float(np.std(acc)), 4),
             "recall": {c: round(float(r), 4) for c, r in zip(classes, recall, strict=True)},
-            "confusion": conf.tolist(), "classes": classes,
+            "confusion": conf.tolist(), "classes": classes, "unknown": unknown,
             "fit_ms_per_trial": round(1e3 * float(np.mean(fit_t)), 4),
             "predict_ms_per_trial": round(1e3 * float(np.mean(pred_t)), 4)}
 
@@ -131,9 +120,10 @@ def main(args: argparse.Namespace) -> int:
 
     data = load_trials(args.data)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    from skin.models.classifiers import parse_method
+
     for m in methods:
-        if m not in METHODS:
-            raise SkinError(f"unknown method {m!r}; choose from {', '.join(METHODS)}")
+        parse_method(m)
     try:
         durations = [float(d) for d in args.durations.split(",") if d.strip()]
     except ValueError:

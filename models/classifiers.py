@@ -1,0 +1,278 @@
+"""Material classifiers shared by all taxels, on scikit-learn's estimator contract.
+
+Every method takes rows laid out by `skin.models.features.trial_matrix`
+(``[ambient, T0, T(onset) ... T(onset + n - 1)]``) and is built by `make_method`:
+
+- ``svm-pca``: the paper's PCA (10 components) + linear SVM on the raw window;
+- ``knn-pca``: the paper's PCA (10 components) + 3-nearest neighbours;
+- ``hmm``: the paper's left-right Gaussian HMMs, one per material, 25 states, trained by
+  Baum-Welch (hmmlearn) and compared by their Viterbi scores;
+- ``model``: the paper's model-based method (the effusivity histogram, eqs. 9-11, against
+  the materials table); it learns nothing;
+
+each with ``:raw`` (default), ``:slope`` or ``:both`` features, e.g. ``svm-pca:both``.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from skin._optional import require
+
+require("sklearn", "ml")  # importing this module is using the classifiers
+
+from sklearn.base import BaseEstimator, ClassifierMixin, TransformerMixin  # noqa: E402
+from sklearn.utils.validation import check_is_fitted, validate_data  # noqa: E402
+
+from skin.errors import SkinError  # noqa: E402
+from skin.models.features import KINDS, split_rows, trace_features  # noqa: E402
+
+PAPER_METHODS = ("svm-pca", "knn-pca", "hmm", "model")
+UNKNOWN = "unknown"
+
+
+def parse_method(name: str) -> tuple[str, str]:
+    """Split ``"svm-pca:both"`` into ``("svm-pca", "both")``; validate both parts."""
+    base, _, kind = name.partition(":")
+    kind = kind or "raw"
+    if base not in METHODS:
+        raise SkinError(f"unknown method {base!r}; choose from {', '.join(METHODS)}")
+    if kind not in KINDS:
+        raise SkinError(f"unknown features {kind!r} in {name!r}; choose from {', '.join(KINDS)}")
+    return base, kind
+
+
+def make_method(name: str, fs: float = 200.0):
+    """Return a fresh, unfitted estimator for a method name such as ``"knn-pca:both"``."""
+    base, kind = parse_method(name)
+    return METHODS[base](kind, fs)
+
+
+def _svm_pca(kind: str, fs: float):
+    from sklearn.decomposition import PCA
+    from sklearn.pipeline import make_pipeline
+    from sklearn.svm import SVC
+
+    return make_pipeline(TraceFeatures(kind=kind, fs=fs), PCA(n_components=10),
+                         SVC(kernel="linear"))
+
+
+def _knn_pca(kind: str, fs: float):
+    from sklearn.decomposition import PCA
+    from sklearn.neighbors import KNeighborsClassifier
+    from sklearn.pipeline import make_pipeline
+
+    return make_pipeline(TraceFeatures(kind=kind, fs=fs), PCA(n_components=10),
+                         KNeighborsClassifier(n_neighbors=3))
+
+
+def _hmm(kind: str, fs: float):
+    return HMMClassifier(features=kind, fs=fs)
+
+
+def _model(kind: str, fs: float):
+    return ModelBasedClassifier(fs=fs)
+
+
+METHODS = {"svm-pca": _svm_pca, "knn-pca": _knn_pca, "hmm": _hmm, "model": _model}
+
+
+
+class TraceFeatures(TransformerMixin, BaseEstimator):
+    """The paper's features of `trial_matrix` rows: raw window, slope, or both.
+
+    Parameters
+    ----------
+    kind : str
+        ``"raw"``, ``"slope"`` or ``"both"``.
+    fs : float
+        Sampling rate, Hz.
+    """
+
+    def __init__(self, kind: str = "raw", fs: float = 200.0) -> None:
+        self.kind = kind
+        self.fs = fs
+
+    def fit(self, X: np.ndarray, y: np.ndarray | None = None) -> TraceFeatures:
+        """Check the rows; nothing is learned."""
+        validate_data(self, X, reset=True)
+        if self.kind not in KINDS:
+            raise ValueError(f"unknown feature kind {self.kind!r}")
+        return self
+
+    def transform(self, X: np.ndarray) -> np.ndarray:
+        """Return the feature vectors."""
+        check_is_fitted(self, "n_features_in_")
+        x = validate_data(self, X, reset=False)
+        return trace_features(x, self.kind, self.fs)
+
+
+def _sequences(x: np.ndarray, kind: str, fs: float, decimate: int) -> np.ndarray:
+    """Observation sequences (n_trials, n_samples // decimate, n_dims) for the HMMs.
+
+    Each observation is the mean of ``decimate`` consecutive samples (the slope is computed
+    at the full rate first).
+    """
+    w = split_rows(x)[2]
+    n = w.shape[1]
+    if kind == "raw":
+        seq = w[:, :, None]
+    else:
+        s = trace_features(x, "both", fs)[:, n:]
+        seq = s[:, :, None] if kind == "slope" else np.stack([w, s], axis=2)
+    m = max(n // decimate, 1)
+    return seq[:, : m * decimate].reshape(seq.shape[0], m, -1, seq.shape[2]).mean(axis=2)
+
+
+class _quiet_hmmlearn:
+    """Silence hmmlearn's logged warnings about degenerate states during a fit."""
+
+    def __enter__(self) -> None:
+        import logging
+
+        self._logger = logging.getLogger("hmmlearn")
+        self._level = self._logger.level
+        self._logger.setLevel(logging.ERROR)
+
+    def __exit__(self, *exc: object) -> None:
+        self._logger.setLevel(self._level)
+
+
+class HMMClassifier(ClassifierMixin, BaseEstimator):
+    """The paper's classifier: one left-right Gaussian HMM per material, best Viterbi score.
+
+    Parameters
+    ----------
+    n_states : int
+        Hidden states per model (the paper: 25).
+    features : str
+        Emissions: ``"raw"`` (1-D), ``"slope"`` (1-D) or ``"both"`` (2-D).
+    n_iter : int
+        Baum-Welch iterations.
+    fs : float
+        Sampling rate, Hz.
+    decimate : int
+        Observations are means of this many samples (5: 40 Hz, still 20 observations in
+        0.5 s); training time falls by the same factor. 1 is the paper's full rate.
+    random_state : int
+        Seed of hmmlearn.
+    """
+
+    def __init__(self, n_states: int = 25, features: str = "raw", n_iter: int = 10,
+                 fs: float = 200.0, decimate: int = 5, random_state: int = 0) -> None:
+        self.n_states = n_states
+        self.features = features
+        self.n_iter = n_iter
+        self.fs = fs
+        self.decimate = decimate
+        self.random_state = random_state
+
+    def fit(self, X: np.ndarray, y: np.ndarray) -> HMMClassifier:
+        """Train one HMM per class by Baum-Welch."""
+        require("hmmlearn", "ml")
+        from hmmlearn.hmm import GaussianHMM
+
+        x, y = validate_data(self, X, y, reset=True)
+        self.classes_ = np.unique(y)
+        seqs = _sequences(x, self.features, self.fs, self.decimate)
+        _, length, dims = seqs.shape
+        k = max(1, min(self.n_states, length // 2))  # at least two observations per state
+        self.models_ = []
+        for c in self.classes_:
+            obs = seqs[y == c]
+            # left-right: start in state 0, stay or move one state on; zeros stay zero under
+            # Baum-Welch. Means and variances start from equal slices of the trials in time.
+            trans = np.zeros((k, k))
+            for i in range(k):
+                trans[i, i] = 0.5 if i < k - 1 else 1.0
+                if i < k - 1:
+                    trans[i, i + 1] = 0.5
+            edges = np.linspace(0, length, k + 1).astype(int)
+            means = np.array([obs[:, a:max(b, a + 1)].reshape(-1, dims).mean(axis=0)
+                              for a, b in itertools.pairwise(edges)])
+            var = np.array([obs[:, a:max(b, a + 1)].reshape(-1, dims).var(axis=0)
+                            for a, b in itertools.pairwise(edges)])
+            model = GaussianHMM(n_components=k, covariance_type="diag", n_iter=self.n_iter,
+                                init_params="", params="tmc", random_state=self.random_state,
+                                min_covar=1e-4)
+            model.startprob_ = np.eye(k)[0]
+            model.transmat_ = trans
+            model.means_ = means
+            model.covars_ = np.maximum(var, 1e-4)
+            with _quiet_hmmlearn():
+                model.fit(obs.reshape(-1, dims), lengths=[length] * obs.shape[0])
+            # a state no training trial left keeps its self-loop (rows must sum to 1)
+            dead = model.transmat_.sum(axis=1) == 0
+            if dead.any():
+                t = model.transmat_.copy()
+                t[dead, dead] = 1.0
+                model.transmat_ = t
+            self.models_.append(model)
+        return self
+
+    def decision_function(self, X: np.ndarray) -> np.ndarray:
+        """Viterbi log-probability of each trial under each class's HMM, (n, n_classes)."""
+        check_is_fitted(self, "models_")
+        x = validate_data(self, X, reset=False)
+        seqs = _sequences(x, self.features, self.fs, self.decimate)
+        out = np.empty((seqs.shape[0], len(self.models_)))
+        for j, model in enumerate(self.models_):
+            for i, seq in enumerate(seqs):
+                out[i, j] = model.decode(seq, algorithm="viterbi")[0]
+        return out
+
+    def predict(self, X: np.ndarray) -> np.ndarray:
+        """Label of the HMM with the best Viterbi score."""
+        return self.classes_[np.argmax(self.decision_function(X), axis=1)]
+
+
+class ModelBasedClassifier(ClassifierMixin, BaseEstimator):
+    """The paper's model-based method: histogram of pointwise effusivity against the table.
+
+    It learns nothing from the data: `fit` only records which classes the table should
+    choose among (those of ``y`` that the materials table knows). Trials whose estimates do
+    not allow a decision are labelled ``"unknown"``.
+
+    Parameters
+    ----------
+    fs : float
+        Sampling rate, Hz.
+    bins : int
+        Histogram bins (the paper: 10).
+    """
+
+    def __init__(self, fs: float = 200.0, bins: int = 10) -> None:
+        self.fs = fs
+        self.bins = bins
+
+    def fit(self, X: np.ndarray, y: np.ndarray) -> ModelBasedClassifier:
+        """Restrict the table to the classes of ``y``."""
+        from skin.models.materials import load_materials
+
+        validate_data(self, X, y, reset=True)
+        table = load_materials()
+        self.classes_ = np.unique(y)
+        unknown = [c for c in self.classes_ if c not in table]
+        if unknown:
+            raise SkinError(f"the model-based method needs every class in the materials "
+                            f"table; not there: {', '.join(map(str, unknown))}")
+        self.candidates_ = [table[c] for c in self.classes_]
+        return self
+
+    def predict(self, X: np.ndarray) -> np.ndarray:
+        """Label each trial (or ``"unknown"``)."""
+        from skin.models.effusivity import classify_log_effusivity
+        from skin.models.physics import SensorConstants, effusivity_estimates
+
+        check_is_fitted(self, "candidates_")
+        amb, t0, w = split_rows(validate_data(self, X, reset=False))
+        t = np.arange(w.shape[1]) / self.fs
+        sensor = SensorConstants()
+        out = []
+        for i in range(w.shape[0]):
+            _, e = effusivity_estimates(t, w[i], float(t0[i]), float(amb[i]), sensor)
+            est = classify_log_effusivity(np.log10(e), self.candidates_, bins=self.bins)
+            out.append(est.label)
+        return np.array(out, dtype=object)
