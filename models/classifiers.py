@@ -258,21 +258,24 @@ class ModelBasedClassifier(ClassifierMixin, BaseEstimator):
         if unknown:
             raise SkinError(f"the model-based method needs every class in the materials "
                             f"table; not there: {', '.join(map(str, unknown))}")
-        self.candidates_ = [table[c] for c in self.classes_]
+        self.candidates_ = [str(c) for c in self.classes_]  # names: model files hold no objects
         return self
 
     def predict(self, X: np.ndarray) -> np.ndarray:
         """Label each trial (or ``"unknown"``)."""
         from skin.models.effusivity import classify_log_effusivity
+        from skin.models.materials import load_materials
         from skin.models.physics import SensorConstants, effusivity_estimates
 
         check_is_fitted(self, "candidates_")
+        table = load_materials()
+        candidates = [table[c] for c in self.candidates_]
         amb, t0, w = split_rows(validate_data(self, X, reset=False))
         t = np.arange(w.shape[1]) / self.fs
         sensor = SensorConstants()
         out = []
         for i in range(w.shape[0]):
             _, e = effusivity_estimates(t, w[i], float(t0[i]), float(amb[i]), sensor)
-            est = classify_log_effusivity(np.log10(e), self.candidates_, bins=self.bins)
+            est = classify_log_effusivity(np.log10(e), candidates, bins=self.bins)
             out.append(est.label)
         return np.array(out, dtype=object)

@@ -9,10 +9,10 @@ from __future__ import annotations
 import argparse
 import sys
 
-from skin.commands import bench, evaluate, plot, run, simulate
+from skin.commands import bench, evaluate, plot, run, simulate, train
 from skin.errors import SkinError
 
-COMMANDS = (run, simulate, evaluate, bench, plot)
+COMMANDS = (run, simulate, train, evaluate, bench, plot)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -307,3 +307,80 @@ def plot_estimator_errors(rows: list[dict], path: str | Path) -> Path:
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize="x-small")
     return _save(fig, path)
+
+
+def plot_accuracy(results: list[dict], path: str | Path) -> Path:
+    """Draw accuracy against contact duration, one line per method (``skin evaluate``).
+
+    Parameters
+    ----------
+    results : list of dict
+        The ``results`` of ``skin evaluate --json``.
+    path : str or Path
+        Output file (``.png``, ``.svg`` or ``.pdf``).
+
+    Returns
+    -------
+    Path
+        The path written.
+    """
+    figure_cls, canvas_cls = _figure_class()
+    fig = figure_cls(figsize=(6.5, 4.5), layout="constrained")
+    canvas_cls(fig)
+    ax = fig.subplots()
+    methods = list(dict.fromkeys(r["method"] for r in results))
+    for method in methods:
+        mine = sorted((r for r in results if r["method"] == method and r["accuracy"] is not None),
+                      key=lambda r: r["duration"])
+        d = [r["duration"] for r in mine]
+        acc = np.array([r["accuracy"] for r in mine])
+        sd = np.array([r["accuracy_std"] for r in mine])
+        line, = ax.plot(d, 100 * acc, marker="o", label=method)
+        ax.fill_between(d, 100 * (acc - sd), 100 * (acc + sd), color=line.get_color(),
+                        alpha=0.15)
+    ax.set_xlabel("contact duration, s")
+    ax.set_ylabel("accuracy, % (mean +- std over folds)")
+    ax.set_ylim(0, 100)
+    ax.set_title("accuracy against contact duration")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="small")
+    return _save(fig, path)
+
+
+def plot_confusions(results: list[dict], path: str | Path) -> Path:
+    """Draw the confusion matrices of one method, one panel per duration, as row fractions.
+
+    Parameters
+    ----------
+    results : list of dict
+        ``skin evaluate`` results of one method.
+    path : str or Path
+        Output file (``.png``, ``.svg`` or ``.pdf``).
+
+    Returns
+    -------
+    Path
+        The path written.
+    """
+    figure_cls, canvas_cls = _figure_class()
+    results = sorted(results, key=lambda r: r["duration"])
+    n = len(results)
+    k = len(results[0]["classes"])
+    fig = figure_cls(figsize=(0.45 * k * n + 2.0, 0.45 * k + 1.8), layout="constrained")
+    canvas_cls(fig)
+    axes = fig.subplots(1, n, squeeze=False)[0]
+    names = [display_name(c) for c in results[0]["classes"]]
+    image = None
+    for ax, r in zip(axes, results, strict=True):
+        conf = np.asarray(r["confusion"], dtype=float)
+        frac = conf / np.maximum(conf.sum(axis=1, keepdims=True), 1)
+        image = ax.imshow(frac, vmin=0, vmax=1, cmap="viridis")
+        ax.set_xticks(range(k), names, rotation=90, fontsize="x-small")
+        ax.set_yticks(range(k), names if ax is axes[0] else [], fontsize="x-small")
+        acc = "-" if r["accuracy"] is None else f"{100 * r['accuracy']:.0f} %"
+        ax.set_title(f"{r['duration']:g} s: {acc}", fontsize="small")
+        ax.set_xlabel("predicted", fontsize="x-small")
+    axes[0].set_ylabel("true", fontsize="x-small")
+    fig.colorbar(image, ax=list(axes), shrink=0.8, label="fraction of the true class")
+    fig.suptitle(f"confusion matrices: {results[0]['method']}")
+    return _save(fig, path)

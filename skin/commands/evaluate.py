@@ -23,7 +23,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register ``skin evaluate``."""
     ev = sub.add_parser("evaluate", help="cross-validated accuracy against contact duration",
                         description=__doc__)
-    ev.add_argument("--data", required=True, help="trial dataset (.npz)")
+    src = ev.add_mutually_exclusive_group(required=True)
+    src.add_argument("--data", help="trial dataset (.npz) for cross-validation")
+    src.add_argument("--train", help="dataset to train on (with --test: no cross-validation)")
+    ev.add_argument("--test", help="dataset to test on (with --train); classes absent from "
+                                   "training are reported with what they were called")
     ev.add_argument("--methods", default="svm-pca",
                     help="comma-separated methods: svm-pca, knn-pca, hmm, model, each with "
                          "optional :raw, :slope or :both features (default svm-pca)")
@@ -36,6 +40,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--merge", default=None, metavar="A+B,C+D",
                     help="also report the accuracy with these classes merged (from the "
                          "confusion matrix), e.g. aluminium+steel,glass+porcelain")
+    ev.add_argument("--plot", metavar="DIR",
+                    help="draw accuracy against duration and the confusion matrices into DIR")
     ev.add_argument("--json", action="store_true", help="print one JSON document")
     ev.set_defaults(func=main)
 
@@ -94,6 +100,43 @@ def evaluate(data, method: str, duration: float, folds: int, groups: bool,
             "predict_ms_per_trial": round(1e3 * float(np.mean(pred_t)), 4)}
 
 
+def train_test(train, test, method: str, duration: float) -> dict:
+    """Train ``method`` on one dataset and test it on another; return the figures.
+
+    Test classes absent from the training data are left out of the accuracy and reported
+    under ``unseen`` with the labels they were given.
+    """
+    from sklearn.metrics import confusion_matrix
+
+    from skin.models.classifiers import make_method
+    from skin.models.features import trial_matrix
+
+    x_train, x_test = trial_matrix(train, duration), trial_matrix(test, duration)
+    model = make_method(method, fs=train.fs)
+    t0 = time.perf_counter()
+    model.fit(x_train, train.label)
+    t1 = time.perf_counter()
+    pred = model.predict(x_test)
+    t2 = time.perf_counter()
+    seen = np.isin(test.label, train.classes)
+    classes = train.classes
+    conf = confusion_matrix(test.label[seen], pred[seen], labels=classes)
+    recall = conf.diagonal() / np.maximum(conf.sum(axis=1), 1)
+    unseen = {}
+    for c in sorted(set(test.label[~seen].tolist())):
+        called, counts = np.unique(pred[test.label == c], return_counts=True)
+        unseen[c] = {str(k): int(v) for k, v in zip(called, counts, strict=True)}
+    return {"method": method, "duration": duration,
+            "accuracy": round(float(np.mean(pred[seen] == test.label[seen])), 4)
+            if seen.any() else None,
+            "accuracy_std": 0.0,
+            "recall": {c: round(float(r), 4) for c, r in zip(classes, recall, strict=True)},
+            "confusion": conf.tolist(), "classes": classes,
+            "unknown": int(np.sum(pred == "unknown")), "unseen": unseen,
+            "fit_ms_per_trial": round(1e3 * (t1 - t0) / len(train), 4),
+            "predict_ms_per_trial": round(1e3 * (t2 - t1) / len(test), 4)}
+
+
 def merged_accuracy(result: dict, merge: list[set[str]]) -> float:
     """Accuracy when each set of ``merge`` counts as one class (from the confusion matrix)."""
     classes = result["classes"]
@@ -117,11 +160,15 @@ def _parse_merge(text: str | None, classes: list[str]) -> list[set[str]]:
 def main(args: argparse.Namespace) -> int:
     """Run the evaluation and print a table (or JSON)."""
     from skin.dataset import load_trials
-
-    data = load_trials(args.data)
-    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     from skin.models.classifiers import parse_method
 
+    if args.train and not args.test:
+        raise SkinError("--train needs --test")
+    if args.test and not args.train:
+        raise SkinError("--test goes with --train (use --data for cross-validation)")
+    data = load_trials(args.data or args.train)
+    test = load_trials(args.test) if args.test else None
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     for m in methods:
         parse_method(m)
     try:
@@ -138,23 +185,48 @@ def main(args: argparse.Namespace) -> int:
     for m in methods:
         for d in durations:
             progress.bar(len(results), total, f"evaluate {m} {d:g} s", started)
-            results.append(evaluate(data, m, d, args.cv, args.groups, args.seed))
+            if test is None:
+                results.append(evaluate(data, m, d, args.cv, args.groups, args.seed))
+            else:
+                results.append(train_test(data, test, m, d))
             if merge:
                 results[-1]["merged_accuracy"] = round(merged_accuracy(results[-1], merge), 4)
     progress.done()
-    doc = {"data": str(args.data), "trials": len(data), "classes": data.classes,
-           "cv": args.cv, "groups": args.groups, "merge": [sorted(g) for g in merge],
-           "results": results}
+    doc = {"data": str(args.data or args.train), "trials": len(data), "classes": data.classes,
+           "cv": None if test is not None else args.cv, "groups": args.groups,
+           "merge": [sorted(g) for g in merge], "results": results}
+    if test is not None:
+        doc["test"] = {"data": str(args.test), "trials": len(test), "classes": test.classes}
+    if args.plot:
+        from pathlib import Path
+
+        from skin.viz.plots import plot_accuracy, plot_confusions
+
+        out = Path(args.plot)
+        doc["figures"] = [str(plot_accuracy(results, out / "accuracy.png"))]
+        doc["figures"] += [str(plot_confusions([r for r in results if r["method"] == m],
+                                               out / f"confusion_{m.replace(':', '_')}.png"))
+                           for m in methods]
     if args.json:
         print(json.dumps(doc))
         return 0
-    print(f"{len(data)} trials, {len(data.classes)} classes, {args.cv}-fold"
-          f"{' grouped' if args.groups else ''} cross-validation")
-    print(f"{'method':<10} {'duration s':>10} {'accuracy':>14} {'fit ms/trial':>13} "
+    if test is None:
+        print(f"{len(data)} trials, {len(data.classes)} classes, {args.cv}-fold"
+              f"{' grouped' if args.groups else ''} cross-validation")
+    else:
+        print(f"trained on {args.train} ({len(data)} trials), tested on {args.test} "
+              f"({len(test)} trials)")
+    print(f"{'method':<14} {'duration s':>10} {'accuracy':>14} {'fit ms/trial':>13} "
           f"{'predict ms/trial':>17}" + (f" {'merged':>7}" if merge else ""))
     for r in results:
-        print(f"{r['method']:<10} {r['duration']:>10g} {r['accuracy']:>8.3f} +- "
+        acc = "-" if r["accuracy"] is None else f"{r['accuracy']:.3f}"
+        print(f"{r['method']:<14} {r['duration']:>10g} {acc:>8} +- "
               f"{r['accuracy_std']:.3f} {r['fit_ms_per_trial']:>13.3f} "
               f"{r['predict_ms_per_trial']:>17.4f}"
               + (f" {r['merged_accuracy']:>7.3f}" if merge else ""))
+        for c, called in r.get("unseen", {}).items():
+            print(f"{'':<10} unseen class {c} was called "
+                  + ", ".join(f"{k} x{v}" for k, v in called.items()))
+    if "figures" in doc:
+        print("figures: " + ", ".join(doc["figures"]))
     return 0

@@ -1,0 +1,101 @@
+"""Model files: a trained classifier with its settings, saved with skops.io, loaded safely.
+
+A model file holds a dictionary: ``format`` (this module's `FORMAT`), ``library`` (the
+thermoskin version that wrote it), ``method`` (``"svm-pca:both"``), ``features`` (window
+duration and sampling rate), ``classes``, ``training`` (a summary of the training data) and
+``estimator``. Loading never executes code: skops.io lists every type the file would build,
+and a file naming any type outside `ALLOWED_PREFIXES` (scikit-learn, numpy, hmmlearn and this
+library's estimators) is refused before anything is built. A file of another `FORMAT` is
+refused with the versions in the message.
+"""
+
+from __future__ import annotations
+
+import datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from skin._optional import require
+from skin.errors import SkinError
+
+FORMAT = 1
+#: Type prefixes a model file may build; anything else is refused unread.
+ALLOWED_PREFIXES = ("sklearn.", "numpy.", "hmmlearn.", "skin.models.classifiers.", "builtins.")
+ALLOWED_EXACT = ("collections.deque", "collections.OrderedDict")  # hmmlearn's fit history
+_FORBIDDEN = ("builtins.eval", "builtins.exec", "builtins.compile", "builtins.open",
+              "builtins.__import__", "builtins.getattr", "builtins.setattr")
+
+
+class ModelFileError(SkinError):
+    """A model file is unreadable, unsafe, or from an incompatible version."""
+
+
+def save_model(path: str | Path, estimator: Any, method: str, duration: float, fs: float,
+               training: dict[str, Any]) -> Path:
+    """Write a trained estimator and its settings to ``path`` (``.skops``)."""
+    require("skops", "ml")
+    import skops.io as sio
+
+    import skin
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    doc = {"format": FORMAT, "library": skin.__version__, "method": method,
+           "features": {"duration": float(duration), "fs": float(fs)},
+           "classes": [str(c) for c in estimator.classes_], "training": training,
+           "written": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+           "estimator": estimator}
+    sio.dump(doc, path)
+    return path
+
+
+def untrusted_types(path: str | Path) -> list[str]:
+    """Types the file would build that the allow-list does not cover."""
+    require("skops", "ml")
+    import skops.io as sio
+
+    try:
+        types = sio.get_untrusted_types(file=path)
+    except Exception as exc:  # skops raises several kinds on a damaged archive
+        raise ModelFileError(f"{path}: not a readable model file ({exc})") from None
+    return [t for t in types
+            if (not t.startswith(ALLOWED_PREFIXES) and t not in ALLOWED_EXACT) or t in _FORBIDDEN]
+
+
+def load_model(path: str | Path) -> dict[str, Any]:
+    """Load a model file safely (see the module docstring); return its dictionary."""
+    require("skops", "ml")
+    import skops.io as sio
+
+    path = Path(path)
+    if not path.is_file():
+        raise ModelFileError(f"{path}: no such model file")
+    bad = untrusted_types(path)
+    if bad:
+        raise ModelFileError(f"{path}: refused, it would build types outside the allow-list: "
+                             f"{', '.join(sorted(bad))}")
+    trusted = sio.get_untrusted_types(file=path)
+    try:
+        doc = sio.load(path, trusted=trusted)
+    except Exception as exc:
+        raise ModelFileError(f"{path}: cannot load ({exc})") from None
+    if not isinstance(doc, dict) or "format" not in doc or "estimator" not in doc:
+        raise ModelFileError(f"{path}: not a thermoskin model file")
+    if doc["format"] != FORMAT:
+        raise ModelFileError(f"{path}: model format {doc['format']} (written by thermoskin "
+                             f"{doc.get('library', '?')}); this version reads format {FORMAT}")
+    return doc
+
+
+def training_summary(data: Any, duration: float) -> dict[str, Any]:
+    """Summarise a `skin.dataset.TrialSet` for the model file."""
+    labels, counts = np.unique(data.label, return_counts=True)
+    summary: dict[str, Any] = {
+        "source": data.source, "trials": len(data), "duration": float(duration),
+        "per_class": {str(k): int(v) for k, v in zip(labels, counts, strict=True)}}
+    if data.ambient is not None:
+        summary["ambient"] = [round(float(data.ambient.min()), 2),
+                              round(float(data.ambient.max()), 2)]
+    return summary
