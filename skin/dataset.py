@@ -159,3 +159,42 @@ def load_trials(path: str | Path) -> TrialSet:
         temp = temp.astype(float)
     return TrialSet(temperature=temp, fs=float(fs), label=data.pop("label").astype(str),
                     onset=data.pop("onset"), extra=data, source=str(path), **optional)
+
+
+def with_detected_onsets(data: TrialSet, depth: float = 8e-5,
+                         diffusivity: float = 2.796e-9) -> TrialSet:
+    """Fill unknown onsets (-1) with the library's streaming detector, refined by the fit.
+
+    The trials are run through `skin.onset.OnsetDetector` as if each were a taxel (so the
+    detector needs its 0.5 s warm-up before contact), and each first onset is dated by
+    `skin.onset.refine_onset` with the sensor's depth and diffusivity.
+
+    Raises
+    ------
+    DatasetError
+        Naming the first trial in which no onset was found.
+    """
+    from skin.onset import OnsetDetector, refine_onset
+
+    todo = np.flatnonzero(data.onset < 0)
+    if todo.size == 0:
+        return data
+    y = data.temperature[todo]
+    times = np.arange(y.shape[1]) / data.fs
+    detector = OnsetDetector(todo.size)
+    events, _ = detector.process(times, y.T, detector.initial_state())
+    first: dict[int, object] = {}
+    for ev in events:
+        if ev.kind == "onset" and ev.taxel not in first:
+            first[ev.taxel] = ev
+    missing = [int(todo[k]) for k in range(todo.size) if k not in first]
+    if missing:
+        raise DatasetError(f"{data.source}: no contact onset found in trial {missing[0]} "
+                           f"({len(missing)} trial(s)); give its onset or a longer recording "
+                           f"(the detector needs 0.5 s before contact)")
+    onset = data.onset.copy()
+    for k, ev in first.items():
+        t_on, _ = refine_onset(times, y[k], ev.time, ev.baseline, ev.slope, depth, diffusivity)
+        onset[todo[k]] = int(np.clip(np.ceil(t_on * data.fs - 1e-9), 0, y.shape[1] - 1))
+    return TrialSet(data.temperature, data.fs, data.label, onset, data.ambient, data.group,
+                    data.taxel, data.extra, data.source)

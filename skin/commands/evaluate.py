@@ -159,7 +159,7 @@ def _parse_merge(text: str | None, classes: list[str]) -> list[set[str]]:
 
 def main(args: argparse.Namespace) -> int:
     """Run the evaluation and print a table (or JSON)."""
-    from skin.dataset import load_trials
+    from skin.dataset import load_trials, with_detected_onsets
     from skin.models.classifiers import parse_method
 
     if args.train and not args.test:
@@ -168,6 +168,9 @@ def main(args: argparse.Namespace) -> int:
         raise SkinError("--test goes with --train (use --data for cross-validation)")
     data = load_trials(args.data or args.train)
     test = load_trials(args.test) if args.test else None
+    detected = int(np.sum(data.onset < 0)) + (0 if test is None else int(np.sum(test.onset < 0)))
+    data = with_detected_onsets(data)
+    test = None if test is None else with_detected_onsets(test)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     for m in methods:
         parse_method(m)
@@ -194,7 +197,8 @@ def main(args: argparse.Namespace) -> int:
     progress.done()
     doc = {"data": str(args.data or args.train), "trials": len(data), "classes": data.classes,
            "cv": None if test is not None else args.cv, "groups": args.groups,
-           "merge": [sorted(g) for g in merge], "results": results}
+           "merge": [sorted(g) for g in merge], "onsets_detected": detected,
+           "results": results}
     if test is not None:
         doc["test"] = {"data": str(args.test), "trials": len(test), "classes": test.classes}
     if args.plot:

@@ -29,13 +29,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Fit and save."""
-    from skin.dataset import load_trials
+    from skin.dataset import load_trials, with_detected_onsets
     from skin.models.classifiers import make_method, parse_method
     from skin.models.features import trial_matrix
     from skin.models.modelfile import save_model, training_summary
 
     parse_method(args.method)
-    data = load_trials(args.data)
+    data = with_detected_onsets(load_trials(args.data))  # onset -1: find it first
     x = trial_matrix(data, args.duration)
     started = time.perf_counter()
     estimator = make_method(args.method, fs=data.fs).fit(x, data.label)
