@@ -10,7 +10,11 @@ Every method takes rows laid out by `skin.models.features.trial_matrix`
 - ``model``: the paper's model-based method (the effusivity histogram, eqs. 9-11, against
   the materials table); it learns nothing;
 
-each with ``:raw`` (default), ``:slope`` or ``:both`` features, e.g. ``svm-pca:both``.
+each with ``:raw`` (default), ``:slope`` or ``:both`` features, e.g. ``svm-pca:both``;
+
+- ``default``: the library's recommendation, `PhysicsFeatures` (the contact fit's effusivity,
+  object temperature and conductance, and the trace normalised by the initial conditions)
+  into gradient-boosted trees, with probabilities.
 """
 
 from __future__ import annotations
@@ -76,7 +80,16 @@ def _model(kind: str, fs: float):
     return ModelBasedClassifier(fs=fs)
 
 
-METHODS = {"svm-pca": _svm_pca, "knn-pca": _knn_pca, "hmm": _hmm, "model": _model}
+def _default(kind: str, fs: float):
+    from sklearn.ensemble import HistGradientBoostingClassifier
+    from sklearn.pipeline import make_pipeline
+
+    return make_pipeline(PhysicsFeatures(fs=fs),
+                         HistGradientBoostingClassifier(max_iter=300, random_state=0))
+
+
+METHODS = {"svm-pca": _svm_pca, "knn-pca": _knn_pca, "hmm": _hmm, "model": _model,
+           "default": _default}
 
 
 
@@ -279,3 +292,135 @@ class ModelBasedClassifier(ClassifierMixin, BaseEstimator):
             est = classify_log_effusivity(np.log10(e), candidates, bins=self.bins)
             out.append(est.label)
         return np.array(out, dtype=object)
+
+
+class PhysicsFeatures(TransformerMixin, BaseEstimator):
+    """Features that do not depend on how warm the room or the taxel was.
+
+    Per trial: the contact fit (`skin.models.inverse.fit_contact` with an onset shift):
+    log10 effusivity, object temperature above ambient, log10 contact conductance, the
+    effusivity's posterior std, the residual and the onset shift; the sensor's excess over
+    ambient T0 - T_amb; and the reading and its slope at ``points`` log-spaced instants,
+    normalised by that excess: (T(t) - T0) / (T0 - T_amb), which for an object at ambient
+    depends on the material alone.
+
+    Parameters
+    ----------
+    points : int
+        Log-spaced instants of the normalised trace and slope.
+    fs : float
+        Sampling rate, Hz.
+    """
+
+    def __init__(self, points: int = 12, fs: float = 200.0) -> None:
+        self.points = points
+        self.fs = fs
+
+    def fit(self, X: np.ndarray, y: np.ndarray | None = None) -> PhysicsFeatures:
+        """Check the rows; nothing is learned."""
+        validate_data(self, X, reset=True)
+        return self
+
+    def transform(self, X: np.ndarray) -> np.ndarray:
+        """Return the feature vectors, (n_trials, 7 + 2 points)."""
+        from skin.models.inverse import fit_contact
+
+        check_is_fitted(self, "n_features_in_")
+        x = validate_data(self, X, reset=False)
+        amb, t0, w = split_rows(x)
+        n = w.shape[1]
+        t = np.arange(n) / self.fs
+        fit = fit_contact(t[1:], w[:, 1:], t0, amb, fit_onset=True)
+        excess = t0 - amb
+        scale = np.where(np.abs(excess) < 0.1, np.copysign(0.1, excess + 1e-12), excess)
+        k = np.unique(np.round(np.geomspace(1, n - 1, self.points)).astype(int))
+        k = np.pad(k, (0, self.points - k.size), mode="edge")  # short windows repeat
+        s = trace_features(x, "slope", self.fs)
+        return np.column_stack([
+            np.log10(fit.effusivity), fit.object_temperature - amb, np.log10(fit.conductance),
+            fit.log10_effusivity_std, fit.rms, fit.onset_shift, excess,
+            (w[:, k] - t0[:, None]) / scale[:, None], s[:, k] / scale[:, None]])
+
+
+def fuse_probabilities(probabilities: np.ndarray) -> np.ndarray:
+    """Fuse the class probabilities of several taxels touching one object.
+
+    The taxels' evidence is treated as independent given the material (naive Bayes with a
+    flat prior): the fused probability is the normalised product, computed in log space so
+    that many confident taxels do not underflow.
+
+    Parameters
+    ----------
+    probabilities : numpy.ndarray
+        (n_taxels, n_classes), each row a distribution.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n_classes,), summing to 1.
+    """
+    p = np.asarray(probabilities, dtype=float)
+    if p.ndim != 2 or p.shape[0] == 0:
+        raise ValueError(f"expected (n_taxels, n_classes) probabilities, got shape {p.shape}")
+    log = np.log(np.clip(p, 1e-300, 1.0)).sum(axis=0)
+    log -= log.max()
+    out = np.exp(log)
+    return out / out.sum()
+
+
+class AnytimeClassifier(ClassifierMixin, BaseEstimator):
+    """A label and a confidence at any moment after onset, "unknown" until it is sure.
+
+    One model per duration of ``durations`` (all of the same ``method``); for a window of a
+    given length the model of the longest duration that fits is used, and its most probable
+    class is returned when its probability reaches ``threshold``, else ``"unknown"``.
+
+    Parameters
+    ----------
+    method : str
+        A method with probabilities (``"default"``).
+    durations : tuple of float
+        Window lengths with a model, s.
+    threshold : float
+        Probability needed to name a material.
+    fs : float
+        Sampling rate, Hz.
+    """
+
+    def __init__(self, method: str = "default", durations: tuple = (0.25, 0.5, 1.0, 2.5),
+                 threshold: float = 0.8, fs: float = 200.0) -> None:
+        self.method = method
+        self.durations = durations
+        self.threshold = threshold
+        self.fs = fs
+
+    def fit(self, X: np.ndarray, y: np.ndarray) -> AnytimeClassifier:
+        """Fit one model per duration on the rows truncated to it."""
+        x, y = validate_data(self, X, y, reset=True)
+        n = x.shape[1] - 2
+        self.samples_ = [round(d * self.fs) for d in self.durations if round(d * self.fs) <= n]
+        if not self.samples_:
+            raise ValueError(f"windows of {n} samples are shorter than every duration")
+        self.models_ = [make_method(self.method, self.fs).fit(x[:, : 2 + k], y)
+                        for k in self.samples_]
+        self.classes_ = self.models_[0].classes_
+        return self
+
+    def predict_proba(self, X: np.ndarray) -> np.ndarray:
+        """Class probabilities from the model of the longest duration the rows cover."""
+        check_is_fitted(self, "models_")
+        x = np.asarray(X, dtype=float)
+        n = x.shape[1] - 2
+        usable = [i for i, k in enumerate(self.samples_) if k <= n]
+        if not usable:
+            return np.full((x.shape[0], len(self.classes_)), 1.0 / len(self.classes_))
+        i = usable[-1]
+        return self.models_[i].predict_proba(x[:, : 2 + self.samples_[i]])
+
+    def predict(self, X: np.ndarray) -> np.ndarray:
+        """Most probable class where sure enough, else ``"unknown"``."""
+        p = self.predict_proba(X)
+        best = np.argmax(p, axis=1)
+        labels = self.classes_[best].astype(object)
+        labels[p[np.arange(len(best)), best] < self.threshold] = UNKNOWN
+        return labels

@@ -191,3 +191,34 @@ def test_evaluate_plots_and_detects_unknown_onsets(tmp_path):
         "accuracy.png", "confusion_svm-pca.png", "confusion_model.png"}
     for p in doc["figures"]:
         assert os.path.getsize(p) > 5000
+
+
+def test_fusion_multiplies_the_evidence_of_taxels():
+    from skin.models.classifiers import fuse_probabilities
+
+    p = np.array([[0.6, 0.4], [0.6, 0.4], [0.6, 0.4]])
+    fused = fuse_probabilities(p)
+    assert fused[0] == pytest.approx(0.6**3 / (0.6**3 + 0.4**3))
+    assert fused.sum() == pytest.approx(1.0)
+    many = np.tile([0.99, 0.01], (2000, 1))  # underflows as a plain product
+    assert fuse_probabilities(many)[0] == pytest.approx(1.0)
+    assert np.allclose(fuse_probabilities(np.array([[0.5, 0.5]])), [0.5, 0.5])
+    with pytest.raises(ValueError, match="n_taxels, n_classes"):
+        fuse_probabilities(np.array([0.5, 0.5]))
+
+
+def test_anytime_classifier_says_unknown_early_and_names_the_material_later(data):
+    from skin.models.classifiers import AnytimeClassifier
+
+    x = trial_matrix(data, 2.5)
+    model = AnytimeClassifier(method="svm-pca", durations=(0.25, 2.5), threshold=0.0)
+    with pytest.raises(AttributeError):
+        model.fit(x, data.label).predict_proba(x)  # a linear SVC has no probabilities
+    model = AnytimeClassifier(method="knn-pca", durations=(0.25, 2.5), threshold=0.99)
+    model.fit(x, data.label)
+    early = model.predict(x[:, : 2 + 10])  # 50 ms: shorter than every model
+    assert set(early) == {"unknown"}
+    late = model.predict(x)
+    named = late != "unknown"
+    assert named.mean() > 0.5
+    assert np.mean(late[named] == data.label[named]) > 0.9
