@@ -63,7 +63,7 @@ def test_trial_matrix_and_features_layout(data):
 
 
 @pytest.mark.parametrize("name", ["svm-pca", "knn-pca", "svm-pca:both", "hmm", "hmm:both",
-                                  "model"])
+                                  "model", "default"])
 def test_every_method_learns_four_distinct_materials(data, name):
     x = trial_matrix(data, 2.5)
     rng = np.random.default_rng(0)
@@ -105,7 +105,7 @@ def test_unknown_method_and_features_are_named():
         parse_method("svm-pca:fft")
 
 
-@pytest.mark.parametrize("name", ["svm-pca:both", "knn-pca", "hmm", "model"])
+@pytest.mark.parametrize("name", ["svm-pca:both", "knn-pca", "hmm", "model", "default"])
 def test_model_file_round_trip(tmp_path, data, name):
     x = trial_matrix(data, 1.0)
     est = make_method(name).fit(x, data.label)
@@ -222,3 +222,15 @@ def test_anytime_classifier_says_unknown_early_and_names_the_material_later(data
     named = late != "unknown"
     assert named.mean() > 0.5
     assert np.mean(late[named] == data.label[named]) > 0.9
+
+
+def test_default_method_is_not_fooled_by_a_warmer_room():
+    """Trained at 25 C, tested at 35 C: raw temperatures shift, normalised features do not."""
+    pair = [MATS["aluminium"], MATS["pine"]]
+    cool = simulate_trials(pair, Protocol(trials=30, run_length=10), seed=21)
+    warm = simulate_trials(pair, Protocol(trials=15, run_length=5, ambient=35.0), seed=22)
+    x_cool, x_warm = trial_matrix(cool, 1.0), trial_matrix(warm, 1.0)
+    default = make_method("default").fit(x_cool, cool.label)
+    raw = make_method("svm-pca").fit(x_cool, cool.label)
+    assert np.mean(default.predict(x_warm) == warm.label) > 0.9
+    assert np.mean(raw.predict(x_warm) == warm.label) < 0.8  # the paper's method does not carry

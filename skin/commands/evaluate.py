@@ -1,7 +1,9 @@
 """``skin evaluate``: cross-validated accuracy of classifiers against contact duration.
 
-Methods (`skin.models.classifiers`): ``svm-pca``, ``knn-pca``, ``hmm``, ``model``, each with
-``:raw``, ``:slope`` or ``:both`` features (``svm-pca:both``). Stratified K-fold
+Methods (`skin.models.classifiers`): the paper's ``svm-pca``, ``knn-pca``, ``hmm``, ``model``,
+each with ``:raw``, ``:slope`` or ``:both`` features (``svm-pca:both``), and ``default``, the
+library's recommendation. ``--train A --test B`` trains on one dataset and tests on another.
+Trials whose onset is -1 are first run through the onset detector. Stratified K-fold
 cross-validation (``--groups`` keeps the trials of one recording run on one side). For each
 method and duration: accuracy (mean and std over the folds), per-class recall, the confusion
 matrix, and fit and predict time per trial.
@@ -29,8 +31,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--test", help="dataset to test on (with --train); classes absent from "
                                    "training are reported with what they were called")
     ev.add_argument("--methods", default="svm-pca",
-                    help="comma-separated methods: svm-pca, knn-pca, hmm, model, each with "
-                         "optional :raw, :slope or :both features (default svm-pca)")
+                    help="comma-separated methods: svm-pca, knn-pca, hmm, model (each with "
+                         "optional :raw, :slope or :both features) and default "
+                         "(default: svm-pca)")
     ev.add_argument("--durations", default="0.5,1.5,2.5",
                     help="comma-separated contact durations, s (default 0.5,1.5,2.5)")
     ev.add_argument("--cv", type=int, default=3, help="number of folds (default 3)")

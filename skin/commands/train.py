@@ -17,9 +17,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     tr = sub.add_parser("train", help="fit a classifier and save a model file",
                         description=__doc__)
     tr.add_argument("--data", required=True, help="trial dataset (.npz)")
-    tr.add_argument("--method", default="svm-pca",
-                    help="svm-pca, knn-pca, hmm or model, optionally with :raw, :slope or "
-                         ":both (default svm-pca)")
+    tr.add_argument("--method", default="default",
+                    help="default, svm-pca, knn-pca, hmm or model, the paper's methods "
+                         "optionally with :raw, :slope or :both (default: default)")
     tr.add_argument("--duration", type=float, default=1.0,
                     help="contact window the model reads, s (default 1)")
     tr.add_argument("-o", "--out", required=True, help="model file to write (.skops)")
