@@ -3,10 +3,11 @@
 A model file holds a dictionary: ``format`` (this module's `FORMAT`), ``library`` (the
 thermoskin version that wrote it), ``method`` (``"svm-pca:both"``), ``features`` (window
 duration and sampling rate), ``classes``, ``training`` (a summary of the training data) and
-``estimator``. Loading never executes code: skops.io lists every type the file would build,
-and a file naming any type outside `ALLOWED_PREFIXES` (scikit-learn, numpy, hmmlearn and this
-library's estimators) is refused before anything is built. A file of another `FORMAT` is
-refused with the versions in the message.
+``estimator``. Loading never executes code: skops.io itself trusts only plain containers,
+numpy arrays and scikit-learn's estimators, and lists every other type a file would build; a
+file naming any type outside `ALLOWED` (the exact classes this library's methods are made
+of) is refused before anything is built. A file of another `FORMAT` is refused with the
+versions in the message.
 """
 
 from __future__ import annotations
@@ -21,11 +22,21 @@ from skin._optional import require
 from skin.errors import SkinError
 
 FORMAT = 1
-#: Type prefixes a model file may build; anything else is refused unread.
-ALLOWED_PREFIXES = ("sklearn.", "numpy.", "hmmlearn.", "skin.models.classifiers.", "builtins.")
-ALLOWED_EXACT = ("collections.deque", "collections.OrderedDict")  # hmmlearn's fit history
-_FORBIDDEN = ("builtins.eval", "builtins.exec", "builtins.compile", "builtins.open",
-              "builtins.__import__", "builtins.getattr", "builtins.setattr")
+#: Types beyond skops' own defaults that a model file may build; anything else is refused.
+ALLOWED = frozenset({
+    "skin.models.classifiers.TraceFeatures",
+    "skin.models.classifiers.PhysicsFeatures",
+    "skin.models.classifiers.HMMClassifier",
+    "skin.models.classifiers.ModelBasedClassifier",
+    "skin.models.classifiers.AnytimeClassifier",
+    "sklearn.metrics._dist_metrics.EuclideanDistance64",  # k-NN's tree
+    "sklearn.neighbors._kd_tree.KDTree",
+    "sklearn.neighbors._ball_tree.BallTree",
+    "sklearn.ensemble._hist_gradient_boosting.predictor.TreePredictor",
+    "hmmlearn.hmm.GaussianHMM",
+    "hmmlearn.base.ConvergenceMonitor",
+    "collections.deque",  # the convergence monitor's history
+})
 
 
 class ModelFileError(SkinError):
@@ -60,8 +71,7 @@ def untrusted_types(path: str | Path) -> list[str]:
         types = sio.get_untrusted_types(file=path)
     except Exception as exc:  # skops raises several kinds on a damaged archive
         raise ModelFileError(f"{path}: not a readable model file ({exc})") from None
-    return [t for t in types
-            if (not t.startswith(ALLOWED_PREFIXES) and t not in ALLOWED_EXACT) or t in _FORBIDDEN]
+    return [t for t in types if t not in ALLOWED]
 
 
 def load_model(path: str | Path) -> dict[str, Any]:

@@ -234,3 +234,12 @@ def test_default_method_is_not_fooled_by_a_warmer_room():
     raw = make_method("svm-pca").fit(x_cool, cool.label)
     assert np.mean(default.predict(x_warm) == warm.label) > 0.9
     assert np.mean(raw.predict(x_warm) == warm.label) < 0.8  # the paper's method does not carry
+
+
+def test_a_model_file_that_would_call_a_numpy_function_is_refused(tmp_path):
+    import skops.io as sio
+
+    sneaky = tmp_path / "sneaky.skops"
+    sio.dump({"format": 1, "estimator": np.load}, sneaky)  # could load pickles if called
+    with pytest.raises(ModelFileError, match="outside the allow-list"):
+        load_model(sneaky)
