@@ -243,3 +243,50 @@ def test_a_model_file_that_would_call_a_numpy_function_is_refused(tmp_path):
     sio.dump({"format": 1, "estimator": np.load}, sneaky)  # could load pickles if called
     with pytest.raises(ModelFileError, match="outside the allow-list"):
         load_model(sneaky)
+
+
+def _contact_from_trials(ds, rows, duration):
+    from skin.contact import Contact, TaxelWindow
+
+    windows = []
+    for k, i in enumerate(rows):
+        y = ds.temperature[i, ds.onset[i]:ds.onset[i] + round(duration * ds.fs)]
+        windows.append(TaxelWindow(k, 0.0, float(ds.temperature[i, ds.onset[i] - 10:
+                                                                 ds.onset[i]].mean()),
+                                   np.arange(y.size) / ds.fs, y, True))
+    return Contact(0, list(range(len(rows))), 0.0, duration, float(ds.ambient[rows[0]]),
+                   windows)
+
+
+def test_learned_classifier_fuses_the_taxels_of_a_contact(tmp_path, data):
+    from skin.models.learned import LearnedClassifier
+
+    x = trial_matrix(data, 0.5)
+    est = make_method("knn-pca").fit(x, data.label)
+    path = save_model(tmp_path / "m.skops", est, "knn-pca", 0.5, 200.0,
+                      training_summary(data, 0.5))
+    clf = LearnedClassifier(path)
+    pine = np.flatnonzero(data.label == "pine")[:3]
+    est_one = clf.classify(_contact_from_trials(data, pine[:1], 1.0))
+    est_three = clf.classify(_contact_from_trials(data, pine, 1.0))
+    assert est_three.label == "pine"
+    assert est_three.confidence >= est_one.confidence - 1e-9  # agreeing taxels add certainty
+    assert sum(est_three.probabilities.values()) == pytest.approx(1.0)
+    short = clf.classify(_contact_from_trials(data, pine, 0.2))  # released before 0.5 s
+    assert short.label == "unknown" and short.probabilities == {}
+
+
+def test_skin_run_with_a_trained_model(tmp_path):
+    ds = simulate_trials([MATS[m] for m in ("aluminium", "pine", "glass", "neoprene",
+                                            "human_skin")], Protocol(trials=40), seed=8)
+    ds.save(tmp_path / "t.npz")
+    out = skin("train", "--data", str(tmp_path / "t.npz"), "--method", "svm-pca",
+               "--duration", "0.3", "-o", str(tmp_path / "m.skops"))
+    assert out.returncode == 0, out.stderr
+    out = skin("run", "--speed", "0", "--duration", "8", "--model", str(tmp_path / "m.skops"),
+               "--out", str(tmp_path / "run"), "--no-map", "--json")
+    assert out.returncode == 0, out.stderr
+    summary = json.loads(out.stdout)
+    labels = {t["label"] for t in summary["per_touch"]}
+    assert summary["detected"] == summary["touches"] > 0
+    assert labels <= {"aluminium", "pine", "glass", "neoprene", "human_skin", "unknown"}

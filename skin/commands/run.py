@@ -34,6 +34,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     run.add_argument("--speed", type=float, default=1.0,
                      help="simulation pace relative to real time; 0 = as fast as possible")
     run.add_argument("--out", default="out/run", help="output folder (default: out/run)")
+    run.add_argument("--model", metavar="FILE",
+                     help="classify with a model file from `skin train` (taxels' evidence "
+                          "fused); default: the paper's model-based histogram method")
     run.add_argument("--no-map", action="store_true", help="do not render contact_map.png")
     run.add_argument("--json", action="store_true",
                      help="print one JSON summary on stdout and nothing else")
@@ -100,7 +103,15 @@ def main(args: argparse.Namespace) -> int:
         url = args.port
         duration = args.duration
     materials = load_materials()
-    pipeline = Pipeline(layout, HistogramClassifier(layout, materials))
+    if args.model:
+        from skin.models.learned import LearnedClassifier
+
+        classifier = LearnedClassifier(args.model)
+        progress.message(f"classifier: {classifier.method} ({len(classifier.classes)} classes, "
+                         f"{classifier.samples / classifier.fs:g} s window)")
+    else:
+        classifier = HistogramClassifier(layout, materials)
+    pipeline = Pipeline(layout, classifier)
     results: list[ContactResult] = []
     events_path = out / "events.jsonl"
     t_wall = time.monotonic()
@@ -238,7 +249,9 @@ def _print_table(records: list[dict[str, Any]], summary: dict[str, Any], out: Pa
         print(f"scene truth: {summary['detected']}/{summary['touches']} touches detected, "
               f"{summary['correct']}/{summary['touches']} labelled correctly "
               f"(accuracy {summary['accuracy']:.0%}), {summary['false_contacts']} false contacts; "
-              f"median onset error {summary['median_onset_error']} s, median effusivity error "
-              f"{summary['median_log10_effusivity_error']} decades")
+              f"median onset error {summary['median_onset_error']} s"
+              + ("" if summary["median_log10_effusivity_error"] is None else
+                 f", median effusivity error {summary['median_log10_effusivity_error']} "
+                 "decades"))
     print(f"outputs: {out / 'events.jsonl'}, {out / 'summary.json'}"
           + ("" if not (out / "contact_map.png").exists() else f", {out / 'contact_map.png'}"))
