@@ -290,3 +290,14 @@ def test_skin_run_with_a_trained_model(tmp_path):
     labels = {t["label"] for t in summary["per_touch"]}
     assert summary["detected"] == summary["touches"] > 0
     assert labels <= {"aluminium", "pine", "glass", "neoprene", "human_skin", "unknown"}
+
+
+def test_selective_accuracy_rises_as_coverage_falls():
+    from skin.commands.evaluate import selective
+
+    top = np.array([0.99, 0.97, 0.85, 0.6, 0.4])
+    right = np.array([True, True, True, False, False])
+    rows = {r["threshold"]: r for r in selective(top, right)}
+    assert rows[0.5] == {"threshold": 0.5, "coverage": 0.8, "accuracy": 0.75}
+    assert rows[0.95] == {"threshold": 0.95, "coverage": 0.4, "accuracy": 1.0}
+    assert selective(np.array([0.1]), np.array([True]))[0]["accuracy"] is None

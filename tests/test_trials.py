@@ -175,6 +175,7 @@ def test_simulate_trials_and_evaluate_the_paper_svm(tmp_path):
         assert conf.sum() == 90 and conf.shape == (3, 3)
         assert r["accuracy"] == pytest.approx(np.trace(conf) / 90, abs=0.02)
     assert doc["results"][-1]["accuracy"] > 0.9  # three well-separated materials
+    assert "selective" not in doc["results"][0]  # a linear SVC gives no probabilities
     grouped = skin("evaluate", "--data", str(path), "--durations", "1", "--groups", "--json",
                    "--merge", "aluminium+pine+cardboard")
     assert grouped.returncode == 0, grouped.stderr

@@ -82,12 +82,19 @@ def evaluate(data, method: str, duration: float, folds: int, groups: bool,
     acc, fit_t, pred_t = [], [], []
     unknown = 0
     conf = np.zeros((len(classes), len(classes)), dtype=int)
+    top, right = [], []  # most probable class's probability, and whether it was right
     for train, test in splits:
         model = make_method(method, fs=data.fs)
         t0 = time.perf_counter()
         model.fit(x[train], y[train])
         t1 = time.perf_counter()
-        pred = model.predict(x[test])
+        if hasattr(model, "predict_proba"):
+            proba = model.predict_proba(x[test])
+            pred = np.asarray(model.classes_)[np.argmax(proba, axis=1)]
+            top.append(proba.max(axis=1))
+            right.append(pred == y[test])
+        else:
+            pred = model.predict(x[test])
         t2 = time.perf_counter()
         acc.append(float(np.mean(pred == y[test])))
         fit_t.append((t1 - t0) / len(train))
@@ -95,12 +102,42 @@ def evaluate(data, method: str, duration: float, folds: int, groups: bool,
         conf += confusion_matrix(y[test], pred, labels=classes)
         unknown += int(np.sum(pred == "unknown"))
     recall = conf.diagonal() / np.maximum(conf.sum(axis=1), 1)
-    return {"method": method, "duration": duration, "folds": folds,
-            "accuracy": round(float(np.mean(acc)), 4), "accuracy_std": round(float(np.std(acc)), 4),
-            "recall": {c: round(float(r), 4) for c, r in zip(classes, recall, strict=True)},
-            "confusion": conf.tolist(), "classes": classes, "unknown": unknown,
-            "fit_ms_per_trial": round(1e3 * float(np.mean(fit_t)), 4),
-            "predict_ms_per_trial": round(1e3 * float(np.mean(pred_t)), 4)}
+    out = {"method": method, "duration": duration, "folds": folds,
+           "accuracy": round(float(np.mean(acc)), 4), "accuracy_std": round(float(np.std(acc)), 4),
+           "recall": {c: round(float(r), 4) for c, r in zip(classes, recall, strict=True)},
+           "confusion": conf.tolist(), "classes": classes, "unknown": unknown,
+           "fit_ms_per_trial": round(1e3 * float(np.mean(fit_t)), 4),
+           "predict_ms_per_trial": round(1e3 * float(np.mean(pred_t)), 4)}
+    if top:
+        out["selective"] = selective(np.concatenate(top), np.concatenate(right))
+    return out
+
+
+def selective(top: np.ndarray, right: np.ndarray,
+              thresholds: tuple[float, ...] = (0.5, 0.8, 0.9, 0.95)) -> list[dict]:
+    """Coverage and accuracy when a method says "unknown" below a probability threshold.
+
+    Parameters
+    ----------
+    top : numpy.ndarray
+        Probability of each trial's most probable class.
+    right : numpy.ndarray
+        Whether that class was the true one.
+    thresholds : tuple of float
+        Probabilities below which the answer would be "unknown".
+
+    Returns
+    -------
+    list of dict
+        Per threshold: the fraction of trials named (coverage) and the accuracy among them.
+    """
+    rows = []
+    for t in thresholds:
+        named = top >= t
+        rows.append({"threshold": t, "coverage": round(float(named.mean()), 4),
+                     "accuracy": round(float(right[named].mean()), 4) if named.any()
+                     else None})
+    return rows
 
 
 def train_test(train, test, method: str, duration: float) -> dict:
@@ -231,6 +268,10 @@ def main(args: argparse.Namespace) -> int:
               f"{r['accuracy_std']:.3f} {r['fit_ms_per_trial']:>13.3f} "
               f"{r['predict_ms_per_trial']:>17.4f}"
               + (f" {r['merged_accuracy']:>7.3f}" if merge else ""))
+        for sel in r.get("selective", []):
+            if sel["threshold"] in (0.8, 0.95) and sel["accuracy"] is not None:
+                print(f"{'':<14} {'':>10}   unknown below p = {sel['threshold']:g}: "
+                      f"{sel['coverage']:.0%} named, {sel['accuracy']:.3f} of them right")
         for c, called in r.get("unseen", {}).items():
             print(f"{'':<10} unseen class {c} was called "
                   + ", ".join(f"{k} x{v}" for k, v in called.items()))
