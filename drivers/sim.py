@@ -64,12 +64,8 @@ class SkinSimulator:
                 raise SceneError(f"{scene.source}: object {obj.name!r}: unknown material "
                                  f"{obj.material!r} (known: {', '.join(sorted(materials))})")
             mat = materials[obj.material]
-            if obj.temperature is not None:
-                t_obj = obj.temperature
-            elif mat.temperature is not None:
-                t_obj = float(np.mean(mat.temperature))
-            else:
-                t_obj = scene.ambient
+            t_obj = (mat.resting_temperature(scene.ambient) if obj.temperature is None
+                     else obj.temperature)
             idx = np.array([self.layout.index(t) for t in touch.taxels])
             k0 = round(touch.start * self.sample_rate)
             k1 = round(touch.end * self.sample_rate)

@@ -71,6 +71,10 @@ class Material:
         lo, hi = self.effusivity_range
         return float(np.log10(lo)), float(np.log10(hi))
 
+    def resting_temperature(self, ambient: float) -> float:
+        """Surface temperature of a resting object: its own (mid-range) if it makes heat."""
+        return ambient if self.temperature is None else float(np.mean(self.temperature))
+
     @property
     def conductance_range(self) -> tuple[float, float]:
         """(min, max) contact conductance of a light touch, k_air / gap, W/(m^2 K)."""

@@ -395,7 +395,7 @@ class MultilayerModel:
 
         The object sits at ``obj`` (default: ambient) and is not part of the solve.
         """
-        lower, diag, upper, b = self._system(0.0, 1.0, False, heater, np.inf)
+        lower, diag, upper, b, _, _ = self._system(0.0, 1.0, False, heater, np.inf)
         u = _solve(_factor(lower, diag, upper), b)  # -A u = b
         amb = np.broadcast_to(self.ambient, (self.batch,))
         u[: self.surface] = amb if obj is None else np.asarray(obj, dtype=float)
@@ -409,7 +409,7 @@ class MultilayerModel:
         """
         from scipy.linalg import eigh_tridiagonal
 
-        lower, diag, _, _ = self._system(0.0, 1.0, False, 1.0, np.inf)
+        lower, diag, _, _, _, _ = self._system(0.0, 1.0, False, 1.0, np.inf)
         s = self.surface
         out = np.empty(self.batch)
         for b in range(self.batch):
@@ -423,10 +423,12 @@ class MultilayerModel:
     # ---------------------------------------------------------------------- the operator
     def _system(self, capacity_factor: float, theta_dt: float, contact: bool,
                 heater: float | np.ndarray, conductance: float | np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Tridiagonal ``capacity_factor * C - theta_dt * A`` and the source ``b``.
+                ) -> tuple[np.ndarray, ...]:
+        """Return the tridiagonal ``capacity_factor * C - theta_dt * A`` and its parts.
 
-        With ``capacity_factor`` 0 and ``theta_dt`` 1 it is ``-A`` (for the steady state).
+        The tuple is ``(lower, diag, upper, b, link, loss)``: ``b`` is the source, ``link``
+        and ``loss`` are the conductances that make ``A``. With ``capacity_factor`` 0 and
+        ``theta_dt`` 1 it is ``-A`` (for the steady state).
         """
         link = self._link.copy()
         s = self.surface
@@ -451,8 +453,7 @@ class MultilayerModel:
         diag[:-1] += theta_dt * link
         diag[1:] += theta_dt * link
         off = -theta_dt * link
-        self._loss, self._links_now = loss, link
-        return off, diag, off, b
+        return off, diag, off, b, link, loss
 
     # ------------------------------------------------------------------------ stepping
     def run(self, state: ColumnState, phases: Sequence[Phase], fs: float = 200.0
@@ -551,9 +552,8 @@ class MultilayerModel:
         contact, heater, h = phase.contact, phase.heater, phase.conductance
         cap = self.capacity
         g = {"euler": 1.0, "crank-nicolson": 0.5, "tr-bdf2": _GAMMA / 2}[self.scheme]
-        lower, diag, upper, b = self._system(1.0, g * dt, contact, heater, h)
+        lower, diag, upper, b, link, loss = self._system(1.0, g * dt, contact, heater, h)
         lu = _factor(lower, diag, upper)
-        link, loss = self._links_now, self._loss
 
         def c(x: np.ndarray, u: np.ndarray) -> np.ndarray:  # coefficients shaped like u
             return x if u.ndim == 2 else x[:, :, None]

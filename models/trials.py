@@ -199,7 +199,7 @@ def simulate_trials(
             if progress is not None:
                 progress((i + 1) * n, total)
     readings = _adc(temp.reshape(total, -1), rng, p.adc_noise)
-    label = np.repeat([m.name for m in materials], n)  # after the paths: they may align amb
+    label = np.repeat([m.name for m in materials], n)
     groups = (np.arange(n_mat)[:, None] * (run.max() + 1) + run[None, :]).ravel()
     taxel = np.take_along_axis(run_taxel, np.broadcast_to(run, (n_mat, n)), axis=1).ravel()
     eff = np.repeat([m.effusivity for m in materials], n)
@@ -292,8 +292,7 @@ def _multilayer_protocol(materials: Sequence[Material], p: Protocol,
         model = MultilayerModel(SensorStack.paper(s), body, ambient=amb[0, idx[0]],
                                 dt=1.0 / p.fs)
         heated = model.steady_state(1.0)
-        obj_t = np.array([amb[0, idx[0]] if own[i] is None else np.mean(own[i])
-                          for i in range(n_mat)])
+        obj_t = np.array([m.resting_temperature(amb[0, idx[0]]) for m in materials])
         state = model.state(lambda d, st=heated, s0=model.surface: st.u[s0:], obj_t)
         for j in idx:
             shift = p.pre + jitter[0, j]  # true contact after the recorded onset's start

@@ -75,12 +75,8 @@ def main_trace(args: argparse.Namespace) -> int:
     s = SensorConstants()
     t_sensor = float(heated_temperature(args.ambient, s)) if args.t_sensor is None \
         else args.t_sensor
-    if args.t_object is not None:
-        t_object = args.t_object
-    elif mat.temperature is not None:
-        t_object = float(np.mean(mat.temperature))
-    else:
-        t_object = args.ambient
+    t_object = mat.resting_temperature(args.ambient) if args.t_object is None \
+        else args.t_object
     t = np.arange(round(args.duration * args.fs) + 1) / args.fs
     if args.model == "multilayer":
         from skin.models.multilayer import MultilayerModel, ObjectBody, Phase, SensorStack
