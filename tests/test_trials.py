@@ -70,15 +70,6 @@ def test_multilayer_path_runs_the_protocol_with_the_heater_on():
     assert t0[al][1:10].mean() < t0[~al][1:10].mean()
 
 
-def test_closed_form_path_is_fast_enough():
-    import time
-
-    started = time.perf_counter()
-    ds = small(trials=100)
-    rate = len(ds) / (time.perf_counter() - started)
-    assert rate > 500  # the issue asks for 1000/s; leave room for a loaded CI machine
-
-
 def test_dataset_round_trip_and_no_pickles(tmp_path):
     ds = small(trials=5)
     path = ds.save(tmp_path / "t.npz")
