@@ -2,9 +2,12 @@
 
 `SkinSimulator` turns a `Scene` into frames.  Each taxel's sensor body, when free, relaxes
 towards the heated steady state (eq. 2) with the lumped time constant l^2 / alpha_s; when an
-object touches it, the thermistor follows eq. 5 from the temperature it had at that moment,
-so initial conditions vary with each taxel's recent contacts.  Readings get Gaussian noise and
-pass through the thermistor divider and the 10-bit ADC.
+object touches it, the thermistor follows the contact response from the temperature it had at
+that moment, so initial conditions vary with each taxel's recent contacts. The contact has a
+perfect conductance (eq. 5), or with ``contact="finite"`` a conductance h per taxel and
+touch, drawn log-uniformly from the material's range (a light touch through the material's
+air gap, `skin.models.materials.Material.gap`). Readings get Gaussian noise and pass through the
+thermistor divider and the 10-bit ADC.
 
 `SimDriver` hands those frames over directly (``sim://``); `PtySerialDevice` writes them, as
 wire-protocol bytes, into a real pseudo-terminal, so that the serial driver reads them exactly
@@ -39,13 +42,20 @@ class SkinSimulator:
         What touches what, when.
     duration : float, optional
         Simulated time, s; the scene's duration by default.
+    contact : str
+        ``"perfect"`` (default): the paper's eq. 5 (h = infinity); ``"finite"``: each taxel's
+        contact conductance drawn from the material's range.
     """
 
-    def __init__(self, scene: Scene, duration: float | None = None) -> None:
+    def __init__(self, scene: Scene, duration: float | None = None,
+                 contact: str = "perfect") -> None:
         from skin.models.materials import load_materials
         from skin.models.physics import SensorConstants, heated_temperature
 
+        if contact not in ("finite", "perfect"):
+            raise ValueError(f"contact must be 'finite' or 'perfect', got {contact!r}")
         self.scene = scene
+        self.contact = contact
         self.layout = scene.layout
         if len(self.layout.boards) != 1:
             raise SceneError(f"{scene.source}: the simulator drives one board for now")
@@ -69,22 +79,25 @@ class SkinSimulator:
             idx = np.array([self.layout.index(t) for t in touch.taxels])
             k0 = round(touch.start * self.sample_rate)
             k1 = round(touch.end * self.sample_rate)
-            self._touches.append((k0, k1, idx, t_obj, mat.effusivity))
+            self._touches.append((k0, k1, idx, t_obj, mat.effusivity,
+                                  np.log10(mat.conductance_range)))
         self._idx, self._addr = self.layout.channel_map(self.board.id)
         self._channels = int(self._addr.max()) + 1
 
     def temperatures(self) -> np.ndarray:
         """Noise-free thermistor temperatures, shape (n_samples, n_taxels), deg C."""
-        from skin.models.physics import contact_temperature, depth_response
+        from skin.models.physics import conductance_rate, contact_response, contact_temperature
 
         n = len(self.layout)
         rng = np.random.default_rng(self.scene.seed)
         lo, hi = self.scene.initial_temperature
         free = np.minimum(rng.uniform(lo, hi, n), self.heated)
+        h_rng = np.random.default_rng([self.scene.seed, 7])  # the free start stays as it was
         decay = np.exp(-1.0 / (self.sample_rate * self.sensor.reheat_time_constant))
         touching = np.zeros(n, dtype=bool)
         t0 = np.zeros(n)
         ts = np.zeros(n)
+        rate = np.full(n, np.inf)  # conductance_rate of each taxel's current contact
         start = np.zeros(n)
         out = np.empty((self.n_samples, n))
         starts: dict[int, list] = {}
@@ -95,17 +108,20 @@ class SkinSimulator:
         reading = free.copy()
         for k in range(self.n_samples):
             t = k / self.sample_rate
-            for _, _, idx, _, _ in ends.get(k, ()):
+            for _, _, idx, *_ in ends.get(k, ()):
                 touching[idx] = False
                 free[idx] = reading[idx]
-            for _, _, idx, t_obj, e_obj in starts.get(k, ()):
+            for _, _, idx, t_obj, e_obj, log_h in starts.get(k, ()):
                 touching[idx] = True
                 t0[idx] = free[idx]
                 ts[idx] = contact_temperature(free[idx], t_obj, self.sensor.effusivity, e_obj)
                 start[idx] = t
+                if self.contact == "finite":
+                    h = 10.0 ** h_rng.uniform(log_h[0], log_h[1], idx.size)
+                    rate[idx] = conductance_rate(h, self.sensor.effusivity, e_obj)
             free = np.where(touching, free, self.heated + (free - self.heated) * decay)
             if touching.any():
-                resp = depth_response(t - start[touching], self.sensor)
+                resp = contact_response(t - start[touching], rate[touching], self.sensor)
                 reading = free.copy()
                 reading[touching] = t0[touching] + (ts[touching] - t0[touching]) * resp
             else:

@@ -1,6 +1,7 @@
 """Heat-transfer physics, the materials table, and the classifiers all taxels share."""
 
 from skin.models.effusivity import HistogramClassifier
+from skin.models.joint import JointClassifier, JointContactModel
 from skin.models.materials import Material, load_materials
 from skin.models.physics import (
     SensorConstants,
@@ -14,6 +15,8 @@ from skin.models.physics import (
 
 __all__ = [
     "HistogramClassifier",
+    "JointClassifier",
+    "JointContactModel",
     "Material",
     "SensorConstants",
     "contact_temperature",

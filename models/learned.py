@@ -5,7 +5,9 @@
 model's duration) becomes a row ``[ambient, T0, window...]``; the taxels' class probabilities
 are fused (`skin.models.classifiers.fuse_probabilities`), and the label is the most probable
 material, or ``"unknown"`` when no taxel's window is long enough or the fused probability is
-below ``threshold``.
+below ``threshold``. A model trained with ``skin train --anytime`` holds one model per
+duration: each taxel then answers from the longest of them its window covers, so a brief
+touch is named from what it gave, with the confidence that brevity allows.
 """
 
 from __future__ import annotations
@@ -39,31 +41,61 @@ class LearnedClassifier:
         self.threshold = threshold
         self.method = f"learned:{self.doc['method']}"
 
-    def rows(self, contact: Contact) -> np.ndarray:
-        """Rows ``[ambient, T0, window...]`` of the taxels whose windows are long enough."""
-        grid = np.arange(self.samples) / self.fs
+    @property
+    def lengths(self) -> list[int]:
+        """Window lengths (samples) the model reads, shortest first."""
+        return list(getattr(self.estimator, "samples_", [self.samples]))
+
+    def rows(self, contact: Contact, samples: int | None = None) -> np.ndarray:
+        """Rows ``[ambient, T0, window...]`` of the taxels whose windows cover ``samples``.
+
+        ``samples`` defaults to the model's full window.
+        """
+        n = self.samples if samples is None else samples
+        picked = [w for w in contact.windows if self._covers(w, n)]
+        return self._rows(contact, picked, n)
+
+    def probabilities(self, contact: Contact) -> np.ndarray:
+        """Class probabilities per taxel, (n_taxels that can answer, n_classes).
+
+        Each taxel answers from the longest window the model reads that it covers.
+        """
+        parts, left = [], list(contact.windows)
+        for n in reversed(self.lengths):
+            picked = [w for w in left if self._covers(w, n)]
+            left = [w for w in left if not self._covers(w, n)]
+            if picked:
+                parts.append(self._predict(self._rows(contact, picked, n)))
+        return np.vstack(parts) if parts else np.empty((0, len(self.classes)))
+
+    def _covers(self, window, samples: int) -> bool:
+        ok = np.isfinite(window.temperature)
+        return bool(ok.sum() >= 2
+                    and window.time[ok][-1] >= (samples - 1) / self.fs - 0.5 / self.fs)
+
+    def _rows(self, contact: Contact, windows: list, samples: int) -> np.ndarray:
+        grid = np.arange(samples) / self.fs
         rows = []
-        for w in contact.windows:
+        for w in windows:
             ok = np.isfinite(w.temperature)
-            if ok.sum() < 2 or w.time[ok][-1] < grid[-1] - 0.5 / self.fs:
-                continue  # released (or cut) before the model's window is full
             y = np.interp(grid, w.time[ok], w.temperature[ok])
             rows.append(np.concatenate([[contact.ambient, w.initial], y]))
-        return np.array(rows).reshape(len(rows), 2 + self.samples)
+        return np.array(rows).reshape(len(rows), 2 + samples)
+
+    def _predict(self, x: np.ndarray) -> np.ndarray:
+        if hasattr(self.estimator, "predict_proba"):
+            return self.estimator.predict_proba(x)
+        pred = self.estimator.predict(x)  # no probabilities: each taxel votes with certainty
+        return np.array([[0.999 if c == lab else 0.001 / max(len(self.classes) - 1, 1)
+                          for c in self.classes] for lab in pred])
 
     def classify(self, contact: Contact) -> MaterialEstimate:
         """Label a contact from all its taxels' evidence."""
         from skin.models.classifiers import fuse_probabilities
 
-        x = self.rows(contact)
-        if x.shape[0] == 0:
+        p = self.probabilities(contact)
+        if p.shape[0] == 0:
             return MaterialEstimate(UNKNOWN, {}, 0.0, None, self.method)
-        if hasattr(self.estimator, "predict_proba"):
-            p = self.estimator.predict_proba(x)
-        else:  # a method without probabilities: each taxel votes with certainty
-            pred = self.estimator.predict(x)
-            p = np.array([[0.999 if c == lab else 0.001 / max(len(self.classes) - 1, 1)
-                           for c in self.classes] for lab in pred])
         fused = fuse_probabilities(p)
         best = int(np.argmax(fused))
         probs = {c: float(v) for c, v in zip(self.classes, fused, strict=True)}

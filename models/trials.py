@@ -13,9 +13,10 @@ contacts and resting 10 minutes every 10 trials; initial sensor temperatures spr
   column (the difference is reported, not tuned away).
 - **Object history**: a touch warms the object's surface; after release the excess decays as
   ``sqrt(D / (D + t))`` (diffusion of a layer warmed for D seconds), and the next touch meets
-  an object above ambient by half that excess (the mean over the depth the next touch
-  probes). Heat-generating materials (skin) hold their own
-  temperature (30-34 C).
+  an object above its resting temperature by half that excess (the mean over the depth the
+  next touch probes). Objects rest at ambient unless ``object_offset`` draws a cold or warm
+  object per recording run; heat-generating materials (skin) hold their own temperature
+  (30-34 C).
 - **Contact** (``model``): ``"contact"`` (default) uses the closed form with a finite contact
   conductance h per trial, k_air / gap with the gap log-uniform in the material's range
   (`Material.gap`: smooth glass 1-5 um, machined metal 2-10 um, wood 10-50 um, brick
@@ -86,6 +87,11 @@ class Protocol:
         Sampling rate, Hz.
     reheat_time_constant : float
         Lumped reheat time constant of the free taxel, s (the multilayer column's slowest mode).
+    object_offset : tuple of float
+        Range of a resting object's temperature above ambient, K, drawn uniformly per
+        recording run (default (0, 0): objects rest at ambient; ``(-8, 8)`` gives cold and
+        warm objects, a piece of wood from outdoors or from a sunny window sill).
+        Heat-generating materials keep their own temperature.
     """
 
     trials: int = 500
@@ -104,6 +110,7 @@ class Protocol:
     onset_jitter: float = 0.010
     fs: float = 200.0
     reheat_time_constant: float = 62.5
+    object_offset: tuple[float, float] = (0.0, 0.0)
 
 
 def _adc(temperature: np.ndarray, rng: np.random.Generator, noise: float) -> np.ndarray:
@@ -159,6 +166,9 @@ def simulate_trials(
     if model not in MODELS:
         raise ValueError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
     p = Protocol() if protocol is None else protocol
+    if model == "multilayer" and p.object_offset != (0.0, 0.0):
+        raise ValueError("object_offset needs a closed-form model ('contact' or "
+                         "'semi-infinite'): the multilayer slab's back is held at ambient")
     if p.trials < 1 or p.run_length < 1 or p.n_taxels < 1 or p.rest_every < 1:
         raise ValueError("trials, run_length, n_taxels and rest_every must be at least 1")
     if not materials:
@@ -181,6 +191,9 @@ def simulate_trials(
     h = 10.0 ** rng.uniform(lo_hi[:, :1], lo_hi[:, 1:], (n_mat, n))
     jitter = rng.uniform(-p.onset_jitter, p.onset_jitter, (n_mat, n))
     amb = p.ambient + rng.normal(0.0, 0.1, (n_mat, n))  # the room drifts a little
+    if p.object_offset[0] > p.object_offset[1]:
+        raise ValueError(f"object_offset {p.object_offset} must be (low, high)")
+    offset = rng.uniform(*p.object_offset, (n_mat, run.max() + 1))[:, run]  # per run
 
     n_pre = round(p.pre * p.fs)
     n_post = round(p.duration * p.fs)
@@ -190,12 +203,12 @@ def simulate_trials(
     t_object = np.empty((n_mat, n))
     if model == "multilayer":
         _multilayer_protocol(materials, p, taxels, run_taxel, run, hold, after, h, jitter, amb,
-                             t, temp, t_sensor, t_object, progress)
+                             offset, t, temp, t_sensor, t_object, progress)
     else:
         for i, mat in enumerate(materials):
             _closed_form_protocol(mat, p, taxels, run_taxel[i], run, hold[i], after[i],
                                   np.inf if model == "semi-infinite" else h[i], jitter[i],
-                                  amb[i], t, temp[i], t_sensor[i], t_object[i], rng)
+                                  amb[i], offset[i], t, temp[i], t_sensor[i], t_object[i], rng)
             if progress is not None:
                 progress((i + 1) * n, total)
     readings = _adc(temp.reshape(total, -1), rng, p.adc_noise)
@@ -203,6 +216,7 @@ def simulate_trials(
     groups = (np.arange(n_mat)[:, None] * (run.max() + 1) + run[None, :]).ravel()
     taxel = np.take_along_axis(run_taxel, np.broadcast_to(run, (n_mat, n)), axis=1).ravel()
     eff = np.repeat([m.effusivity for m in materials], n)
+    constants = np.array([[s.depth, s.diffusivity, s.conductivity] for s in taxels])[taxel]
     return TrialSet(
         temperature=readings, fs=p.fs, label=label,
         onset=np.full(total, n_pre, dtype=np.int64), ambient=amb.ravel(), group=groups,
@@ -212,21 +226,25 @@ def simulate_trials(
                "true_object_temperature": t_object.ravel(),
                "true_effusivity": eff,
                "true_conductance": (np.full_like(h, np.inf) if model == "semi-infinite"
-                                    else h).ravel()},
+                                    else h).ravel(),
+               "true_sensor_depth": constants[:, 0],
+               "true_sensor_diffusivity": constants[:, 1],
+               "true_sensor_conductivity": constants[:, 2]},
         source=f"simulated ({model}, seed {seed})",
     )
 
 
-def _object_temperature(mat: Material, ambient: float, rng: np.random.Generator) -> float:
+def _object_temperature(mat: Material, ambient: float, offset: float,
+                        rng: np.random.Generator) -> float:
     if mat.temperature is not None:  # heat-generating: holds its own temperature
         return float(rng.uniform(*mat.temperature))
-    return ambient
+    return ambient + offset
 
 
 def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorConstants],
                           run_taxel: np.ndarray, run: np.ndarray, hold: np.ndarray,
                           after: np.ndarray, h: np.ndarray | float, jitter: np.ndarray,
-                          amb: np.ndarray, t: np.ndarray, out: np.ndarray,
+                          amb: np.ndarray, offset: np.ndarray, t: np.ndarray, out: np.ndarray,
                           t_sensor: np.ndarray, t_object: np.ndarray,
                           rng: np.random.Generator) -> None:
     """Walk one material's protocol with the closed forms; fill ``out`` (n, samples)."""
@@ -242,7 +260,7 @@ def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorConstan
         if j == 0 or run[j] != run[j - 1]:  # a run starts rested, with a cool object
             sensor_now, excess = full, 0.0
         t0 = sensor_now
-        base = _object_temperature(mat, amb[j], rng)
+        base = _object_temperature(mat, amb[j], offset[j], rng)
         tobj = base + (excess if mat.temperature is None else 0.0)
         t_sensor[j], t_object[j] = t0, tobj
         heat[j] = full
@@ -254,7 +272,7 @@ def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorConstan
         # release after the hold, then reheat; the object keeps some of the heat it took
         end = float(contact_trace(hold[j], t0, tobj, e_o, s, h[j]))
         surf = float((s.effusivity * t0 + e_o * tobj) / (s.effusivity + e_o))
-        warm = (surf - amb[j]) * np.sqrt(hold[j] / (hold[j] + after[j])) * 0.5
+        warm = (surf - base) * np.sqrt(hold[j] / (hold[j] + after[j])) * 0.5
         excess = max(warm, 0.0)
         sensor_now = full - (full - end) * np.exp(-after[j] / tau)
 

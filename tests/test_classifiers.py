@@ -1,3 +1,4 @@
+import dataclasses
 import json
 import os
 import subprocess
@@ -212,8 +213,8 @@ def test_anytime_classifier_says_unknown_early_and_names_the_material_later(data
 
     x = trial_matrix(data, 2.5)
     model = AnytimeClassifier(method="svm-pca", durations=(0.25, 2.5), threshold=0.0)
-    with pytest.raises(AttributeError):
-        model.fit(x, data.label).predict_proba(x)  # a linear SVC has no probabilities
+    with pytest.raises(ValueError, match="no probabilities"):
+        model.fit(x, data.label)  # a linear SVC has no probabilities
     model = AnytimeClassifier(method="knn-pca", durations=(0.25, 2.5), threshold=0.99)
     model.fit(x, data.label)
     early = model.predict(x[:, : 2 + 10])  # 50 ms: shorter than every model
@@ -301,3 +302,66 @@ def test_selective_accuracy_rises_as_coverage_falls():
     assert rows[0.5] == {"threshold": 0.5, "coverage": 0.8, "accuracy": 0.75}
     assert rows[0.95] == {"threshold": 0.95, "coverage": 0.4, "accuracy": 1.0}
     assert selective(np.array([0.1]), np.array([True]))[0]["accuracy"] is None
+
+
+def test_an_anytime_model_names_a_brief_touch_from_the_window_it_gave(tmp_path, data):
+    from skin.models.classifiers import AnytimeClassifier
+    from skin.models.learned import LearnedClassifier
+
+    x = trial_matrix(data, 1.0)
+    est = AnytimeClassifier("knn-pca", (0.25, 1.0), threshold=0.0).fit(x, data.label)
+    path = save_model(tmp_path / "a.skops", est, "anytime:knn-pca", 1.0, 200.0,
+                      training_summary(data, 1.0))
+    clf = LearnedClassifier(path)
+    assert clf.lengths == [50, 200]
+    pine = np.flatnonzero(data.label == "pine")[:3]
+    brief = _contact_from_trials(data, pine, 0.3)  # released after 0.3 s
+    assert clf.probabilities(brief).shape == (3, len(data.classes))
+    assert clf.classify(brief).label == "pine"
+    # one taxel held for 1 s and two brief ones: every taxel answers, each from its own window
+    mixed = _contact_from_trials(data, pine, 1.0)
+    mixed.windows[1:] = [dataclasses.replace(w, time=w.time[:60], temperature=w.temperature[:60])
+                         for w in mixed.windows[1:]]
+    p = clf.probabilities(mixed)
+    assert p.shape == (3, len(data.classes))
+    long_row = clf.rows(mixed, 200)
+    assert long_row.shape == (1, 202)
+    assert np.allclose(p[0], est.predict_proba(long_row)[0])
+    assert clf.classify(_contact_from_trials(data, pine, 0.1)).label == "unknown"  # < 0.25 s
+
+
+def test_train_anytime_writes_a_model_per_duration(tmp_path, data):
+    data.save(tmp_path / "t.npz")
+    out = skin("train", "--data", str(tmp_path / "t.npz"), "--method", "knn-pca",
+               "--anytime", "0.5,0.25", "-o", str(tmp_path / "a.skops"), "--json")
+    assert out.returncode == 0, out.stderr
+    summary = json.loads(out.stdout)
+    assert summary["method"] == "anytime:knn-pca" and summary["duration"] == 0.5
+    out = skin("train", "--data", str(tmp_path / "t.npz"), "--method", "svm-pca",
+               "--anytime", "0.5", "-o", str(tmp_path / "b.skops"))
+    assert out.returncode != 0 and "probabilities" in out.stderr
+
+
+def test_calibration_error_of_honest_and_overconfident_probabilities():
+    from skin.commands.evaluate import calibration_error
+
+    rng = np.random.default_rng(3)
+    claimed = rng.uniform(0.3, 1.0, 20000)
+    honest = rng.uniform(size=claimed.size) < claimed
+    assert calibration_error(claimed, honest) < 0.02
+    assert calibration_error(np.full(1000, 0.95), np.arange(1000) < 600) == pytest.approx(0.35)
+
+
+def test_ceiling_knows_the_nuisances_and_beats_the_learners_early():
+    from skin.models.ceiling import known_nuisance_ceiling
+
+    ds = simulate_trials([MATS[m] for m in ("aluminium", "glass", "pine", "cardboard")],
+                         Protocol(trials=20, run_length=10), seed=5)
+    ceiling = known_nuisance_ceiling(ds, 1.0)
+    assert ceiling["accuracy"] > 0.95  # four well-separated effusivities, every nuisance known
+    assert np.sum(ceiling["confusion"]) == len(ds)
+    recorded = TrialSet(temperature=ds.temperature, fs=ds.fs, label=ds.label, onset=ds.onset)
+    with pytest.raises(SkinError, match="true_"):
+        known_nuisance_ceiling(recorded, 1.0)
+    with pytest.raises(SkinError, match="does not fit"):
+        known_nuisance_ceiling(ds, 10.0)

@@ -15,8 +15,8 @@ def scene_frames():
     return scene, list(SkinSimulator(scene, duration=10.0).frames())
 
 
-def run(scene, frames, chunk):
-    pipe = Pipeline(scene.layout, HistogramClassifier(scene.layout))
+def run(scene, frames, chunk, classifier=None):
+    pipe = Pipeline(scene.layout, classifier or HistogramClassifier(scene.layout))
     results = []
     for i in range(0, len(frames), chunk):
         results += pipe.process(frames[i : i + chunk])
@@ -60,6 +60,28 @@ def test_effusivity_of_passive_materials_is_recovered(scene_frames):
     assert np.median(errs) < 0.05
 
 
+def test_joint_classifier_is_right_as_often_and_wrong_far_less_than_the_histogram(
+        scene_frames):
+    from skin.models import JointClassifier
+
+    scene, frames = scene_frames
+
+    def score(classifier):
+        _, results = run(scene, frames, 50, classifier)
+        matches, _ = match_touches(scene, [r.contact.taxels for r in results],
+                                   [r.contact.onset for r in results])
+        pairs = [(results[m.contact_index].estimate.label, m.material) for m in matches
+                 if m.contact_index is not None]
+        right = sum(a == b for a, b in pairs)
+        wrong = sum(a not in (b, "unknown") for a, b in pairs)
+        return right, wrong
+
+    joint_right, joint_wrong = score(JointClassifier(scene.layout))
+    hist_right, hist_wrong = score(HistogramClassifier(scene.layout))
+    assert joint_right >= hist_right >= 1
+    assert joint_wrong <= 2 < hist_wrong  # unsure contacts are "unknown", not mislabelled
+
+
 def test_gaps_are_counted(scene_frames):
     scene, frames = scene_frames
     pipe = Pipeline(scene.layout, HistogramClassifier(scene.layout))
@@ -80,3 +102,18 @@ def test_two_boards_are_refused_clearly():
     taxels = [Taxel(0, 0, 0, "l", (0, 0, 0), (1, 0, 0)), Taxel(1, 1, 0, "l", (0, 0, 1), (1, 0, 0))]
     with pytest.raises(SkinError, match="one board"):
         Pipeline(Layout(taxels, [Board(id=0), Board(id=1)]), classifier=None)
+
+
+def test_finite_contact_makes_the_simulated_contact_slower_but_not_different_in_the_end():
+    scene = load_scene("default")
+    perfect = SkinSimulator(scene, duration=3.0).temperatures()
+    finite = SkinSimulator(scene, duration=3.0, contact="finite").temperatures()
+    touch = scene.touches[0]
+    i = scene.layout.index(touch.taxels[0])
+    k = round(touch.start * 200)
+    assert np.allclose(perfect[:k, i], finite[:k, i])  # before the touch: identical
+    drop_p = perfect[k, i] - perfect[k + 60, i]
+    drop_f = finite[k, i] - finite[k + 60, i]
+    assert 0 < drop_f < drop_p  # a contact through an air gap draws heat more slowly
+    with pytest.raises(ValueError, match="finite"):
+        SkinSimulator(scene, contact="sticky")

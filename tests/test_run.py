@@ -18,8 +18,11 @@ SKIN = Path(sys.executable).with_name("skin")
 @pytest.mark.slow
 def test_skin_run_end_to_end_on_the_simulated_skin(tmp_path):
     out = tmp_path / "run"
+    # the histogram method, whose pointwise effusivity this test checks (the joint model, the
+    # default, is checked against the scene in test_pipeline)
     proc = subprocess.run([str(SKIN), "run", "--duration", "6", "--speed", "0", "--out",
-                           str(out), "--json"], capture_output=True, text=True, timeout=300)
+                           str(out), "--json", "--classifier", "histogram"],
+                          capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout)  # --json: one JSON document and nothing else
     # the scene's touches that start within 6 s: aluminium, pine, glass, forearm, neoprene

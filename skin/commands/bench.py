@@ -4,6 +4,11 @@
 error against the closed form or a converged reference, and run time per trial), then the
 inverse estimators on simulated trials (effusivity error against contact duration, and run
 time per trial). ``--plot DIR`` draws the work-precision diagram and the estimator errors.
+
+``skin bench fusion`` touches cold, warm and room-temperature objects with one or several
+taxels (at one initial temperature, or staggered) and reports the accuracy and cost per
+contact of the joint model that shares the object's temperature between them
+(`skin.models.joint`).
 """
 
 from __future__ import annotations
@@ -32,6 +37,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     thermal.add_argument("--plot", metavar="DIR", help="write the figures (PNG) into DIR")
     thermal.add_argument("--json", action="store_true", help="print one JSON document")
     thermal.set_defaults(func=main_thermal)
+    fusion = kinds.add_parser("fusion", help="several taxels on one cold or warm object")
+    fusion.add_argument("--materials", default="aluminium,brick,cardboard,glass,neoprene,pine",
+                        help="comma-separated objects (default: one of each group the table "
+                             "can tell apart)")
+    fusion.add_argument("--trials", type=int, default=40,
+                        help="contacts per material and case (default 40)")
+    fusion.add_argument("--durations", default="0.5,1,2.5", help="contact durations, s")
+    fusion.add_argument("--offset", type=float, default=8.0,
+                        help="objects also drawn within +-OFFSET K of ambient (default 8)")
+    fusion.add_argument("--seed", type=int, default=0, help="seed of the scene")
+    fusion.add_argument("--json", action="store_true", help="print one JSON document")
+    fusion.set_defaults(func=main_fusion)
 
 
 def machine() -> dict:
@@ -95,4 +112,45 @@ def main_thermal(args: argparse.Namespace) -> int:
               f"{p90:>6} {r['time_per_trial_ms']:>9.3f}")
     if "figures" in doc:
         print("figures: " + ", ".join(doc["figures"]))
+    return 0
+
+
+def main_fusion(args: argparse.Namespace) -> int:
+    """Run the fusion benchmark."""
+    from skin.errors import SkinError
+    from skin.models import fusion_bench, load_materials
+
+    table = load_materials()
+    names = [n.strip() for n in args.materials.split(",") if n.strip()]
+    unknown = [n for n in names if n not in table]
+    if unknown or len(names) < 2:
+        raise SkinError(f"--materials wants at least two known materials; unknown: "
+                        f"{', '.join(unknown) or 'none'}")
+    try:
+        durations = [float(d) for d in args.durations.split(",") if d.strip()]
+    except ValueError:
+        raise SkinError(f"--durations must be numbers, got {args.durations!r}") from None
+    if args.trials < 1 or not durations or min(durations) <= 0:
+        raise SkinError("--trials must be at least 1 and --durations positive")
+    progress = Progress()
+    started = time.monotonic()
+    rows = fusion_bench.run([table[n] for n in names], trials=args.trials, durations=durations,
+                            offsets=((0.0, 0.0), (-args.offset, args.offset)), seed=args.seed,
+                            progress=lambda d, n: progress.bar(d, n, "contacts", started))
+    progress.done()
+    doc = {"machine": machine(), "materials": names, "trials": args.trials,
+           "wall_time": round(time.monotonic() - started, 2), "results": rows}
+    if args.json:
+        print(json.dumps(doc))
+        return 0
+    print(f"joint model, {len(names)} materials x {args.trials} contacts per case "
+          f"({doc['machine']['cpus']} cores); chance {1 / len(names):.2f}")
+    print("accuracy with the paper's nominal constants, and with each taxel's own (calibrated)")
+    print(f"{'object vs ambient':<18} {'taxels':<26} {'dur s':>6} {'nominal':>8} "
+          f"{'calibrated':>11} {'ms/contact':>11}")
+    for r in rows:
+        lo, hi = r["object_offset"]
+        where = "at ambient" if lo == hi == 0 else f"{lo:+g} to {hi:+g} K"
+        print(f"{where:<18} {r['arrangement']:<26} {r['duration']:>6g} {r['accuracy']:>8.3f} "
+              f"{r['accuracy_calibrated']:>11.3f} {r['ms_per_contact']:>11.2f}")
     return 0

@@ -6,7 +6,10 @@ library's recommendation. ``--train A --test B`` trains on one dataset and tests
 Trials whose onset is -1 are first run through the onset detector. Stratified K-fold
 cross-validation (``--groups`` keeps the trials of one recording run on one side). For each
 method and duration: accuracy (mean and std over the folds), per-class recall, the confusion
-matrix, and fit and predict time per trial.
+matrix, and fit and predict time per trial; for methods with probabilities, the expected
+calibration error and the coverage and accuracy when unsure answers become "unknown".
+``--ceiling`` adds, on simulated data, the accuracy of a classifier told every nuisance
+(`skin.models.ceiling`): what no method can be expected to beat.
 """
 
 from __future__ import annotations
@@ -43,6 +46,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--merge", default=None, metavar="A+B,C+D",
                     help="also report the accuracy with these classes merged (from the "
                          "confusion matrix), e.g. aluminium+steel,glass+porcelain")
+    ev.add_argument("--ceiling", action="store_true",
+                    help="also report the known-nuisance ceiling (simulated data only; "
+                         "skin.models.ceiling): the accuracy no method can be expected to beat")
     ev.add_argument("--plot", metavar="DIR",
                     help="draw accuracy against duration and the confusion matrices into DIR")
     ev.add_argument("--json", action="store_true", help="print one JSON document")
@@ -109,8 +115,41 @@ def evaluate(data, method: str, duration: float, folds: int, groups: bool,
            "fit_ms_per_trial": round(1e3 * float(np.mean(fit_t)), 4),
            "predict_ms_per_trial": round(1e3 * float(np.mean(pred_t)), 4)}
     if top:
-        out["selective"] = selective(np.concatenate(top), np.concatenate(right))
+        top, right = np.concatenate(top), np.concatenate(right)
+        out["selective"] = selective(top, right)
+        out["calibration_error"] = round(calibration_error(top, right), 4)
     return out
+
+
+def calibration_error(top: np.ndarray, right: np.ndarray, bins: int = 10) -> float:
+    """Return the expected calibration error: the mean gap of claimed and real accuracy.
+
+    Trials are binned by the probability of their most probable class (``bins`` equal bins
+    over 0-1); in each bin the gap between the mean claimed probability and the fraction
+    right is weighted by the bin's share of trials. 0 is perfectly calibrated.
+
+    Parameters
+    ----------
+    top : numpy.ndarray
+        Probability of each trial's most probable class.
+    right : numpy.ndarray
+        Whether that class was the true one.
+    bins : int
+        Number of probability bins.
+
+    Returns
+    -------
+    float
+        The expected calibration error, 0-1.
+    """
+    top = np.asarray(top, dtype=float)
+    right = np.asarray(right, dtype=float)
+    which = np.minimum((top * bins).astype(int), bins - 1)
+    total = 0.0
+    for b in np.unique(which):
+        inside = which == b
+        total += inside.mean() * abs(top[inside].mean() - right[inside].mean())
+    return float(total)
 
 
 def selective(top: np.ndarray, right: np.ndarray,
@@ -156,7 +195,11 @@ def train_test(train, test, method: str, duration: float) -> dict:
     t0 = time.perf_counter()
     model.fit(x_train, train.label)
     t1 = time.perf_counter()
-    pred = model.predict(x_test)
+    proba = model.predict_proba(x_test) if hasattr(model, "predict_proba") else None
+    if proba is not None:
+        pred = np.asarray(model.classes_)[np.argmax(proba, axis=1)]
+    else:
+        pred = model.predict(x_test)
     t2 = time.perf_counter()
     seen = np.isin(test.label, train.classes)
     classes = train.classes
@@ -166,15 +209,20 @@ def train_test(train, test, method: str, duration: float) -> dict:
     for c in sorted(set(test.label[~seen].tolist())):
         called, counts = np.unique(pred[test.label == c], return_counts=True)
         unseen[c] = {str(k): int(v) for k, v in zip(called, counts, strict=True)}
-    return {"method": method, "duration": duration,
-            "accuracy": round(float(np.mean(pred[seen] == test.label[seen])), 4)
-            if seen.any() else None,
-            "accuracy_std": 0.0,
-            "recall": {c: round(float(r), 4) for c, r in zip(classes, recall, strict=True)},
-            "confusion": conf.tolist(), "classes": classes,
-            "unknown": int(np.sum(pred == "unknown")), "unseen": unseen,
-            "fit_ms_per_trial": round(1e3 * (t1 - t0) / len(train), 4),
-            "predict_ms_per_trial": round(1e3 * (t2 - t1) / len(test), 4)}
+    out = {"method": method, "duration": duration,
+           "accuracy": round(float(np.mean(pred[seen] == test.label[seen])), 4)
+           if seen.any() else None,
+           "accuracy_std": 0.0,
+           "recall": {c: round(float(r), 4) for c, r in zip(classes, recall, strict=True)},
+           "confusion": conf.tolist(), "classes": classes,
+           "unknown": int(np.sum(pred == "unknown")), "unseen": unseen,
+           "fit_ms_per_trial": round(1e3 * (t1 - t0) / len(train), 4),
+           "predict_ms_per_trial": round(1e3 * (t2 - t1) / len(test), 4)}
+    if proba is not None and seen.any():
+        top, right = proba[seen].max(axis=1), pred[seen] == test.label[seen]
+        out["selective"] = selective(top, right)
+        out["calibration_error"] = round(calibration_error(top, right), 4)
+    return out
 
 
 def merged_accuracy(result: dict, merge: list[set[str]]) -> float:
@@ -234,6 +282,14 @@ def main(args: argparse.Namespace) -> int:
                 results.append(train_test(data, test, m, d))
             if merge:
                 results[-1]["merged_accuracy"] = round(merged_accuracy(results[-1], merge), 4)
+    if args.ceiling:
+        from skin.models.ceiling import known_nuisance_ceiling
+
+        for d in durations:
+            progress.message(f"ceiling {d:g} s")
+            results.append(known_nuisance_ceiling(test if test is not None else data, d))
+            if merge:
+                results[-1]["merged_accuracy"] = round(merged_accuracy(results[-1], merge), 4)
     progress.done()
     doc = {"data": str(args.data or args.train), "trials": len(data), "classes": data.classes,
            "cv": None if test is not None else args.cv, "groups": args.groups,
@@ -268,6 +324,8 @@ def main(args: argparse.Namespace) -> int:
               f"{r['accuracy_std']:.3f} {r['fit_ms_per_trial']:>13.3f} "
               f"{r['predict_ms_per_trial']:>17.4f}"
               + (f" {r['merged_accuracy']:>7.3f}" if merge else ""))
+        if "calibration_error" in r:
+            print(f"{'':<14} {'':>10}   calibration error {r['calibration_error']:.3f}")
         for sel in r.get("selective", []):
             if sel["threshold"] in (0.8, 0.95) and sel["accuracy"] is not None:
                 print(f"{'':<14} {'':>10}   unknown below p = {sel['threshold']:g}: "

@@ -33,10 +33,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                      help="seconds to run (default: the scene's duration; 20 for a device)")
     run.add_argument("--speed", type=float, default=1.0,
                      help="simulation pace relative to real time; 0 = as fast as possible")
+    run.add_argument("--contact", choices=("perfect", "finite"), default="perfect",
+                     help="simulated contact: perfect (eq. 5, default) or finite, with each "
+                          "material's contact conductance")
     run.add_argument("--out", default="out/run", help="output folder (default: out/run)")
     run.add_argument("--model", metavar="FILE",
                      help="classify with a model file from `skin train` (taxels' evidence "
-                          "fused); default: the paper's model-based histogram method")
+                          "fused); default: see --classifier")
+    run.add_argument("--classifier", choices=("joint", "histogram"), default="joint",
+                     help="without --model: the joint model that weighs a contact's taxels "
+                          "with one object (default), or the paper's effusivity histogram")
     run.add_argument("--no-map", action="store_true", help="do not render contact_map.png")
     run.add_argument("--json", action="store_true",
                      help="print one JSON summary on stdout and nothing else")
@@ -79,7 +85,7 @@ def main(args: argparse.Namespace) -> int:
         args.duration = 20.0
     from skin import drivers
     from skin.layout import load_layout
-    from skin.models import HistogramClassifier, load_materials
+    from skin.models import HistogramClassifier, JointClassifier, load_materials
     from skin.scene import load_scene, match_touches
 
     out = Path(args.out)
@@ -92,7 +98,7 @@ def main(args: argparse.Namespace) -> int:
 
         scene = load_scene(args.scene)
         layout = scene.layout if args.layout is None else load_layout(args.layout)
-        sim = SkinSimulator(scene, duration=args.duration)
+        sim = SkinSimulator(scene, duration=args.duration, contact=args.contact)
         device = PtySerialDevice(sim, speed=args.speed)
         url = f"serial://{device.port}"
         duration = sim.duration
@@ -109,6 +115,8 @@ def main(args: argparse.Namespace) -> int:
         classifier = LearnedClassifier(args.model)
         progress.message(f"classifier: {classifier.method} ({len(classifier.classes)} classes, "
                          f"{classifier.samples / classifier.fs:g} s window)")
+    elif args.classifier == "joint":
+        classifier = JointClassifier(layout, materials)
     else:
         classifier = HistogramClassifier(layout, materials)
     pipeline = Pipeline(layout, classifier)

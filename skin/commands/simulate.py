@@ -54,6 +54,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         default="contact", help="contact physics (default: contact)")
     trials.add_argument("--duration", type=float, default=3.0,
                         help="seconds recorded after onset (default 3)")
+    trials.add_argument("--object-offset", default="0,0", metavar="LOW,HIGH",
+                        help="range of a resting object's temperature above ambient, K, drawn "
+                             "per recording run (default 0,0; e.g. -8,8 for cold and warm "
+                             "objects)")
     trials.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     trials.add_argument("--json", action="store_true", help="print one JSON summary")
     trials.set_defaults(func=main_trials)
@@ -122,7 +126,11 @@ def main_trials(args: argparse.Namespace) -> int:
         raise SkinError(f"unknown material(s) {', '.join(unknown)}; known: {', '.join(materials)}")
     if args.trials < 1:
         raise SkinError("--trials must be at least 1")
-    protocol = Protocol(trials=args.trials, ambient=args.ambient, duration=args.duration)
+    offset = _pair(args.object_offset, "--object-offset")
+    if args.model == "multilayer" and offset != (0.0, 0.0):
+        raise SkinError("--object-offset needs --model contact or semi-infinite")
+    protocol = Protocol(trials=args.trials, ambient=args.ambient, duration=args.duration,
+                        object_offset=offset)
     progress = Progress()
     started = time.monotonic()
     ds = simulate_trials([materials[m] for m in names], protocol, model=args.model,
@@ -146,3 +154,15 @@ def main_trials(args: argparse.Namespace) -> int:
               f" trials/s); initial sensor temperature {t0.min():.1f}-{t0.max():.1f} C, "
               f"mean {t0.mean():.1f} C", file=sys.stdout)
     return 0
+
+
+def _pair(text: str, option: str) -> tuple[float, float]:
+    """Parse ``"LOW,HIGH"`` into two ordered floats, naming ``option`` when it is not."""
+    parts = text.split(",")
+    try:
+        low, high = (float(v) for v in parts)
+    except ValueError:
+        raise SkinError(f"{option} wants LOW,HIGH (two numbers), got {text!r}") from None
+    if not (np.isfinite(low) and np.isfinite(high)) or low > high:
+        raise SkinError(f"{option} wants finite LOW <= HIGH, got {text!r}")
+    return low, high

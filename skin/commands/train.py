@@ -2,7 +2,9 @@
 
 The model file (skops.io, loaded with an allow-list; see `skin.models.modelfile`) carries the
 method, the window duration and sampling rate, the class names, a summary of the training
-data and the library version.
+data and the library version. ``--anytime`` trains one model per duration
+(`skin.models.classifiers.AnytimeClassifier`), so a brief touch is still named from the
+window it gave.
 """
 
 from __future__ import annotations
@@ -22,6 +24,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                          "optionally with :raw, :slope or :both (default: default)")
     tr.add_argument("--duration", type=float, default=1.0,
                     help="contact window the model reads, s (default 1)")
+    tr.add_argument("--anytime", default=None, metavar="D1,D2,...",
+                    help="train one model per contact duration (s), e.g. 0.25,0.5,1,2.5: the "
+                         "pipeline then answers from the longest window each taxel has")
     tr.add_argument("-o", "--out", required=True, help="model file to write (.skops)")
     tr.add_argument("--json", action="store_true", help="print one JSON summary")
     tr.set_defaults(func=main)
@@ -30,25 +35,43 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def main(args: argparse.Namespace) -> int:
     """Fit and save."""
     from skin.dataset import load_trials, with_detected_onsets
-    from skin.models.classifiers import make_method, parse_method
+    from skin.errors import SkinError
+    from skin.models.classifiers import AnytimeClassifier, make_method, parse_method
     from skin.models.features import trial_matrix
     from skin.models.modelfile import save_model, training_summary
 
     parse_method(args.method)
     data = with_detected_onsets(load_trials(args.data))  # onset -1: find it first
-    x = trial_matrix(data, args.duration)
+    duration = args.duration
+    if args.anytime:
+        try:
+            durations = tuple(sorted(float(d) for d in args.anytime.split(",") if d.strip()))
+        except ValueError:
+            raise SkinError(f"--anytime wants durations in s, got {args.anytime!r}") from None
+        if not durations or durations[0] <= 0:
+            raise SkinError(f"--anytime wants positive durations, got {args.anytime!r}")
+        if not hasattr(make_method(args.method, fs=data.fs), "predict_proba"):
+            raise SkinError(f"--anytime needs a method with probabilities (default, knn-pca, "
+                            f"hmm); {args.method} has none")
+        duration = durations[-1]
+        estimator = AnytimeClassifier(args.method, durations, fs=data.fs)
+        method = f"anytime:{args.method}"
+    else:
+        estimator = make_method(args.method, fs=data.fs)
+        method = args.method
+    x = trial_matrix(data, duration)
     started = time.perf_counter()
-    estimator = make_method(args.method, fs=data.fs).fit(x, data.label)
+    estimator.fit(x, data.label)
     fit_time = time.perf_counter() - started
-    path = save_model(args.out, estimator, args.method, args.duration, data.fs,
-                      training_summary(data, args.duration))
-    summary = {"out": str(path), "method": args.method, "duration": args.duration,
+    path = save_model(args.out, estimator, method, duration, data.fs,
+                      training_summary(data, duration))
+    summary = {"out": str(path), "method": method, "duration": duration,
                "classes": [str(c) for c in estimator.classes_], "trials": len(data),
                "fit_seconds": round(fit_time, 3)}
     if args.json:
         print(json.dumps(summary))
     else:
-        print(f"wrote {path}: {args.method} on {len(data)} trials, "
-              f"{len(summary['classes'])} classes, {args.duration:g} s window "
+        print(f"wrote {path}: {method} on {len(data)} trials, "
+              f"{len(summary['classes'])} classes, {duration:g} s window "
               f"(fit in {fit_time:.1f} s)")
     return 0

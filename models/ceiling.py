@@ -1,0 +1,86 @@
+"""How well any classifier could do on a simulated dataset: the known-nuisance ceiling.
+
+A simulated trial's reading is fixed by its material's effusivity and by nuisances the
+classifier is not told: the sensor's and the object's temperatures, the contact conductance,
+the true contact instant and the taxel's own constants. `simulate_trials` stores all of them
+(the ``true_`` keys). Given them, the only unknowns left are the material and the ADC noise,
+so the material whose closed-form trace lies nearest the reading (least squares, which is the
+maximum-likelihood choice under Gaussian noise) is the best any method can do *from the
+trace*. Its accuracy is a practical ceiling for classifiers that must infer the nuisances:
+when it is below a target, no method meets the target on that dataset.
+
+It is not a strict Bayes bound: it ignores what the nuisances' distributions say about the
+class (a metal's contact conductance range, a rubber's conforming gap), which a learned
+classifier may exploit.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from skin.dataset import TrialSet
+from skin.errors import SkinError
+
+NEEDED = ("true_onset_time", "true_sensor_temperature", "true_object_temperature",
+          "true_effusivity", "true_conductance", "true_sensor_depth",
+          "true_sensor_diffusivity", "true_sensor_conductivity")
+
+
+def known_nuisance_ceiling(data: TrialSet, duration: float) -> dict:
+    """Accuracy of the least-squares material choice when every nuisance is known.
+
+    Parameters
+    ----------
+    data : TrialSet
+        A simulated dataset with the ``true_`` keys (`skin.models.trials.simulate_trials`)
+        and recorded onsets.
+    duration : float
+        Seconds after the recorded onset that are used.
+
+    Returns
+    -------
+    dict
+        ``method`` (``"ceiling"``), ``duration``, ``accuracy``, ``recall`` per class,
+        ``confusion`` and ``classes`` (the layout `skin evaluate` reports).
+
+    Raises
+    ------
+    SkinError
+        If a ``true_`` key is missing (recorded data has no ceiling), or the window does not
+        fit the recording.
+    """
+    from skin.models.physics import SensorConstants, contact_trace
+
+    missing = [k for k in NEEDED if k not in data.extra]
+    if missing:
+        raise SkinError(f"{data.source}: the ceiling needs a simulated dataset; missing "
+                        f"{', '.join(missing)}")
+    if np.any(data.onset < 0):
+        raise SkinError(f"{data.source}: the ceiling needs recorded onsets, not -1")
+    x = data.extra
+    classes = data.classes
+    effusivity = np.array([x["true_effusivity"][data.label == c][0] for c in classes])
+    n = round(duration * data.fs)
+    if n < 1 or np.any(data.onset + n > data.temperature.shape[1]):
+        raise SkinError(f"{data.source}: a {duration} s window does not fit the recording")
+    k = np.arange(n)
+    chosen = np.empty(len(data), dtype=int)
+    for i in range(len(data)):
+        sensor = SensorConstants(depth=float(x["true_sensor_depth"][i]),
+                                 diffusivity=float(x["true_sensor_diffusivity"][i]),
+                                 conductivity=float(x["true_sensor_conductivity"][i]))
+        since = (data.onset[i] + k) / data.fs - x["true_onset_time"][i]
+        predicted = contact_trace(since[None, :], x["true_sensor_temperature"][i],
+                                  x["true_object_temperature"][i], effusivity[:, None],
+                                  sensor, x["true_conductance"][i])
+        observed = data.temperature[i, data.onset[i] + k]
+        chosen[i] = int(np.argmin(np.sum((predicted - observed) ** 2, axis=1)))
+    truth = np.searchsorted(classes, data.label)
+    conf = np.zeros((len(classes), len(classes)), dtype=int)
+    np.add.at(conf, (truth, chosen), 1)
+    recall = conf.diagonal() / np.maximum(conf.sum(axis=1), 1)
+    return {"method": "ceiling", "duration": duration,
+            "accuracy": round(float(np.mean(chosen == truth)), 4), "accuracy_std": 0.0,
+            "recall": {c: round(float(r), 4) for c, r in zip(classes, recall, strict=True)},
+            "confusion": conf.tolist(), "classes": classes, "unknown": 0,
+            "fit_ms_per_trial": 0.0, "predict_ms_per_trial": 0.0}

@@ -1,0 +1,237 @@
+"""One object, several taxels: the material's evidence with the object's temperature shared.
+
+A single heated taxel cannot tell a cold object from one of higher effusivity. After contact
+its reading is ``T0 + (T_obj - T0) r R(t)``, with ``r = e_o / (e_s + e_o)`` and ``R`` the
+thermistor's response (`skin.models.physics.contact_response`): the object's temperature and
+its effusivity enter through one amplitude, and with the contact conductance unknown the
+shape of ``R`` cannot separate them either. Cold pine looks like warm glass.
+
+Taxels that touch the same object at *different* initial temperatures break the tie: each
+sees ``(T_obj - T0_i) r``, two unknowns that two distinct ``T0_i`` pin down. Per-taxel
+classifiers fused as independent evidence (`skin.models.classifiers.fuse_probabilities`)
+cannot use this, because each marginalises the object's temperature on its own.
+`JointContactModel` shares it: for each candidate material and each contact conductance of
+the material's range, the reading is linear in ``T_obj``, so with a Gaussian prior on
+``T_obj`` (around ambient) its marginal likelihood is closed form (Bayesian regression with
+one coefficient); the conductance is marginalised on a log grid, and the materials are
+compared by that evidence.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from skin.models.materials import Material
+from skin.models.physics import SensorConstants, conductance_rate, contact_response
+
+
+class JointContactModel:
+    """Material evidence of one contact from all its taxels, the object's temperature shared.
+
+    Parameters
+    ----------
+    materials : sequence of Material
+        The candidates.
+    sensor : SensorConstants, optional
+        The taxels' constants (default: the paper's).
+    noise : float
+        Standard deviation of a reading about the model, K: the ADC's noise and what the
+        model leaves out (taxel spread, onset error). Larger is softer.
+    object_std : float
+        Prior standard deviation of the object's temperature about ambient, K.
+    h_points : int
+        Contact conductances per material (log-spaced over its range).
+    onset_shifts : sequence of float
+        How much earlier than the given onset the contact may have begun, s; the evidence is
+        averaged over them (default: the onset is right).
+
+    Notes
+    -----
+    Each taxel's own constants (depth, diffusivity, conductivity), when calibrated, are
+    passed as ``sensors``: a +-10 % spread left to the nominal constants costs more accuracy
+    than ADC noise and onset error together (`skin bench fusion`).
+    """
+
+    def __init__(self, materials: Sequence[Material], sensor: SensorConstants | None = None,
+                 noise: float = 0.1, object_std: float = 10.0, h_points: int = 7,
+                 onset_shifts: Sequence[float] = (0.0,)) -> None:
+        if not materials:
+            raise ValueError("JointContactModel needs at least one candidate material")
+        if not (noise > 0 and object_std > 0 and h_points >= 1):
+            raise ValueError("noise and object_std must be positive and h_points at least 1")
+        self.materials = list(materials)
+        self.classes = [m.name for m in self.materials]
+        self.sensor = SensorConstants() if sensor is None else sensor
+        self.noise = float(noise)
+        self.object_std = float(object_std)
+        self.onset_shifts = np.asarray(onset_shifts, dtype=float)
+        if self.onset_shifts.ndim != 1 or self.onset_shifts.size == 0:
+            raise ValueError("onset_shifts must be a non-empty sequence of seconds")
+        self.effusivity = np.array([m.effusivity for m in self.materials])
+        lo_hi = np.log10([m.conductance_range for m in self.materials])
+        # (n_classes, h_points): each material's contact conductances, log-spaced
+        self.conductance = 10.0 ** np.linspace(lo_hi[:, 0], lo_hi[:, 1], h_points, axis=1)
+
+    def log_evidence(self, t: np.ndarray, temperature: np.ndarray, t_sensor: np.ndarray,
+                     ambient: float, sensors: Sequence[SensorConstants] | None = None,
+                     ) -> np.ndarray:
+        """Log marginal likelihood of each material (up to a shared constant).
+
+        Parameters
+        ----------
+        t : numpy.ndarray
+            Time since contact of each sample, s, (n_samples,); samples at t <= 0 are ignored.
+        temperature : numpy.ndarray
+            Readings of the taxels touching the object, (n_taxels, n_samples), deg C.
+        t_sensor : numpy.ndarray
+            Each taxel's temperature just before contact, (n_taxels,), deg C.
+        ambient : float
+            Room temperature, deg C (the centre of the object-temperature prior).
+        sensors : sequence of SensorConstants, optional
+            Each taxel's calibrated constants (default: ``sensor`` for all).
+
+        Returns
+        -------
+        numpy.ndarray
+            (n_classes,) log evidence.
+        """
+        log_ev, _ = self._posterior(t, temperature, t_sensor, ambient, sensors)
+        top = log_ev.max(axis=1, keepdims=True)  # log-mean-exp over the h grid
+        return top[:, 0] + np.log(np.mean(np.exp(log_ev - top), axis=1))
+
+    def probabilities(self, t: np.ndarray, temperature: np.ndarray, t_sensor: np.ndarray,
+                      ambient: float, sensors: Sequence[SensorConstants] | None = None,
+                      ) -> np.ndarray:
+        """Posterior probability of each material (flat prior), (n_classes,).
+
+        The arguments are those of `log_evidence`.
+        """
+        log_ev = self.log_evidence(t, temperature, t_sensor, ambient, sensors)
+        p = np.exp(log_ev - log_ev.max())
+        return p / p.sum()
+
+    def object_temperature(self, t: np.ndarray, temperature: np.ndarray,
+                           t_sensor: np.ndarray, ambient: float, material: str,
+                           sensors: Sequence[SensorConstants] | None = None) -> float:
+        """Posterior mean of the object's temperature if it is ``material``, deg C.
+
+        Taken at the material's most probable contact conductance of the grid; the other
+        arguments are those of `log_evidence`.
+        """
+        log_ev, mean = self._posterior(t, temperature, t_sensor, ambient, sensors)
+        i = self.classes.index(material)
+        return float(mean[i, np.argmax(log_ev[i])])
+
+    def _posterior(self, t: np.ndarray, temperature: np.ndarray, t_sensor: np.ndarray,
+                   ambient: float, sensors: Sequence[SensorConstants] | None,
+                   ) -> tuple[np.ndarray, np.ndarray]:
+        """Log evidence and posterior mean of T_obj, both (classes, h x onset shifts)."""
+        t = np.asarray(t, dtype=float)
+        y = np.atleast_2d(np.asarray(temperature, dtype=float))
+        t0 = np.atleast_1d(np.asarray(t_sensor, dtype=float))
+        if y.shape != (t0.size, t.size):
+            raise ValueError(f"temperature must be (n_taxels, n_samples) = ({t0.size}, "
+                             f"{t.size}), got {y.shape}")
+        sensors = [self.sensor] * t0.size if sensors is None else list(sensors)
+        if len(sensors) != t0.size:
+            raise ValueError(f"{len(sensors)} sensors given for {t0.size} taxels")
+        keep = (t > 0) & np.all(np.isfinite(y), axis=0)
+        if not keep.any():
+            raise ValueError("no finite reading after contact")
+        # measured from ambient, so that the sums below stay small (no cancellation)
+        t, d, t0 = t[keep], y[:, keep] - t0[:, None], t0 - ambient
+        e_o = self.effusivity[:, None, None]
+        # phi: (classes, h x shifts, taxels, samples), taxel i's fraction of (T_obj - T0_i)
+        since = (t[None, :] + self.onset_shifts[:, None]).ravel()
+        phi = np.stack([e_o / (s.effusivity + e_o) * contact_response(
+            since[None, None, :], conductance_rate(self.conductance[:, :, None], s.effusivity,
+                                                   e_o), s) for s in sensors], axis=2)
+        n_c, n_h = self.conductance.shape
+        phi = phi.reshape(n_c, n_h, t0.size, self.onset_shifts.size, t.size)
+        phi = np.moveaxis(phi, 3, 2).reshape(n_c, n_h * self.onset_shifts.size, t0.size, t.size)
+        # z_i = y_i - T0_i + T0_i phi_i = T_obj phi_i + noise (all from ambient)
+        s2, tau2 = self.noise**2, self.object_std**2
+        pp = np.sum(phi**2, axis=-1)  # (classes, h, taxels)
+        dp = np.einsum("in,chin->chi", d, phi)
+        a = pp.sum(axis=-1)
+        b = dp.sum(axis=-1) + pp @ t0
+        zz = np.sum(d**2) + 2.0 * dp @ t0 + pp @ t0**2
+        precision = a / s2 + 1.0 / tau2
+        mean = b / s2 / precision  # the prior's mean is ambient, 0 here
+        quad = zz / s2 - (b / s2) ** 2 / precision
+        return -0.5 * quad - 0.5 * np.log(tau2 * precision), mean + ambient
+
+
+
+#: How much earlier than the detected onset a contact may have begun, s (the pipeline's).
+ONSET_SHIFTS = tuple(np.round(np.arange(0.0, 0.081, 0.01), 3))
+
+
+class JointClassifier:
+    """The pipeline's classifier that weighs all of a contact's taxels with one object.
+
+    Each taxel's window is resampled onto a common grid after its own onset, as long as the
+    shortest usable window (at most ``max_duration``); taxels with less than ``min_duration``
+    of contact are left out. Each taxel's constants come from its board in the layout.
+
+    Parameters
+    ----------
+    layout : Layout
+        Gives each taxel's sensor constants.
+    materials : dict of Material, optional
+        Candidates; the shipped table's ``classify = true`` materials by default.
+    threshold : float
+        Posterior probability needed to name a material, else ``"unknown"``.
+    min_duration, max_duration : float
+        Shortest window a taxel must give, and the longest used, s.
+    fs : float
+        Sampling rate of the common grid, Hz.
+    **model_options
+        Passed to `JointContactModel` (``noise``, ``object_std``, ``h_points``,
+        ``onset_shifts``; by default the contact may have begun up to 80 ms before the
+        detected onset, which the streaming detector dates late when the contact is not
+        perfect).
+    """
+
+    method = "joint"
+
+    def __init__(self, layout, materials: dict[str, Material] | None = None,
+                 threshold: float = 0.5, min_duration: float = 0.1, max_duration: float = 2.5,
+                 fs: float = 200.0, **model_options) -> None:
+        from skin.models.materials import load_materials
+
+        table = materials if materials is not None else load_materials()
+        model_options.setdefault("onset_shifts", ONSET_SHIFTS)
+        self.model = JointContactModel([m for m in table.values() if m.classify],
+                                       **model_options)
+        self.threshold = threshold
+        self.min_duration = min_duration
+        self.max_duration = max_duration
+        self.fs = fs
+        self._sensors = {int(t.id): SensorConstants.from_board(layout.boards[t.board])
+                         for t in layout.taxels}
+
+    def classify(self, contact):
+        """Label a contact from all its taxels at once (``"unknown"`` when unsure)."""
+        from skin.contact import UNKNOWN, MaterialEstimate
+
+        usable = []
+        for w in contact.windows:
+            ok = np.isfinite(w.temperature)
+            if ok.sum() >= 2 and w.time[ok][-1] >= self.min_duration:
+                usable.append((w, ok))
+        if not usable:
+            return MaterialEstimate(UNKNOWN, {}, 0.0, None, self.method)
+        span = min(min(w.time[ok][-1] for w, ok in usable), self.max_duration)
+        grid = np.arange(1, int(np.floor(span * self.fs + 1e-9)) + 1) / self.fs
+        y = np.array([np.interp(grid, w.time[ok], w.temperature[ok]) for w, ok in usable])
+        t0 = np.array([w.initial for w, _ in usable])
+        sensors = [self._sensors[w.taxel] for w, _ in usable]
+        p = self.model.probabilities(grid, y, t0, contact.ambient, sensors)
+        best = int(np.argmax(p))
+        probs = {c: float(v) for c, v in zip(self.model.classes, p, strict=True)}
+        label = self.model.classes[best] if p[best] >= self.threshold else UNKNOWN
+        return MaterialEstimate(label, probs, float(p[best]),
+                                float(self.model.effusivity[best]), self.method)

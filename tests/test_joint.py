@@ -1,0 +1,94 @@
+"""The joint model: one object, several taxels, the object's temperature shared."""
+
+import numpy as np
+import pytest
+
+from skin.models import load_materials
+from skin.models.joint import JointContactModel
+from skin.models.physics import SensorConstants, contact_trace
+
+MATS = load_materials()
+T = np.arange(1, 201) / 200.0  # 1 s at 200 Hz
+
+
+def _reading(material, t0, t_obj, sensor=None, h=None):
+    m = MATS[material]
+    h = np.sqrt(np.prod(m.conductance_range)) if h is None else h
+    return contact_trace(T, t0, t_obj, m.effusivity, sensor or SensorConstants(), h)
+
+
+def test_evidence_matches_numerical_integration_over_the_object_temperature():
+    model = JointContactModel([MATS["glass"], MATS["pine"]], noise=0.05, object_std=4.0,
+                              h_points=1)
+    t0 = np.array([33.0, 39.0])
+    y = np.array([_reading("pine", v, 21.0) for v in t0])
+    y += np.random.default_rng(0).normal(0, 0.05, y.shape)
+    log_ev = model.log_evidence(T, y, t0, 25.0)
+    # brute force: integrate N(y | T_obj) N(T_obj | 25, 4^2) over T_obj on a fine grid
+    grid = np.linspace(5.0, 45.0, 40001)
+    brute = []
+    for i, _ in enumerate(model.classes):
+        pred = np.stack([t0v + (grid[:, None] - t0v)
+                         * (1.0 - contact_trace(T, 1.0, 0.0, model.effusivity[i],
+                                                SensorConstants(), model.conductance[i, 0]))
+                         for t0v in t0], axis=1)  # (grid, taxels, samples)
+        ll = -0.5 * np.sum((y - pred) ** 2, axis=(1, 2)) / 0.05**2
+        prior = -0.5 * (grid - 25.0) ** 2 / 16.0 - 0.5 * np.log(2 * np.pi * 16.0)
+        f = ll + prior
+        brute.append(f.max() + np.log(np.trapezoid(np.exp(f - f.max()), grid)))
+    # the closed form drops the same (2 pi sigma^2)^(-N/2) for every class
+    assert np.allclose(log_ev - log_ev[0], np.array(brute) - brute[0], atol=1e-6)
+
+
+def test_one_taxel_cannot_tell_cold_pine_from_glass_two_at_different_temperatures_can():
+    model = JointContactModel([MATS[m] for m in ("glass", "pine", "brick", "cardboard")])
+    cold = 16.0  # pine from outdoors, in a 25 C room
+    one = model.probabilities(T, _reading("pine", 36.0, cold)[None], np.array([36.0]), 25.0)
+    assert one.max() < 0.9  # not sure: a colder object and a higher effusivity look alike
+    t0 = np.array([31.0, 40.0])
+    two = model.probabilities(T, np.array([_reading("pine", v, cold) for v in t0]), t0, 25.0)
+    assert model.classes[int(np.argmax(two))] == "pine" and two.max() > 0.99
+    assert model.object_temperature(T, np.array([_reading("pine", v, cold) for v in t0]), t0,
+                                    25.0, "pine") == pytest.approx(cold, abs=0.5)
+    same = np.array([36.0, 36.0])  # two taxels at one temperature add nothing new
+    both = model.probabilities(T, np.array([_reading("pine", v, cold) for v in same]), same,
+                               25.0)
+    assert both.max() < 0.99
+
+
+def test_each_taxels_own_constants_are_used():
+    model = JointContactModel([MATS[m] for m in ("glass", "pine", "brick", "cardboard")])
+    deep = SensorConstants(depth=1.2e-4)
+    t0 = np.array([31.0, 40.0])
+    y = np.array([_reading("glass", v, 20.0, deep) for v in t0])
+    p = model.probabilities(T, y, t0, 25.0, [deep, deep])
+    assert model.classes[int(np.argmax(p))] == "glass" and p.max() > 0.99
+    # the readings fit far better with the constants that made them
+    assert model.log_evidence(T, y, t0, 25.0, [deep, deep]).max() \
+        > model.log_evidence(T, y, t0, 25.0).max() + 10.0
+
+
+def test_extreme_and_degenerate_contacts_stay_finite():
+    model = JointContactModel([MATS[m] for m in ("copper", "polyurethane_foam", "pine")])
+    at_ambient = np.full((1, T.size), 25.0)  # a cold taxel touching a room-temperature thing
+    p = model.probabilities(T, at_ambient, np.array([25.0]), 25.0)
+    assert np.all(np.isfinite(p)) and p.sum() == pytest.approx(1.0)
+    hot = np.array([_reading("copper", 40.0, 25.0, h=1e9)])  # copper, near-perfect contact
+    p = model.probabilities(T, hot, np.array([40.0]), 25.0)
+    assert np.all(np.isfinite(p)) and model.classes[int(np.argmax(p))] == "copper"
+    foam = np.array([_reading("polyurethane_foam", 40.0, 25.0)])
+    assert model.classes[int(np.argmax(model.probabilities(T, foam, np.array([40.0]), 25.0)))] \
+        == "polyurethane_foam"
+
+
+def test_bad_shapes_are_named():
+    model = JointContactModel([MATS["glass"], MATS["pine"]])
+    with pytest.raises(ValueError, match=r"\(2, 200\)"):
+        model.log_evidence(T, np.zeros((1, 200)), np.array([30.0, 31.0]), 25.0)
+    with pytest.raises(ValueError, match="1 sensors given for 2 taxels"):
+        model.log_evidence(T, np.zeros((2, 200)), np.array([30.0, 31.0]), 25.0,
+                           [SensorConstants()])
+    with pytest.raises(ValueError, match="no finite reading"):
+        model.log_evidence(T, np.full((1, 200), np.nan), np.array([30.0]), 25.0)
+    with pytest.raises(ValueError, match="at least one"):
+        JointContactModel([])
