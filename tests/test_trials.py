@@ -230,3 +230,57 @@ def test_simulate_trace_rejects_a_non_positive_conductance():
     out = skin("simulate", "trace", "--material", "pine", "--model", "contact",
                "--conductance", "0")
     assert out.returncode == 2 and "--conductance must be positive" in out.stderr
+
+
+def test_object_offsets_make_cold_and_warm_objects_per_run():
+    mats = load_materials()
+    ds = simulate_trials([mats["glass"], mats["human_skin"]],
+                         Protocol(trials=20, run_length=5, object_offset=(-8.0, -6.0)), seed=4)
+    glass = ds.label == "glass"
+    first = np.arange(len(ds)) % 5 == 0  # a run starts with a rested object
+    below = ds.ambient - ds.extra["true_object_temperature"]
+    assert np.all((below[glass & first] > 5.9) & (below[glass & first] < 8.1))
+    skin_t = ds.extra["true_object_temperature"][~glass]
+    assert np.all((skin_t >= 30.0) & (skin_t <= 34.0))  # skin keeps its own temperature
+    for key in ("true_sensor_depth", "true_sensor_diffusivity", "true_sensor_conductivity"):
+        assert ds.extra[key].shape == (len(ds),)
+    with pytest.raises(ValueError, match="multilayer"):
+        simulate_trials([mats["glass"]], Protocol(trials=2, object_offset=(-1.0, 1.0)),
+                        model="multilayer")
+    with pytest.raises(ValueError, match="low, high"):
+        simulate_trials([mats["glass"]], Protocol(trials=2, object_offset=(1.0, -1.0)))
+
+
+def test_simulate_trials_object_offset_option(tmp_path):
+    out = skin("simulate", "trials", "--materials", "glass,pine", "--trials", "4",
+               "--object-offset=-3,3", "-o", str(tmp_path / "t.npz"))
+    assert out.returncode == 0, out.stderr
+    ds = load_trials(tmp_path / "t.npz")
+    assert np.any(ds.extra["true_object_temperature"] != ds.ambient)
+    out = skin("simulate", "trials", "--trials", "4", "--object-offset", "3",
+               "-o", str(tmp_path / "u.npz"))
+    assert out.returncode != 0 and "--object-offset" in out.stderr
+
+
+def test_bench_fusion_reports_every_arrangement(tmp_path):
+    out = skin("bench", "fusion", "--materials", "glass,pine", "--trials", "2",
+               "--durations", "0.5", "--json")
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout)
+    assert len(doc["results"]) == 2 * 4  # two object-temperature ranges, four arrangements
+    for r in doc["results"]:
+        assert 0.0 <= r["accuracy"] <= 1.0 and 0.0 <= r["accuracy_calibrated"] <= 1.0
+        assert r["ms_per_contact"] > 0
+    out = skin("bench", "fusion", "--materials", "glass,unobtainium")
+    assert out.returncode != 0 and "unobtainium" in out.stderr
+
+
+def test_evaluate_ceiling_on_simulated_data(tmp_path):
+    ds = simulate_trials([load_materials()[m] for m in ("aluminium", "pine")],
+                         Protocol(trials=12, run_length=4), seed=9)
+    ds.save(tmp_path / "t.npz")
+    out = skin("evaluate", "--data", str(tmp_path / "t.npz"), "--durations", "0.5",
+               "--ceiling", "--json")
+    assert out.returncode == 0, out.stderr
+    rows = {r["method"]: r for r in json.loads(out.stdout)["results"]}
+    assert rows["ceiling"]["accuracy"] >= rows["svm-pca"]["accuracy"] - 0.1
