@@ -203,7 +203,7 @@ def simulate_trials(
     t_object = np.empty((n_mat, n))
     if model == "multilayer":
         _multilayer_protocol(materials, p, taxels, run_taxel, run, hold, after, h, jitter, amb,
-                             offset, t, temp, t_sensor, t_object, progress)
+                             t, temp, t_sensor, t_object, progress)
     else:
         for i, mat in enumerate(materials):
             _closed_form_protocol(mat, p, taxels, run_taxel[i], run, hold[i], after[i],
