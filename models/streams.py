@@ -1,0 +1,211 @@
+"""Long taxel streams with known contacts and the disturbances a skin lives with.
+
+`simulate_stream` writes what each taxel of a skin reads, at 200 Hz, over minutes to hours of
+mostly contact-free time, with every contact's true onset and release recorded. Onset
+detectors are judged on it (`skin evaluate-onset`). Per taxel, the free reading is
+
+- **the heater**: the excess over ambient that the heater sustains, following the heater duty
+  through the taxel's slowest thermal mode (a first-order lag of `tau`, about 63 s); the duty
+  switches at random between levels every 20-120 s (a controller changing its setpoint), so
+  the reading drifts by several kelvin over a minute, but slowly;
+- **ambient drift**: the room wanders (a random walk of about 1 K per 10 minutes);
+- **air currents**: gusts that cool the face by 0.05-0.4 K over 1-4 s and let it recover,
+  and a small turbulent flutter (band-limited noise of 0.01 K);
+- **the readout**: 0.5 LSB of ADC noise and 10-bit quantisation through the paper's divider.
+
+Contacts of 0.1-5 s (log-uniform) arrive as a Poisson process per taxel, with long
+contact-free stretches between them. Each touches a material of the list at its resting
+temperature (or a cold or warm object, within ``object_offset``), through a contact
+conductance from the material's range; the thermistor follows the closed-form contact
+response from the temperature it had. After release, the reading returns to the free reading
+with the taxel's recovery (a fast 2 s part and the slow mode), so a taxel reheats after each
+contact.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from skin.models.materials import Material
+from skin.models.physics import SensorConstants, contact_trace, heated_temperature
+from skin.models.trials import _adc
+
+#: A change of the reading that stands out of its noise (about 3 x 0.5 LSB at 39 C), K.
+VISIBLE = 0.1
+
+
+@dataclass(frozen=True)
+class StreamContact:
+    """The truth of one simulated contact.
+
+    Attributes
+    ----------
+    taxel : int
+        Column of the stream.
+    onset, release : float
+        True instants of contact and release, s.
+    material : str
+        What was touched.
+    object_temperature : float
+        Its surface temperature, deg C.
+    sensor_temperature : float
+        The taxel's temperature at contact, deg C.
+    visible_after : float
+        When the noise-free reading first differs from the sensor's temperature by
+        `VISIBLE` K (about three times the reading's noise), s after onset; ``inf`` if never
+        during the contact. No detector can be expected to react before it.
+    """
+
+    taxel: int
+    onset: float
+    release: float
+    material: str
+    object_temperature: float
+    sensor_temperature: float = float("nan")
+    visible_after: float = float("inf")
+
+    @property
+    def duration(self) -> float:
+        """Length of the contact, s."""
+        return self.release - self.onset
+
+
+@dataclass
+class Stream:
+    """A simulated multi-taxel stream and its truth.
+
+    Attributes
+    ----------
+    times : numpy.ndarray
+        Sample times, s, (n_samples,).
+    temperature : numpy.ndarray
+        Readings after the ADC, deg C, (n_samples, n_taxels).
+    ambient : numpy.ndarray
+        Room temperature, deg C, (n_samples,).
+    contacts : list of StreamContact
+        Every contact, in time order.
+    fs : float
+        Sampling rate, Hz.
+    """
+
+    times: np.ndarray
+    temperature: np.ndarray
+    ambient: np.ndarray
+    contacts: list[StreamContact]
+    fs: float
+
+    @property
+    def taxel_hours(self) -> float:
+        """Observed taxel-hours."""
+        return self.temperature.shape[1] * self.times.size / self.fs / 3600.0
+
+
+def _lag(x: np.ndarray, tau: float, fs: float, start: np.ndarray) -> np.ndarray:
+    """First-order lag of ``x`` (n_samples, n) with time constant ``tau``, from ``start``."""
+    from scipy.signal import lfilter
+
+    a = np.exp(-1.0 / (tau * fs))
+    zi = (a * start)[None, :]
+    out, _ = lfilter([1.0 - a], [1.0, -a], x, axis=0, zi=zi)
+    return out
+
+
+def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration: float = 600.0,
+                    contacts_per_minute: float = 1.0, object_offset: tuple[float, float] = (0, 0),
+                    ambient: float = 25.0, fs: float = 200.0, seed: int = 0,
+                    disturbances: bool = True, tau: float = 62.5) -> Stream:
+    """Simulate ``n_taxels`` taxels for ``duration`` s; see the module docstring.
+
+    Parameters
+    ----------
+    materials : sequence of Material
+        What the contacts touch (drawn uniformly).
+    n_taxels : int
+        Number of taxels (columns).
+    duration : float
+        Length of the stream, s.
+    contacts_per_minute : float
+        Mean rate of contacts per taxel.
+    object_offset : tuple of float
+        Range of a touched object's temperature above its resting temperature, K.
+    ambient : float
+        Mean room temperature, deg C.
+    fs : float
+        Sampling rate, Hz.
+    seed : int
+        Seed: the same seed gives the same stream.
+    disturbances : bool
+        Heater switching, ambient drift and air currents (False: a quiet heated taxel).
+    tau : float
+        The taxel's slowest thermal time constant, s.
+
+    Returns
+    -------
+    Stream
+    """
+    if n_taxels < 1 or duration <= 0 or fs <= 0 or contacts_per_minute < 0:
+        raise ValueError("n_taxels, duration and fs must be positive, the contact rate >= 0")
+    if not materials:
+        raise ValueError("simulate_stream needs at least one material")
+    rng = np.random.default_rng(seed)
+    sensor = SensorConstants()
+    n = round(duration * fs)
+    times = np.arange(n) / fs
+    full_excess = float(heated_temperature(ambient, sensor)) - ambient
+    amb = np.full(n, ambient)
+    duty = np.ones((n, n_taxels))
+    gust = np.zeros((n, n_taxels))
+    if disturbances:
+        amb = ambient + np.cumsum(rng.normal(0.0, 1.0 / np.sqrt(600.0 * fs), n))
+        for j in range(n_taxels):
+            k = 0
+            while k < n:
+                k_next = k + round(rng.uniform(20.0, 120.0) * fs)
+                duty[k:k_next, j] = rng.choice([1.0, 0.85, 0.7, 0.55])
+                k = k_next
+            for start in np.cumsum(rng.exponential(60.0, int(duration / 30.0) + 2)):
+                if start >= duration:
+                    break
+                depth, rise, hold = rng.uniform(0.05, 0.4), rng.uniform(1.0, 4.0), \
+                    rng.uniform(1.0, 8.0)
+                s = np.maximum(times - start, 0.0)
+                shape = np.where(s < hold, 1.0 - np.exp(-s / rise),
+                                 (1.0 - np.exp(-hold / rise)) * np.exp(-(s - hold) / rise))
+                gust[:, j] -= depth * shape
+        flutter = rng.normal(0.0, 0.01, (n, n_taxels))
+        flutter = _lag(flutter, 0.5, fs, np.zeros(n_taxels)) * np.sqrt(2 * 0.5 * fs)
+        gust += flutter
+    excess = _lag(full_excess * duty, tau, fs, np.full(n_taxels, full_excess))
+    free = amb[:, None] + excess + gust
+    reading = free.copy()
+    truth: list[StreamContact] = []
+    for j in range(n_taxels):
+        t = 5.0 + rng.exponential(60.0 / max(contacts_per_minute, 1e-9))
+        while t < duration - 10.0:
+            length = float(np.exp(rng.uniform(np.log(0.1), np.log(5.0))))
+            mat = materials[rng.integers(len(materials))]
+            t_obj = mat.resting_temperature(float(amb[round(t * fs)])) + (
+                rng.uniform(*object_offset) if mat.temperature is None else 0.0)
+            h = 10.0 ** rng.uniform(*np.log10(mat.conductance_range))
+            k0 = int(np.ceil(t * fs))
+            k1 = int(np.ceil((t + length) * fs))
+            t0 = float(reading[k0 - 1, j])
+            since = times[k0:k1] - t
+            reading[k0:k1, j] = contact_trace(since, t0, t_obj, mat.effusivity, sensor, h)
+            # after release: back to the free reading, fast at first, then slowly
+            end = float(contact_trace(length, t0, t_obj, mat.effusivity, sensor, h))
+            after = times[k1:] - (t + length)
+            gap = end - free[k1:, j][0] if k1 < n else 0.0
+            recovery = gap * (0.5 * np.exp(-after / 2.0) + 0.5 * np.exp(-after / tau))
+            reading[k1:, j] = free[k1:, j] + recovery
+            change = np.abs(reading[k0:k1, j] - t0) >= VISIBLE
+            seen = float(since[np.argmax(change)]) if change.any() else float("inf")
+            truth.append(StreamContact(j, float(t), float(t + length), mat.name, float(t_obj),
+                                       t0, seen))
+            t += length + 10.0 + rng.exponential(60.0 / max(contacts_per_minute, 1e-9))
+    temperature = _adc(reading, rng, 0.5)
+    truth.sort(key=lambda c: (c.onset, c.taxel))
+    return Stream(times, temperature, amb, truth, fs)

@@ -1,0 +1,105 @@
+"""Simulated streams with known contacts, and the detector judged on them."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from skin.models import load_materials
+from skin.models.physics import SensorConstants, contact_trace
+from skin.models.streams import VISIBLE, simulate_stream
+from skin.onset import refine_onset
+from skin.onset_eval import evaluate_onsets
+
+MATS = load_materials()
+
+
+def test_stream_has_its_contacts_where_the_truth_says():
+    s = simulate_stream([MATS["aluminium"], MATS["pine"]], n_taxels=3, duration=120.0,
+                        contacts_per_minute=2.0, disturbances=False, seed=2)
+    assert s.temperature.shape == (24000, 3) and np.all(np.isfinite(s.temperature))
+    assert len(s.contacts) >= 3 and s.taxel_hours == pytest.approx(0.1)
+    for c in s.contacts:
+        k0 = round(c.onset * s.fs)
+        before = s.temperature[k0 - 40:k0, c.taxel].mean()
+        assert before == pytest.approx(c.sensor_temperature, abs=0.1)
+        if c.duration > 1.0:  # a contact with a cooler object pulls the reading down
+            assert s.temperature[k0 + 190:k0 + 200, c.taxel].mean() < before - 0.2
+        assert 0.05 < c.visible_after < 1.5 or (c.visible_after == np.inf
+                                                 and c.duration < 1.0)
+    quiet = simulate_stream([MATS["glass"]], n_taxels=2, duration=60.0,
+                            contacts_per_minute=0.0, disturbances=False, seed=1)
+    assert quiet.contacts == [] and np.ptp(quiet.temperature) < 0.3  # a steady heated taxel
+
+
+def test_same_seed_same_stream_and_disturbances_move_the_free_reading():
+    a = simulate_stream([MATS["glass"]], n_taxels=2, duration=200.0, contacts_per_minute=0.0,
+                        seed=5)
+    b = simulate_stream([MATS["glass"]], n_taxels=2, duration=200.0, contacts_per_minute=0.0,
+                        seed=5)
+    assert np.array_equal(a.temperature, b.temperature)
+    assert np.ptp(a.temperature[:, 0]) > 0.5  # heater switching, drift and gusts
+    with pytest.raises(ValueError, match="material"):
+        simulate_stream([], duration=10.0)
+
+
+def test_refinement_with_a_finite_contact_is_not_late():
+    s = SensorConstants()
+    t = np.arange(0, 2.0, 1 / 200)
+    rng = np.random.default_rng(0)
+    late_perfect, late_rates = [], []
+    for _ in range(20):
+        t_on = 1.0 + rng.uniform(0, 0.005)
+        y = np.where(t < t_on, 36.0, contact_trace(t - t_on, 36.0, 25.0, 13427.0, s, 3000.0))
+        y = y + rng.normal(0, 0.01, t.size)
+        on_p, _ = refine_onset(t, y, t_on + 0.2, 36.0, 0.0, s.depth, s.diffusivity,
+                               rates=(np.inf,))
+        on_r, _ = refine_onset(t, y, t_on + 0.2, 36.0, 0.0, s.depth, s.diffusivity)
+        late_perfect.append(on_p - t_on)
+        late_rates.append(on_r - t_on)
+    assert np.median(late_perfect) > 0.015  # eq. 5 alone dates a slow contact late
+    assert abs(np.median(late_rates)) <= 0.01
+
+
+def test_evaluation_counts_detections_false_alarms_and_delays():
+    s = simulate_stream([MATS["aluminium"], MATS["glass"]], n_taxels=4, duration=180.0,
+                        contacts_per_minute=2.0, disturbances=False, seed=3)
+    truth = [(c.taxel, c.onset, c.release, c.visible_after) for c in s.contacts]
+    r = evaluate_onsets(s.times, s.temperature, truth, s.fs)
+    assert r["contacts"] == len(truth) and len(r["detected_flags"]) == len(truth)
+    assert r["detection_rate"] > 0.9 and r["false_alarms"] == 0
+    assert r["delay_ms"]["median"] >= r["visible_ms"]["median"] - 20  # not before it shows
+    assert r["onset_error_ms"]["median"] < 60
+    # chunking does not change what is found
+    r2 = evaluate_onsets(s.times, s.temperature, truth, s.fs, chunk=7)
+    assert r2["detected_flags"] == r["detected_flags"]
+    # a taxel with a contact the truth does not know about: a false alarm
+    fake = [row for row in truth if row[0] != truth[0][0]]
+    r3 = evaluate_onsets(s.times, s.temperature, fake, s.fs)
+    assert r3["false_alarms"] >= 1
+    assert VISIBLE > 0
+
+
+def skin(*args):
+    return subprocess.run([sys.executable, "-m", "skin", *args], capture_output=True,
+                          text=True, timeout=300)
+
+
+def test_evaluate_onset_command_on_a_stream_and_on_trials(tmp_path):
+    out = skin("evaluate-onset", "--taxels", "2", "--minutes", "2", "--rate", "2", "--json")
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout)
+    assert doc["contacts"] > 0 and "by_material" in doc and "detected_flags" not in doc
+    assert doc["detector_us_per_taxel_sample"] > 0
+    from skin.models.trials import Protocol, simulate_trials
+
+    simulate_trials([MATS["aluminium"], MATS["pine"]], Protocol(trials=6, run_length=3),
+                    seed=1).save(tmp_path / "t.npz")
+    out = skin("evaluate-onset", "--data", str(tmp_path / "t.npz"), "--json")
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout)
+    assert doc["contacts"] == 12 and doc["detection_rate"] > 0.8
+    out = skin("evaluate-onset", "--materials", "unobtainium")
+    assert out.returncode == 2 and "unobtainium" in out.stderr
