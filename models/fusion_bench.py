@@ -5,10 +5,11 @@ ambient) touched by ``n`` taxels at once. Every taxel has its own constants (+-1
 paper's), its own contact conductance from the material's range, its own onset error
 (+-10 ms), and reads through the paper's divider and 10-bit ADC. The taxels start either at
 one temperature (a uniformly heated skin) or staggered over 31-40 C (heater setpoints that
-alternate across the skin). `skin.models.joint.JointContactModel` names the material twice
-on the same contacts: knowing only the paper's nominal constants, and knowing each taxel's
-own (as per-taxel calibration would give). Accuracy and cost per contact are reported for
-each object temperature range, arrangement and contact duration.
+alternate across the skin). The taxels come from a pool of 16, each calibrated once from four
+simulated contacts with water (`skin.models.sensor_fit`). `skin.models.joint.JointContactModel`
+names the material three times on the same contacts: knowing only the paper's nominal
+constants, with each taxel's fitted constants, and with its true ones. Accuracy and cost per
+contact are reported for each object temperature range, arrangement and contact duration.
 """
 
 from __future__ import annotations
@@ -36,31 +37,58 @@ def _initial(n: int, mode: str, rng: np.random.Generator) -> np.ndarray:
     return rng.uniform(30.0, 40.0) + rng.normal(0.0, 0.2, n)
 
 
-def simulate_contact(material: Material, n: int, mode: str, duration: float,
-                     object_offset: tuple[float, float], ambient: float,
-                     rng: np.random.Generator,
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[SensorConstants]]:
-    """One object touched by ``n`` taxels.
-
-    Returns sample times, readings (n, samples), initial temperatures (n,) and each taxel's
-    constants.
-    """
+def taxel_pool(n: int, rng: np.random.Generator) -> list[SensorConstants]:
+    """``n`` taxels whose depth, diffusivity and conductivity lie within +-10 % of the paper's."""
     base = SensorConstants()
+    pool = []
+    for _ in range(n):
+        f = 1.0 + rng.uniform(-0.1, 0.1, 3)
+        pool.append(SensorConstants(depth=base.depth * f[0],
+                                    diffusivity=base.diffusivity * f[1],
+                                    conductivity=base.conductivity * f[2]))
+    return pool
+
+
+def calibrate_pool(pool: list[SensorConstants], rng: np.random.Generator,
+                   reference: str = "water", contacts: int = 4) -> list[SensorConstants]:
+    """Fit each taxel's constants as a calibration would find them.
+
+    Four simulated contacts with ``reference`` at 25 C per taxel (`skin.models.sensor_fit`).
+    """
+    from skin.models.materials import load_materials
+    from skin.models.sensor_fit import fit_sensor_constants
+
+    ref = load_materials()[reference]
+    t = np.arange(1, round(2.0 * FS) + 1) / FS
+    fitted = []
+    for s in pool:
+        ts = rng.uniform(30.0, 40.0, contacts)
+        h = 10.0 ** rng.uniform(*np.log10(ref.conductance_range), contacts)
+        y = _adc(contact_trace(t[None, :], ts[:, None], 25.0, ref.effusivity, s, h[:, None]),
+                 rng, 0.5)
+        fitted.append(fit_sensor_constants(t, y, ts, np.full(contacts, 25.0), ref.effusivity,
+                                           conductance_range=ref.conductance_range).sensor)
+    return fitted
+
+
+def simulate_contact(material: Material, taxels: list[SensorConstants], mode: str,
+                     duration: float, object_offset: tuple[float, float], ambient: float,
+                     rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One object touched by ``taxels`` at once.
+
+    Returns sample times, readings (n, samples) and initial temperatures (n,).
+    """
+    n = len(taxels)
     t = np.arange(1, round(duration * FS) + 1) / FS
     t0 = _initial(n, mode, rng)
     t_obj = ambient + rng.uniform(*object_offset)
     lo, hi = np.log10(material.conductance_range)
     y = np.empty((n, t.size))
-    sensors = []
-    for i in range(n):
-        f = 1.0 + rng.uniform(-0.1, 0.1, 3)
-        s = SensorConstants(depth=base.depth * f[0], diffusivity=base.diffusivity * f[1],
-                            conductivity=base.conductivity * f[2])
+    for i, s in enumerate(taxels):
         since = t - rng.uniform(-0.01, 0.01)
         h = 10 ** rng.uniform(lo, hi)
         y[i] = contact_trace(since, t0[i], t_obj, material.effusivity, s, h)
-        sensors.append(s)
-    return t, _adc(y, rng, 0.5), t0, sensors
+    return t, _adc(y, rng, 0.5), t0
 
 
 def run(materials: Sequence[Material], trials: int = 40,
@@ -91,28 +119,36 @@ def run(materials: Sequence[Material], trials: int = 40,
     -------
     list of dict
         One row per (offset, arrangement, duration): ``accuracy`` (nominal constants),
-        ``accuracy_calibrated`` (each taxel's own) and ``ms_per_contact``.
+        ``accuracy_fitted`` (each taxel's constants fitted from four simulated contacts with
+        water), ``accuracy_calibrated`` (each taxel's true constants) and ``ms_per_contact``.
     """
     model = JointContactModel(materials)
     rng = np.random.default_rng(seed)
+    pool = taxel_pool(16, rng)
+    fitted = calibrate_pool(pool, rng)
     cases = [(o, a, d) for o in offsets for a in ARRANGEMENTS for d in durations]
     rows = []
     for k, (offset, (label, n, mode), duration) in enumerate(cases):
-        right, right_cal, spent = 0, 0, 0.0
+        right = {"nominal": 0, "fitted": 0, "true": 0}
+        spent = 0.0
         for m in materials:
             for _ in range(trials):
-                t, y, t0, sensors = simulate_contact(m, n, mode, duration, offset, ambient, rng)
-                started = time.perf_counter()
-                p = model.probabilities(t, y, t0, ambient)
-                spent += time.perf_counter() - started
-                right += model.classes[int(np.argmax(p))] == m.name
-                p = model.probabilities(t, y, t0, ambient, sensors)
-                right_cal += model.classes[int(np.argmax(p))] == m.name
+                pick = rng.choice(len(pool), n, replace=False)
+                t, y, t0 = simulate_contact(m, [pool[i] for i in pick], mode, duration,
+                                            offset, ambient, rng)
+                for kind, sensors in (("nominal", None), ("fitted", [fitted[i] for i in pick]),
+                                      ("true", [pool[i] for i in pick])):
+                    started = time.perf_counter()
+                    p = model.probabilities(t, y, t0, ambient, sensors)
+                    if kind == "nominal":
+                        spent += time.perf_counter() - started
+                    right[kind] += model.classes[int(np.argmax(p))] == m.name
         total = trials * len(materials)
         rows.append({"object_offset": list(offset), "arrangement": label, "taxels": n,
                      "initial": mode, "duration": duration,
-                     "accuracy": round(right / total, 4),
-                     "accuracy_calibrated": round(right_cal / total, 4),
+                     "accuracy": round(right["nominal"] / total, 4),
+                     "accuracy_fitted": round(right["fitted"] / total, 4),
+                     "accuracy_calibrated": round(right["true"] / total, 4),
                      "ms_per_contact": round(1e3 * spent / total, 3)})
         if progress is not None:
             progress(k + 1, len(cases))

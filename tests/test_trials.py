@@ -270,6 +270,7 @@ def test_bench_fusion_reports_every_arrangement(tmp_path):
     assert len(doc["results"]) == 2 * 4  # two object-temperature ranges, four arrangements
     for r in doc["results"]:
         assert 0.0 <= r["accuracy"] <= 1.0 and 0.0 <= r["accuracy_calibrated"] <= 1.0
+        assert 0.0 <= r["accuracy_fitted"] <= 1.0
         assert r["ms_per_contact"] > 0
     out = skin("bench", "fusion", "--materials", "glass,unobtainium")
     assert out.returncode != 0 and "unobtainium" in out.stderr

@@ -1,0 +1,173 @@
+"""Each taxel's thermal constants, fitted from contacts with a reference of known properties.
+
+The paper fitted its sensor's diffusivity and conductivity on one pine trial. A skin needs it
+per taxel: a +-10 % spread of those constants, left to the nominal values, costs the joint
+classifier more accuracy than ADC noise and onset error together (`skin bench fusion`).
+
+`fit_sensor_constants` fits one taxel's diffusivity alpha_s and conductivity k_s (the
+thermistor depth stays nominal: with a semi-infinite body only depth / sqrt(alpha_s) and the
+effusivity k_s / sqrt(alpha_s) are seen, so fixing the depth loses nothing) together with each
+contact's conductance h, by least squares on a few contacts with a reference material at a
+known temperature. Water is a good reference: it conforms, so its contact is close to
+perfect, and its properties are known to a percent.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from skin.models.physics import SensorConstants, contact_trace
+
+
+@dataclass(frozen=True)
+class SensorFit:
+    """A taxel's fitted thermal constants.
+
+    Attributes
+    ----------
+    sensor : SensorConstants
+        The nominal constants with ``diffusivity`` and ``conductivity`` replaced.
+    conductance : numpy.ndarray
+        Each reference contact's fitted conductance, W/(m^2 K).
+    rms : float
+        Root-mean-square residual, K.
+    converged : bool
+        Whether the optimiser reported success.
+    """
+
+    sensor: SensorConstants
+    conductance: np.ndarray
+    rms: float
+    converged: bool
+
+
+def fit_sensor_constants(t: np.ndarray, temperature: np.ndarray, t_sensor: Sequence[float],
+                         t_object: Sequence[float], e_reference: float,
+                         nominal: SensorConstants | None = None,
+                         conductance_range: tuple[float, float] = (1e2, 1e7)) -> SensorFit:
+    """Fit a taxel's diffusivity and conductivity from reference contacts.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Time since contact of each sample, s, (n_samples,).
+    temperature : numpy.ndarray
+        The taxel's readings in each contact, (n_contacts, n_samples), deg C.
+    t_sensor, t_object : sequence of float
+        Sensor temperature before, and the reference's temperature in, each contact, deg C.
+    e_reference : float
+        The reference's effusivity, W s^0.5 / (m^2 K).
+    nominal : SensorConstants, optional
+        Starting point and the constants that are not fitted (default: the paper's).
+    conductance_range : tuple of float
+        Bounds of each contact's conductance, W/(m^2 K) (the reference's range, from
+        `skin.models.materials.Material.conductance_range`, keeps a slow contact from
+        passing for a slow sensor).
+
+    Returns
+    -------
+    SensorFit
+
+    Raises
+    ------
+    ValueError
+        If the shapes disagree, a reading is not finite, or no contact has heat flowing
+        (the sensor at the reference's temperature carries no information).
+    """
+    from scipy.optimize import least_squares
+
+    s0 = SensorConstants() if nominal is None else nominal
+    t = np.asarray(t, dtype=float)
+    y = np.atleast_2d(np.asarray(temperature, dtype=float))
+    ts = np.asarray(t_sensor, dtype=float)
+    to = np.asarray(t_object, dtype=float)
+    if y.shape != (ts.size, t.size) or to.shape != ts.shape:
+        raise ValueError(f"temperature must be (n_contacts, n_samples) = ({ts.size}, {t.size})"
+                         f" with one sensor and one object temperature per contact; got "
+                         f"{y.shape}, {ts.size} and {to.size}")
+    if not np.all(np.isfinite(y)):
+        raise ValueError("readings must be finite")
+    if np.all(np.abs(ts - to) < 0.5):
+        raise ValueError("every contact has the sensor within 0.5 K of the reference: no heat "
+                         "flows, so nothing can be fitted; heat the taxel first")
+
+    def model(p: np.ndarray) -> np.ndarray:
+        s = dataclasses.replace(s0, diffusivity=float(np.exp(p[0])),
+                                conductivity=float(np.exp(p[1])))
+        h = np.exp(p[2:])[:, None]
+        return contact_trace(t[None, :], ts[:, None], to[:, None], e_reference, s, h)
+
+    lo_h, hi_h = np.log(conductance_range[0]), np.log(conductance_range[1])
+    start = np.concatenate([[np.log(s0.diffusivity), np.log(s0.conductivity)],
+                            np.full(ts.size, 0.5 * (lo_h + hi_h))])
+    lower = np.concatenate([start[:2] - np.log(3.0), np.full(ts.size, lo_h)])
+    upper = np.concatenate([start[:2] + np.log(3.0), np.full(ts.size, hi_h)])
+    res = least_squares(lambda p: (model(p) - y).ravel(), start, bounds=(lower, upper),
+                        x_scale=1.0, max_nfev=200)
+    sensor = dataclasses.replace(s0, diffusivity=float(np.exp(res.x[0])),
+                                 conductivity=float(np.exp(res.x[1])))
+    rms = float(np.sqrt(np.mean(res.fun**2)))
+    return SensorFit(sensor, np.exp(res.x[2:]), rms, bool(res.success))
+
+
+def recovery(n_taxels: int = 20, contacts: int = 4, duration: float = 2.0,
+             spread: float = 0.10, reference: str = "water", seed: int = 0) -> dict:
+    """Run simulated calibrations: how well `fit_sensor_constants` recovers known constants.
+
+    Each taxel's diffusivity and conductivity are drawn within +-``spread`` of the paper's;
+    it touches the reference ``contacts`` times from 30-40 C, through a conductance from the
+    reference's range, read through the paper's divider and 10-bit ADC with 0.5 LSB of noise.
+
+    Returns
+    -------
+    dict
+        Median and p95 relative error of diffusivity, conductivity and the sensor's effusivity,
+        before (nominal constants) and after the fit, and the fit time per taxel.
+    """
+    import time
+
+    from skin.models.materials import load_materials
+    from skin.models.trials import _adc
+
+    ref = load_materials()[reference]
+    rng = np.random.default_rng(seed)
+    base = SensorConstants()
+    fs = 200.0
+    t = np.arange(1, round(duration * fs) + 1) / fs
+    err: dict[str, list[float]] = {"diffusivity": [], "conductivity": [], "effusivity": []}
+    before = {k: [] for k in err}
+    spent = 0.0
+    for _ in range(n_taxels):
+        f = 1.0 + rng.uniform(-spread, spread, 2)
+        true = dataclasses.replace(base, diffusivity=base.diffusivity * f[0],
+                                   conductivity=base.conductivity * f[1])
+        ts = rng.uniform(30.0, 40.0, contacts)
+        to = np.full(contacts, 25.0)
+        h = 10.0 ** rng.uniform(*np.log10(ref.conductance_range), contacts)
+        clean = contact_trace(t[None, :], ts[:, None], to[:, None], ref.effusivity, true,
+                              h[:, None])
+        y = _adc(clean, rng, 0.5)
+        started = time.perf_counter()
+        fit = fit_sensor_constants(t, y, ts, to, ref.effusivity,
+                                   conductance_range=ref.conductance_range)
+        spent += time.perf_counter() - started
+        for key, got, nom in (("diffusivity", fit.sensor.diffusivity, base.diffusivity),
+                              ("conductivity", fit.sensor.conductivity, base.conductivity),
+                              ("effusivity", fit.sensor.effusivity, base.effusivity)):
+            want = getattr(true, key)
+            err[key].append(abs(got / want - 1.0))
+            before[key].append(abs(nom / want - 1.0))
+
+    def summary(v: list[float]) -> dict:
+        return {"median": round(float(np.median(v)), 4),
+                "p95": round(float(np.percentile(v, 95)), 4)}
+
+    return {"reference": reference, "taxels": n_taxels, "contacts": contacts,
+            "duration": duration, "spread": spread,
+            "nominal_error": {k: summary(v) for k, v in before.items()},
+            "fitted_error": {k: summary(v) for k, v in err.items()},
+            "ms_per_taxel": round(1e3 * spent / n_taxels, 1)}
