@@ -188,6 +188,9 @@ class JointClassifier:
         Shortest window a taxel must give, and the longest used, s.
     fs : float
         Sampling rate of the common grid, Hz.
+    sensors : dict, optional
+        Taxel id -> calibrated `SensorConstants` (`skin.calibration_file`); taxels not in it
+        use their board's constants.
     **model_options
         Passed to `JointContactModel` (``noise``, ``object_std``, ``h_points``,
         ``onset_shifts``; by default the contact may have begun up to 80 ms before the
@@ -199,7 +202,7 @@ class JointClassifier:
 
     def __init__(self, layout, materials: dict[str, Material] | None = None,
                  threshold: float = 0.5, min_duration: float = 0.1, max_duration: float = 2.5,
-                 fs: float = 200.0, **model_options) -> None:
+                 fs: float = 200.0, sensors: dict | None = None, **model_options) -> None:
         from skin.models.materials import load_materials
 
         table = materials if materials is not None else load_materials()
@@ -212,6 +215,7 @@ class JointClassifier:
         self.fs = fs
         self._sensors = {int(t.id): SensorConstants.from_board(layout.boards[t.board])
                          for t in layout.taxels}
+        self._sensors.update(sensors or {})
 
     def classify(self, contact):
         """Label a contact from all its taxels at once (``"unknown"`` when unsure)."""

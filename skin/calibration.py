@@ -3,7 +3,10 @@
 The thermistor ``Rth`` and the reference resistor ``R_REF`` form a divider from ``V+``; the
 ADC reads the voltage across ``R_REF``::
 
-    V = counts / adc_max * V_REF,    Rth = R_REF (V+ / V - 1),    1/T = C0 + C1 ln Rth.
+    V = counts / adc_max * V_REF,  Rth = R_REF (V+ / V - 1),  1/T = C0 + C1 ln Rth + C2 ln^3 Rth.
+
+The paper's two-term Steinhart-Hart form is the default; a per-taxel calibration
+(`skin.calibration_file`) may add the full form's cubic term C2.
 
 Counts at 0 (no current: open thermistor or wire) and at full scale (ADC saturated: shorted
 thermistor, or hotter than the range) have no temperature: they are flagged per taxel.
@@ -38,6 +41,7 @@ class Calibration:
     adc_reference: np.ndarray
     adc_max: np.ndarray
     source: str = "nominal board constants"
+    c2: np.ndarray | float = 0.0
 
     @classmethod
     def from_layout(cls, layout: Layout) -> Calibration:
@@ -75,14 +79,21 @@ class Calibration:
         r = self.divider_resistor * (self.supply_voltage / v - 1.0)
         ok &= r > 0  # V above V+ cannot come from the divider
         status = np.where(ok | (status != 0), status, TAXEL_SATURATED).astype(np.uint8)
-        inv_t = self.c0 + self.c1 * np.log(np.where(ok, r, 1.0))
+        ln_r = np.log(np.where(ok, r, 1.0))
+        inv_t = self.c0 + self.c1 * ln_r + self.c2 * ln_r**3
         temp = np.where(ok, 1.0 / inv_t - KELVIN, np.nan)
         return temp, status
 
     def counts(self, temperature: np.ndarray) -> np.ndarray:
         """Convert deg C to (real-valued, unrounded) ADC counts: the inverse of `temperature`."""
         t = np.asarray(temperature, dtype=float) + KELVIN
-        r = np.exp((1.0 / t - self.c0) / self.c1)
+        ln_r = (1.0 / t - self.c0) / self.c1
+        c2 = np.asarray(self.c2, dtype=float)
+        if np.any(c2 != 0):  # Newton on the cubic; the two-term root is a close start
+            for _ in range(20):
+                f = self.c0 + self.c1 * ln_r + c2 * ln_r**3 - 1.0 / t
+                ln_r = ln_r - f / (self.c1 + 3.0 * c2 * ln_r**2)
+        r = np.exp(ln_r)
         v = self.supply_voltage * self.divider_resistor / (self.divider_resistor + r)
         return v / self.adc_reference * self.adc_max
 
@@ -101,3 +112,52 @@ def ambient_from_counts(counts: float, adc_max: int = 1023, adc_reference: float
 def ambient_to_counts(temperature: float, adc_max: int = 1023, adc_reference: float = 1.1) -> int:
     """Convert deg C to the LM35's ADC counts (rounded, clipped to the ADC range)."""
     return int(np.clip(round(temperature / 100.0 / adc_reference * adc_max), 0, adc_max))
+
+
+def fit_steinhart_hart(resistance: np.ndarray, temperature: np.ndarray,
+                       terms: int = 2) -> np.ndarray:
+    """Fit Steinhart-Hart coefficients to thermistor readings at reference temperatures.
+
+    Parameters
+    ----------
+    resistance : array_like
+        Thermistor resistance at each reference, ohm.
+    temperature : array_like
+        The reference temperatures, deg C.
+    terms : int
+        2: ``1/T = C0 + C1 ln R`` (the paper's form; at least two references); 3: the full
+        form with ``C2 ln^3 R`` (at least three references).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``[C0, C1, C2]`` (C2 = 0 for two terms).
+
+    Raises
+    ------
+    ValueError
+        Too few distinct references for the form, or a non-positive resistance.
+    """
+    r = np.asarray(resistance, dtype=float)
+    t = np.asarray(temperature, dtype=float) + KELVIN
+    if terms not in (2, 3):
+        raise ValueError(f"terms must be 2 or 3, got {terms}")
+    if r.shape != t.shape or r.ndim != 1:
+        raise ValueError("resistance and temperature must be 1-D arrays of one length")
+    if np.any(~np.isfinite(r)) or np.any(r <= 0):
+        raise ValueError("every resistance must be positive and finite")
+    distinct = np.unique(np.round(t, 2)).size
+    if distinct < terms:
+        raise ValueError(f"the {terms}-term form needs at least {terms} distinct reference "
+                         f"temperatures, got {distinct}")
+    ln_r = np.log(r)
+    cols = [np.ones_like(ln_r), ln_r] + ([ln_r**3] if terms == 3 else [])
+    coef, *_ = np.linalg.lstsq(np.column_stack(cols), 1.0 / t, rcond=None)
+    return np.concatenate([coef, np.zeros(3 - coef.size)])
+
+
+def resistance_from_counts(counts: np.ndarray, divider_resistor: float, supply_voltage: float,
+                           adc_reference: float, adc_max: float) -> np.ndarray:
+    """Thermistor resistance from ADC counts through the divider (eq. 8), ohm."""
+    v = np.asarray(counts, dtype=float) / adc_max * adc_reference
+    return divider_resistor * (supply_voltage / v - 1.0)

@@ -9,10 +9,19 @@ from __future__ import annotations
 import argparse
 import sys
 
-from skin.commands import bench, evaluate, evaluate_onset, plot, run, simulate, train
+from skin.commands import (
+    bench,
+    calibrate,
+    evaluate,
+    evaluate_onset,
+    plot,
+    run,
+    simulate,
+    train,
+)
 from skin.errors import SkinError
 
-COMMANDS = (run, simulate, train, evaluate, evaluate_onset, bench, plot)
+COMMANDS = (run, simulate, calibrate, train, evaluate, evaluate_onset, bench, plot)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -128,15 +128,26 @@ def validate(ts: TrialSet) -> None:
     if ts.ambient is not None and not np.all(np.isfinite(ts.ambient)):
         i = int(np.flatnonzero(~np.isfinite(ts.ambient))[0])
         raise DatasetError(f"{src}: 'ambient' of trial {i} is not finite")
-    if len(set(np.asarray(ts.label).tolist())) < 2:
-        raise DatasetError(f"{src}: 'label' has fewer than two classes")
     for key, a in ts.extra.items():
         if np.shape(a)[:1] != (n,):
             raise DatasetError(f"{src}: '{key}' must have one row per trial, got {np.shape(a)}")
 
 
+def require_classes(data: TrialSet, at_least: int = 2) -> TrialSet:
+    """Return ``data`` if it has ``at_least`` classes (a classifier's), else raise naming it."""
+    found = len(data.classes)
+    if found < at_least:
+        raise DatasetError(f"{data.source}: 'label' has {found} class(es); training and "
+                           f"evaluating a classifier need at least {at_least}")
+    return data
+
+
 def load_trials(path: str | Path) -> TrialSet:
-    """Load and validate a trial dataset (no pickles are ever loaded)."""
+    """Load and validate a trial dataset (no pickles are ever loaded).
+
+    One class is allowed (a calibration's reference contacts); classifiers check for two
+    with `require_classes`.
+    """
     path = Path(path)
     try:
         with np.load(path, allow_pickle=False) as npz:

@@ -138,6 +138,10 @@ class Layout:
     def __len__(self) -> int:
         return len(self.taxels)
 
+    def __contains__(self, taxel_id: object) -> bool:
+        """Whether a taxel id is in the layout."""
+        return isinstance(taxel_id, int | np.integer) and int(taxel_id) in self._index
+
     def __repr__(self) -> str:
         return f"Layout({self.name!r}, {len(self)} taxels, {len(self.boards)} boards)"
 

@@ -71,6 +71,11 @@ class Pipeline:
         Onset detector; the default settings by default.
     window : float
         Longest contact window handed to the classifier, s.
+    sensors : list of SensorConstants, optional
+        Per-taxel thermal constants in layout order (a calibration file's), used to date
+        onsets; the boards' by default.
+    ambient_offset : float
+        Added to the ambient sensor's reading, K (a calibration file's).
     """
 
     def __init__(
@@ -81,6 +86,8 @@ class Pipeline:
         calibration: Calibration | None = None,
         detector: OnsetDetector | None = None,
         window: float = 2.5,
+        sensors: list | None = None,
+        ambient_offset: float = 0.0,
     ) -> None:
         if len(layout.boards) != 1:
             raise SkinError(f"{layout.source}: the pipeline handles one board for now; this "
@@ -91,6 +98,12 @@ class Pipeline:
         self.detector = detector or OnsetDetector(len(layout))
         self.board = next(iter(layout.boards.values()))
         self.tracker = ContactTracker(layout, self.board.sample_rate, window=window)
+        if sensors is not None:
+            if len(sensors) != len(layout):
+                raise SkinError(f"{len(sensors)} sensor constants for {len(layout)} taxels")
+            self.tracker.depth = np.array([s.depth for s in sensors])
+            self.tracker.diffusivity = np.array([s.diffusivity for s in sensors])
+        self.ambient_offset = float(ambient_offset)
         self._state = self.detector.initial_state()
         self._idx, self._addr = layout.channel_map(self.board.id)
         self._last_seq: int | None = None
@@ -117,7 +130,7 @@ class Pipeline:
                     self.stats.gaps += step - 1
             self._last_seq = f.seq
         times = np.array([f.device_time for f in frames])
-        ambient = np.array([f.ambient for f in frames])
+        ambient = np.array([f.ambient for f in frames]) + self.ambient_offset
         temperature, status = self.calibration.temperature(counts)
         self.stats.frames += len(frames)
         self.stats.flagged += (status != 0).sum(axis=0)

@@ -95,7 +95,6 @@ def make(**kw):
     (dict(temperature=np.full((3,), 30.0)), "n_trials, n_samples"),
     (dict(onset=np.array([2, 10, 0])), "trial 1 is 10"),
     (dict(onset=np.array([2.0, 1.0, 0.0])), "integer"),
-    (dict(label=np.array(["a", "a", "a"])), "fewer than two classes"),
     (dict(label=np.array(["a", "b"])), "'label' must have one value per trial"),
     (dict(fs=0.0), "'fs'"),
     (dict(ambient=np.array([25.0, np.nan, 25.0])), "'ambient' of trial 1"),
@@ -285,3 +284,14 @@ def test_evaluate_ceiling_on_simulated_data(tmp_path):
     assert out.returncode == 0, out.stderr
     rows = {r["method"]: r for r in json.loads(out.stdout)["results"]}
     assert rows["ceiling"]["accuracy"] >= rows["svm-pca"]["accuracy"] - 0.1
+
+
+def test_one_class_is_a_dataset_but_not_a_classifier_dataset(tmp_path):
+    from skin.dataset import require_classes
+
+    one = make(label=np.array(["a", "a", "a"]))  # a calibration's reference contacts
+    with pytest.raises(DatasetError, match="1 class"):
+        require_classes(one)
+    one.save(tmp_path / "one.npz")
+    out = skin("train", "--data", str(tmp_path / "one.npz"), "-o", str(tmp_path / "m.skops"))
+    assert out.returncode == 2 and "at least 2" in out.stderr

@@ -247,14 +247,14 @@ def _parse_merge(text: str | None, classes: list[str]) -> list[set[str]]:
 
 def main(args: argparse.Namespace) -> int:
     """Run the evaluation and print a table (or JSON)."""
-    from skin.dataset import load_trials, with_detected_onsets
+    from skin.dataset import load_trials, require_classes, with_detected_onsets
     from skin.models.classifiers import parse_method
 
     if args.train and not args.test:
         raise SkinError("--train needs --test")
     if args.test and not args.train:
         raise SkinError("--test goes with --train (use --data for cross-validation)")
-    data = load_trials(args.data or args.train)
+    data = require_classes(load_trials(args.data or args.train))
     test = load_trials(args.test) if args.test else None
     detected = int(np.sum(data.onset < 0)) + (0 if test is None else int(np.sum(test.onset < 0)))
     data = with_detected_onsets(data)

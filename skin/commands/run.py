@@ -43,6 +43,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     run.add_argument("--classifier", choices=("joint", "histogram"), default="joint",
                      help="without --model: the joint model that weighs a contact's taxels "
                           "with one object (default), or the paper's effusivity histogram")
+    run.add_argument("--calibration", metavar="FILE",
+                     help="per-taxel calibration file from `skin calibrate` (thermistors and "
+                          "thermal constants; taxels it misses keep their board's constants)")
     run.add_argument("--no-map", action="store_true", help="do not render contact_map.png")
     run.add_argument("--json", action="store_true",
                      help="print one JSON summary on stdout and nothing else")
@@ -109,6 +112,19 @@ def main(args: argparse.Namespace) -> int:
         url = args.port
         duration = args.duration
     materials = load_materials()
+    calibration, sensors = None, None
+    if args.calibration:
+        from skin.calibration_file import load_calibration
+
+        cal_file = load_calibration(args.calibration)
+        calibration, per_taxel = cal_file.apply(layout)
+        sensors = {int(t.id): s for t, s in zip(layout.taxels, per_taxel, strict=True)}
+        for part in ("thermistor", "thermal"):
+            miss = cal_file.missing(layout, part)
+            if miss:
+                progress.message(f"calibration: {len(miss)} taxels without a {part} fit keep "
+                                 f"their board's constants: {miss[:10]}"
+                                 f"{' ...' if len(miss) > 10 else ''}")
     if args.model:
         from skin.models.learned import LearnedClassifier
 
@@ -116,10 +132,12 @@ def main(args: argparse.Namespace) -> int:
         progress.message(f"classifier: {classifier.method} ({len(classifier.classes)} classes, "
                          f"{classifier.samples / classifier.fs:g} s window)")
     elif args.classifier == "joint":
-        classifier = JointClassifier(layout, materials)
+        classifier = JointClassifier(layout, materials, sensors=sensors)
     else:
         classifier = HistogramClassifier(layout, materials)
-    pipeline = Pipeline(layout, classifier)
+    pipeline = Pipeline(layout, classifier, calibration=calibration,
+                        sensors=None if sensors is None else list(sensors.values()),
+                        ambient_offset=0.0 if not args.calibration else cal_file.ambient_offset)
     results: list[ContactResult] = []
     events_path = out / "events.jsonl"
     t_wall = time.monotonic()

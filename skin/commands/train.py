@@ -34,14 +34,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Fit and save."""
-    from skin.dataset import load_trials, with_detected_onsets
+    from skin.dataset import load_trials, require_classes, with_detected_onsets
     from skin.errors import SkinError
     from skin.models.classifiers import AnytimeClassifier, make_method, parse_method
     from skin.models.features import trial_matrix
     from skin.models.modelfile import save_model, training_summary
 
     parse_method(args.method)
-    data = with_detected_onsets(load_trials(args.data))  # onset -1: find it first
+    data = with_detected_onsets(require_classes(load_trials(args.data)))  # onset -1: find it
     duration = args.duration
     if args.anytime:
         try:

@@ -1,0 +1,137 @@
+"""Per-taxel calibration files: what `skin calibrate` fitted, keyed by taxel id.
+
+A calibration file is JSON::
+
+    {"format": 1, "created": "2026-11-22T08:50:00+00:00", "ambient_offset": 0.0,
+     "references": {"thermistor": "refs.csv (20.0, 30.0, 40.0 C)", "thermal": "water"},
+     "taxels": {"0": {"thermistor": [c0, c1, c2], "diffusivity": ..., "conductivity": ...,
+                      "depth": ...}, ...}}
+
+Every taxel entry may hold the thermistor's Steinhart-Hart coefficients, the sensor's thermal
+constants, or both; what it lacks falls back to the board's nominal constants. `apply` turns a
+file into the vectorised `skin.calibration.Calibration` and the per-taxel sensor constants of
+a layout, and says which taxels the file does not cover, so that they are flagged, never
+silently treated as calibrated.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from skin.calibration import Calibration
+from skin.errors import SkinError
+from skin.layout import Layout
+
+FORMAT = 1
+THERMAL = ("diffusivity", "conductivity", "depth")
+
+
+class CalibrationFileError(SkinError):
+    """A calibration file is unreadable or inconsistent (the message names file and taxel)."""
+
+
+@dataclass
+class CalibrationFile:
+    """Per-taxel calibration.
+
+    Attributes
+    ----------
+    taxels : dict
+        Taxel id -> dict with any of ``thermistor`` ([c0, c1, c2]), ``diffusivity``,
+        ``conductivity``, ``depth`` and fit diagnostics.
+    references : dict
+        What each part was fitted from.
+    ambient_offset : float
+        Added to the ambient sensor's reading, K.
+    created : str
+        ISO date and time of the last change.
+    """
+
+    taxels: dict[int, dict[str, Any]] = field(default_factory=dict)
+    references: dict[str, str] = field(default_factory=dict)
+    ambient_offset: float = 0.0
+    created: str = ""
+
+    def save(self, path: str | Path) -> Path:
+        """Write the file (JSON), stamping the date."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self.created = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+        doc = {"format": FORMAT, "created": self.created, "ambient_offset": self.ambient_offset,
+               "references": self.references,
+               "taxels": {str(k): v for k, v in sorted(self.taxels.items())}}
+        path.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+        return path
+
+    def missing(self, layout: Layout, part: str) -> list[int]:
+        """Ids of the layout's taxels without ``part`` (``"thermistor"`` or ``"thermal"``)."""
+        keys = ("thermistor",) if part == "thermistor" else THERMAL[:2]
+        return [int(t.id) for t in layout.taxels
+                if not all(k in self.taxels.get(int(t.id), {}) for k in keys)]
+
+    def apply(self, layout: Layout) -> tuple[Calibration, list]:
+        """Return the layout's `Calibration` and per-taxel `SensorConstants` from this file.
+
+        Taxels the file does not cover keep their board's nominal constants (see `missing`).
+        """
+        from skin.models.physics import SensorConstants
+
+        cal = Calibration.from_layout(layout)
+        c = np.vstack([cal.c0, cal.c1, np.zeros_like(cal.c0)]).T.copy()
+        sensors = []
+        for i, t in enumerate(layout.taxels):
+            entry = self.taxels.get(int(t.id), {})
+            if "thermistor" in entry:
+                c[i] = entry["thermistor"]
+            s = SensorConstants.from_board(layout.boards[t.board])
+            sensors.append(dataclasses.replace(
+                s, **{k: float(entry[k]) for k in THERMAL if k in entry}))
+        cal = dataclasses.replace(cal, c0=c[:, 0], c1=c[:, 1], c2=c[:, 2],
+                                  source=f"calibration file ({self.created})")
+        return cal, sensors
+
+
+def load_calibration(path: str | Path) -> CalibrationFile:
+    """Read and check a calibration file; errors name the file, the key and the taxel."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise CalibrationFileError(f"{path}: no such calibration file") from None
+    except json.JSONDecodeError as exc:
+        raise CalibrationFileError(f"{path}, line {exc.lineno}: not JSON ({exc.msg})") from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        found = doc.get("format") if isinstance(doc, dict) else None
+        raise CalibrationFileError(f"{path}: not a calibration file of format {FORMAT} "
+                                   f"(format {found})")
+    taxels: dict[int, dict[str, Any]] = {}
+    for key, entry in (doc.get("taxels") or {}).items():
+        try:
+            tid = int(key)
+        except ValueError:
+            raise CalibrationFileError(f"{path}: taxel id {key!r} is not an integer") from None
+        if not isinstance(entry, dict):
+            raise CalibrationFileError(f"{path}: taxel {tid}: entry must be an object")
+        if "thermistor" in entry:
+            coef = entry["thermistor"]
+            if (not isinstance(coef, list) or len(coef) != 3
+                    or not all(isinstance(v, int | float) for v in coef) or coef[1] <= 0):
+                raise CalibrationFileError(f"{path}: taxel {tid}: 'thermistor' must be three "
+                                           f"numbers [c0, c1, c2] with c1 > 0, got {coef!r}")
+        for k in THERMAL:
+            if k in entry and not (isinstance(entry[k], int | float) and entry[k] > 0):
+                raise CalibrationFileError(f"{path}: taxel {tid}: {k!r} must be a positive "
+                                           f"number, got {entry[k]!r}")
+        taxels[tid] = entry
+    offset = doc.get("ambient_offset", 0.0)
+    if not isinstance(offset, int | float) or not np.isfinite(offset):
+        raise CalibrationFileError(f"{path}: 'ambient_offset' must be a number, got {offset!r}")
+    return CalibrationFile(taxels, dict(doc.get("references") or {}), float(offset),
+                           str(doc.get("created", "")))

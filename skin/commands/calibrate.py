@@ -1,0 +1,192 @@
+"""``skin calibrate``: fit each taxel's constants and keep them in a calibration file.
+
+- ``skin calibrate thermistors --data refs.csv -o cal.json``: Steinhart-Hart coefficients per
+  taxel (the paper's two-term form, or ``--terms 3``) from ADC counts read with the skin at two
+  or more reference temperatures. ``refs.csv`` has the columns ``taxel,reference_c,counts``
+  (one row per taxel and reference; several readings of one reference are averaged).
+- ``skin calibrate thermal --data water.npz --reference water -o cal.json``: each taxel's
+  diffusivity and conductivity from contacts with a reference material resting at ambient
+  (a trial dataset with a ``taxel`` column; `skin.models.sensor_fit`).
+- ``skin calibrate show cal.json``: what the file holds, and the layout's taxels it misses.
+
+A calibration file that exists is updated, not replaced: the thermistor and thermal parts can
+be fitted separately. `skin run --calibration cal.json` applies it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+
+from skin.errors import SkinError
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register ``skin calibrate``."""
+    cal = sub.add_parser("calibrate", help="fit per-taxel constants into a calibration file",
+                         description=__doc__)
+    kinds = cal.add_subparsers(dest="kind", required=True)
+    th = kinds.add_parser("thermistors", help="Steinhart-Hart per taxel from reference temps")
+    th.add_argument("--data", required=True, help="CSV with columns taxel,reference_c,counts")
+    th.add_argument("--layout", default="arm", help="layout (default: arm)")
+    th.add_argument("--terms", type=int, choices=(2, 3), default=2,
+                    help="2: the paper's form (default); 3: the full form (3+ references)")
+    th.add_argument("-o", "--out", required=True, help="calibration file to write or update")
+    th.set_defaults(func=main_thermistors)
+    tm = kinds.add_parser("thermal", help="sensor diffusivity and conductivity per taxel")
+    tm.add_argument("--data", required=True, help="trial dataset (.npz) of reference contacts")
+    tm.add_argument("--reference", default="water", help="the reference material (water)")
+    tm.add_argument("--duration", type=float, default=1.5, help="seconds of contact used")
+    tm.add_argument("-o", "--out", required=True, help="calibration file to write or update")
+    tm.set_defaults(func=main_thermal)
+    show = kinds.add_parser("show", help="what a calibration file holds")
+    show.add_argument("file", help="calibration file")
+    show.add_argument("--layout", default="arm", help="layout to check it against")
+    show.add_argument("--json", action="store_true", help="print one JSON document")
+    show.set_defaults(func=main_show)
+
+
+def _existing(path: str):
+    from skin.calibration_file import CalibrationFile, load_calibration
+
+    return load_calibration(path) if Path(path).exists() else CalibrationFile()
+
+
+def read_references(path: str) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """Read ``taxel,reference_c,counts`` rows; return taxel -> (references, mean counts)."""
+    rows: dict[int, dict[float, list[float]]] = {}
+    try:
+        with open(path, newline="", encoding="utf-8") as fh:
+            reader = csv.DictReader(fh)
+            need = {"taxel", "reference_c", "counts"}
+            if not need <= set(reader.fieldnames or ()):
+                raise SkinError(f"{path}, line 1: the header must name the columns "
+                                f"taxel,reference_c,counts (got {reader.fieldnames})")
+            for row in reader:
+                line = reader.line_num
+                try:
+                    taxel, ref, counts = (int(row["taxel"]), float(row["reference_c"]),
+                                          float(row["counts"]))
+                except (TypeError, ValueError):
+                    raise SkinError(f"{path}, line {line}: taxel must be an integer and "
+                                    f"reference_c, counts numbers: {row}") from None
+                if not (np.isfinite(ref) and np.isfinite(counts)):
+                    raise SkinError(f"{path}, line {line}: taxel {taxel}: not a finite number")
+                rows.setdefault(taxel, {}).setdefault(ref, []).append(counts)
+    except FileNotFoundError:
+        raise SkinError(f"{path}: no such file") from None
+    return {k: (np.array(sorted(v)), np.array([np.mean(v[r]) for r in sorted(v)]))
+            for k, v in rows.items()}
+
+
+def main_thermistors(args: argparse.Namespace) -> int:
+    """Fit the thermistors."""
+    from skin.calibration import fit_steinhart_hart, resistance_from_counts
+    from skin.layout import load_layout
+
+    layout = load_layout(args.layout)
+    refs = read_references(args.data)
+    out = _existing(args.out)
+    flagged = []
+    for taxel, (temps, counts) in sorted(refs.items()):
+        if taxel not in layout:
+            raise SkinError(f"{args.data}: taxel {taxel} is not in layout {layout.source}")
+        board = layout.boards[layout.taxels[layout.index(taxel)].board]
+        adc_max = 2**board.adc_bits - 1
+        if np.any(counts <= 0) or np.any(counts >= adc_max):
+            flagged.append(taxel)  # open or saturated at a reference: no fit
+            continue
+        r = resistance_from_counts(counts, board.divider_resistor, board.supply_voltage,
+                                   board.adc_reference, adc_max)
+        try:
+            coef = fit_steinhart_hart(r, temps, args.terms)
+        except ValueError as exc:
+            raise SkinError(f"{args.data}: taxel {taxel}: {exc}") from None
+        fitted = 1.0 / (coef[0] + coef[1] * np.log(r) + coef[2] * np.log(r) ** 3) - 273.15
+        out.taxels.setdefault(int(taxel), {}).update(
+            thermistor=[float(c) for c in coef],
+            thermistor_rms=round(float(np.sqrt(np.mean((fitted - temps) ** 2))), 5))
+    all_refs = sorted({float(x) for v in refs.values() for x in v[0]})
+    out.references["thermistor"] = (f"{args.data} ({', '.join(f'{x:g}' for x in all_refs)} C, "
+                                    f"{args.terms}-term)")
+    path = out.save(args.out)
+    missing = out.missing(layout, "thermistor")
+    print(f"wrote {path}: thermistors of {len(refs) - len(flagged)} taxels "
+          f"({args.terms}-term); {len(missing)} of the layout's {len(layout)} taxels without "
+          f"a thermistor fit" + (f"; open or saturated at a reference: {flagged}"
+                                 if flagged else ""))
+    return 0
+
+
+def main_thermal(args: argparse.Namespace) -> int:
+    """Fit the thermal constants."""
+    from skin.dataset import load_trials
+    from skin.models import load_materials
+    from skin.models.features import PRE
+    from skin.models.sensor_fit import fit_sensor_constants
+
+    table = load_materials()
+    if args.reference not in table:
+        raise SkinError(f"unknown reference material {args.reference!r}")
+    ref = table[args.reference]
+    data = load_trials(args.data)
+    if data.taxel is None:
+        raise SkinError(f"{args.data}: a 'taxel' column is needed to know whose contact is whose")
+    if np.any(data.onset < PRE):
+        raise SkinError(f"{args.data}: every trial needs its onset and {PRE} samples before it")
+    n = round(args.duration * data.fs)
+    if np.any(data.onset + n > data.temperature.shape[1]):
+        raise SkinError(f"{args.data}: a {args.duration:g} s window does not fit the trials")
+    t = np.arange(1, n + 1) / data.fs
+    out = _existing(args.out)
+    for taxel in np.unique(data.taxel):
+        rows = np.flatnonzero(data.taxel == taxel)
+        t0 = np.array([data.temperature[i, data.onset[i] - PRE:data.onset[i]].mean()
+                       for i in rows])
+        y = np.array([data.temperature[i, data.onset[i] + 1:data.onset[i] + 1 + n]
+                      for i in rows])
+        ambient = data.ambient[rows] if data.ambient is not None else np.full(rows.size, 25.0)
+        try:
+            fit = fit_sensor_constants(t, y, t0, ambient, ref.effusivity,
+                                       conductance_range=ref.conductance_range)
+        except ValueError as exc:
+            raise SkinError(f"{args.data}: taxel {int(taxel)}: {exc}") from None
+        out.taxels.setdefault(int(taxel), {}).update(
+            diffusivity=fit.sensor.diffusivity, conductivity=fit.sensor.conductivity,
+            depth=fit.sensor.depth, thermal_rms=round(fit.rms, 5),
+            thermal_contacts=int(rows.size), thermal_converged=fit.converged)
+    out.references["thermal"] = f"{args.reference} ({args.data})"
+    path = out.save(args.out)
+    print(f"wrote {path}: thermal constants of {len(np.unique(data.taxel))} taxels from "
+          f"{len(data)} contacts with {args.reference}")
+    return 0
+
+
+def main_show(args: argparse.Namespace) -> int:
+    """Describe a calibration file against a layout."""
+    from skin.calibration_file import load_calibration
+    from skin.layout import load_layout
+
+    cal = load_calibration(args.file)
+    layout = load_layout(args.layout)
+    doc = {"file": args.file, "created": cal.created, "references": cal.references,
+           "ambient_offset": cal.ambient_offset, "taxels": len(cal.taxels),
+           "missing_thermistor": cal.missing(layout, "thermistor"),
+           "missing_thermal": cal.missing(layout, "thermal"),
+           "unknown_taxels": sorted(k for k in cal.taxels if k not in layout)}
+    if args.json:
+        print(json.dumps(doc))
+        return 0
+    print(f"{args.file} ({cal.created}): {len(cal.taxels)} taxels; references "
+          + ", ".join(f"{k}: {v}" for k, v in cal.references.items()))
+    for part in ("thermistor", "thermal"):
+        miss = doc[f"missing_{part}"]
+        print(f"{part}: {len(layout) - len(miss)} of {len(layout)} taxels"
+              + (f"; missing {miss[:12]}{' ...' if len(miss) > 12 else ''}" if miss else ""))
+    if doc["unknown_taxels"]:
+        print(f"taxels not in the layout: {doc['unknown_taxels']}")
+    return 0
