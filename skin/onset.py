@@ -327,8 +327,11 @@ def refine_onset(
         r, m = np.unravel_index(int(np.argmin(sse)), sse.shape)
         return float(onsets[m]), float(rate_grid[r])
 
-    # a coarse pass over the whole span and every rate, then a fine one around the best
-    onset, rate = best_fit(grid, np.asarray(rates, dtype=float))
+    # coarse to fine: every rate on a 4-step grid over the whole span, then every rate on
+    # the step grid around the best, then finer rates and fifths of a step around that
+    onset, rate = best_fit(grid[::-4][::-1], np.asarray(rates, dtype=float))
+    near = grid[np.abs(grid - onset) <= 4 * step + 1e-9]
+    onset, rate = best_fit(near, np.asarray(rates, dtype=float))
     fine_rates = np.array([rate]) if np.isinf(rate) else rate * 2.0 ** np.arange(-1.0, 1.01, 0.25)
     fine = np.clip(onset + np.arange(-step, step + 1e-9, step / 5), grid[0], grid[-1])
     onset, _ = best_fit(fine, fine_rates)

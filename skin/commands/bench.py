@@ -10,6 +10,11 @@ taxels (at one initial temperature, or staggered) and reports the accuracy and c
 contact of the joint model that shares the object's temperature between them
 (`skin.models.joint`).
 
+``skin bench pipeline`` pushes a simulated skin of each size through decode, calibrate,
+onset, contact and classify one frame at a time and reports taxel-samples per second, the
+real-time factor at 200 Hz, the per-frame latency and the memory growth
+(`skin.pipeline_bench`).
+
 ``skin bench calibration`` runs simulated calibrations (each taxel's constants drawn within
 +-10 % of the paper's, a few contacts with a reference material) and reports how well
 `skin.models.sensor_fit.fit_sensor_constants` recovers them, against the nominal constants,
@@ -54,6 +59,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     fusion.add_argument("--seed", type=int, default=0, help="seed of the scene")
     fusion.add_argument("--json", action="store_true", help="print one JSON document")
     fusion.set_defaults(func=main_fusion)
+    pipe = kinds.add_parser("pipeline", help="throughput of the streaming chain")
+    pipe.add_argument("--taxels", default="64,1000", help="skin sizes (default 64,1000; one "
+                                                          "board carries at most 1024)")
+    pipe.add_argument("--seconds", type=float, default=20.0, help="simulated seconds (20)")
+    pipe.add_argument("--json", action="store_true", help="print one JSON document")
+    pipe.set_defaults(func=main_pipeline)
     cal = kinds.add_parser("calibration", help="recovering each taxel's thermal constants")
     cal.add_argument("--reference", default="water", help="reference material (water)")
     cal.add_argument("--taxels", type=int, default=20, help="simulated taxels (20)")
@@ -197,4 +208,40 @@ def main_calibration(args: argparse.Namespace) -> int:
         print(f"{key:<16} {b['median']:>15.4f} {b['p95']:>7.4f} {a['median']:>14.4f} "
               f"{a['p95']:>7.4f}")
     print(f"fit time {doc['ms_per_taxel']} ms per taxel")
+    return 0
+
+
+def main_pipeline(args: argparse.Namespace) -> int:
+    """Run the pipeline throughput benchmark."""
+    from skin.errors import SkinError
+    from skin.pipeline_bench import run
+
+    try:
+        sizes = [int(v) for v in args.taxels.split(",") if v.strip()]
+    except ValueError:
+        raise SkinError(f"--taxels wants integers, got {args.taxels!r}") from None
+    if not sizes or min(sizes) < 1 or max(sizes) > 1024:
+        raise SkinError("--taxels must lie in 1-1024: one board of protocol v0 carries 1024")
+    if args.seconds <= 0:
+        raise SkinError("--seconds must be positive")
+    progress = Progress()
+    rows = []
+    for n in sizes:
+        progress.message(f"{n} taxels x {args.seconds:g} s")
+        rows.append(run(n, args.seconds))
+    progress.done()
+    doc = {"machine": machine(), "results": rows}
+    if args.json:
+        print(json.dumps(doc))
+        return 0
+    print(f"streaming chain, one frame at a time ({doc['machine']['cpus']} cores; taxel-samples"
+          f" per second)")
+    print(f"{'taxels':>6} {'chain':>10} {'decode':>10} {'calibrate':>10} {'onset':>10} "
+          f"{'contact+cl':>10} {'x real time':>11} {'p50 ms':>7} {'p99 ms':>7}")
+    for r in rows:
+        st = r["stages"]
+        print(f"{r['taxels']:>6} {r['taxel_samples_per_s']:>10} {st['decode']:>10} "
+              f"{st['calibrate']:>10} {st['onset']:>10} {st['contact_and_classify']:>10} "
+              f"{r['realtime_factor']:>11} {r['latency_ms']['p50']:>7} "
+              f"{r['latency_ms']['p99']:>7}")
     return 0
