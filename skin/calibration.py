@@ -161,3 +161,54 @@ def resistance_from_counts(counts: np.ndarray, divider_resistor: float, supply_v
     """Thermistor resistance from ADC counts through the divider (eq. 8), ohm."""
     v = np.asarray(counts, dtype=float) / adc_max * adc_reference
     return divider_resistor * (supply_voltage / v - 1.0)
+
+
+def thermistor_recovery(n_taxels: int = 20, references: tuple[float, ...] = (20.0, 30.0, 40.0),
+                        readings: int = 8, r25_tolerance: float = 0.03,
+                        b_tolerance: float = 0.01, terms: int = 2, seed: int = 0) -> dict:
+    """Run simulated thermistor calibrations: how well `fit_steinhart_hart` recovers them.
+
+    Each taxel's thermistor differs from the paper's by up to ``r25_tolerance`` in its
+    resistance at 25 C and ``b_tolerance`` in its B value (typical NTC tolerances). At each
+    reference the skin is read ``readings`` times through the paper's divider and 10-bit ADC
+    (0.5 LSB of noise, rounded) and the mean counts are fitted.
+
+    Returns
+    -------
+    dict
+        Median and p95 over taxels of the largest temperature error over 25-45 C, K, with the
+        nominal coefficients and with the fitted ones.
+    """
+    rng = np.random.default_rng(seed)
+    one = np.ones(1)
+    board = dict(divider_resistor=668.0 * one, supply_voltage=5.06 * one,
+                 adc_reference=1.1 * one, adc_max=1023.0 * one)
+    c0, c1 = 9.5594e-4, 2.6181e-4
+    r25 = np.exp((1.0 / (25.0 + KELVIN) - c0) / c1)
+    check = np.linspace(25.0, 45.0, 41)
+    nominal_err, fitted_err = [], []
+    for _ in range(n_taxels):
+        b = (1.0 / c1) * (1.0 + rng.uniform(-b_tolerance, b_tolerance))
+        r = r25 * (1.0 + rng.uniform(-r25_tolerance, r25_tolerance))
+        t1 = 1.0 / b
+        true = Calibration(c0=(1.0 / (25.0 + KELVIN) - t1 * np.log(r)) * one, c1=t1 * one,
+                           **board)
+        counts = []
+        for ref in references:
+            raw = true.counts(np.full(readings, ref)) + rng.normal(0.0, 0.5, readings)
+            counts.append(np.mean(np.rint(raw)))
+        res = resistance_from_counts(np.array(counts), 668.0, 5.06, 1.1, 1023.0)
+        coef = fit_steinhart_hart(res, np.array(references), terms)
+        fitted = Calibration(c0=coef[0] * one, c1=coef[1] * one, c2=coef[2] * one, **board)
+        nominal = Calibration(c0=c0 * one, c1=c1 * one, **board)
+        x = true.counts(check)
+        nominal_err.append(float(np.max(np.abs(nominal.temperature(x)[0] - check))))
+        fitted_err.append(float(np.max(np.abs(fitted.temperature(x)[0] - check))))
+
+    def summary(v: list[float]) -> dict:
+        return {"median": round(float(np.median(v)), 4),
+                "p95": round(float(np.percentile(v, 95)), 4)}
+
+    return {"taxels": n_taxels, "references": list(references), "readings": readings,
+            "terms": terms, "nominal_max_error_k": summary(nominal_err),
+            "fitted_max_error_k": summary(fitted_err)}

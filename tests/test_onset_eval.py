@@ -136,6 +136,8 @@ def test_bench_calibration_prints_recovery():
     doc = json.loads(out.stdout)
     for key in ("diffusivity", "conductivity", "effusivity"):
         assert doc["fitted_error"][key]["median"] < 0.05
+    th = doc["thermistors"]
+    assert th["fitted_max_error_k"]["median"] < 0.05 < th["nominal_max_error_k"]["median"]
 
 
 def test_bench_pipeline_reports_throughput_and_latency():

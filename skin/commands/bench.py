@@ -192,9 +192,12 @@ def main_calibration(args: argparse.Namespace) -> int:
         raise SkinError(f"unknown reference material {args.reference!r}")
     if args.taxels < 1 or args.contacts < 1 or args.duration <= 0:
         raise SkinError("--taxels and --contacts must be at least 1, --duration positive")
+    from skin.calibration import thermistor_recovery
+
     started = time.monotonic()
     doc = {"machine": machine(), **recovery(args.taxels, args.contacts, args.duration,
                                             reference=args.reference, seed=args.seed),
+           "thermistors": thermistor_recovery(args.taxels, seed=args.seed),
            "wall_time": round(time.monotonic() - started, 2)}
     if args.json:
         print(json.dumps(doc))
@@ -208,6 +211,12 @@ def main_calibration(args: argparse.Namespace) -> int:
         print(f"{key:<16} {b['median']:>15.4f} {b['p95']:>7.4f} {a['median']:>14.4f} "
               f"{a['p95']:>7.4f}")
     print(f"fit time {doc['ms_per_taxel']} ms per taxel")
+    th = doc["thermistors"]
+    print(f"thermistors (R25 +-3 %, B +-1 %; {th['readings']} readings at "
+          f"{', '.join(f'{r:g}' for r in th['references'])} C, two-term fit): largest error "
+          f"over 25-45 C, median {th['nominal_max_error_k']['median']} K nominal -> "
+          f"{th['fitted_max_error_k']['median']} K fitted (p95 "
+          f"{th['nominal_max_error_k']['p95']} -> {th['fitted_max_error_k']['p95']} K)")
     return 0
 
 
