@@ -59,8 +59,9 @@ def test_refinement_with_a_finite_contact_is_not_late():
         on_r, _ = refine_onset(t, y, t_on + 0.2, 36.0, 0.0, s.depth, s.diffusivity)
         late_perfect.append(on_p - t_on)
         late_rates.append(on_r - t_on)
-    assert np.median(late_perfect) > 0.015  # eq. 5 alone dates a slow contact late
-    assert abs(np.median(late_rates)) <= 0.01
+    assert np.median(late_perfect) > 0.03  # eq. 5 alone dates this slow contact late
+    # onset and closing rate trade off along a ridge; the fit lands within about 10 ms
+    assert abs(np.median(late_rates)) <= 0.012
 
 
 def test_evaluation_counts_detections_false_alarms_and_delays():
