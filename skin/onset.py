@@ -66,6 +66,8 @@ class DetectorState:
     t_minimum: np.ndarray
     armed_at: np.ndarray
     t_last: np.ndarray
+    slow: np.ndarray
+    slow_start: np.ndarray
 
     def copy(self) -> DetectorState:
         """Return a deep copy."""
@@ -100,6 +102,15 @@ class OnsetDetector:
         Time constant of the smoothing applied to the readings before detection, s.
     stale : float
         A CUSUM that stays above zero this long without an alarm is reset (slow drift), s.
+    slow_tau : float
+        Time constant of the slow channel's average, s. Contacts with poor conductors through
+        an air gap fall too slowly for the CUSUM, whose baseline follows them; the slow channel
+        compares the smoothed reading with a slow average of it instead.
+    slow_threshold : float
+        Fall below the slow average that is a contact, deg C (above what air currents and
+        heater switching give within ``slow_tau``).
+    slow_begin : float
+        Fall below the slow average that dates a slow contact's coarse onset, deg C.
     """
 
     def __init__(
@@ -116,6 +127,9 @@ class OnsetDetector:
         release_rise: float = 0.12,
         smooth_tau: float = 0.03,
         stale: float = 1.0,
+        slow_tau: float = 3.0,
+        slow_threshold: float = 0.6,
+        slow_begin: float = 0.1,
     ) -> None:
         self.n_taxels = n_taxels
         self.level_tau = level_tau
@@ -128,6 +142,9 @@ class OnsetDetector:
         self.release_rise = release_rise
         self.smooth_tau = smooth_tau
         self.stale = stale
+        self.slow_tau = slow_tau
+        self.slow_threshold = slow_threshold
+        self.slow_begin = slow_begin
 
     def initial_state(self) -> DetectorState:
         """Return the state before the first sample."""
@@ -146,6 +163,8 @@ class OnsetDetector:
             t_minimum=nan.copy(),
             armed_at=np.full(n, np.inf),
             t_last=nan.copy(),
+            slow=nan.copy(),
+            slow_start=nan.copy(),
         )
 
     def process(
@@ -182,6 +201,7 @@ class OnsetDetector:
         if new.any():
             s.level[new] = y[new]
             s.smooth[new] = y[new]
+            s.slow[new] = y[new]
             s.t_level[new] = t
             s.t_last[new] = t
             s.armed_at[new] = t + self.warmup
@@ -209,6 +229,22 @@ class OnsetDetector:
             events.append(OnsetEvent("onset", int(k), t0, t,
                                      float(s.level[k] + s.slope[k] * (t0 - s.t_level[k])),
                                      float(s.slope[k])))
+        # the slow channel: a fall below the slow average of the smoothed reading
+        fall = np.where(idle, s.slow - s.smooth, 0.0)
+        begins = idle & (fall > self.slow_begin) & np.isnan(s.slow_start)
+        s.slow_start[begins] = s.t_last[begins]
+        s.slow_start[idle & (fall <= self.slow_begin)] = np.nan
+        slow_alarm = (idle & ~alarm & (fall > self.slow_threshold) & (t >= s.armed_at)
+                      & np.isfinite(s.slow_start))
+        for k in np.flatnonzero(slow_alarm):
+            events.append(OnsetEvent("onset", int(k), float(s.slow_start[k]), t,
+                                     float(s.slow[k]), 0.0))
+        alarm = alarm | slow_alarm
+        s.slow_start[alarm] = np.nan
+        c = 1 - np.exp(-dt / self.slow_tau)
+        calm = idle & ~alarm
+        s.slow[calm] += c[calm] * (s.smooth[calm] - s.slow[calm])
+
         s.in_contact[alarm] = True
         s.minimum[alarm] = s.smooth[alarm]
         s.t_minimum[alarm] = t
@@ -245,6 +281,8 @@ class OnsetDetector:
             s.t_level[r] = t
             s.cusum[r] = 0.0
             s.armed_at[r] = t + self.warmup
+            s.slow[r] = s.smooth[r]
+            s.slow_start[r] = np.nan
         s.t_last[live] = t
 
 

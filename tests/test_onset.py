@@ -111,3 +111,28 @@ def test_refine_onset_recovers_the_true_onset():
                                   depth=s.depth, diffusivity=s.diffusivity)
     assert abs(onset - t_on) <= 0.015
     assert initial == pytest.approx(37.0)
+
+
+def test_slow_channel_finds_more_contacts_among_air_currents_without_false_alarms():
+    from skin.models import load_materials
+    from skin.models.streams import simulate_stream
+
+    mats = load_materials()
+    stream = simulate_stream([mats[m] for m in ("brick", "cardboard", "pine", "human_skin")],
+                             n_taxels=16, duration=420.0, seed=0, contacts_per_minute=2.0)
+    truth = [(c.taxel, c.onset, c.release) for c in stream.contacts if c.duration >= 0.3]
+
+    def score(**kw):
+        det = OnsetDetector(16, **kw)
+        events, _ = det.process(stream.times, stream.temperature, det.initial_state())
+        onsets = [e for e in events if e.kind == "onset"]
+        hits = sum(any(e.taxel == k and on - 0.1 <= e.time <= off + 0.1 for e in onsets)
+                   for k, on, off in truth)
+        false = sum(not any(e.taxel == k and on - 0.1 <= e.time <= off + 0.1
+                            for k, on, off in ((c.taxel, c.onset, c.release)
+                                               for c in stream.contacts)) for e in onsets)
+        return hits, false
+
+    hits_cusum, false_cusum = score(slow_threshold=np.inf)
+    hits, false = score()
+    assert hits > hits_cusum + 5 and false <= false_cusum + 2
