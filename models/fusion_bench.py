@@ -22,7 +22,7 @@ import numpy as np
 from skin.models.joint import JointContactModel
 from skin.models.materials import Material
 from skin.models.physics import SensorConstants, contact_trace
-from skin.models.trials import _adc
+from skin.models.trials import adc_readings, spread_sensors
 
 #: (label, taxels, how their initial temperatures are set)
 ARRANGEMENTS = (("1 taxel", 1, "one"), ("2 taxels, one temperature", 2, "one"),
@@ -37,18 +37,6 @@ def _initial(n: int, mode: str, rng: np.random.Generator) -> np.ndarray:
     return rng.uniform(30.0, 40.0) + rng.normal(0.0, 0.2, n)
 
 
-def taxel_pool(n: int, rng: np.random.Generator) -> list[SensorConstants]:
-    """``n`` taxels whose depth, diffusivity and conductivity lie within +-10 % of the paper's."""
-    base = SensorConstants()
-    pool = []
-    for _ in range(n):
-        f = 1.0 + rng.uniform(-0.1, 0.1, 3)
-        pool.append(SensorConstants(depth=base.depth * f[0],
-                                    diffusivity=base.diffusivity * f[1],
-                                    conductivity=base.conductivity * f[2]))
-    return pool
-
-
 def calibrate_pool(pool: list[SensorConstants], rng: np.random.Generator,
                    reference: str = "water", contacts: int = 4) -> list[SensorConstants]:
     """Fit each taxel's constants as a calibration would find them.
@@ -56,17 +44,13 @@ def calibrate_pool(pool: list[SensorConstants], rng: np.random.Generator,
     Four simulated contacts with ``reference`` at 25 C per taxel (`skin.models.sensor_fit`).
     """
     from skin.models.materials import load_materials
-    from skin.models.sensor_fit import fit_sensor_constants
+    from skin.models.sensor_fit import fit_sensor_constants, reference_contacts
 
     ref = load_materials()[reference]
-    t = np.arange(1, round(2.0 * FS) + 1) / FS
     fitted = []
     for s in pool:
-        ts = rng.uniform(30.0, 40.0, contacts)
-        h = 10.0 ** rng.uniform(*np.log10(ref.conductance_range), contacts)
-        y = _adc(contact_trace(t[None, :], ts[:, None], 25.0, ref.effusivity, s, h[:, None]),
-                 rng, 0.5)
-        fitted.append(fit_sensor_constants(t, y, ts, np.full(contacts, 25.0), ref.effusivity,
+        t, y, ts, to = reference_contacts(s, ref, rng, contacts, duration=2.0, fs=FS)
+        fitted.append(fit_sensor_constants(t, y, ts, to, ref.effusivity,
                                            conductance_range=ref.conductance_range).sensor)
     return fitted
 
@@ -88,7 +72,7 @@ def simulate_contact(material: Material, taxels: list[SensorConstants], mode: st
         since = t - rng.uniform(-0.01, 0.01)
         h = 10 ** rng.uniform(lo, hi)
         y[i] = contact_trace(since, t0[i], t_obj, material.effusivity, s, h)
-    return t, _adc(y, rng, 0.5), t0
+    return t, adc_readings(y, rng, 0.5), t0
 
 
 def run(materials: Sequence[Material], trials: int = 40,
@@ -124,7 +108,7 @@ def run(materials: Sequence[Material], trials: int = 40,
     """
     model = JointContactModel(materials)
     rng = np.random.default_rng(seed)
-    pool = taxel_pool(16, rng)
+    pool = spread_sensors(16, 0.1, rng)
     fitted = calibrate_pool(pool, rng)
     cases = [(o, a, d) for o in offsets for a in ARRANGEMENTS for d in durations]
     rows = []

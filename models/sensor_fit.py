@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from skin.models.materials import Material
 from skin.models.physics import SensorConstants, contact_trace
 
 
@@ -114,6 +115,32 @@ def fit_sensor_constants(t: np.ndarray, temperature: np.ndarray, t_sensor: Seque
     return SensorFit(sensor, np.exp(res.x[2:]), rms, bool(res.success))
 
 
+def reference_contacts(sensor: SensorConstants, reference: Material, rng: np.random.Generator,
+                       contacts: int = 4, duration: float = 2.0, fs: float = 200.0,
+                       ambient: float = 25.0,
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Simulate a calibration run: ``contacts`` touches of ``reference`` at ambient.
+
+    The taxel starts each touch at 30-40 C; the contact conductance is drawn from the
+    reference's range; readings go through the paper's divider and 10-bit ADC (0.5 LSB).
+
+    Returns
+    -------
+    tuple
+        Sample times after contact (n,), readings (contacts, n), the sensor's and the
+        reference's temperatures (contacts,): the arguments of `fit_sensor_constants`.
+    """
+    from skin.models.trials import adc_readings
+
+    t = np.arange(1, round(duration * fs) + 1) / fs
+    ts = rng.uniform(30.0, 40.0, contacts)
+    to = np.full(contacts, ambient)
+    h = 10.0 ** rng.uniform(*np.log10(reference.conductance_range), contacts)
+    clean = contact_trace(t[None, :], ts[:, None], to[:, None], reference.effusivity, sensor,
+                          h[:, None])
+    return t, adc_readings(clean, rng, 0.5), ts, to
+
+
 def recovery(n_taxels: int = 20, contacts: int = 4, duration: float = 2.0,
              spread: float = 0.10, reference: str = "water", seed: int = 0) -> dict:
     """Run simulated calibrations: how well `fit_sensor_constants` recovers known constants.
@@ -131,13 +158,10 @@ def recovery(n_taxels: int = 20, contacts: int = 4, duration: float = 2.0,
     import time
 
     from skin.models.materials import load_materials
-    from skin.models.trials import _adc
 
     ref = load_materials()[reference]
     rng = np.random.default_rng(seed)
     base = SensorConstants()
-    fs = 200.0
-    t = np.arange(1, round(duration * fs) + 1) / fs
     err: dict[str, list[float]] = {"diffusivity": [], "conductivity": [], "effusivity": []}
     before = {k: [] for k in err}
     spent = 0.0
@@ -145,12 +169,7 @@ def recovery(n_taxels: int = 20, contacts: int = 4, duration: float = 2.0,
         f = 1.0 + rng.uniform(-spread, spread, 2)
         true = dataclasses.replace(base, diffusivity=base.diffusivity * f[0],
                                    conductivity=base.conductivity * f[1])
-        ts = rng.uniform(30.0, 40.0, contacts)
-        to = np.full(contacts, 25.0)
-        h = 10.0 ** rng.uniform(*np.log10(ref.conductance_range), contacts)
-        clean = contact_trace(t[None, :], ts[:, None], to[:, None], ref.effusivity, true,
-                              h[:, None])
-        y = _adc(clean, rng, 0.5)
+        t, y, ts, to = reference_contacts(true, ref, rng, contacts, duration)
         started = time.perf_counter()
         fit = fit_sensor_constants(t, y, ts, to, ref.effusivity,
                                    conductance_range=ref.conductance_range)

@@ -31,7 +31,7 @@ import numpy as np
 
 from skin.models.materials import Material
 from skin.models.physics import SensorConstants, contact_trace, heated_temperature
-from skin.models.trials import _adc
+from skin.models.trials import adc_readings
 
 #: A change of the reading that stands out of its noise (about 3 x 0.5 LSB at 39 C), K.
 VISIBLE = 0.1
@@ -206,6 +206,6 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
             truth.append(StreamContact(j, float(t), float(t + length), mat.name, float(t_obj),
                                        t0, seen))
             t += length + 10.0 + rng.exponential(60.0 / max(contacts_per_minute, 1e-9))
-    temperature = _adc(reading, rng, 0.5)
+    temperature = adc_readings(reading, rng, 0.5)
     truth.sort(key=lambda c: (c.onset, c.taxel))
     return Stream(times, temperature, amb, truth, fs)

@@ -113,7 +113,8 @@ class Protocol:
     object_offset: tuple[float, float] = (0.0, 0.0)
 
 
-def _adc(temperature: np.ndarray, rng: np.random.Generator, noise: float) -> np.ndarray:
+def adc_readings(temperature: np.ndarray, rng: np.random.Generator,
+                 noise: float = 0.5) -> np.ndarray:
     """Pass readings through the paper's divider and 10-bit ADC (noise, then rounding)."""
     b = Board()
     one = np.ones(1)
@@ -126,11 +127,15 @@ def _adc(temperature: np.ndarray, rng: np.random.Generator, noise: float) -> np.
     return cal.temperature(counts)[0]
 
 
-def _taxels(protocol: Protocol, rng: np.random.Generator) -> list[SensorConstants]:
+def spread_sensors(n: int, spread: float, rng: np.random.Generator) -> list[SensorConstants]:
+    """Return ``n`` taxels whose constants lie within +-``spread`` of the paper's.
+
+    Depth, diffusivity and conductivity are drawn uniformly, in that order for each taxel.
+    """
     base = SensorConstants()
     out = []
-    for _ in range(protocol.n_taxels):
-        f = 1.0 + rng.uniform(-protocol.taxel_spread, protocol.taxel_spread, 3)
+    for _ in range(n):
+        f = 1.0 + rng.uniform(-spread, spread, 3)
         out.append(SensorConstants(depth=base.depth * f[0], diffusivity=base.diffusivity * f[1],
                                    conductivity=base.conductivity * f[2]))
     return out
@@ -174,7 +179,7 @@ def simulate_trials(
     if not materials:
         raise ValueError("simulate_trials needs at least one material")
     rng = np.random.default_rng(seed)
-    taxels = _taxels(p, rng)
+    taxels = spread_sensors(p.n_taxels, p.taxel_spread, rng)
     n_mat, n = len(materials), p.trials
     total = n_mat * n
     # the protocol's schedule: per trial, the hold before release and the reheat after it
@@ -211,7 +216,7 @@ def simulate_trials(
                                   amb[i], offset[i], t, temp[i], t_sensor[i], t_object[i], rng)
             if progress is not None:
                 progress((i + 1) * n, total)
-    readings = _adc(temp.reshape(total, -1), rng, p.adc_noise)
+    readings = adc_readings(temp.reshape(total, -1), rng, p.adc_noise)
     label = np.repeat([m.name for m in materials], n)
     groups = (np.arange(n_mat)[:, None] * (run.max() + 1) + run[None, :]).ravel()
     taxel = np.take_along_axis(run_taxel, np.broadcast_to(run, (n_mat, n)), axis=1).ravel()
