@@ -22,6 +22,7 @@ import numpy as np
 
 from skin.models.materials import Material
 from skin.models.physics import SensorConstants, contact_trace
+from skin.summary import median_p95
 
 
 @dataclass(frozen=True)
@@ -181,12 +182,8 @@ def recovery(n_taxels: int = 20, contacts: int = 4, duration: float = 2.0,
             err[key].append(abs(got / want - 1.0))
             before[key].append(abs(nom / want - 1.0))
 
-    def summary(v: list[float]) -> dict:
-        return {"median": round(float(np.median(v)), 4),
-                "p95": round(float(np.percentile(v, 95)), 4)}
-
     return {"reference": reference, "taxels": n_taxels, "contacts": contacts,
             "duration": duration, "spread": spread,
-            "nominal_error": {k: summary(v) for k, v in before.items()},
-            "fitted_error": {k: summary(v) for k, v in err.items()},
+            "nominal_error": {k: median_p95(v) for k, v in before.items()},
+            "fitted_error": {k: median_p95(v) for k, v in err.items()},
             "ms_per_taxel": round(1e3 * spent / n_taxels, 1)}

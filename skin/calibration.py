@@ -179,6 +179,8 @@ def thermistor_recovery(n_taxels: int = 20, references: tuple[float, ...] = (20.
         Median and p95 over taxels of the largest temperature error over 25-45 C, K, with the
         nominal coefficients and with the fitted ones.
     """
+    from skin.summary import median_p95
+
     rng = np.random.default_rng(seed)
     one = np.ones(1)
     board = dict(divider_resistor=668.0 * one, supply_voltage=5.06 * one,
@@ -205,10 +207,6 @@ def thermistor_recovery(n_taxels: int = 20, references: tuple[float, ...] = (20.
         nominal_err.append(float(np.max(np.abs(nominal.temperature(x)[0] - check))))
         fitted_err.append(float(np.max(np.abs(fitted.temperature(x)[0] - check))))
 
-    def summary(v: list[float]) -> dict:
-        return {"median": round(float(np.median(v)), 4),
-                "p95": round(float(np.percentile(v, 95)), 4)}
-
     return {"taxels": n_taxels, "references": list(references), "readings": readings,
-            "terms": terms, "nominal_max_error_k": summary(nominal_err),
-            "fitted_max_error_k": summary(fitted_err)}
+            "terms": terms, "nominal_max_error_k": median_p95(nominal_err),
+            "fitted_max_error_k": median_p95(fitted_err)}

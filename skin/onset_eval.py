@@ -15,6 +15,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from skin.onset import OnsetDetector, refine_onset
+from skin.summary import median_p95
 
 #: A detection may start this much before the true onset and still belong to the contact, s.
 EARLY = 0.1
@@ -73,10 +74,12 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
     detect_s = time.perf_counter() - started
     onsets = [e for e in events if e.kind == "onset"]
     by_taxel: dict[int, list[tuple[float, float]]] = {}
+    keys: list[tuple[int, int]] = []  # (taxel, its contact number) of each row of truth
     visible: dict[tuple[int, int], float] = {}
     for row in truth:
         taxel, on, off = int(row[0]), float(row[1]), float(row[2])
         spans = by_taxel.setdefault(taxel, [])
+        keys.append((taxel, len(spans)))
         if len(row) > 3:
             visible[(taxel, len(spans))] = float(row[3])
         spans.append((on, off))
@@ -105,21 +108,9 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
     long_enough = [(t, i) for t, spans in by_taxel.items() for i, (on, off) in enumerate(spans)
                    if off - on >= min_duration]
     total = sum(len(s) for s in by_taxel.values())
-    # per true contact, in the order given: was it detected?
-    flags, seen = [], {}
-    for row in truth:
-        taxel = int(row[0])
-        i = seen[taxel] = seen.get(taxel, -1) + 1
-        flags.append((taxel, i) in found)
     hours = n_taxels * n / fs / 3600.0
     err = np.asarray(error)
     dly = np.asarray(delay)
-
-    def stats(v: np.ndarray) -> dict:
-        if v.size == 0:
-            return {"median": None, "p95": None}
-        return {"median": round(1e3 * float(np.median(np.abs(v))), 1),
-                "p95": round(1e3 * float(np.percentile(np.abs(v), 95)), 1)}
 
     return {
         "contacts": total, "contacts_counted": len(long_enough),
@@ -129,11 +120,12 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
         "detection_rate_all": round(len(found) / max(total, 1), 4),
         "false_alarms": false_alarms, "taxel_hours": round(hours, 3),
         "false_alarms_per_taxel_hour": round(false_alarms / hours, 3),
-        "delay_ms": stats(dly),
-        "visible_ms": stats(np.asarray(floor)[np.isfinite(floor)]) if floor else None,
-        "onset_error_ms": {**stats(err), "signed_median": None if err.size == 0
+        "delay_ms": median_p95(np.abs(dly), 1e3, 1),
+        "visible_ms": (median_p95(np.asarray(floor)[np.isfinite(floor)], 1e3, 1) if floor
+                       else None),
+        "onset_error_ms": {**median_p95(np.abs(err), 1e3, 1), "signed_median": None if err.size == 0
                            else round(1e3 * float(np.median(err)), 1)},
         "detector_us_per_taxel_sample": round(1e6 * detect_s / (n * n_taxels), 4),
         "refine_ms_per_onset": round(1e3 * refine_s / max(len(found), 1), 3),
-        "detected_flags": flags,
+        "detected_flags": [k in found for k in keys],
     }
