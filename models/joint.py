@@ -23,6 +23,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from skin.contact import UNKNOWN, MaterialEstimate
 from skin.models.materials import Material
 from skin.models.physics import SensorConstants, conductance_rate, contact_response
 
@@ -219,8 +220,6 @@ class JointClassifier:
 
     def classify(self, contact):
         """Label a contact from all its taxels at once (``"unknown"`` when unsure)."""
-        from skin.contact import UNKNOWN, MaterialEstimate
-
         usable = []
         for w in contact.windows:
             ok = np.isfinite(w.temperature)

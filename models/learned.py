@@ -62,8 +62,9 @@ class LearnedClassifier:
         """
         parts, left = [], list(contact.windows)
         for n in reversed(self.lengths):
-            picked = [w for w in left if self._covers(w, n)]
-            left = [w for w in left if not self._covers(w, n)]
+            covers = [self._covers(w, n) for w in left]
+            picked = [w for w, c in zip(left, covers, strict=True) if c]
+            left = [w for w, c in zip(left, covers, strict=True) if not c]
             if picked:
                 parts.append(self._predict(self._rows(contact, picked, n)))
         return np.vstack(parts) if parts else np.empty((0, len(self.classes)))

@@ -117,8 +117,7 @@ def main(args: argparse.Namespace) -> int:
         from skin.calibration_file import load_calibration
 
         cal_file = load_calibration(args.calibration)
-        calibration, per_taxel = cal_file.apply(layout)
-        sensors = {int(t.id): s for t, s in zip(layout.taxels, per_taxel, strict=True)}
+        calibration, sensors = cal_file.apply(layout)
         for part in ("thermistor", "thermal"):
             miss = cal_file.missing(layout, part)
             if miss:
@@ -132,11 +131,13 @@ def main(args: argparse.Namespace) -> int:
         progress.message(f"classifier: {classifier.method} ({len(classifier.classes)} classes, "
                          f"{classifier.samples / classifier.fs:g} s window)")
     elif args.classifier == "joint":
-        classifier = JointClassifier(layout, materials, sensors=sensors)
+        classifier = JointClassifier(
+            layout, materials, sensors=None if sensors is None else
+            {int(t.id): s for t, s in zip(layout.taxels, sensors, strict=True)})
     else:
         classifier = HistogramClassifier(layout, materials)
     pipeline = Pipeline(layout, classifier, calibration=calibration,
-                        sensors=None if sensors is None else list(sensors.values()),
+                        sensors=sensors,
                         ambient_offset=0.0 if not args.calibration else cal_file.ambient_offset)
     results: list[ContactResult] = []
     events_path = out / "events.jsonl"
