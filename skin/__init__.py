@@ -18,7 +18,8 @@ from skin.errors import (
 )
 from skin.frame import Frame
 from skin.layout import Board, Layout, Taxel, load_layout, parse_layout
-from skin.onset import DetectorState, OnsetDetector, OnsetEvent, refine_onset
+from skin.onset import DetectorState, OnsetDetector, OnsetEvent
+from skin.onset_refine import refine_onset
 from skin.pipeline import ContactResult, Pipeline
 from skin.tracking import ContactTracker
 

@@ -5,9 +5,8 @@ recent trend predicts.  Per taxel the detector smooths the reading, keeps a leve
 (Holt's linear smoother) and a one-sided CUSUM of the shortfall below that baseline; the CUSUM
 crossing its threshold is an onset, the moment it left zero is the coarse onset time.  While in
 contact the baseline is frozen; release is the rise of the smoothed temperature above its
-minimum, dated at the minimum.  `refine_onset` then dates the onset precisely by fitting the
-heated sensor's contact response (the paper's eq. 5, or a contact that closes at a finite
-rate) to the window.
+minimum, dated at the minimum.  `skin.onset_refine.refine_onset` then dates the onset
+precisely by fitting the heated sensor's contact response to the window.
 
 The detector is vectorised over taxels and keeps all its state in `DetectorState`: processing
 a stream in chunks of any size gives the same events as processing it whole.
@@ -284,93 +283,3 @@ class OnsetDetector:
             s.slow[r] = s.smooth[r]
             s.slow_start[r] = np.nan
         s.t_last[live] = t
-
-
-#: Contact closing rates H = h (1/e_s + 1/e_o) tried by `refine_onset`, s^-0.5 (inf: perfect).
-RATES = (np.inf, 300.0, 100.0, 30.0, 10.0, 3.0, 1.0, 0.3)
-
-
-def refine_onset(
-    times: np.ndarray,
-    temperature: np.ndarray,
-    coarse: float,
-    baseline: float,
-    slope: float,
-    depth: float,
-    diffusivity: float,
-    search: float = 0.6,
-    step: float = 0.005,
-    rates: tuple[float, ...] = RATES,
-    horizon: float = 0.6,
-) -> tuple[float, float]:
-    """Date a contact onset by fitting the heated sensor's contact response.
-
-    Before the onset the reading follows the baseline ``baseline + slope (t - coarse)``; after
-    it, ``T0 + D R(t - t0; H)`` with T0 the baseline at t0, ``R`` the thermistor's response to
-    a contact whose conductance closes at rate H (`skin.models.physics.contact_response`; eq.
-    5's ``erfc`` for perfect contact) and D fitted by least squares. Candidate onsets lie on a
-    grid from ``coarse - search`` to ``coarse``, candidate rates in ``rates``; the pair with
-    the smallest squared error over the samples up to ``coarse + horizon`` wins. Fitting the
-    rate matters: a contact through an air gap starts slowly, and perfect-contact fits date it
-    tens of milliseconds late.
-
-    Parameters
-    ----------
-    times, temperature : numpy.ndarray
-        The taxel's samples around the contact (NaN samples are ignored).
-    coarse : float
-        Coarse onset from the detector, s.
-    baseline, slope : float
-        Baseline temperature at ``coarse`` and its slope before contact.
-    depth, diffusivity : float
-        Thermistor depth (m) and sensor diffusivity (m^2/s).
-    search, step : float
-        Search span before ``coarse`` and grid step, s.
-    rates : tuple of float
-        Contact closing rates tried, s^-0.5 (``inf`` is perfect contact).
-    horizon : float
-        Samples later than ``coarse + horizon`` are not used, s.
-
-    Returns
-    -------
-    onset : float
-        Refined onset time, s.
-    initial : float
-        Sensor temperature at the onset (the baseline there), deg C.
-    """
-    from skin.models.physics import SensorConstants, contact_response
-
-    t = np.asarray(times, dtype=float)
-    y = np.asarray(temperature, dtype=float)
-    ok = np.isfinite(y) & (t <= coarse + horizon)
-    t, y = t[ok], y[ok]
-    grid = coarse - np.arange(0.0, search + step / 2, step)[::-1]
-    if t.size < 3:
-        return coarse, baseline
-    sensor = SensorConstants(depth=depth, diffusivity=diffusivity)
-    pre_model = baseline + slope * (t - coarse)
-
-    def best_fit(onsets: np.ndarray, rate_grid: np.ndarray) -> tuple[float, float]:
-        base_at = baseline + slope * (onsets - coarse)  # (m,)
-        lag = t[None, :] - onsets[:, None]  # (m, n)
-        after = lag > 0
-        rate = rate_grid[:, None, None]
-        basis = np.where(after, contact_response(np.where(after, lag, 0.0), rate, sensor), 0.0)
-        target = np.where(after, y[None, :] - base_at[:, None], 0.0)  # (m, n)
-        den = (basis**2).sum(axis=-1)  # (rates, m)
-        amp = np.divide((basis * target).sum(axis=-1), den, out=np.zeros_like(den),
-                        where=den > 0)
-        model = np.where(after, base_at[:, None] + amp[..., None] * basis, pre_model)
-        sse = ((y - model) ** 2).sum(axis=-1)  # (rates, m)
-        r, m = np.unravel_index(int(np.argmin(sse)), sse.shape)
-        return float(onsets[m]), float(rate_grid[r])
-
-    # coarse to fine: every rate on a 4-step grid over the whole span, then every rate on
-    # the step grid around the best, then finer rates and fifths of a step around that
-    onset, rate = best_fit(grid[::-4][::-1], np.asarray(rates, dtype=float))
-    near = grid[np.abs(grid - onset) <= 4 * step + 1e-9]
-    onset, rate = best_fit(near, np.asarray(rates, dtype=float))
-    fine_rates = np.array([rate]) if np.isinf(rate) else rate * 2.0 ** np.arange(-1.0, 1.01, 0.25)
-    fine = np.clip(onset + np.arange(-step, step + 1e-9, step / 5), grid[0], grid[-1])
-    onset, _ = best_fit(fine, fine_rates)
-    return onset, float(baseline + slope * (onset - coarse))

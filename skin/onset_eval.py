@@ -1,7 +1,7 @@
 """Judge the streaming onset detector against streams whose contacts are known.
 
 `evaluate_onsets` runs `skin.onset.OnsetDetector` over a multi-taxel stream in chunks, dates
-every detected onset with `skin.onset.refine_onset`, and matches the detections to the true
+every detected onset with `skin.onset_refine.refine_onset`, and matches the detections to the true
 contacts of the same taxel: a detection whose coarse onset falls between 0.1 s before a
 contact's onset and 0.1 s after its release belongs to that contact; the first one detects
 it, any further one in the same contact and any that belongs to none is a false alarm.
@@ -14,7 +14,8 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from skin.onset import OnsetDetector, refine_onset
+from skin.onset import OnsetDetector
+from skin.onset_refine import refine_onset
 from skin.summary import median_p95
 
 #: A detection may start this much before the true onset and still belong to the contact, s.

@@ -14,7 +14,8 @@ import numpy as np
 
 from skin.contact import Contact, TaxelWindow
 from skin.layout import Layout
-from skin.onset import OnsetEvent, refine_onset
+from skin.onset import OnsetEvent
+from skin.onset_refine import refine_onset
 
 
 @dataclass

@@ -5,7 +5,8 @@ from hypothesis import strategies as st
 
 from skin.calibration import Calibration
 from skin.drivers.sim import SkinSimulator
-from skin.onset import OnsetDetector, refine_onset
+from skin.onset import OnsetDetector
+from skin.onset_refine import refine_onset
 from skin.scene import load_scene
 
 

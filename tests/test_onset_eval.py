@@ -10,8 +10,8 @@ import pytest
 from skin.models import load_materials
 from skin.models.physics import SensorConstants, contact_trace
 from skin.models.streams import simulate_stream
-from skin.onset import refine_onset
 from skin.onset_eval import evaluate_onsets
+from skin.onset_refine import refine_onset
 
 MATS = load_materials()
 
