@@ -172,23 +172,41 @@ class Layout:
         """Return a per-taxel array of a board constant, such as ``"sensor_depth"``."""
         return np.array([getattr(self.board_of(k), field) for k in range(len(self))], dtype=float)
 
+    def neighbour_lists(self, radius: float | None = None) -> list[np.ndarray]:
+        """Return, per taxel, the indices of the taxels on its link within ``radius`` metres.
+
+        With no radius, 1.6 times the median nearest-neighbour distance is used, which joins
+        the adjacent taxels of a regular ring layout and nothing further. Memory and time grow
+        with the number of pairs found, not with the square of the taxel count.
+        """
+        from scipy.spatial import cKDTree
+
+        links = np.array(self.links)
+        groups = [np.flatnonzero(links == link) for link in dict.fromkeys(self.links)]
+        trees = [(idx, cKDTree(self.positions[idx])) for idx in groups]
+        if radius is None:
+            nearest = np.full(len(self), np.inf)
+            for idx, tree in trees:
+                if idx.size > 1:
+                    nearest[idx] = tree.query(self.positions[idx], k=2)[0][:, 1]
+            finite = nearest[np.isfinite(nearest)]
+            radius = 1.6 * float(np.median(finite)) if finite.size else 0.0
+        out: list[np.ndarray] = [np.zeros(0, dtype=np.int64)] * len(self)
+        for idx, tree in trees:
+            for k, near in zip(idx, tree.query_ball_point(self.positions[idx], radius),
+                               strict=True):
+                found = idx[np.sort(np.asarray(near, dtype=np.int64))]
+                out[k] = found[found != k]
+        return out
+
     def neighbours(self, radius: float | None = None) -> np.ndarray:
         """Return a boolean (N, N) matrix: taxels on the same link within ``radius`` metres.
 
-        With no radius, 1.6 times the median nearest-neighbour distance is used, which joins
-        the adjacent taxels of a regular ring layout and nothing further.
+        The dense form of `neighbour_lists` (same radius rule), for small layouts.
         """
-        diff = self.positions[:, None, :] - self.positions[None, :, :]
-        dist = np.sqrt((diff**2).sum(-1))
-        links = np.array(self.links)
-        same = links[:, None] == links[None, :]
-        if radius is None:
-            d = np.where(same & ~np.eye(len(self), dtype=bool), dist, np.inf)
-            nearest = d.min(axis=1)
-            finite = nearest[np.isfinite(nearest)]
-            radius = 1.6 * float(np.median(finite)) if finite.size else 0.0
-        near = same & (dist <= radius)
-        np.fill_diagonal(near, False)
+        near = np.zeros((len(self), len(self)), dtype=bool)
+        for k, idx in enumerate(self.neighbour_lists(radius)):
+            near[k, idx] = True
         return near
 
 
