@@ -186,8 +186,10 @@ class SimDriver(Driver):
 class PtySerialDevice:
     """Serve a simulator's frames as protocol bytes on a pseudo-terminal, like a real board.
 
-    The slave end (``port``) is what a serial driver opens.  A background thread writes the
-    frames at ``speed`` x real time (speed <= 0: as fast as the reader takes them).
+    The slave end (``port``) is what a serial driver opens.  Once `start` is called, a
+    background thread writes the frames at ``speed`` x real time (speed <= 0: as fast as the
+    reader takes them). Start it after the reader has opened the port: opening a serial port
+    empties its input buffer, which would drop the frames already written.
 
     Parameters
     ----------
@@ -208,6 +210,9 @@ class PtySerialDevice:
         self.done = threading.Event()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._serve, name="pty-skin", daemon=True)
+
+    def start(self) -> None:
+        """Start writing the frames (see the class docstring)."""
         self._thread.start()
 
     def _write(self, data: bytes) -> bool:
@@ -246,7 +251,8 @@ class PtySerialDevice:
         if self._stop.is_set():
             return
         self._stop.set()
-        self._thread.join(timeout=2.0)
+        if self._thread.is_alive():
+            self._thread.join(timeout=2.0)
         for fd in (self._master, self._slave):
             try:
                 os.close(fd)

@@ -25,6 +25,7 @@ KELVIN = 273.15
 # Per-taxel status bits returned by Calibration.temperature
 TAXEL_OPEN = 1 << 0
 TAXEL_SATURATED = 1 << 1
+TAXEL_MISSING = 1 << 2
 
 
 @dataclass(frozen=True)
@@ -69,10 +70,12 @@ class Calibration:
         temperature : numpy.ndarray
             deg C; NaN exactly where ``status`` is non-zero.
         status : numpy.ndarray of uint8
-            ``TAXEL_OPEN`` where counts <= 0, ``TAXEL_SATURATED`` where counts >= full scale.
+            ``TAXEL_OPEN`` where counts <= 0, ``TAXEL_SATURATED`` where counts >= full scale,
+            ``TAXEL_MISSING`` where counts are NaN (the taxel's board sent no frame).
         """
         c = np.asarray(counts, dtype=float)
-        status = np.where(c <= 0, TAXEL_OPEN, 0) | np.where(c >= self.adc_max, TAXEL_SATURATED, 0)
+        status = (np.where(c <= 0, TAXEL_OPEN, 0) | np.where(c >= self.adc_max, TAXEL_SATURATED, 0)
+                  | np.where(np.isnan(c), TAXEL_MISSING, 0))
         status = status.astype(np.uint8)
         ok = status == 0
         v = np.where(ok, c, 1.0) / self.adc_max * self.adc_reference

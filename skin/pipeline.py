@@ -1,20 +1,49 @@
-"""The streaming pipeline: frames -> calibrated temperatures -> onsets -> contacts -> materials."""
+"""The streaming pipeline: frames -> samples -> deg C -> onsets -> contacts -> materials -> sinks.
+
+The chain is declared once, in `Pipeline`, as stages that each know only the one before it:
+
+==============  ======================================  =========================================
+stage           object                                  takes -> gives
+==============  ======================================  =========================================
+assemble        `skin.assembly.FrameAssembler`          frames of every board -> `Samples`
+calibrate       `skin.calibration.Calibration`          counts -> deg C and per-taxel status
+onset           `skin.onset.OnsetDetector`              deg C -> onset and release events
+track           `skin.tracking.ContactTracker`          deg C and events -> `DecidedContact`
+refine          `skin.tracking.refine_member`           each taxel's samples -> dated onset
+classify        the classifier (`Classifier`)           `Contact` -> `MaterialEstimate`
+sinks           `skin.sinks` (JSON lines, terminal...)  `ContactResult` -> wherever it goes
+==============  ======================================  =========================================
+
+The first four stages run on every block of frames. Refining and classifying are the costly
+steps and happen only when a contact is decided, often for many contacts at once; they wait in
+a queue and, with a ``budget``, each call does only as much of that work as the budget leaves
+(one taxel's refinement or one contact's classification at a time, at least one per call), so
+a burst of contacts is spread over the frames that follow instead of stalling one of them.
+Without a budget every decided contact is finished in the call that decided it.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import time
+from collections import deque
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Protocol, TypeVar
 
 import numpy as np
 
+from skin.assembly import FrameAssembler, Samples
 from skin.calibration import Calibration
 from skin.contact import Contact, MaterialEstimate
 from skin.errors import SkinError
 from skin.frame import Frame
 from skin.layout import Layout
 from skin.onset import OnsetDetector
-from skin.tracking import ContactTracker
+from skin.tracking import ContactTracker, DecidedContact, finish_contact, refine_member
+
+T = TypeVar("T")
+
+STAGES = ("assemble", "calibrate", "onset", "track", "refine", "classify", "sinks")
 
 
 class Classifier(Protocol):
@@ -26,10 +55,29 @@ class Classifier(Protocol):
 
 @dataclass(frozen=True)
 class ContactResult:
-    """A decided contact and what the classifier made of it."""
+    """A decided contact and what the classifier made of it.
+
+    Attributes
+    ----------
+    contact : Contact
+        The contact (``contact.decided_at``: when the tracker decided it).
+    estimate : MaterialEstimate
+        The classifier's answer.
+    reported_at : float
+        Device time of the newest sample when the result was given, s: later than
+        ``contact.decided_at`` when the work was spread over frames.
+    """
 
     contact: Contact
     estimate: MaterialEstimate
+    reported_at: float
+
+
+class Sink(Protocol):
+    """Anything that takes results as they come (`skin.sinks`)."""
+
+    def write(self, result: ContactResult) -> None:  # noqa: D102
+        ...
 
 
 @dataclass
@@ -39,30 +87,49 @@ class PipelineStats:
     Attributes
     ----------
     frames : int
-        Frames processed.
+        Frames taken.
+    samples : int
+        Skin-wide samples processed.
     gaps : int
-        Frames missing according to sequence numbers.
+        Frames missing according to sequence numbers, over all boards.
     flagged : numpy.ndarray
-        Per taxel: samples without a temperature (open or saturated thermistor).
-    onsets, releases, contacts : int
+        Per taxel: samples without a temperature (open, saturated or missing).
+    onsets, releases : int
         Events seen.
+    contacts : int
+        Contacts decided.
+    results : int
+        Contacts refined, classified and handed to the sinks.
+    seconds : dict
+        Stage name -> time spent in it, s (`STAGES`).
     """
 
     frames: int = 0
+    samples: int = 0
     gaps: int = 0
     flagged: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     onsets: int = 0
     releases: int = 0
     contacts: int = 0
+    results: int = 0
+    seconds: dict[str, float] = field(default_factory=lambda: dict.fromkeys(STAGES, 0.0))
+
+
+@dataclass
+class _Deciding:
+    """A decided contact on its way through refine and classify."""
+
+    decided: DecidedContact
+    refined: list[tuple[float, float]] = field(default_factory=list)
 
 
 class Pipeline:
-    """Run the whole chain on a stream of frames.
+    """Run the whole chain on a stream of frames (see the module docstring).
 
     Parameters
     ----------
     layout : Layout
-        The skin's taxels.  One board for now: several boards need a merged time base.
+        The skin's taxels, on one or more boards sampled in step.
     classifier : Classifier
         Labels each decided contact.
     calibration : Calibration, optional
@@ -76,6 +143,14 @@ class Pipeline:
         onsets; the boards' by default.
     ambient_offset : float
         Added to the ambient sensor's reading, K (a calibration file's).
+    sinks : iterable of Sink
+        Each result is written to every sink, in order, as it is given.
+    budget : float, optional
+        Seconds per `process` call for refining and classifying decided contacts (see the
+        module docstring); None finishes every contact in the call that decided it.
+    max_skew : int
+        Samples a board may lag the others before its frame counts as missing
+        (`skin.assembly.FrameAssembler`).
     """
 
     def __init__(
@@ -88,66 +163,117 @@ class Pipeline:
         window: float = 2.5,
         sensors: list | None = None,
         ambient_offset: float = 0.0,
+        sinks: Iterable[Sink] = (),
+        budget: float | None = None,
+        max_skew: int = 20,
     ) -> None:
-        if len(layout.boards) != 1:
-            raise SkinError(f"{layout.source}: the pipeline handles one board for now; this "
-                            f"layout has {len(layout.boards)}")
+        rates = {b.sample_rate for b in layout.boards.values()}
+        if len(rates) != 1:
+            raise SkinError(f"{layout.source}: the boards of one skin must share a sample rate "
+                            f"(sampled in step); got {sorted(rates)} Hz")
+        if budget is not None and budget < 0:
+            raise ValueError(f"budget must be None or >= 0 s, got {budget}")
         self.layout = layout
         self.classifier = classifier
+        self.window = float(window)
+        self.assembler = FrameAssembler(layout, max_skew=max_skew)
         self.calibration = calibration or Calibration.from_layout(layout)
         self.detector = detector or OnsetDetector(len(layout))
-        self.board = next(iter(layout.boards.values()))
-        self.tracker = ContactTracker(layout, self.board.sample_rate, window=window)
+        self.tracker = ContactTracker(layout, rates.pop(), window=window)
         if sensors is not None:
             if len(sensors) != len(layout):
                 raise SkinError(f"{len(sensors)} sensor constants for {len(layout)} taxels")
-            self.tracker.depth = np.array([s.depth for s in sensors])
-            self.tracker.diffusivity = np.array([s.diffusivity for s in sensors])
+            self.depth = np.array([s.depth for s in sensors])
+            self.diffusivity = np.array([s.diffusivity for s in sensors])
+        else:
+            self.depth = layout.board_array("sensor_depth")
+            self.diffusivity = layout.board_array("sensor_diffusivity")
         self.ambient_offset = float(ambient_offset)
+        self.sinks = list(sinks)
+        self.budget = budget
         self._state = self.detector.initial_state()
-        self._idx, self._addr = layout.channel_map(self.board.id)
-        self._last_seq: int | None = None
+        self._queue: deque[_Deciding] = deque()
+        self._now = -np.inf
         self.stats = PipelineStats(flagged=np.zeros(len(layout), dtype=np.int64))
         self.last_temperature = np.full(len(layout), np.nan)
 
+    @property
+    def pending(self) -> int:
+        """Decided contacts waiting to be refined and classified."""
+        return len(self._queue)
+
     def process(self, frames: Sequence[Frame]) -> list[ContactResult]:
-        """Process a chunk of frames; return the contacts decided within it, classified."""
-        if not frames:
-            return []
-        n = len(self.layout)
-        counts = np.empty((len(frames), n))
-        for i, f in enumerate(frames):
-            if f.board != self.board.id:
-                raise SkinError(f"frame seq {f.seq} comes from board {f.board}, which is not in "
-                                f"the layout {self.layout.source}")
-            if len(f.counts) <= self._addr.max():
-                raise SkinError(f"frame seq {f.seq} has {len(f.counts)} channels; the layout "
-                                f"addresses channel {int(self._addr.max())}")
-            counts[i, self._idx] = f.counts[self._addr]
-            if self._last_seq is not None:
-                step = (f.seq - self._last_seq) % (1 << 32)
-                if 1 < step < (1 << 31):  # a forward jump; repeats and restarts are not gaps
-                    self.stats.gaps += step - 1
-            self._last_seq = f.seq
-        times = np.array([f.device_time for f in frames])
-        ambient = np.array([f.ambient for f in frames]) + self.ambient_offset
-        temperature, status = self.calibration.temperature(counts)
-        self.stats.frames += len(frames)
-        self.stats.flagged += (status != 0).sum(axis=0)
-        self.last_temperature = temperature[-1]
-        events, self._state = self.detector.process(times, temperature, self._state)
-        self.stats.onsets += sum(e.kind == "onset" for e in events)
-        self.stats.releases += sum(e.kind == "release" for e in events)
-        return self._classify(self.tracker.update(times, temperature, ambient, events))
+        """Process a block of frames; return the results given in this call, in order."""
+        started = time.perf_counter()
+        samples = self._timed("assemble", self.assembler.push, frames)
+        self._advance(samples)
+        return self._drain(started, self.budget)
 
     def flush(self) -> list[ContactResult]:
-        """Decide and classify the contacts still open (end of stream)."""
-        return self._classify(self.tracker.flush())
+        """End of stream: process what waits, decide the open contacts, finish them all."""
+        self._advance(self.assembler.flush())
+        self._enqueue(self._timed("track", self.tracker.flush))
+        return self._drain(time.perf_counter(), None)
 
     def in_contact(self) -> np.ndarray:
         """Boolean mask of the taxels in contact now (layout order)."""
         return self._state.in_contact.copy()
 
-    def _classify(self, contacts: list[Contact]) -> list[ContactResult]:
-        self.stats.contacts += len(contacts)
-        return [ContactResult(c, self.classifier.classify(c)) for c in contacts]
+    def _timed(self, stage: str, func: Callable[..., T], *args: object) -> T:
+        t0 = time.perf_counter()
+        out = func(*args)
+        self.stats.seconds[stage] += time.perf_counter() - t0
+        return out
+
+    def _advance(self, samples: Samples) -> None:
+        """Calibrate, detect and track one block of samples; queue the contacts it decides."""
+        self.stats.frames = self.assembler.stats.frames
+        self.stats.gaps = sum(self.assembler.stats.gaps.values())
+        if len(samples) == 0:
+            return
+        temperature, status = self._timed("calibrate", self.calibration.temperature,
+                                          samples.counts)
+        self.stats.samples += len(samples)
+        self.stats.flagged += (status != 0).sum(axis=0)
+        self.last_temperature = temperature[-1]
+        self._now = float(samples.times[-1])
+        events, self._state = self._timed("onset", self.detector.process, samples.times,
+                                          temperature, self._state)
+        self.stats.onsets += sum(e.kind == "onset" for e in events)
+        self.stats.releases += sum(e.kind == "release" for e in events)
+        decided = self._timed("track", self.tracker.update, samples.times, temperature,
+                              samples.ambient + self.ambient_offset, events)
+        self._enqueue(decided)
+
+    def _enqueue(self, decided: list[DecidedContact]) -> None:
+        self._queue.extend(_Deciding(d) for d in decided)
+        self.stats.contacts += len(decided)
+
+    def _drain(self, started: float, budget: float | None) -> list[ContactResult]:
+        """Refine and classify waiting contacts, one step at a time, within the budget."""
+        results: list[ContactResult] = []
+        seconds = self.stats.seconds
+        steps = 0
+        while self._queue:
+            if budget is not None and steps and time.perf_counter() - started >= budget:
+                break
+            steps += 1
+            head = self._queue[0]
+            t0 = time.perf_counter()
+            if len(head.refined) < len(head.decided.members):
+                member = head.decided.members[len(head.refined)]
+                head.refined.append(refine_member(member, self.depth, self.diffusivity,
+                                                  self.tracker.search))
+                seconds["refine"] += time.perf_counter() - t0
+                continue
+            self._queue.popleft()
+            contact = finish_contact(head.decided, self.layout, head.refined, self.window)
+            result = ContactResult(contact, self.classifier.classify(contact), self._now)
+            t1 = time.perf_counter()
+            seconds["classify"] += t1 - t0
+            for sink in self.sinks:
+                sink.write(result)
+            seconds["sinks"] += time.perf_counter() - t1
+            self.stats.results += 1
+            results.append(result)
+        return results

@@ -1,13 +1,20 @@
-"""Contact tracking: group taxel onsets into contacts and cut each taxel's window.
+"""Contact tracking: group taxel onsets into contacts and cut each taxel's samples.
 
 Onsets of neighbouring taxels (by the layout's geometry) within ``join_window`` seconds of each
-other form one contact.  A contact is decided, and handed on for classification, when all its
-taxels are released or when ``window`` seconds have passed since its first onset, whichever
-comes first; each taxel's window then runs from its refined onset to its release or the cut.
+other form one contact.  A contact is decided when all its taxels are released or when
+``window`` seconds have passed since its first onset, whichever comes first; the tracker then
+hands on a `DecidedContact` holding, per taxel, the samples from ``search`` seconds before its
+coarse onset to its release or the cut. `refine_contact` dates each taxel's onset on those
+samples and cuts its window: a step of its own, so that the pipeline can spread the costly
+refinements of many contacts decided at once over the frames that follow.
+
+The tracker's work per sample does not grow with the number of open contacts: decisions wait
+in a heap ordered by their instant, and an onset looks only at its own taxel's neighbours.
 """
 
 from __future__ import annotations
 
+import heapq
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -16,6 +23,54 @@ from skin.contact import Contact, TaxelWindow
 from skin.layout import Layout
 from skin.onset import OnsetEvent
 from skin.onset_refine import refine_onset
+
+
+@dataclass(frozen=True)
+class TaxelSamples:
+    """One taxel of a decided contact, before its onset is refined.
+
+    Attributes
+    ----------
+    index : int
+        Array index of the taxel (layout order).
+    coarse, baseline, slope : float
+        The detector's coarse onset (s), baseline there (deg C) and slope before it (K/s).
+    release : float or None
+        When the temperature stopped falling, s; None if still touching at the decision.
+    end : float
+        Last instant of the taxel's window (release, decision or cut), s.
+    time, temperature, ambient : numpy.ndarray
+        The samples from ``coarse - search`` to ``end`` (copies).
+    """
+
+    index: int
+    coarse: float
+    baseline: float
+    slope: float
+    release: float | None
+    end: float
+    time: np.ndarray
+    temperature: np.ndarray
+    ambient: np.ndarray
+
+
+@dataclass(frozen=True)
+class DecidedContact:
+    """A contact whose taxels are known and whose samples are cut, not yet refined.
+
+    Attributes
+    ----------
+    id : int
+        Running number.
+    decided_at : float
+        Device time of the decision, s.
+    members : list of TaxelSamples
+        In layout order.
+    """
+
+    id: int
+    decided_at: float
+    members: list[TaxelSamples]
 
 
 @dataclass
@@ -32,6 +87,7 @@ class _OpenContact:
     id: int
     first: float
     members: dict[int, _Member] = field(default_factory=dict)
+    when: float = np.inf  # current decision time (heap entries that differ are stale)
 
 
 class _History:
@@ -66,12 +122,12 @@ class _History:
 
 
 class ContactTracker:
-    """Group onsets into contacts and emit them, with their windows, once decided.
+    """Group onsets into contacts and hand them on, with their samples, once decided.
 
     Parameters
     ----------
     layout : Layout
-        Taxel geometry (for neighbours) and sensor constants (for onset refinement).
+        Taxel geometry (for neighbours).
     sample_rate : float
         Samples per second.
     window : float
@@ -79,7 +135,7 @@ class ContactTracker:
     join_window : float
         Onsets of neighbours at most this far apart join one contact, s.
     search : float
-        How far before the coarse onset the refinement looks, s.
+        How far before the coarse onset the samples reach (the refinement's span), s.
     """
 
     def __init__(
@@ -95,13 +151,12 @@ class ContactTracker:
         self.window = window
         self.join_window = join_window
         self.search = search
-        self.neighbours = layout.neighbours()
-        self.depth = layout.board_array("sensor_depth")
-        self.diffusivity = layout.board_array("sensor_diffusivity")
+        self.neighbours = layout.neighbour_lists()
         capacity = int(np.ceil((window + search + join_window + 2.0) * sample_rate))
         self._piece = int(sample_rate)  # a chunk is taken in pieces of at most 1 s
         self._history = _History(capacity + self._piece, len(layout))
-        self._open: list[_OpenContact] = []
+        self._open: dict[int, _OpenContact] = {}
+        self._heap: list[tuple[float, int]] = []  # (decision time, contact id)
         self._owner: dict[int, _OpenContact] = {}
         self._next_id = 0
         self.now = -np.inf
@@ -114,7 +169,7 @@ class ContactTracker:
     def update(
         self, times: np.ndarray, temperature: np.ndarray, ambient: np.ndarray,
         events: list[OnsetEvent],
-    ) -> list[Contact]:
+    ) -> list[DecidedContact]:
         """Take a chunk of samples and the detector's events for it; return decided contacts.
 
         Contacts are decided at instants fixed by the events (never by where a chunk ends),
@@ -123,22 +178,24 @@ class ContactTracker:
         times = np.asarray(times, float)
         temperature = np.asarray(temperature, float)
         ambient = np.asarray(ambient, float)
-        decided: list[Contact] = []
+        decided: list[DecidedContact] = []
         step = self._piece
+        pending = sorted(events, key=lambda ev: ev.detected_at)
+        e = 0
         for i in range(0, len(times), step):  # pieces keep the history long enough
             t_end = float(times[min(i + step, len(times)) - 1])
-            t_begin = float(times[i])
             self._history.append(times[i : i + step], temperature[i : i + step],
                                  ambient[i : i + step])
-            for ev in events:
-                if t_begin <= ev.detected_at <= t_end:
-                    decided += self._decide(before=ev.detected_at, inclusive=False)
-                    self._on_event(ev)
+            while e < len(pending) and pending[e].detected_at <= t_end:
+                ev = pending[e]
+                decided += self._decide(before=ev.detected_at, inclusive=False)
+                self._on_event(ev)
+                e += 1
             self.now = t_end
             decided += self._decide(before=t_end, inclusive=True)
         return decided
 
-    def flush(self) -> list[Contact]:
+    def flush(self) -> list[DecidedContact]:
         """Decide every open contact now (end of stream)."""
         return self._decide(before=np.inf, inclusive=True, at=self.now)
 
@@ -148,72 +205,118 @@ class ContactTracker:
         elif ev.kind == "release" and (owner := self._owner.get(ev.taxel)) is not None:
             owner.members[ev.taxel].release = ev.time
             owner.members[ev.taxel].released_at = ev.detected_at
+            self._schedule(owner)
 
     def _on_onset(self, ev: OnsetEvent) -> None:
         member = _Member(ev.time, ev.baseline, ev.slope)
-        for contact in self._open:
-            if any(
-                self.neighbours[ev.taxel, k] and abs(ev.time - m.coarse) <= self.join_window
-                for k, m in contact.members.items()
-            ):
-                contact.members[ev.taxel] = member
-                self._owner[ev.taxel] = contact
-                return
-        contact = _OpenContact(self._next_id, ev.time, {ev.taxel: member})
-        self._next_id += 1
-        self._open.append(contact)
+        joined = [c for k in self.neighbours[ev.taxel]
+                  if (c := self._owner.get(int(k))) is not None
+                  and abs(ev.time - c.members[int(k)].coarse) <= self.join_window]
+        if joined:
+            contact = min(joined, key=lambda c: c.id)  # the oldest, as in the order of onsets
+        else:
+            contact = _OpenContact(self._next_id, ev.time)
+            self._next_id += 1
+            self._open[contact.id] = contact
+        contact.members[ev.taxel] = member
         self._owner[ev.taxel] = contact
+        self._schedule(contact)
 
-    def _decision_time(self, contact: _OpenContact) -> float:
-        """When a contact is decided: all taxels released (and joining over), or the window cut."""
+    def _schedule(self, contact: _OpenContact) -> None:
+        """(Re)compute when a contact is decided and queue it; older queue entries go stale."""
         cut = contact.first + self.window
         released = [m.released_at for m in contact.members.values()]
+        when = cut
         if all(r is not None for r in released):
-            return min(cut, max(contact.first + self.join_window, max(released)))
-        return cut
+            when = min(cut, max(contact.first + self.join_window, max(released)))
+        if when != contact.when:
+            contact.when = when
+            heapq.heappush(self._heap, (when, contact.id))
 
-    def _decide(self, before: float, inclusive: bool, at: float | None = None) -> list[Contact]:
-        due = []
-        for contact in self._open:
-            when = self._decision_time(contact)
-            if when < before or (inclusive and when <= before):
-                due.append((when if at is None else min(when, at), contact))
-        due.sort(key=lambda item: (item[0], item[1].id))
+    def _decide(self, before: float, inclusive: bool,
+                at: float | None = None) -> list[DecidedContact]:
         done = []
-        for when, contact in due:
-            done.append(self._finish(contact, when))
-            self._open.remove(contact)
+        heap = self._heap
+        while heap and (heap[0][0] < before or (inclusive and heap[0][0] <= before)):
+            when, cid = heapq.heappop(heap)
+            contact = self._open.get(cid)
+            if contact is None or contact.when != when:
+                continue  # stale entry
+            del self._open[cid]
             for k in contact.members:
                 if self._owner.get(k) is contact:
                     del self._owner[k]
+            done.append(self._cut(contact, when if at is None else min(when, at)))
         return done
 
-    def _finish(self, contact: _OpenContact, when: float) -> Contact:
+    def _cut(self, contact: _OpenContact, when: float) -> DecidedContact:
         h = self._history
-        windows, onsets, ambients = [], [], []
+        members = []
         for k, m in sorted(contact.members.items()):
             end = min(m.release if m.release is not None else when, m.coarse + self.window)
             idx = h.between(m.coarse - self.search, end)
-            onset, initial = refine_onset(h.t[idx], h.y[idx, k], m.coarse, m.baseline, m.slope,
-                                          self.depth[k], self.diffusivity[k], search=self.search)
-            end = min(end, onset + self.window)
-            sel = idx[(h.t[idx] >= onset) & (h.t[idx] <= end)]
-            windows.append(TaxelWindow(
-                taxel=int(self.layout.ids[k]), onset=onset, initial=initial,
-                time=h.t[sel] - onset, temperature=h.y[sel, k].copy(),
-                released=m.release is not None,
-            ))
-            onsets.append(onset)
-            ambients.append(h.ambient[sel])
-        releases = [m.release for m in contact.members.values()]
-        amb = np.concatenate(ambients) if ambients else np.array([])
-        amb = amb[np.isfinite(amb)]
-        return Contact(
-            id=contact.id,
-            taxels=[w.taxel for w in windows],
-            onset=float(np.median(onsets)),
-            release=max(releases) if all(r is not None for r in releases) else None,
-            ambient=float(amb.mean()) if amb.size else float("nan"),
-            windows=windows,
-            decided_at=when,
-        )
+            members.append(TaxelSamples(k, m.coarse, m.baseline, m.slope, m.release, end,
+                                        h.t[idx], h.y[idx, k], h.ambient[idx]))
+        return DecidedContact(contact.id, when, members)
+
+
+def refine_contact(decided: DecidedContact, layout: Layout, depth: np.ndarray,
+                   diffusivity: np.ndarray, window: float = 2.5,
+                   search: float = 0.6) -> Contact:
+    """Refine each taxel's onset of a decided contact and cut its window.
+
+    Parameters
+    ----------
+    decided : DecidedContact
+        From `ContactTracker`.
+    layout : Layout
+        For the taxel ids.
+    depth, diffusivity : numpy.ndarray
+        Per taxel (layout order): thermistor depth (m) and sensor diffusivity (m^2/s).
+    window : float
+        Longest window, s.
+    search : float
+        How far before the coarse onset the refinement looks, s.
+
+    Returns
+    -------
+    Contact
+    """
+    return finish_contact(decided, layout, [refine_member(m, depth, diffusivity, search)
+                                            for m in decided.members], window)
+
+
+def refine_member(member: TaxelSamples, depth: np.ndarray, diffusivity: np.ndarray,
+                  search: float = 0.6) -> tuple[float, float]:
+    """Refined onset and initial temperature of one taxel of a decided contact."""
+    k = member.index
+    return refine_onset(member.time, member.temperature, member.coarse, member.baseline,
+                        member.slope, depth[k], diffusivity[k], search=search)
+
+
+def finish_contact(decided: DecidedContact, layout: Layout,
+                   refined: list[tuple[float, float]], window: float = 2.5) -> Contact:
+    """Build the `Contact` from a decided contact and its members' refined onsets."""
+    windows, onsets, ambients = [], [], []
+    for m, (onset, initial) in zip(decided.members, refined, strict=True):
+        end = min(m.end, onset + window)
+        sel = (m.time >= onset) & (m.time <= end)
+        windows.append(TaxelWindow(
+            taxel=int(layout.ids[m.index]), onset=onset, initial=initial,
+            time=m.time[sel] - onset, temperature=m.temperature[sel],
+            released=m.release is not None,
+        ))
+        onsets.append(onset)
+        ambients.append(m.ambient[sel])
+    releases = [m.release for m in decided.members]
+    amb = np.concatenate(ambients) if ambients else np.array([])
+    amb = amb[np.isfinite(amb)]
+    return Contact(
+        id=decided.id,
+        taxels=[w.taxel for w in windows],
+        onset=float(np.median(onsets)),
+        release=max(releases) if all(r is not None for r in releases) else None,
+        ambient=float(amb.mean()) if amb.size else float("nan"),
+        windows=windows,
+        decided_at=decided.decided_at,
+    )

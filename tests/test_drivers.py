@@ -17,6 +17,7 @@ def test_serial_driver_reads_simulated_board_over_a_real_pty(sim):
     with PtySerialDevice(sim, speed=0) as device, skin.drivers.open(
         f"serial://{device.port}"
     ) as driver:
+        device.start()
         got = []
         while len(got) < len(expected):
             frame = driver.recv(timeout=2.0)

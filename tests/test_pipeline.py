@@ -98,10 +98,62 @@ def test_frame_from_unknown_board_is_an_error(scene_frames):
         pipe.process([replace(frames[0], board=9)])
 
 
-def test_two_boards_are_refused_clearly():
+def test_boards_with_different_rates_are_refused_clearly():
     taxels = [Taxel(0, 0, 0, "l", (0, 0, 0), (1, 0, 0)), Taxel(1, 1, 0, "l", (0, 0, 1), (1, 0, 0))]
-    with pytest.raises(SkinError, match="one board"):
-        Pipeline(Layout(taxels, [Board(id=0), Board(id=1)]), classifier=None)
+    layout = Layout(taxels, [Board(id=0), Board(id=1, sample_rate=100.0)])
+    with pytest.raises(SkinError, match="share a sample rate"):
+        Pipeline(layout, classifier=None)
+
+
+def test_spreading_the_work_over_frames_gives_the_same_results_later(scene_frames):
+    scene, frames = scene_frames
+    _, now = run(scene, frames, 1)
+    pipe = Pipeline(scene.layout, HistogramClassifier(scene.layout), budget=0.0)
+    later = []
+    for f in frames:
+        later += pipe.process([f])
+        assert pipe.pending <= 2  # one step a frame keeps up with this scene
+    later += pipe.flush()
+    key = [(r.contact.taxels, round(r.contact.onset, 6), r.estimate.label) for r in now]
+    assert key == [(r.contact.taxels, round(r.contact.onset, 6), r.estimate.label)
+                   for r in later]
+    # a zero budget still does one step a frame: each taxel's refinement, then the label
+    steps = [len(r.contact.taxels) + 1 for r in later]
+    waits = [round((r.reported_at - r.contact.decided_at) * 200) for r in later]
+    assert all(0 <= w for w in waits) and any(w > 0 for w in waits)
+    assert max(waits) <= sum(steps)
+    assert all(0 <= r.reported_at - r.contact.decided_at < 1 / 200 + 1e-9 for r in now)
+    assert pipe.stats.results == pipe.stats.contacts == len(later)
+    assert set(pipe.stats.seconds) == {"assemble", "calibrate", "onset", "track", "refine",
+                                       "classify", "sinks"}
+    assert pipe.stats.seconds["refine"] > 0 and pipe.stats.seconds["onset"] > 0
+
+
+def test_sinks_get_every_result_in_order(scene_frames, tmp_path):
+    import json
+
+    from skin.sinks import JsonLinesSink
+
+    scene, frames = scene_frames
+
+    class Collect:
+        def __init__(self):
+            self.got = []
+
+        def write(self, result):
+            self.got.append(result)
+
+    collect = Collect()
+    with JsonLinesSink(tmp_path / "events.jsonl") as lines:
+        pipe = Pipeline(scene.layout, HistogramClassifier(scene.layout), sinks=[lines, collect])
+        results = []
+        for i in range(0, len(frames), 50):
+            results += pipe.process(frames[i : i + 50])
+        results += pipe.flush()
+    assert collect.got == results and len(results) >= 5
+    records = [json.loads(line) for line in (tmp_path / "events.jsonl").read_text().splitlines()]
+    assert [r["contact"] for r in records] == [r.contact.id for r in results]
+    assert [r["label"] for r in records] == [r.estimate.label for r in results]
 
 
 def test_finite_contact_makes_the_simulated_contact_slower_but_not_different_in_the_end():

@@ -17,6 +17,7 @@ import numpy as np
 
 from skin.pipeline import ContactResult, Pipeline
 from skin.progress import Progress
+from skin.sinks import JsonLinesSink, TerminalSink, event_record
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -50,36 +51,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     run.add_argument("--json", action="store_true",
                      help="print one JSON summary on stdout and nothing else")
     run.set_defaults(func=main)
-
-
-def _event_record(result: ContactResult, truth: str | None = None) -> dict[str, Any]:
-    c, e = result.contact, result.estimate
-    rec: dict[str, Any] = {
-        "contact": c.id,
-        "taxels": c.taxels,
-        "onset": round(c.onset, 4),
-        "release": None if c.release is None else round(c.release, 4),
-        "duration": None if c.duration is None else round(c.duration, 4),
-        "decided_at": round(c.decided_at, 4),
-        "label": e.label,
-        "confidence": round(e.confidence, 3),
-        "effusivity": None if e.effusivity is None else round(e.effusivity, 1),
-        "method": e.method,
-        "initial_temperature": {str(w.taxel): round(w.initial, 3) for w in c.windows},
-        "ambient": round(c.ambient, 3),
-    }
-    if truth is not None:
-        rec["truth"] = truth
-    return rec
-
-
-def _contact_line(rec: dict[str, Any]) -> str:
-    eff = "-" if rec["effusivity"] is None else f"{rec['effusivity']:.0f}"
-    line = (f"contact {rec['contact']:3d}  t={rec['onset']:7.2f} s  taxels "
-            f"{','.join(map(str, rec['taxels'])):<16s} {rec['label']:<11s} e={eff:>6s}")
-    if "truth" in rec:
-        line += f"  truth {rec['truth']:<11s} {'ok' if rec['truth'] == rec['label'] else 'x'}"
-    return line
 
 
 def main(args: argparse.Namespace) -> int:
@@ -136,57 +107,58 @@ def main(args: argparse.Namespace) -> int:
             {int(t.id): s for t, s in zip(layout.taxels, sensors, strict=True)})
     else:
         classifier = HistogramClassifier(layout, materials)
-    pipeline = Pipeline(layout, classifier, calibration=calibration,
-                        sensors=sensors,
-                        ambient_offset=0.0 if not args.calibration else cal_file.ambient_offset)
     results: list[ContactResult] = []
     events_path = out / "events.jsonl"
     t_wall = time.monotonic()
     first_time: float | None = None
-    records: list[dict[str, Any]] = []
+    events = JsonLinesSink(events_path)  # a killed run keeps every contact already given
+    pipeline = Pipeline(layout, classifier, calibration=calibration, sensors=sensors,
+                        ambient_offset=0.0 if not args.calibration else cal_file.ambient_offset,
+                        sinks=[events, TerminalSink(progress)])
     try:
-        with drivers.open(url) as driver, events_path.open("w", encoding="utf-8") as events:
-            def emit(batch: list[ContactResult]) -> None:
-                for r in batch:
-                    rec = _event_record(r)
-                    records.append(rec)
-                    results.append(r)
-                    events.write(json.dumps(rec) + "\n")
-                    events.flush()  # a killed run keeps every contact already decided
-                    progress.message(_contact_line(rec))
-
+        with drivers.open(url) as driver:
+            if device is not None:
+                device.start()  # after the port is open: opening it empties its buffer
             chunk: list = []
             now = 0.0
+            received = 0
+            idle_since = time.monotonic()
             while True:
                 frame = driver.recv(timeout=0.2)
                 if frame is not None:
                     if first_time is None:
                         first_time = frame.device_time
                     chunk.append(frame)
+                    received += 1
                     now = frame.device_time - first_time
+                    idle_since = time.monotonic()
                 idle = frame is None
-                if chunk and (len(chunk) >= 20 or idle):
-                    emit(pipeline.process(chunk))
+                # a simulated board is done once all it sent is in (or after 2 s of silence)
+                end_of_sim = device is not None and device.done.is_set() and (
+                    received >= device.frames_sent or time.monotonic() - idle_since > 2.0)
+                finished = now >= duration - 1e-9 or end_of_sim or (
+                    device is None and idle and time.monotonic() - t_wall > duration + 5)
+                if chunk and (len(chunk) >= 20 or idle or finished):
+                    results.extend(pipeline.process(chunk))
                     chunk = []
                     progress.status(
                         f"[{now:6.1f}/{duration:.1f} s] frames {pipeline.stats.frames}  "
                         f"in contact {int(pipeline.in_contact().sum()):2d}  "
                         f"contacts {len(results)}  crc errors {driver.stats.crc_errors}", now)
-                end_of_sim = device is not None and device.done.is_set() and idle
-                if now >= duration - 1e-9 or end_of_sim:
+                if finished:
                     break
-                if device is None and time.monotonic() - t_wall > duration + 5 and idle:
-                    break
-            emit(pipeline.flush())
+            results.extend(pipeline.flush())
             link = driver.stats
     except KeyboardInterrupt:
         progress.message("interrupted: writing what was received")
         link = None
     finally:
+        events.close()
         progress.done()
         if device is not None:
             device.close()
     wall = time.monotonic() - t_wall
+    records = [event_record(r) for r in results]
 
     summary: dict[str, Any] = {
         "source": "simulation" if scene is not None else url,
@@ -215,9 +187,9 @@ def main(args: argparse.Namespace) -> int:
         for i in unmatched:
             records[i]["truth"] = None
         # the truth is known only once all contacts are matched: rewrite the file with it
-        with events_path.open("w", encoding="utf-8") as events:
+        with events_path.open("w", encoding="utf-8") as file:
             for rec in records:
-                events.write(json.dumps(rec) + "\n")
+                file.write(json.dumps(rec) + "\n")
         summary.update({
             "touches": len(matches),
             "detected": len(detected),

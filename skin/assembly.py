@@ -1,0 +1,175 @@
+"""Frames of one or more boards -> blocks of skin-wide samples in layout order.
+
+The first stage of the pipeline. Each board sends a `Frame` per sample; a skin of several
+boards is sampled in step (the boards share a sync, so one sample carries one sequence number
+on every board) and the assembler puts each sample's frames together into one row of counts
+in layout order (its time is that of the lowest board id present). A sample is complete once
+every board has sent its frame; a board that falls more than ``max_skew`` samples behind
+another is taken as missing for that sample (its taxels' counts
+are NaN, which calibration flags), and its frame for it, should it still come, is counted late
+and dropped: samples leave in order, so the onset detector's time never runs backwards.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from skin.errors import SkinError
+from skin.frame import Frame
+from skin.layout import Layout
+
+_WRAP = 1 << 32
+
+
+@dataclass(frozen=True)
+class Samples:
+    """A block of skin-wide samples.
+
+    Attributes
+    ----------
+    times : numpy.ndarray
+        Device time of each sample, s, (n,).
+    counts : numpy.ndarray
+        ADC counts in layout order, float, NaN where the taxel's board sent nothing, (n, taxels).
+    ambient : numpy.ndarray
+        Ambient temperature, deg C (mean over the boards that sent the sample), (n,).
+    duty : numpy.ndarray
+        Heater duty 0-255 in layout order, NaN where missing, (n, taxels).
+    """
+
+    times: np.ndarray
+    counts: np.ndarray
+    ambient: np.ndarray
+    duty: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.times)
+
+
+@dataclass
+class AssemblyStats:
+    """Counts kept by `FrameAssembler`.
+
+    Attributes
+    ----------
+    frames : int
+        Frames taken.
+    samples : int
+        Samples put out.
+    gaps : dict
+        Board id -> frames missing according to its sequence numbers.
+    missing : dict
+        Board id -> samples put out without that board's frame.
+    late : int
+        Frames that came after their sample had left (dropped).
+    """
+
+    frames: int = 0
+    samples: int = 0
+    gaps: dict[int, int] = field(default_factory=dict)
+    missing: dict[int, int] = field(default_factory=dict)
+    late: int = 0
+
+
+class FrameAssembler:
+    """Put the frames of a layout's boards together into samples (see the module docstring).
+
+    Parameters
+    ----------
+    layout : Layout
+        The skin: which board and channel each taxel is on.
+    max_skew : int
+        How many samples a board may lag behind the others before its frame counts as missing.
+    """
+
+    def __init__(self, layout: Layout, max_skew: int = 20) -> None:
+        self.layout = layout
+        self.max_skew = max_skew
+        self._maps = {b: layout.channel_map(b) for b in layout.boards}
+        self._n = len(layout)
+        self._last_seq: dict[int, int] = {}  # per board: last raw sequence number
+        self._newest: dict[int, int] = {}  # per board: newest unwrapped sequence number
+        self._wraps: dict[int, int] = {b: 0 for b in layout.boards}
+        self._pending: dict[int, dict[int, Frame]] = {}  # unwrapped seq -> board -> frame
+        self._next: int | None = None  # the next sample to put out
+        self.stats = AssemblyStats(gaps={b: 0 for b in layout.boards},
+                                   missing={b: 0 for b in layout.boards})
+
+    def push(self, frames: Sequence[Frame]) -> Samples:
+        """Take frames (any boards, any order within ``max_skew``); return the completed samples.
+
+        Raises
+        ------
+        SkinError
+            A frame from a board the layout does not have, or with fewer channels than the
+            layout addresses on its board.
+        """
+        for f in frames:
+            self._take(f)
+        return self._complete(flush=False)
+
+    def flush(self) -> Samples:
+        """Put out every sample still waiting, its missing boards' taxels NaN."""
+        return self._complete(flush=True)
+
+    def _take(self, f: Frame) -> None:
+        if f.board not in self._maps:
+            raise SkinError(f"frame seq {f.seq} comes from board {f.board}, which is not in "
+                            f"the layout {self.layout.source}")
+        addr = self._maps[f.board][1]
+        if addr.size and len(f.counts) <= addr.max():
+            raise SkinError(f"frame seq {f.seq} of board {f.board} has {len(f.counts)} "
+                            f"channels; the layout addresses channel {int(addr.max())}")
+        self.stats.frames += 1
+        last = self._last_seq.get(f.board)
+        if last is not None:
+            step = (f.seq - last) % _WRAP
+            if 1 < step < (1 << 31):  # a forward jump; repeats and restarts are not gaps
+                self.stats.gaps[f.board] += step - 1
+            if f.seq < last and step < (1 << 31):
+                self._wraps[f.board] += 1
+        self._last_seq[f.board] = f.seq
+        seq = self._wraps[f.board] * _WRAP + f.seq
+        if self._next is not None and seq < self._next:
+            self.stats.late += 1
+            return
+        self._newest[f.board] = max(seq, self._newest.get(f.board, seq))
+        self._pending.setdefault(seq, {})[f.board] = f
+        if self._next is None:
+            self._next = seq
+
+    def _complete(self, flush: bool) -> Samples:
+        ready = []
+        everyone = len(self._maps)
+        newest = max(self._newest.values(), default=-1)
+        while self._pending:
+            seq = min(self._pending)
+            if not (flush or len(self._pending[seq]) == everyone
+                    or newest - seq > self.max_skew):
+                break
+            ready.append(self._pending.pop(seq))
+            self._next = seq + 1
+        return self._assemble(ready)
+
+    def _assemble(self, ready: list[dict[int, Frame]]) -> Samples:
+        n = len(ready)
+        counts = np.full((n, self._n), np.nan)
+        duty = np.full((n, self._n), np.nan)
+        times = np.empty(n)
+        ambient = np.empty(n)
+        for i, got in enumerate(ready):
+            for board, (idx, addr) in self._maps.items():
+                f = got.get(board)
+                if f is None:
+                    self.stats.missing[board] += 1
+                    continue
+                counts[i, idx] = f.counts[addr]
+                duty[i, idx] = f.duty[addr]
+            first = got[min(got)]  # the lowest board id present keeps the time
+            times[i] = first.device_time
+            ambient[i] = float(np.mean([f.ambient for f in got.values()]))
+        self.stats.samples += n
+        return Samples(times, counts, ambient, duty)
