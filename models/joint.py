@@ -144,18 +144,26 @@ class JointContactModel:
         # measured from ambient, so that the sums below stay small (no cancellation)
         t, d, t0 = t[keep], y[:, keep] - t0[:, None], t0 - ambient
         e_o = self.effusivity[:, None, None]
-        # phi: (classes, h x shifts, taxels, samples), taxel i's fraction of (T_obj - T0_i)
-        since = (t[None, :] + self.onset_shifts[:, None]).ravel()
-        phi = np.stack([e_o / (s.effusivity + e_o) * contact_response(
-            since[None, None, :], conductance_rate(self.conductance[:, :, None], s.effusivity,
-                                                   e_o), s) for s in sensors], axis=2)
+        # phi_i: (classes, h, shifts, samples), taxel i's fraction of (T_obj - T0_i). Shifted
+        # sample times mostly coincide (shifts of whole samples): each distinct lag's response
+        # is computed once; taxels with the same constants share phi, and only its sums with
+        # the readings below are kept per taxel
         n_c, n_h = self.conductance.shape
-        phi = phi.reshape(n_c, n_h, t0.size, self.onset_shifts.size, t.size)
-        phi = np.moveaxis(phi, 3, 2).reshape(n_c, n_h * self.onset_shifts.size, t0.size, t.size)
+        n_s = self.onset_shifts.size
+        since = (t[None, :] + self.onset_shifts[:, None]).ravel()
+        lags, where = np.unique(np.round(since, 9), return_inverse=True)
+        pp = np.empty((n_c, n_h * n_s, t0.size))
+        dp = np.empty((n_c, n_h * n_s, t0.size))
+        for sensor in set(sensors):
+            group = [i for i, s in enumerate(sensors) if s == sensor]
+            phi = (e_o / (sensor.effusivity + e_o) * contact_response(
+                lags[None, None, :], conductance_rate(self.conductance[:, :, None],
+                                                      sensor.effusivity, e_o), sensor))
+            phi = phi[..., where].reshape(n_c, n_h * n_s, t.size)
+            pp[..., group] = np.einsum("chn,chn->ch", phi, phi)[..., None]
+            dp[..., group] = np.einsum("in,chn->chi", d[group], phi)
         # z_i = y_i - T0_i + T0_i phi_i = T_obj phi_i + noise (all from ambient)
         s2, tau2 = self.noise**2, self.object_std**2
-        pp = np.sum(phi**2, axis=-1)  # (classes, h, taxels)
-        dp = np.einsum("in,chin->chi", d, phi)
         a = pp.sum(axis=-1)
         b = dp.sum(axis=-1) + pp @ t0
         zz = np.sum(d**2) + 2.0 * dp @ t0 + pp @ t0**2
