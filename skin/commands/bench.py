@@ -10,10 +10,11 @@ taxels (at one initial temperature, or staggered) and reports the accuracy and c
 contact of the joint model that shares the object's temperature between them
 (`skin.models.joint`).
 
-``skin bench pipeline`` pushes a simulated skin of each size through decode, calibrate,
-onset, contact and classify one frame at a time and reports taxel-samples per second, the
-real-time factor at 200 Hz, the per-frame latency and the memory growth
-(`skin.pipeline_bench`).
+``skin bench pipeline`` pushes a simulated skin of each size (boards of 1000 taxels) through
+decode, assemble, calibrate, onset, track, refine and classify one sample at a time and
+reports taxel-samples per second of the chain and of each stage, the real-time factor at
+200 Hz, the per-sample latency, how long results wait for their share of the budget, and the
+memory growth (`skin.pipeline_bench`).
 
 ``skin bench calibration`` runs simulated calibrations (each taxel's constants drawn within
 +-10 % of the paper's, a few contacts with a reference material) and reports how well
@@ -60,9 +61,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     fusion.add_argument("--json", action="store_true", help="print one JSON document")
     fusion.set_defaults(func=main_fusion)
     pipe = kinds.add_parser("pipeline", help="throughput of the streaming chain")
-    pipe.add_argument("--taxels", default="64,1000", help="skin sizes (default 64,1000; one "
-                                                          "board carries at most 1024)")
-    pipe.add_argument("--seconds", type=float, default=20.0, help="simulated seconds (20)")
+    pipe.add_argument("--taxels", default="64,1000,10000",
+                      help="skin sizes (default 64,1000,10000; boards of 1000 taxels)")
+    pipe.add_argument("--seconds", type=float, default=30.0,
+                      help="simulated seconds (30; contacts start in all but the last 10)")
+    pipe.add_argument("--contacts-per-minute", type=float, default=6.0,
+                      help="contacts per taxel and minute (6)")
+    pipe.add_argument("--budget", type=float, default=1.0,
+                      help="ms per sample for refining and classifying; 0: one step a sample, "
+                           "-1: no budget, every contact finished at once (1)")
     pipe.add_argument("--json", action="store_true", help="print one JSON document")
     pipe.set_defaults(func=main_pipeline)
     cal = kinds.add_parser("calibration", help="recovering each taxel's thermal constants")
@@ -229,20 +236,39 @@ def main_pipeline(args: argparse.Namespace) -> int:
         sizes = [int(v) for v in args.taxels.split(",") if v.strip()]
     except ValueError:
         raise SkinError(f"--taxels wants integers, got {args.taxels!r}") from None
-    if not sizes or min(sizes) < 1 or max(sizes) > 1024:
-        raise SkinError("--taxels must lie in 1-1024: one board of protocol v0 carries 1024")
-    if args.seconds <= 0:
-        raise SkinError("--seconds must be positive")
+    if not sizes or min(sizes) < 1:
+        raise SkinError("--taxels must be positive")
+    if args.seconds <= 0 or args.contacts_per_minute < 0:
+        raise SkinError("--seconds must be positive and --contacts-per-minute >= 0")
+    budget = None if args.budget < 0 else args.budget / 1e3
     progress = Progress()
     rows = []
     for n in sizes:
         progress.message(f"{n} taxels x {args.seconds:g} s")
-        rows.append(run(n, args.seconds))
+        rows.append(run(n, args.seconds, contacts_per_minute=args.contacts_per_minute,
+                        budget=budget))
     progress.done()
     doc = {"machine": machine(), "results": rows}
     if args.json:
         print(json.dumps(doc))
         return 0
+    print(f"streaming chain, one sample at a time ({doc['machine']['cpus']} cores; "
+          f"{args.contacts_per_minute:g} contacts per taxel-minute; budget "
+          f"{'none' if budget is None else f'{args.budget:g} ms'})")
+    print("taxel-samples per second, of the chain and of each stage alone:")
+    names = list(rows[0]["stages"])
+    print(f"{'taxels':>7} {'chain':>10} " + " ".join(f"{k:>10}" for k in names))
+    for r in rows:
+        print(f"{r['taxels']:>7} {r['taxel_samples_per_s']:>10} "
+              + " ".join(f"{r['stages'][k] or '-':>10}" for k in names))
+    print(f"\n{'taxels':>7} {'x real time':>11} {'p50 ms':>7} {'p99 ms':>7} {'contacts':>8} "
+          f"{'wait p50 ms':>11} {'wait p99 ms':>11} {'memory MB':>9}")
+    for r in rows:
+        w = r["result_wait_ms"]
+        print(f"{r['taxels']:>7} {r['realtime_factor']:>11} {r['latency_ms']['p50']:>7} "
+              f"{r['latency_ms']['p99']:>7} {r['contacts']:>8} {w['p50']!s:>11} "
+              f"{w['p99']!s:>11} {r['peak_memory_mb_growth']:>9}")
+    return 0
     print(f"streaming chain, one frame at a time ({doc['machine']['cpus']} cores; taxel-samples"
           f" per second)")
     print(f"{'taxels':>6} {'chain':>10} {'decode':>10} {'calibrate':>10} {'onset':>10} "

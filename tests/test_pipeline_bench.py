@@ -1,0 +1,38 @@
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+from skin.pipeline_bench import cylinder_layout, run
+
+SKIN = Path(sys.executable).with_name("skin")
+
+
+def test_bench_skins_are_wired_to_boards_of_a_thousand():
+    layout = cylinder_layout(2500)
+    assert sorted(layout.boards) == [0, 1, 2]
+    assert len(layout.channel_map(2)[0]) == 500 and layout.channel_map(1)[1].max() == 999
+
+
+def test_bench_pipeline_reports_every_stage_and_what_the_budget_delays():
+    row = run(1100, duration=16.0, contacts_per_minute=30.0, budget=0.0)
+    assert row["boards"] == 2 and row["frames"] == 2 * 3200
+    assert set(row["stages"]) == {"decode", "assemble", "calibrate", "onset", "track",
+                                  "refine", "classify", "sinks"}
+    assert row["contacts"] > 100  # 40 % of the taxels touched in the 6th second
+    assert all(v > 0 for v in row["stages"].values())
+    assert 0 < row["latency_ms"]["p50"] <= row["latency_ms"]["p99"]
+    # one step a sample: results wait, by whole samples of 5 ms
+    assert row["result_wait_ms"]["p99"] >= 5.0
+
+
+def test_bench_pipeline_command_prints_one_json_document():
+    out = subprocess.run([str(SKIN), "bench", "pipeline", "--taxels", "16", "--seconds", "3",
+                          "--json"], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    (row,) = json.loads(out.stdout)["results"]
+    assert row["taxels"] == 16 and row["frames"] == 600 and row["budget_ms"] == 1.0
+    assert row["taxel_samples_per_s"] > 0 and row["realtime_factor"] > 0
+    out = subprocess.run([str(SKIN), "bench", "pipeline", "--taxels", "0"],
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 2 and "--taxels" in out.stderr
