@@ -150,3 +150,27 @@ def test_calibrate_thermal_from_water_contacts_then_run_with_it(tmp_path):
                str(tmp_path / "cal.json"), "--no-map", "--out", str(tmp_path / "run"), "--json")
     assert out.returncode == 0, out.stderr
     assert "without a thermistor fit" in out.stderr
+
+
+def test_ambient_offset_is_fitted_from_the_ambient_sensor_at_the_references(tmp_path):
+    layout = load_layout("arm")
+    rng = np.random.default_rng(1)
+    coef = {int(t): (C0, C1) for t in layout.ids}
+    _reference_csv(tmp_path / "refs.csv", layout, rng, coef)
+    lines = (tmp_path / "refs.csv").read_text().splitlines()
+    # the board's LM35 reads 0.4 K low (a reading to 0.1 K, as the paper's sensor gives)
+    with_ambient = [lines[0] + ",ambient_c"] + [
+        f"{row},{float(row.split(',')[1]) - 0.4 + rng.choice([-0.05, 0.05]):.2f}"
+        for row in lines[1:]]
+    (tmp_path / "amb.csv").write_text("\n".join(with_ambient) + "\n")
+    out = skin("calibrate", "thermistors", "--data", str(tmp_path / "amb.csv"),
+               "-o", str(tmp_path / "cal.json"))
+    assert out.returncode == 0, out.stderr
+    assert "ambient offset +0.3" in out.stdout or "ambient offset +0.4" in out.stdout
+    cal_file = load_calibration(tmp_path / "cal.json")
+    assert abs(cal_file.ambient_offset - 0.4) < 0.02 and "ambient" in cal_file.references
+    bad = [with_ambient[0], with_ambient[1].rsplit(",", 1)[0] + ",warm"]
+    (tmp_path / "bad.csv").write_text("\n".join(bad) + "\n")
+    out = skin("calibrate", "thermistors", "--data", str(tmp_path / "bad.csv"),
+               "-o", str(tmp_path / "bad.json"))
+    assert out.returncode == 2 and "bad.csv, line 2" in out.stderr and "ambient_c" in out.stderr

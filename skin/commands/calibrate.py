@@ -3,7 +3,9 @@
 - ``skin calibrate thermistors --data refs.csv -o cal.json``: Steinhart-Hart coefficients per
   taxel (the paper's two-term form, or ``--terms 3``) from ADC counts read with the skin at two
   or more reference temperatures. ``refs.csv`` has the columns ``taxel,reference_c,counts``
-  (one row per taxel and reference; several readings of one reference are averaged).
+  (one row per taxel and reference; several readings of one reference are averaged), and
+  optionally ``ambient_c``: the board's ambient sensor at that reference, from which the
+  ambient offset is fitted (the mean of reference - reading over the rows that give it).
 - ``skin calibrate thermal --data water.npz --reference water -o cal.json``: each taxel's
   diffusivity and conductivity from contacts with a reference material resting at ambient
   (a trial dataset with a ``taxel`` column; `skin.models.sensor_fit`).
@@ -56,9 +58,18 @@ def _existing(path: str):
     return load_calibration(path) if Path(path).exists() else CalibrationFile()
 
 
-def read_references(path: str) -> dict[int, tuple[np.ndarray, np.ndarray]]:
-    """Read ``taxel,reference_c,counts`` rows; return taxel -> (references, mean counts)."""
+def read_references(path: str) -> tuple[dict[int, tuple[np.ndarray, np.ndarray]], list[float]]:
+    """Read ``taxel,reference_c,counts[,ambient_c]`` rows.
+
+    Returns
+    -------
+    references : dict
+        Taxel -> (reference temperatures, mean counts at each).
+    ambient_errors : list of float
+        Reference minus the ambient sensor's reading, for the rows that give ``ambient_c``.
+    """
     rows: dict[int, dict[float, list[float]]] = {}
+    ambient_errors: list[float] = []
     try:
         with open(path, newline="", encoding="utf-8") as fh:
             reader = csv.DictReader(fh)
@@ -77,10 +88,20 @@ def read_references(path: str) -> dict[int, tuple[np.ndarray, np.ndarray]]:
                 if not (np.isfinite(ref) and np.isfinite(counts)):
                     raise SkinError(f"{path}, line {line}: taxel {taxel}: not a finite number")
                 rows.setdefault(taxel, {}).setdefault(ref, []).append(counts)
+                if (row.get("ambient_c") or "").strip():
+                    try:
+                        ambient = float(row["ambient_c"])
+                    except ValueError:
+                        ambient = float("nan")
+                    if not np.isfinite(ambient):
+                        raise SkinError(f"{path}, line {line}: taxel {taxel}: ambient_c must "
+                                        f"be a finite number, got {row['ambient_c']!r}")
+                    ambient_errors.append(ref - ambient)
     except FileNotFoundError:
         raise SkinError(f"{path}: no such file") from None
-    return {k: (np.array(sorted(v)), np.array([np.mean(v[r]) for r in sorted(v)]))
+    refs = {k: (np.array(sorted(v)), np.array([np.mean(v[r]) for r in sorted(v)]))
             for k, v in rows.items()}
+    return refs, ambient_errors
 
 
 def main_thermistors(args: argparse.Namespace) -> int:
@@ -89,7 +110,7 @@ def main_thermistors(args: argparse.Namespace) -> int:
     from skin.layout import load_layout
 
     layout = load_layout(args.layout)
-    refs = read_references(args.data)
+    refs, ambient_errors = read_references(args.data)
     out = _existing(args.out)
     flagged = []
     for taxel, (temps, counts) in sorted(refs.items()):
@@ -113,12 +134,16 @@ def main_thermistors(args: argparse.Namespace) -> int:
     all_refs = sorted({float(x) for v in refs.values() for x in v[0]})
     out.references["thermistor"] = (f"{args.data} ({', '.join(f'{x:g}' for x in all_refs)} C, "
                                     f"{args.terms}-term)")
+    if ambient_errors:
+        out.ambient_offset = round(float(np.mean(ambient_errors)), 4)
+        out.references["ambient"] = f"{args.data} ({len(ambient_errors)} readings)"
     path = out.save(args.out)
     missing = out.missing(layout, "thermistor")
     print(f"wrote {path}: thermistors of {len(refs) - len(flagged)} taxels "
           f"({args.terms}-term); {len(missing)} of the layout's {len(layout)} taxels without "
           f"a thermistor fit" + (f"; open or saturated at a reference: {flagged}"
-                                 if flagged else ""))
+                                 if flagged else "")
+          + (f"; ambient offset {out.ambient_offset:+.3f} K" if ambient_errors else ""))
     return 0
 
 
