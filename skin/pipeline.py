@@ -19,7 +19,10 @@ steps and happen only when a contact is decided, often for many contacts at once
 a queue and, with a ``budget``, each call does only as much of that work as the budget leaves
 (one taxel's refinement or one contact's classification at a time, at least one per call), so
 a burst of contacts is spread over the frames that follow instead of stalling one of them.
-Without a budget every decided contact is finished in the call that decided it.
+A contact that has waited ``max_wait`` seconds (device time) is finished whatever the budget:
+under a load the budget cannot carry, results come late by at most that much, and the calls
+that catch up take longer. Without a budget every decided contact is finished in the call
+that decided it.
 """
 
 from __future__ import annotations
@@ -148,6 +151,8 @@ class Pipeline:
     budget : float, optional
         Seconds per `process` call for refining and classifying decided contacts (see the
         module docstring); None finishes every contact in the call that decided it.
+    max_wait : float
+        Device seconds after its decision by which a contact is finished whatever the budget.
     max_skew : int
         Samples a board may lag the others before its frame counts as missing
         (`skin.assembly.FrameAssembler`).
@@ -165,6 +170,7 @@ class Pipeline:
         ambient_offset: float = 0.0,
         sinks: Iterable[Sink] = (),
         budget: float | None = None,
+        max_wait: float = 0.5,
         max_skew: int = 20,
     ) -> None:
         rates = {b.sample_rate for b in layout.boards.values()}
@@ -191,6 +197,7 @@ class Pipeline:
         self.ambient_offset = float(ambient_offset)
         self.sinks = list(sinks)
         self.budget = budget
+        self.max_wait = float(max_wait)
         self._state = self.detector.initial_state()
         self._queue: deque[_Deciding] = deque()
         self._now = -np.inf
@@ -255,10 +262,11 @@ class Pipeline:
         seconds = self.stats.seconds
         steps = 0
         while self._queue:
-            if budget is not None and steps and time.perf_counter() - started >= budget:
+            head = self._queue[0]
+            if (budget is not None and steps and time.perf_counter() - started >= budget
+                    and self._now - head.decided.decided_at < self.max_wait):
                 break
             steps += 1
-            head = self._queue[0]
             t0 = time.perf_counter()
             if len(head.refined) < len(head.decided.members):
                 member = head.decided.members[len(head.refined)]

@@ -103,8 +103,8 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
         t0 = time.perf_counter()
         results += pipe.process(sample)
         latency[k] = time.perf_counter() - t0
+    results += pipe.flush()  # the contacts still open or waiting at the end
     t_chain = time.perf_counter() - started
-    results += pipe.flush()  # the contacts still open at the end: not part of the stream
     total = t_decode + t_chain
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     waits = np.array([r.reported_at - r.contact.decided_at for r in results]) * 1e3

@@ -124,6 +124,10 @@ def test_spreading_the_work_over_frames_gives_the_same_results_later(scene_frame
     assert max(waits) <= sum(steps)
     assert all(0 <= r.reported_at - r.contact.decided_at < 1 / 200 + 1e-9 for r in now)
     assert pipe.stats.results == pipe.stats.contacts == len(later)
+    # a contact that waited max_wait is finished whatever the budget
+    hurry = Pipeline(scene.layout, HistogramClassifier(scene.layout), budget=0.0, max_wait=0.0)
+    quick = [r for f in frames for r in hurry.process([f])] + hurry.flush()
+    assert all(0 <= r.reported_at - r.contact.decided_at < 1 / 200 + 1e-9 for r in quick)
     assert set(pipe.stats.seconds) == {"assemble", "calibrate", "onset", "track", "refine",
                                        "classify", "sinks"}
     assert pipe.stats.seconds["refine"] > 0 and pipe.stats.seconds["onset"] > 0
