@@ -205,7 +205,7 @@ class ContactTracker:
         elif ev.kind == "release" and (owner := self._owner.get(ev.taxel)) is not None:
             owner.members[ev.taxel].release = ev.time
             owner.members[ev.taxel].released_at = ev.detected_at
-            self._schedule(owner)
+            self._schedule(owner, ev.detected_at)
 
     def _on_onset(self, ev: OnsetEvent) -> None:
         member = _Member(ev.time, ev.baseline, ev.slope)
@@ -220,15 +220,20 @@ class ContactTracker:
             self._open[contact.id] = contact
         contact.members[ev.taxel] = member
         self._owner[ev.taxel] = contact
-        self._schedule(contact)
+        self._schedule(contact, ev.detected_at)
 
-    def _schedule(self, contact: _OpenContact) -> None:
-        """(Re)compute when a contact is decided and queue it; older queue entries go stale."""
+    def _schedule(self, contact: _OpenContact, now: float) -> None:
+        """(Re)compute when a contact is decided and queue it; older queue entries go stale.
+
+        Never before ``now``, the detection of the event that changed it: an onset dated
+        long before it was recognised does not make a decision in the past.
+        """
         cut = contact.first + self.window
         released = [m.released_at for m in contact.members.values()]
         when = cut
         if all(r is not None for r in released):
             when = min(cut, max(contact.first + self.join_window, max(released)))
+        when = max(when, now)
         if when != contact.when:
             contact.when = when
             heapq.heappush(self._heap, (when, contact.id))
