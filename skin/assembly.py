@@ -5,9 +5,9 @@ boards is sampled in step (the boards share a sync, so one sample carries one se
 on every board) and the assembler puts each sample's frames together into one row of counts
 in layout order (its time is that of the lowest board id present). A sample is complete once
 every board has sent its frame; a board that falls more than ``max_skew`` samples behind
-another is taken as missing for that sample (its taxels' counts
-are NaN, which calibration flags), and its frame for it, should it still come, is counted late
-and dropped: samples leave in order, so the onset detector's time never runs backwards.
+another is taken as missing for that sample (its taxels' counts are NaN, which calibration
+flags), and its frame for it, should it still come, is counted late and dropped: samples
+leave in order, so the onset detector's time never runs backwards.
 """
 
 from __future__ import annotations

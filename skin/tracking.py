@@ -4,9 +4,9 @@ Onsets of neighbouring taxels (by the layout's geometry) within ``join_window`` 
 other form one contact.  A contact is decided when all its taxels are released or when
 ``window`` seconds have passed since its first onset, whichever comes first; the tracker then
 hands on a `DecidedContact` holding, per taxel, the samples from ``search`` seconds before its
-coarse onset to its release or the cut. `refine_contact` dates each taxel's onset on those
-samples and cuts its window: a step of its own, so that the pipeline can spread the costly
-refinements of many contacts decided at once over the frames that follow.
+coarse onset to its release or the cut. `refine_member` dates each taxel's onset on those
+samples and `finish_contact` cuts the windows: steps of their own, so that the pipeline can
+spread the costly refinements of many contacts decided at once over the frames that follow.
 
 The tracker's work per sample does not grow with the number of open contacts: decisions wait
 in a heap ordered by their instant, and an onset looks only at its own taxel's neighbours.
@@ -263,32 +263,6 @@ class ContactTracker:
             members.append(TaxelSamples(k, m.coarse, m.baseline, m.slope, m.release, end,
                                         h.t[idx], h.y[idx, k], h.ambient[idx]))
         return DecidedContact(contact.id, when, members)
-
-
-def refine_contact(decided: DecidedContact, layout: Layout, depth: np.ndarray,
-                   diffusivity: np.ndarray, window: float = 2.5,
-                   search: float = 0.6) -> Contact:
-    """Refine each taxel's onset of a decided contact and cut its window.
-
-    Parameters
-    ----------
-    decided : DecidedContact
-        From `ContactTracker`.
-    layout : Layout
-        For the taxel ids.
-    depth, diffusivity : numpy.ndarray
-        Per taxel (layout order): thermistor depth (m) and sensor diffusivity (m^2/s).
-    window : float
-        Longest window, s.
-    search : float
-        How far before the coarse onset the refinement looks, s.
-
-    Returns
-    -------
-    Contact
-    """
-    return finish_contact(decided, layout, [refine_member(m, depth, diffusivity, search)
-                                            for m in decided.members], window)
 
 
 def refine_member(member: TaxelSamples, depth: np.ndarray, diffusivity: np.ndarray,
