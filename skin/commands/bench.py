@@ -269,14 +269,3 @@ def main_pipeline(args: argparse.Namespace) -> int:
               f"{r['latency_ms']['p99']:>7} {r['contacts']:>8} {w['p50']!s:>11} "
               f"{w['p99']!s:>11} {r['peak_memory_mb_growth']:>9}")
     return 0
-    print(f"streaming chain, one frame at a time ({doc['machine']['cpus']} cores; taxel-samples"
-          f" per second)")
-    print(f"{'taxels':>6} {'chain':>10} {'decode':>10} {'calibrate':>10} {'onset':>10} "
-          f"{'contact+cl':>10} {'x real time':>11} {'p50 ms':>7} {'p99 ms':>7}")
-    for r in rows:
-        st = r["stages"]
-        print(f"{r['taxels']:>6} {r['taxel_samples_per_s']:>10} {st['decode']:>10} "
-              f"{st['calibrate']:>10} {st['onset']:>10} {st['contact_and_classify']:>10} "
-              f"{r['realtime_factor']:>11} {r['latency_ms']['p50']:>7} "
-              f"{r['latency_ms']['p99']:>7}")
-    return 0
