@@ -144,24 +144,36 @@ class JointContactModel:
         # measured from ambient, so that the sums below stay small (no cancellation)
         t, d, t0 = t[keep], y[:, keep] - t0[:, None], t0 - ambient
         e_o = self.effusivity[:, None, None]
-        # phi_i: (classes, h, shifts, samples), taxel i's fraction of (T_obj - T0_i). Shifted
-        # sample times mostly coincide (shifts of whole samples): each distinct lag's response
-        # is computed once; taxels with the same constants share phi, and only its sums with
-        # the readings below are kept per taxel
+        # phi_i: (classes, h, shifts, samples), taxel i's fraction of (T_obj - T0_i), enters
+        # only through pp = sum phi_i^2 and dp = sum d_i phi_i. Shifted sample times mostly
+        # coincide (shifts of whole samples): each distinct lag's response R is computed once,
+        # taxels with the same constants share it, and when every shift reads a contiguous run
+        # of lags (a uniform grid) the sums are running sums and matrix products over R
         n_c, n_h = self.conductance.shape
-        n_s = self.onset_shifts.size
+        n_s, n = self.onset_shifts.size, t.size
         since = (t[None, :] + self.onset_shifts[:, None]).ravel()
         lags, where = np.unique(np.round(since, 9), return_inverse=True)
-        pp = np.empty((n_c, n_h * n_s, t0.size))
-        dp = np.empty((n_c, n_h * n_s, t0.size))
+        where = where.reshape(n_s, n)
+        first = where[:, 0]
+        contiguous = bool(np.all(where == first[:, None] + np.arange(n)))
+        pp = np.empty((n_c, n_h, n_s, t0.size))
+        dp = np.empty((n_c, n_h, n_s, t0.size))
         for sensor in set(sensors):
             group = [i for i, s in enumerate(sensors) if s == sensor]
-            phi = (e_o / (sensor.effusivity + e_o) * contact_response(
+            r = (e_o / (sensor.effusivity + e_o) * contact_response(
                 lags[None, None, :], conductance_rate(self.conductance[:, :, None],
                                                       sensor.effusivity, e_o), sensor))
-            phi = phi[..., where].reshape(n_c, n_h * n_s, t.size)
-            pp[..., group] = np.einsum("chn,chn->ch", phi, phi)[..., None]
-            dp[..., group] = np.einsum("in,chn->chi", d[group], phi)
+            if contiguous:
+                run = np.concatenate([np.zeros((n_c, n_h, 1)), np.cumsum(r**2, axis=-1)], -1)
+                pp[..., group] = (run[..., first + n] - run[..., first])[..., None]
+                dg = d[group].T  # (n, taxels of the group)
+                dp[..., group] = np.stack([r[..., o:o + n] @ dg for o in first], axis=2)
+            else:
+                phi = r[..., where]  # (classes, h, shifts, samples)
+                pp[..., group] = np.einsum("chsn,chsn->chs", phi, phi)[..., None]
+                dp[..., group] = np.einsum("in,chsn->chsi", d[group], phi)
+        pp = pp.reshape(n_c, n_h * n_s, t0.size)
+        dp = dp.reshape(n_c, n_h * n_s, t0.size)
         # z_i = y_i - T0_i + T0_i phi_i = T_obj phi_i + noise (all from ambient)
         s2, tau2 = self.noise**2, self.object_std**2
         a = pp.sum(axis=-1)
