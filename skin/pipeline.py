@@ -17,8 +17,9 @@ sinks           `skin.sinks` (JSON lines, terminal...)  `ContactResult` -> where
 The first four stages run on every block of frames. Refining and classifying are the costly
 steps and happen only when a contact is decided, often for many contacts at once; they wait in
 a queue and, with a ``budget``, each call does only as much of that work as the budget leaves
-(one taxel's refinement or one contact's classification at a time, at least one per call), so
-a burst of contacts is spread over the frames that follow instead of stalling one of them.
+(one taxel's refinement or one contact's classification at a time: at least one per call, and
+another only if its usual cost fits in what is left), so a burst of contacts is spread over
+the frames that follow instead of stalling one of them.
 A contact that has waited ``max_wait`` seconds (device time) is finished whatever the budget:
 under a load the budget cannot carry, results come late by at most that much, and the calls
 that catch up take longer. Without a budget every decided contact is finished in the call
@@ -200,6 +201,7 @@ class Pipeline:
         self.max_wait = float(max_wait)
         self._state = self.detector.initial_state()
         self._queue: deque[_Deciding] = deque()
+        self._typical = {"refine": 0.0, "classify": 0.0}  # running mean of a step's cost, s
         self._now = -np.inf
         self.stats = PipelineStats(flagged=np.zeros(len(layout), dtype=np.int64))
         self.last_temperature = np.full(len(layout), np.nan)
@@ -263,22 +265,29 @@ class Pipeline:
         steps = 0
         while self._queue:
             head = self._queue[0]
-            if (budget is not None and steps and time.perf_counter() - started >= budget
+            refining = len(head.refined) < len(head.decided.members)
+            kind = "refine" if refining else "classify"
+            # after the first step, start one only if its usual cost fits what is left
+            if (budget is not None and steps
+                    and time.perf_counter() - started + self._typical[kind] > budget
                     and self._now - head.decided.decided_at < self.max_wait):
                 break
             steps += 1
             t0 = time.perf_counter()
-            if len(head.refined) < len(head.decided.members):
+            if refining:
                 member = head.decided.members[len(head.refined)]
                 head.refined.append(refine_member(member, self.depth, self.diffusivity,
                                                   self.tracker.search))
-                seconds["refine"] += time.perf_counter() - t0
+            else:
+                self._queue.popleft()
+                contact = finish_contact(head.decided, self.layout, head.refined, self.window)
+                result = ContactResult(contact, self.classifier.classify(contact), self._now)
+            spent = time.perf_counter() - t0
+            seconds[kind] += spent
+            self._typical[kind] += 0.1 * (spent - self._typical[kind])
+            if refining:
                 continue
-            self._queue.popleft()
-            contact = finish_contact(head.decided, self.layout, head.refined, self.window)
-            result = ContactResult(contact, self.classifier.classify(contact), self._now)
             t1 = time.perf_counter()
-            seconds["classify"] += t1 - t0
             for sink in self.sinks:
                 sink.write(result)
             seconds["sinks"] += time.perf_counter() - t1
