@@ -57,6 +57,9 @@ class Contact:
         One per taxel.
     decided_at : float
         Device time at which the contact was handed on for classification, s.
+    final : bool
+        False for a provisional snapshot of a contact still open (an anytime answer; the final
+        one follows with the same ``id``).
     """
 
     id: int
@@ -66,6 +69,7 @@ class Contact:
     ambient: float
     windows: list[TaxelWindow] = field(repr=False)
     decided_at: float = 0.0
+    final: bool = True
 
     @property
     def duration(self) -> float | None:

@@ -101,9 +101,9 @@ class PipelineStats:
     onsets, releases : int
         Events seen.
     contacts : int
-        Contacts decided.
+        Contacts decided (final decisions).
     results : int
-        Contacts refined, classified and handed to the sinks.
+        Results handed to the sinks (provisional ones too).
     seconds : dict
         Stage name -> time spent in it, s (`STAGES`).
     """
@@ -157,6 +157,9 @@ class Pipeline:
     max_skew : int
         Samples a board may lag the others before its frame counts as missing
         (`skin.assembly.FrameAssembler`).
+    provisional : sequence of float
+        Seconds after a contact's first onset at which it is also classified while still
+        open (results with ``contact.final`` False; `skin.tracking.ContactTracker`).
     """
 
     def __init__(
@@ -173,6 +176,7 @@ class Pipeline:
         budget: float | None = None,
         max_wait: float = 0.5,
         max_skew: int = 20,
+        provisional: Sequence[float] = (),
     ) -> None:
         rates = {b.sample_rate for b in layout.boards.values()}
         if len(rates) != 1:
@@ -186,7 +190,8 @@ class Pipeline:
         self.assembler = FrameAssembler(layout, max_skew=max_skew)
         self.calibration = calibration or Calibration.from_layout(layout)
         self.detector = detector or OnsetDetector(len(layout))
-        self.tracker = ContactTracker(layout, rates.pop(), window=window)
+        self.tracker = ContactTracker(layout, rates.pop(), window=window,
+                                      provisional=provisional)
         if sensors is not None:
             if len(sensors) != len(layout):
                 raise SkinError(f"{len(sensors)} sensor constants for {len(layout)} taxels")
@@ -256,7 +261,7 @@ class Pipeline:
 
     def _enqueue(self, decided: list[DecidedContact]) -> None:
         self._queue.extend(_Deciding(d) for d in decided)
-        self.stats.contacts += len(decided)
+        self.stats.contacts += sum(d.final for d in decided)
 
     def _drain(self, started: float, budget: float | None) -> list[ContactResult]:
         """Refine and classify waiting contacts, one step at a time, within the budget."""

@@ -26,6 +26,7 @@ def event_record(result: ContactResult) -> dict[str, Any]:
         "release": None if c.release is None else round(c.release, 4),
         "duration": None if c.duration is None else round(c.duration, 4),
         "decided_at": round(c.decided_at, 4),
+        "final": c.final,
         "reported_at": round(result.reported_at, 4),
         "label": e.label,
         "confidence": round(e.confidence, 3),
@@ -39,8 +40,8 @@ def event_record(result: ContactResult) -> dict[str, Any]:
 def contact_line(rec: dict[str, Any]) -> str:
     """Return a line of text for a record of `event_record` (with its ``truth``, if any)."""
     eff = "-" if rec["effusivity"] is None else f"{rec['effusivity']:.0f}"
-    line = (f"contact {rec['contact']:3d}  t={rec['onset']:7.2f} s  taxels "
-            f"{','.join(map(str, rec['taxels'])):<16s} {rec['label']:<11s} e={eff:>6s}")
+    line = (f"contact {rec['contact']:3d}{' ' if rec['final'] else '~'} t={rec['onset']:7.2f} s  "
+            f"taxels {','.join(map(str, rec['taxels'])):<16s} {rec['label']:<11s} e={eff:>6s}")
     if "truth" in rec:
         line += f"  truth {rec['truth']:<11s} {'ok' if rec['truth'] == rec['label'] else 'x'}"
     return line

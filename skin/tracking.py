@@ -15,6 +15,7 @@ in a heap ordered by their instant, and an onset looks only at its own taxel's n
 from __future__ import annotations
 
 import heapq
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,6 +24,9 @@ from skin.contact import Contact, TaxelWindow
 from skin.layout import Layout
 from skin.onset import OnsetEvent
 from skin.onset_refine import refine_onset
+
+#: The heap key of a contact's final decision (provisional snapshots count 0, 1, ...).
+FINAL = 1 << 30
 
 
 @dataclass(frozen=True)
@@ -66,11 +70,14 @@ class DecidedContact:
         Device time of the decision, s.
     members : list of TaxelSamples
         In layout order.
+    final : bool
+        False for a provisional snapshot of a contact still open (its final decision follows).
     """
 
     id: int
     decided_at: float
     members: list[TaxelSamples]
+    final: bool = True
 
 
 @dataclass
@@ -136,6 +143,9 @@ class ContactTracker:
         Onsets of neighbours at most this far apart join one contact, s.
     search : float
         How far before the coarse onset the samples reach (the refinement's span), s.
+    provisional : sequence of float
+        Seconds after a contact's first onset at which a provisional snapshot of it is handed
+        on while it is still open (an anytime answer before the final one); empty: none.
     """
 
     def __init__(
@@ -146,17 +156,25 @@ class ContactTracker:
         window: float = 2.5,
         join_window: float = 0.5,
         search: float = 0.6,
+        provisional: Sequence[float] = (),
     ) -> None:
+        if not window > 0:
+            raise ValueError(f"the window must be positive, got {window} s")
+        if any(not 0 < p < window for p in provisional):
+            raise ValueError(f"provisional instants must lie between 0 and the window "
+                             f"({window} s), got {list(provisional)}")
         self.layout = layout
         self.window = window
         self.join_window = join_window
         self.search = search
+        self.provisional = tuple(sorted(provisional))
         self.neighbours = layout.neighbour_lists()
         capacity = int(np.ceil((window + search + join_window + 2.0) * sample_rate))
         self._piece = int(sample_rate)  # a chunk is taken in pieces of at most 1 s
         self._history = _History(capacity + self._piece, len(layout))
         self._open: dict[int, _OpenContact] = {}
-        self._heap: list[tuple[float, int]] = []  # (decision time, contact id)
+        # (instant, contact id, k): the k-th provisional snapshot, or the final decision (FINAL)
+        self._heap: list[tuple[float, int, int]] = []
         self._owner: dict[int, _OpenContact] = {}
         self._next_id = 0
         self.now = -np.inf
@@ -218,6 +236,9 @@ class ContactTracker:
             contact = _OpenContact(self._next_id, ev.time)
             self._next_id += 1
             self._open[contact.id] = contact
+            for k, p in enumerate(self.provisional):
+                heapq.heappush(self._heap, (max(contact.first + p, ev.detected_at),
+                                            contact.id, k))
         contact.members[ev.taxel] = member
         self._owner[ev.taxel] = contact
         self._schedule(contact, ev.detected_at)
@@ -236,25 +257,32 @@ class ContactTracker:
         when = max(when, now)
         if when != contact.when:
             contact.when = when
-            heapq.heappush(self._heap, (when, contact.id))
+            heapq.heappush(self._heap, (when, contact.id, FINAL))
 
     def _decide(self, before: float, inclusive: bool,
                 at: float | None = None) -> list[DecidedContact]:
         done = []
         heap = self._heap
         while heap and (heap[0][0] < before or (inclusive and heap[0][0] <= before)):
-            when, cid = heapq.heappop(heap)
+            when, cid, k = heapq.heappop(heap)
             contact = self._open.get(cid)
-            if contact is None or contact.when != when:
-                continue  # stale entry
+            if contact is None:
+                continue  # decided already
+            instant = when if at is None else min(when, at)
+            if k != FINAL:
+                if when < contact.when:  # a snapshot after the final decision is not taken
+                    done.append(self._cut(contact, instant, final=False))
+                continue
+            if contact.when != when:
+                continue  # stale entry: the decision moved
             del self._open[cid]
-            for k in contact.members:
-                if self._owner.get(k) is contact:
-                    del self._owner[k]
-            done.append(self._cut(contact, when if at is None else min(when, at)))
+            for m in contact.members:
+                if self._owner.get(m) is contact:
+                    del self._owner[m]
+            done.append(self._cut(contact, instant))
         return done
 
-    def _cut(self, contact: _OpenContact, when: float) -> DecidedContact:
+    def _cut(self, contact: _OpenContact, when: float, final: bool = True) -> DecidedContact:
         h = self._history
         members = []
         for k, m in sorted(contact.members.items()):
@@ -262,7 +290,7 @@ class ContactTracker:
             idx = h.between(m.coarse - self.search, end)
             members.append(TaxelSamples(k, m.coarse, m.baseline, m.slope, m.release, end,
                                         h.t[idx], h.y[idx, k], h.ambient[idx]))
-        return DecidedContact(contact.id, when, members)
+        return DecidedContact(contact.id, when, members, final)
 
 
 def refine_member(member: TaxelSamples, depth: np.ndarray, diffusivity: np.ndarray,
@@ -298,4 +326,5 @@ def finish_contact(decided: DecidedContact, layout: Layout,
         ambient=float(amb.mean()) if amb.size else float("nan"),
         windows=windows,
         decided_at=decided.decided_at,
+        final=decided.final,
     )

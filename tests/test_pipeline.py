@@ -173,3 +173,35 @@ def test_finite_contact_makes_the_simulated_contact_slower_but_not_different_in_
     assert 0 < drop_f < drop_p  # a contact through an air gap draws heat more slowly
     with pytest.raises(ValueError, match="finite"):
         SkinSimulator(scene, contact="sticky")
+
+
+def test_provisional_answers_come_before_the_final_one_and_change_nothing_final(scene_frames):
+    scene, frames = scene_frames
+    _, plain = run(scene, frames, 20)
+    pipe = Pipeline(scene.layout, HistogramClassifier(scene.layout), provisional=(0.5, 1.0))
+    given = []
+    for i in range(0, len(frames), 13):
+        given += pipe.process(frames[i : i + 13])
+    given += pipe.flush()
+    finals = [r for r in given if r.contact.final]
+    key = [(r.contact.taxels, round(r.contact.onset, 6), r.estimate.label) for r in plain]
+    assert key == [(r.contact.taxels, round(r.contact.onset, 6), r.estimate.label)
+                   for r in finals]
+    early = [r for r in given if not r.contact.final]
+    assert early and pipe.stats.contacts == len(finals)
+    position = {id(r): i for i, r in enumerate(given)}
+    final_at = {r.contact.id: position[id(r)] for r in finals}
+    for r in early:
+        # a snapshot of a contact still open, taken 0.5 or 1 s after its first onset
+        assert position[id(r)] < final_at[r.contact.id]
+        first = min(w.onset for w in r.contact.windows)
+        assert r.contact.release is None and r.contact.decided_at > first
+        assert all(w.time[-1] <= r.contact.decided_at - w.onset + 1e-9
+                   for w in r.contact.windows)
+    # long contacts (the 2.5 s pine touch) get both snapshots, short ones fewer
+    per_contact = {}
+    for r in early:
+        per_contact[r.contact.id] = per_contact.get(r.contact.id, 0) + 1
+    assert max(per_contact.values()) == 2
+    with pytest.raises(ValueError, match="provisional"):
+        Pipeline(scene.layout, HistogramClassifier(scene.layout), provisional=(3.0,))

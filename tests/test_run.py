@@ -59,3 +59,24 @@ def test_skin_run_reports_a_bad_scene_cleanly(tmp_path):
                           timeout=60)
     assert proc.returncode == 2
     assert "unobtainium" in proc.stderr and "bad.toml" in proc.stderr
+
+
+@pytest.mark.slow
+def test_skin_run_gives_provisional_answers_when_asked(tmp_path):
+    out = tmp_path / "run"
+    proc = subprocess.run([str(SKIN), "run", "--duration", "6", "--speed", "0", "--out",
+                           str(out), "--json", "--no-map", "--provisional", "0.5,1"],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads(proc.stdout)
+    events = [json.loads(line) for line in (out / "events.jsonl").read_text().splitlines()]
+    finals = [e for e in events if e["final"]]
+    assert len(finals) == summary["contacts"] == summary["detected"] == 5
+    early = [e for e in events if not e["final"]]
+    assert early and {e["contact"] for e in early} <= {e["contact"] for e in finals}
+    assert all(e["truth"] == next(f["truth"] for f in finals if f["contact"] == e["contact"])
+               for e in early)
+    bad = subprocess.run([str(SKIN), "run", "--duration", "1", "--speed", "0", "--out",
+                          str(out), "--provisional", "3"], capture_output=True, text=True,
+                         timeout=300)
+    assert bad.returncode == 2 and "--provisional" in bad.stderr

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from skin.errors import SkinError
 from skin.pipeline import ContactResult, Pipeline
 from skin.progress import Progress
 from skin.sinks import JsonLinesSink, TerminalSink, event_record
@@ -47,6 +48,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     run.add_argument("--calibration", metavar="FILE",
                      help="per-taxel calibration file from `skin calibrate` (thermistors and "
                           "thermal constants; taxels it misses keep their board's constants)")
+    run.add_argument("--window", type=float, default=2.5,
+                     help="decision time: a contact is classified at its release or this many "
+                          "seconds after its onset, whichever comes first (default 2.5)")
+    run.add_argument("--provisional", default="", metavar="SECONDS",
+                     help="also classify contacts still open at these seconds after their "
+                          "onset, e.g. 0.5,1 (anytime answers, marked ~ and \"final\": false)")
     run.add_argument("--no-map", action="store_true", help="do not render contact_map.png")
     run.add_argument("--json", action="store_true",
                      help="print one JSON summary on stdout and nothing else")
@@ -107,14 +114,20 @@ def main(args: argparse.Namespace) -> int:
             {int(t.id): s for t, s in zip(layout.taxels, sensors, strict=True)})
     else:
         classifier = HistogramClassifier(layout, materials)
-    results: list[ContactResult] = []
+    given: list[ContactResult] = []  # every result, provisional ones too
     events_path = out / "events.jsonl"
     t_wall = time.monotonic()
     first_time: float | None = None
+    try:
+        provisional = [float(v) for v in args.provisional.split(",") if v.strip()]
+        pipeline = Pipeline(layout, classifier, calibration=calibration, sensors=sensors,
+                            ambient_offset=0.0 if not args.calibration else
+                            cal_file.ambient_offset, window=args.window,
+                            provisional=provisional)
+    except ValueError as exc:
+        raise SkinError(f"--window / --provisional: {exc}") from None
     events = JsonLinesSink(events_path)  # a killed run keeps every contact already given
-    pipeline = Pipeline(layout, classifier, calibration=calibration, sensors=sensors,
-                        ambient_offset=0.0 if not args.calibration else cal_file.ambient_offset,
-                        sinks=[events, TerminalSink(progress)])
+    pipeline.sinks += [events, TerminalSink(progress)]
     try:
         with drivers.open(url) as driver:
             if device is not None:
@@ -139,15 +152,16 @@ def main(args: argparse.Namespace) -> int:
                 finished = now >= duration - 1e-9 or end_of_sim or (
                     device is None and idle and time.monotonic() - t_wall > duration + 5)
                 if chunk and (len(chunk) >= 20 or idle or finished):
-                    results.extend(pipeline.process(chunk))
+                    given.extend(pipeline.process(chunk))
                     chunk = []
                     progress.status(
                         f"[{now:6.1f}/{duration:.1f} s] frames {pipeline.stats.frames}  "
                         f"in contact {int(pipeline.in_contact().sum()):2d}  "
-                        f"contacts {len(results)}  crc errors {driver.stats.crc_errors}", now)
+                        f"contacts {pipeline.stats.contacts}  "
+                        f"crc errors {driver.stats.crc_errors}", now)
                 if finished:
                     break
-            results.extend(pipeline.flush())
+            given.extend(pipeline.flush())
             link = driver.stats
     except KeyboardInterrupt:
         progress.message("interrupted: writing what was received")
@@ -158,7 +172,8 @@ def main(args: argparse.Namespace) -> int:
         if device is not None:
             device.close()
     wall = time.monotonic() - t_wall
-    records = [event_record(r) for r in results]
+    results = [r for r in given if r.contact.final]
+    records = [event_record(r) for r in given]
 
     summary: dict[str, Any] = {
         "source": "simulation" if scene is not None else url,
@@ -182,10 +197,11 @@ def main(args: argparse.Namespace) -> int:
         errors = [abs(np.log10(results[m.contact_index].estimate.effusivity
                                / materials[m.material].effusivity))
                   for m in detected if results[m.contact_index].estimate.effusivity]
-        for m in detected:
-            records[m.contact_index]["truth"] = m.material
-        for i in unmatched:
-            records[i]["truth"] = None
+        truth: dict[int, str | None] = {results[i].contact.id: None for i in unmatched}
+        truth.update({results[m.contact_index].contact.id: m.material for m in detected})
+        for rec in records:
+            if rec["contact"] in truth:
+                rec["truth"] = truth[rec["contact"]]
         # the truth is known only once all contacts are matched: rewrite the file with it
         with events_path.open("w", encoding="utf-8") as file:
             for rec in records:
@@ -222,7 +238,7 @@ def main(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(summary))
     else:
-        _print_table(records, summary, out)
+        _print_table([r for r in records if r["final"]], summary, out)
     return 0
 
 
