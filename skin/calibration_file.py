@@ -4,11 +4,14 @@ A calibration file is JSON::
 
     {"format": 1, "created": "2026-11-22T08:50:00+00:00", "ambient_offset": 0.0,
      "references": {"thermistor": "refs.csv (20.0, 30.0, 40.0 C)", "thermal": "water"},
+     "boards": {"0": {"divider_resistor": 667.4, "supply_voltage": 5.04}},
      "taxels": {"0": {"thermistor": [c0, c1, c2], "diffusivity": ..., "conductivity": ...,
-                      "depth": ...}, ...}}
+                      "depth": ..., "heater_resistance": ...}, ...}}
 
 Every taxel entry may hold the thermistor's Steinhart-Hart coefficients, the sensor's thermal
-constants, or both; what it lacks falls back to the board's nominal constants. `apply` turns a
+constants, its heater's resistance, or any of them; a board entry the divider's measured
+constants (``divider_resistor``, ``supply_voltage``, ``adc_reference``) and the heaters'
+resistance; what an entry lacks falls back to the layout's nominal board constants. `apply` turns a
 file into the vectorised `skin.calibration.Calibration` and the per-taxel sensor constants of
 a layout, and says which taxels the file does not cover, so that they are flagged, never
 silently treated as calibrated.
@@ -31,6 +34,8 @@ from skin.layout import Layout
 
 FORMAT = 1
 THERMAL = ("diffusivity", "conductivity", "depth")
+#: Measured board constants a calibration file may hold (`skin calibrate board`).
+BOARD = ("divider_resistor", "supply_voltage", "adc_reference", "heater_resistance")
 
 
 class CalibrationFileError(SkinError):
@@ -48,6 +53,8 @@ class CalibrationFile:
         ``conductivity``, ``depth`` and fit diagnostics.
     references : dict
         What each part was fitted from.
+    boards : dict
+        Board id -> dict with any of `BOARD`'s measured constants.
     ambient_offset : float
         Added to the ambient sensor's reading, K.
     created : str
@@ -58,6 +65,7 @@ class CalibrationFile:
     references: dict[str, str] = field(default_factory=dict)
     ambient_offset: float = 0.0
     created: str = ""
+    boards: dict[int, dict[str, float]] = field(default_factory=dict)
 
     def save(self, path: str | Path) -> Path:
         """Write the file (JSON), stamping the date."""
@@ -66,6 +74,7 @@ class CalibrationFile:
         self.created = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
         doc = {"format": FORMAT, "created": self.created, "ambient_offset": self.ambient_offset,
                "references": self.references,
+               "boards": {str(k): v for k, v in sorted(self.boards.items())},
                "taxels": {str(k): v for k, v in sorted(self.taxels.items())}}
         path.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
         return path
@@ -76,23 +85,31 @@ class CalibrationFile:
         return [int(t.id) for t in layout.taxels
                 if not all(k in self.taxels.get(int(t.id), {}) for k in keys)]
 
+    def board(self, layout: Layout, board: int) -> Any:
+        """Return the layout's `skin.layout.Board` with this file's measured constants."""
+        return dataclasses.replace(layout.boards[board], **self.boards.get(board, {}))
+
     def apply(self, layout: Layout) -> tuple[Calibration, list]:
         """Return the layout's `Calibration` and per-taxel `SensorConstants` from this file.
 
-        Taxels the file does not cover keep their board's nominal constants (see `missing`).
+        Taxels the file does not cover keep their board's constants (see `missing`).
         """
         from skin.models.physics import SensorConstants
 
-        cal = Calibration.from_layout(layout)
+        boards = {b: self.board(layout, b) for b in layout.boards}
+        measured = Layout(layout.taxels, list(boards.values()), name=layout.name,
+                          source=layout.source)
+        cal = Calibration.from_layout(measured)
         c = np.vstack([cal.c0, cal.c1, np.zeros_like(cal.c0)]).T.copy()
         sensors = []
         for i, t in enumerate(layout.taxels):
             entry = self.taxels.get(int(t.id), {})
             if "thermistor" in entry:
                 c[i] = entry["thermistor"]
-            s = SensorConstants.from_board(layout.boards[t.board])
+            s = SensorConstants.from_board(boards[t.board])
             sensors.append(dataclasses.replace(
-                s, **{k: float(entry[k]) for k in THERMAL if k in entry}))
+                s, **{k: float(entry[k]) for k in (*THERMAL, "heater_resistance")
+                      if k in entry}))
         cal = dataclasses.replace(cal, c0=c[:, 0], c1=c[:, 1], c2=c[:, 2],
                                   source=f"calibration file ({self.created})")
         return cal, sensors
@@ -125,13 +142,31 @@ def load_calibration(path: str | Path) -> CalibrationFile:
                     or not all(isinstance(v, int | float) for v in coef) or coef[1] <= 0):
                 raise CalibrationFileError(f"{path}: taxel {tid}: 'thermistor' must be three "
                                            f"numbers [c0, c1, c2] with c1 > 0, got {coef!r}")
-        for k in THERMAL:
-            if k in entry and not (isinstance(entry[k], int | float) and entry[k] > 0):
+        for k in (*THERMAL, "heater_resistance"):
+            if k in entry and not _positive(entry[k]):
                 raise CalibrationFileError(f"{path}: taxel {tid}: {k!r} must be a positive "
                                            f"number, got {entry[k]!r}")
         taxels[tid] = entry
+    boards: dict[int, dict[str, float]] = {}
+    for key, entry in (doc.get("boards") or {}).items():
+        try:
+            bid = int(key)
+        except ValueError:
+            raise CalibrationFileError(f"{path}: board id {key!r} is not an integer") from None
+        if not isinstance(entry, dict) or set(entry) - set(BOARD):
+            raise CalibrationFileError(f"{path}: board {bid}: entry must be an object with "
+                                       f"any of {', '.join(BOARD)}, got {entry!r}")
+        for k, v in entry.items():
+            if not _positive(v):
+                raise CalibrationFileError(f"{path}: board {bid}: {k!r} must be a positive "
+                                           f"number, got {v!r}")
+        boards[bid] = {k: float(v) for k, v in entry.items()}
     offset = doc.get("ambient_offset", 0.0)
     if not isinstance(offset, int | float) or not np.isfinite(offset):
         raise CalibrationFileError(f"{path}: 'ambient_offset' must be a number, got {offset!r}")
     return CalibrationFile(taxels, dict(doc.get("references") or {}), float(offset),
-                           str(doc.get("created", "")))
+                           str(doc.get("created", "")), boards)
+
+
+def _positive(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and 0 < value < np.inf

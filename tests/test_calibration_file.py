@@ -174,3 +174,34 @@ def test_ambient_offset_is_fitted_from_the_ambient_sensor_at_the_references(tmp_
     out = skin("calibrate", "thermistors", "--data", str(tmp_path / "bad.csv"),
                "-o", str(tmp_path / "bad.json"))
     assert out.returncode == 2 and "bad.csv, line 2" in out.stderr and "ambient_c" in out.stderr
+
+
+def test_measured_board_constants_are_kept_and_applied(tmp_path):
+    layout = load_layout("arm")
+    path = tmp_path / "cal.json"
+    out = skin("calibrate", "board", "--board", "0", "--divider-resistor", "660",
+               "--heater-resistance", "20.5", "-o", str(path))
+    assert out.returncode == 0, out.stderr
+    out = skin("calibrate", "board", "--board", "0", "--supply-voltage", "5.0", "-o", str(path))
+    assert out.returncode == 0, out.stderr
+    cal_file = load_calibration(path)
+    assert cal_file.boards == {0: {"divider_resistor": 660.0, "heater_resistance": 20.5,
+                                   "supply_voltage": 5.0}}
+    cal, sensors = cal_file.apply(layout)
+    assert np.all(cal.divider_resistor == 660.0) and np.all(cal.supply_voltage == 5.0)
+    assert all(s.heater_resistance == 20.5 for s in sensors)
+    # the same counts read through the measured divider: a different temperature
+    counts = np.full((1, len(layout)), 600.0)
+    nominal = Calibration.from_layout(layout).temperature(counts)[0]
+    assert np.all(np.abs(cal.temperature(counts)[0] - nominal) > 0.1)
+    show = json.loads(skin("calibrate", "show", str(path), "--json").stdout)
+    assert show["boards"] == {"0": cal_file.boards[0]}
+    for bad, says in ((["--board", "7", "--supply-voltage", "5"], "board 7"),
+                      (["--board", "0"], "at least one"),
+                      (["--board", "0", "--supply-voltage", "-5"], "positive")):
+        out = skin("calibrate", "board", *bad, "-o", str(tmp_path / "x.json"))
+        assert out.returncode == 2 and says in out.stderr
+    text = path.read_text().replace('"supply_voltage": 5.0', '"supply_voltage": "five"')
+    (tmp_path / "broken.json").write_text(text)
+    with pytest.raises(CalibrationFileError, match="board 0: 'supply_voltage' must be"):
+        load_calibration(tmp_path / "broken.json")

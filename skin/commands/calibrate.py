@@ -9,6 +9,9 @@
 - ``skin calibrate thermal --data water.npz --reference water -o cal.json``: each taxel's
   diffusivity and conductivity from contacts with a reference material resting at ambient
   (a trial dataset with a ``taxel`` column; `skin.models.sensor_fit`).
+- ``skin calibrate board --board 0 --divider-resistor 667.4 ... -o cal.json``: a board's
+  measured divider constants and heater resistance (used from then on by the thermistor fit,
+  by the counts-to-temperature conversion and by the sensor model).
 - ``skin calibrate show cal.json``: what the file holds, and the layout's taxels it misses.
 
 A calibration file that exists is updated, not replaced: the thermistor and thermal parts can
@@ -45,6 +48,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     tm.add_argument("--duration", type=float, default=1.5, help="seconds of contact used")
     tm.add_argument("-o", "--out", required=True, help="calibration file to write or update")
     tm.set_defaults(func=main_thermal)
+    bd = kinds.add_parser("board", help="a board's measured divider constants and heaters")
+    bd.add_argument("--board", type=int, required=True, help="board id")
+    bd.add_argument("--layout", default="arm", help="layout (default: arm)")
+    for name, what in (("divider-resistor", "divider's reference resistor, ohm"),
+                       ("supply-voltage", "divider's supply V+, V"),
+                       ("adc-reference", "ADC reference voltage, V"),
+                       ("heater-resistance", "heaters' resistance, ohm")):
+        bd.add_argument(f"--{name}", type=float, help=f"measured {what}")
+    bd.add_argument("-o", "--out", required=True, help="calibration file to write or update")
+    bd.set_defaults(func=main_board)
     show = kinds.add_parser("show", help="what a calibration file holds")
     show.add_argument("file", help="calibration file")
     show.add_argument("--layout", default="arm", help="layout to check it against")
@@ -116,7 +129,7 @@ def main_thermistors(args: argparse.Namespace) -> int:
     for taxel, (temps, counts) in sorted(refs.items()):
         if taxel not in layout:
             raise SkinError(f"{args.data}: taxel {taxel} is not in layout {layout.source}")
-        board = layout.boards[layout.taxels[layout.index(taxel)].board]
+        board = out.board(layout, layout.taxels[layout.index(taxel)].board)
         adc_max = 2**board.adc_bits - 1
         if np.any(counts <= 0) or np.any(counts >= adc_max):
             flagged.append(taxel)  # open or saturated at a reference: no fit
@@ -191,6 +204,30 @@ def main_thermal(args: argparse.Namespace) -> int:
     return 0
 
 
+def main_board(args: argparse.Namespace) -> int:
+    """Keep a board's measured constants."""
+    from skin.calibration_file import BOARD
+    from skin.layout import load_layout
+
+    layout = load_layout(args.layout)
+    if args.board not in layout.boards:
+        raise SkinError(f"board {args.board} is not in layout {layout.source} (boards "
+                        f"{sorted(layout.boards)})")
+    given = {k: getattr(args, k) for k in BOARD if getattr(args, k) is not None}
+    if not given:
+        raise SkinError("give at least one of --divider-resistor, --supply-voltage, "
+                        "--adc-reference, --heater-resistance")
+    bad = {k: v for k, v in given.items() if not (0 < v < np.inf)}
+    if bad:
+        raise SkinError(f"board {args.board}: constants must be positive: {bad}")
+    out = _existing(args.out)
+    out.boards.setdefault(args.board, {}).update(given)
+    path = out.save(args.out)
+    print(f"wrote {path}: board {args.board}: "
+          + ", ".join(f"{k} {v:g}" for k, v in out.boards[args.board].items()))
+    return 0
+
+
 def main_show(args: argparse.Namespace) -> int:
     """Describe a calibration file against a layout."""
     from skin.calibration_file import load_calibration
@@ -200,6 +237,7 @@ def main_show(args: argparse.Namespace) -> int:
     layout = load_layout(args.layout)
     doc = {"file": args.file, "created": cal.created, "references": cal.references,
            "ambient_offset": cal.ambient_offset, "taxels": len(cal.taxels),
+           "boards": {str(k): v for k, v in cal.boards.items()},
            "missing_thermistor": cal.missing(layout, "thermistor"),
            "missing_thermal": cal.missing(layout, "thermal"),
            "unknown_taxels": sorted(k for k in cal.taxels if k not in layout)}
@@ -212,6 +250,8 @@ def main_show(args: argparse.Namespace) -> int:
         miss = doc[f"missing_{part}"]
         print(f"{part}: {len(layout) - len(miss)} of {len(layout)} taxels"
               + (f"; missing {miss[:12]}{' ...' if len(miss) > 12 else ''}" if miss else ""))
+    for board, values in cal.boards.items():
+        print(f"board {board}: " + ", ".join(f"{k} {v:g}" for k, v in values.items()))
     if doc["unknown_taxels"]:
         print(f"taxels not in the layout: {doc['unknown_taxels']}")
     return 0
