@@ -20,6 +20,14 @@ conductance from the material's range; the thermistor follows the closed-form co
 response from the temperature it had. After release, the reading returns to the free reading
 with the taxel's recovery (a fast 2 s part and the slow mode), so a taxel reheats after each
 contact.
+
+Most objects are cooler than the heated taxel, so a contact makes its reading fall. With
+``warm`` > 0, that fraction of the contacts with materials that hold no temperature of their own
+(all but skin) touch an object hotter than the taxel (a hot mug, a warm machine part): its
+temperature is the taxel's at contact plus a margin drawn uniformly from ``warm_margin``, heat
+flows into the sensor and the reading rises, then falls back after release. With ``warm`` = 0
+(the default) no draw is made for it: the same seed gives the same stream as before warm
+objects existed.
 """
 
 from __future__ import annotations
@@ -72,6 +80,11 @@ class StreamContact:
         """Length of the contact, s."""
         return self.release - self.onset
 
+    @property
+    def direction(self) -> int:
+        """-1 if the object was cooler than the taxel (its reading falls), +1 if warmer."""
+        return 1 if self.object_temperature > self.sensor_temperature else -1
+
 
 @dataclass
 class Stream:
@@ -116,7 +129,8 @@ def _lag(x: np.ndarray, tau: float, fs: float, start: np.ndarray) -> np.ndarray:
 def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration: float = 600.0,
                     contacts_per_minute: float = 1.0, object_offset: tuple[float, float] = (0, 0),
                     ambient: float = 25.0, fs: float = 200.0, seed: int = 0,
-                    disturbances: bool = True, tau: float = 62.5) -> Stream:
+                    disturbances: bool = True, tau: float = 62.5, warm: float = 0.0,
+                    warm_margin: tuple[float, float] = (2.0, 25.0)) -> Stream:
     """Simulate ``n_taxels`` taxels for ``duration`` s; see the module docstring.
 
     Parameters
@@ -141,6 +155,11 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
         Heater switching, ambient drift and air currents (False: a quiet heated taxel).
     tau : float
         The taxel's slowest thermal time constant, s.
+    warm : float
+        Fraction of the contacts (with materials without a temperature of their own) that touch
+        an object hotter than the taxel, in [0, 1].
+    warm_margin : tuple of float
+        Range of a warm object's temperature above the taxel's at contact, K.
 
     Returns
     -------
@@ -150,6 +169,8 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
         raise ValueError("n_taxels, duration and fs must be positive, the contact rate >= 0")
     if not materials:
         raise ValueError("simulate_stream needs at least one material")
+    if not 0.0 <= warm <= 1.0 or warm_margin[0] < 0 or warm_margin[1] < warm_margin[0]:
+        raise ValueError("warm must lie in [0, 1] and warm_margin be a range of margins >= 0")
     rng = np.random.default_rng(seed)
     sensor = SensorConstants()
     n = round(duration * fs)
@@ -193,6 +214,8 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
             k0 = int(np.ceil(t * fs))
             k1 = int(np.ceil((t + length) * fs))
             t0 = float(reading[k0 - 1, j])
+            if warm > 0 and mat.temperature is None and rng.random() < warm:
+                t_obj = t0 + rng.uniform(*warm_margin)
             since = times[k0:k1] - t
             reading[k0:k1, j] = contact_trace(since, t0, t_obj, mat.effusivity, sensor, h)
             # after release: back to the free reading, fast at first, then slowly

@@ -1,11 +1,26 @@
 """Streaming contact onset and release detection from each taxel's temperature alone.
 
 Contact with an object cooler than the heated taxel makes its temperature fall below what its
-recent trend predicts.  Per taxel the detector smooths the reading, keeps a level-and-slope baseline
-(Holt's linear smoother) and a one-sided CUSUM of the shortfall below that baseline; the CUSUM
-crossing its threshold is an onset, the moment it left zero is the coarse onset time.  While in
-contact the baseline is frozen; release is the rise of the smoothed temperature above its
-minimum, dated at the minimum.  `skin.onset_refine.refine_onset` then dates the onset
+recent trend predicts; contact with an object warmer than the taxel (a hot mug, a warm machine
+part) makes heat flow into the sensor and its temperature rise above it.  Per taxel the
+detector smooths the reading, keeps a level-and-slope baseline (Holt's linear smoother) and two
+one-sided CUSUMs, of the shortfall below that baseline and of the excess above it; a CUSUM
+crossing its threshold is an onset (a fall, ``direction`` -1, or a rise, +1), the moment it
+left zero is the coarse onset time.  A slow channel compares the reading with a slow average
+of it, for falls too slow for the CUSUM (poor conductors through an air gap).
+
+What rises without a contact is told apart so: the heater's duty stepping up and ambient drift
+move the reading slowly (through the taxel's ~63 s mode), and the baseline follows them; the
+taxel's recovery after a release decelerates, so it leaves the baseline on the side away from
+a new contact, and nothing accumulates during ``warmup``; a rise that begins right after the
+reading fell (a gust's recovery, the reheat after a touch too brief to be reported) is not a
+warm object (``rebound``).
+
+In contact the baseline follows the in-contact trend.  Release is the return of the smoothed
+temperature from its in-contact extreme (a rise above the minimum after a fall, a fall below
+the maximum after a rise), dated at the extreme, or the trend stopping short (the CUSUM of the
+other sign), dated where that CUSUM left zero: a taxel still reheating from an earlier contact
+keeps rising after a warm touch ends.  `skin.onset_refine.refine_onset` then dates the onset
 precisely by fitting the heated sensor's contact response to the window.
 
 The detector is vectorised over taxels and keeps all its state in `DetectorState`: processing
@@ -31,14 +46,18 @@ class OnsetEvent:
         Array index of the taxel (layout order).
     time : float
         Estimated instant of the event, s (device time): for an onset, when the temperature
-        left its baseline; for a release, when it stopped falling.
+        left its baseline; for a release, when it stopped moving away from it.
     detected_at : float
         Time of the sample at which the event was recognised, s.
     baseline : float
         For an onset: the baseline temperature extrapolated to ``time``, deg C.
-        For a release: the (smoothed) lowest temperature reached, deg C.
+        For a release: the (smoothed) in-contact extreme, deg C: the lowest temperature
+        reached for a fall (``direction`` -1), the highest for a rise (+1).
     slope : float
         For an onset: the baseline slope before contact, deg C / s.  For a release: 0.
+    direction : int
+        -1: the reading fell (an object cooler than the taxel); +1: it rose (an object
+        warmer than the taxel, heat flowing into the sensor).  A release has its onset's.
     """
 
     kind: str
@@ -47,11 +66,19 @@ class OnsetEvent:
     detected_at: float
     baseline: float
     slope: float
+    direction: int = -1
 
 
 @dataclass(frozen=True)
 class DetectorState:
-    """Per-taxel state of `OnsetDetector` (arrays of length n_taxels)."""
+    """Per-taxel state of `OnsetDetector` (arrays of length n_taxels).
+
+    ``direction`` is 0 while free, -1 or +1 in contact (the onset's direction; ``in_contact``
+    is ``direction != 0``); ``extreme`` and ``t_extreme`` hold the in-contact minimum (after a
+    fall) or maximum (after a rise) and its time.  ``recover_until`` and ``recover_dir`` mark
+    the taxel's recovery after a release, during which the slow channel's average follows the
+    reading in the recovery's direction (``recover_dir`` = minus the contact's direction).
+    """
 
     level: np.ndarray
     slope: np.ndarray
@@ -59,14 +86,20 @@ class DetectorState:
     var: np.ndarray
     cusum: np.ndarray
     t_start: np.ndarray
+    rise_cusum: np.ndarray
+    rise_start: np.ndarray
     in_contact: np.ndarray
+    direction: np.ndarray
     smooth: np.ndarray
-    minimum: np.ndarray
-    t_minimum: np.ndarray
+    extreme: np.ndarray
+    t_extreme: np.ndarray
     armed_at: np.ndarray
     t_last: np.ndarray
     slow: np.ndarray
     slow_start: np.ndarray
+    recover_until: np.ndarray
+    recover_dir: np.ndarray
+    t_fell: np.ndarray
 
     def copy(self) -> DetectorState:
         """Return a deep copy."""
@@ -85,18 +118,23 @@ class OnsetDetector:
     slope_tau : float
         Time constant of the baseline slope, s.
     drift : float
-        Least CUSUM allowance, deg C: shortfalls smaller than this (or than 4 noise standard
-        deviations, if larger) do not accumulate.
+        Least CUSUM allowance, deg C: departures from the baseline smaller than this (or than
+        4 noise standard deviations, if larger) do not accumulate.
     threshold : float
-        CUSUM alarm threshold, deg C x samples.
+        Alarm threshold of the falling CUSUM, deg C x samples.
+    rise_threshold : float
+        Alarm threshold of the rising CUSUM (warm objects), deg C x samples; ``inf`` turns
+        rises off.
     noise_floor : float
         Lowest standard deviation assumed for the smoothed reading, deg C.
     noise_tau : float
         Time constant of the noise variance estimate, s.
     warmup : float
-        Time after the first sample (and after a release) before onsets are reported, s.
+        Time after the first sample (and after a release) before onsets are reported, s; a
+        free taxel's CUSUMs do not accumulate before it.
     release_rise : float
-        Rise of the smoothed temperature above its in-contact minimum that marks a release, deg C.
+        Return of the smoothed temperature from its in-contact extreme that marks a release
+        (a rise above the minimum after a fall, a fall below the maximum after a rise), deg C.
     smooth_tau : float
         Time constant of the smoothing applied to the readings before detection, s.
     stale : float
@@ -110,6 +148,22 @@ class OnsetDetector:
         heater switching give within ``slow_tau``).
     slow_begin : float
         Fall below the slow average that dates a slow contact's coarse onset, deg C.
+    recovery : float
+        After a release, the slow average follows the recovering reading (up after a fall, down
+        after a rise) for this long, s, so that the taxel's return to its free reading (a
+        fall of kelvins after a warm object) is not taken for a slow contact.
+    release_slack : float
+        In contact, the baseline follows the reading's trend and the CUSUM of the other sign
+        watches for the trend stopping short (the contact's end when the reading does not come
+        back past its extreme: a warm touch on a taxel still reheating keeps rising after it);
+        departures smaller than this times the trend's slope (s) do not accumulate, which
+        covers the baseline's lag behind the decelerating in-contact trend.
+    contact_slope_tau : float
+        Time constant of the baseline slope in contact, s.
+    rebound : float
+        A rise that begins within this long after the reading fell (the falling CUSUM above a
+        tenth of its threshold) is the taxel reheating, after a gust or a touch too brief to be
+        reported, and raises no onset, s.
     """
 
     def __init__(
@@ -120,6 +174,7 @@ class OnsetDetector:
         slope_tau: float = 0.5,
         drift: float = 0.03,
         threshold: float = 0.6,
+        rise_threshold: float = 0.6,
         noise_floor: float = 0.003,
         noise_tau: float = 5.0,
         warmup: float = 0.5,
@@ -129,12 +184,17 @@ class OnsetDetector:
         slow_tau: float = 3.0,
         slow_threshold: float = 0.6,
         slow_begin: float = 0.1,
+        recovery: float = 10.0,
+        release_slack: float = 0.05,
+        contact_slope_tau: float = 0.2,
+        rebound: float = 1.0,
     ) -> None:
         self.n_taxels = n_taxels
         self.level_tau = level_tau
         self.slope_tau = slope_tau
         self.drift = drift
         self.threshold = threshold
+        self.rise_threshold = rise_threshold
         self.noise_floor = noise_floor
         self.noise_tau = noise_tau
         self.warmup = warmup
@@ -144,6 +204,10 @@ class OnsetDetector:
         self.slow_tau = slow_tau
         self.slow_threshold = slow_threshold
         self.slow_begin = slow_begin
+        self.recovery = recovery
+        self.release_slack = release_slack
+        self.contact_slope_tau = contact_slope_tau
+        self.rebound = rebound
 
     def initial_state(self) -> DetectorState:
         """Return the state before the first sample."""
@@ -156,14 +220,20 @@ class OnsetDetector:
             var=np.full(n, self.noise_floor**2),
             cusum=np.zeros(n),
             t_start=nan.copy(),
+            rise_cusum=np.zeros(n),
+            rise_start=nan.copy(),
             in_contact=np.zeros(n, dtype=bool),
+            direction=np.zeros(n),
             smooth=nan.copy(),
-            minimum=nan.copy(),
-            t_minimum=nan.copy(),
+            extreme=nan.copy(),
+            t_extreme=nan.copy(),
             armed_at=np.full(n, np.inf),
             t_last=nan.copy(),
             slow=nan.copy(),
             slow_start=nan.copy(),
+            recover_until=np.full(n, -np.inf),
+            recover_dir=np.zeros(n),
+            t_fell=np.full(n, -np.inf),
         )
 
     def process(
@@ -215,70 +285,139 @@ class OnsetDetector:
         sigma = np.sqrt(np.maximum(s.var, self.noise_floor**2))
         allowance = np.maximum(self.drift, 4.0 * sigma)
         idle = live & ~s.in_contact
+        armed = t >= s.armed_at
+        # in contact the baseline follows the reading's in-contact trend, and the CUSUM of the
+        # other sign watches for the contact's end: a fall stopping short, or a rise
+        cool = live & (s.direction < 0)
+        warm = live & (s.direction > 0)
+        watch_fall, watch_rise = idle | warm, idle | cool
+        # the trend in contact decelerates and the baseline lags it by a fraction of its slope:
+        # only a departure beyond that counts
+        slack = np.where(cool | warm, np.maximum(allowance, self.release_slack * np.abs(s.slope)),
+                         allowance)
 
-        # CUSUM of the shortfall below the baseline, in deg C x samples
-        g_old = s.cusum
-        g = np.where(idle, np.maximum(0.0, g_old - resid - allowance), g_old)
-        starting = idle & (g_old == 0) & (g > 0)
+        # CUSUMs of the shortfall below and the excess above the baseline, deg C x samples;
+        # a free taxel's accumulate only once it is armed (the baseline is still catching the
+        # reading's trend at start and during the fast recovery after a release)
+        g_old, u_old = s.cusum, s.rise_cusum
+        g = np.where(watch_fall, np.maximum(0.0, g_old - resid - slack), g_old)
+        u = np.where(watch_rise, np.maximum(0.0, u_old + resid - slack), u_old)
+        unarmed = idle & ~armed
+        g[unarmed] = 0.0
+        u[unarmed] = 0.0
+        starting = watch_fall & (g_old == 0) & (g > 0)
         s.t_start[starting] = s.t_last[starting]
-        stale = idle & (g > 0) & (t - s.t_start > self.stale)
-        alarm = idle & (g > self.threshold) & (t >= s.armed_at) & ~stale
+        starting = watch_rise & (u_old == 0) & (u > 0)
+        s.rise_start[starting] = s.t_last[starting]
+        stale = watch_fall & (g > 0) & (t - s.t_start > self.stale)
+        rise_stale = watch_rise & (u > 0) & (t - s.rise_start > self.stale)
+        fell = (g > self.threshold) & ~stale
+        rose = (u > self.rise_threshold) & ~rise_stale
+        alarm = idle & fell & armed
+        # a rise that begins right after the reading fell is the taxel reheating (after a touch
+        # too brief to be reported, or a gust), not a warm object
+        rebound = idle & rose & (s.rise_start - s.t_fell <= self.rebound)
+        rise_alarm = idle & rose & armed & ~alarm & ~rebound
+        stopped = (warm & fell) | (cool & rose)
         for k in np.flatnonzero(alarm):
             t0 = float(s.t_start[k])
             events.append(OnsetEvent("onset", int(k), t0, t,
                                      float(s.level[k] + s.slope[k] * (t0 - s.t_level[k])),
-                                     float(s.slope[k])))
+                                     float(s.slope[k]), -1))
+        for k in np.flatnonzero(rise_alarm):
+            t0 = float(s.rise_start[k])
+            events.append(OnsetEvent("onset", int(k), t0, t,
+                                     float(s.level[k] + s.slope[k] * (t0 - s.t_level[k])),
+                                     float(s.slope[k]), 1))
         # the slow channel: a fall below the slow average of the smoothed reading
         fall = np.where(idle, s.slow - s.smooth, 0.0)
         begins = idle & (fall > self.slow_begin) & np.isnan(s.slow_start)
         s.slow_start[begins] = s.t_last[begins]
         s.slow_start[idle & (fall <= self.slow_begin)] = np.nan
-        slow_alarm = (idle & ~alarm & (fall > self.slow_threshold) & (t >= s.armed_at)
+        slow_alarm = (idle & ~alarm & ~rise_alarm & (fall > self.slow_threshold) & armed
                       & np.isfinite(s.slow_start))
         for k in np.flatnonzero(slow_alarm):
             events.append(OnsetEvent("onset", int(k), float(s.slow_start[k]), t,
-                                     float(s.slow[k]), 0.0))
+                                     float(s.slow[k]), 0.0, -1))
+        t0 = np.where(alarm, s.t_start, s.rise_start)
         alarm = alarm | slow_alarm
-        s.slow_start[alarm] = np.nan
+        onset = alarm | rise_alarm
+        rebase = onset
+        s.slow_start[onset] = np.nan
         c = 1 - np.exp(-dt / self.slow_tau)
-        calm = idle & ~alarm
+        calm = idle & ~onset
         s.slow[calm] += c[calm] * (s.smooth[calm] - s.slow[calm])
+        # while the taxel recovers from a release, the slow average keeps up with it
+        catch = calm & (t < s.recover_until) & (s.recover_dir * (s.smooth - s.slow) > 0)
+        s.slow[catch] = s.smooth[catch]
 
-        s.in_contact[alarm] = True
-        s.minimum[alarm] = s.smooth[alarm]
-        s.t_minimum[alarm] = t
-        g[alarm | stale] = 0.0
+        s.in_contact[onset] = True
+        s.direction[alarm] = -1.0
+        s.direction[rise_alarm] = 1.0
+        s.extreme[onset] = s.smooth[onset]
+        s.t_extreme[onset] = t
+        # from the onset on (or a reheat's rebound), the baseline follows the trend from where
+        # the reading is now
+        if rebase.any():
+            o = rebase & np.isfinite(t0)
+            since = np.maximum(t - t0[o], 1e-3)
+            start = s.level[o] + s.slope[o] * (t0[o] - s.t_level[o])
+            s.slope[o] = (s.smooth[o] - start) / since
+            s.slope[rebase & ~o] = 0.0
+            s.level[rebase] = s.smooth[rebase]
+            s.t_level[rebase] = t
+        s.t_fell[idle & (g > self.threshold / 10)] = t
+        g[onset | stale] = 0.0
+        u[onset | rebound | rise_stale] = 0.0
         s.cusum[:] = g
+        s.rise_cusum[:] = u
 
-        # the baseline follows the signal until there is real evidence of contact
-        follow = idle & ~alarm & (g <= self.threshold / 4)
+        # the baseline follows the signal until there is real evidence of contact (or, in
+        # contact, of its end)
+        fall_ok = g <= self.threshold / 4
+        rise_ok = u <= self.rise_threshold / 4
+        follow = ((idle & ~onset & fall_ok & rise_ok) | (warm & ~stopped & fall_ok)
+                  | (cool & ~stopped & rise_ok))
         a = 1 - np.exp(-dt / self.level_tau)
-        b = 1 - np.exp(-dt / self.slope_tau)
+        b = 1 - np.exp(-dt / np.where(idle, self.slope_tau, self.contact_slope_tau))
         err = a * resid
         s.level[follow] = pred[follow] + err[follow]
         s.slope[follow] += (b * err / dt)[follow]
         s.t_level[follow] = t
-        quiet = follow & (g == 0)
+        quiet = follow & idle & (g == 0) & (u == 0)
         v = 1 - np.exp(-dt / self.noise_tau)
         s.var[quiet] += v[quiet] * (resid[quiet] ** 2 - s.var[quiet])
 
-        # release: the smoothed temperature rises clearly above its minimum
-        touching = live & s.in_contact & ~alarm
-        lower = touching & (s.smooth < s.minimum)
-        s.minimum[lower] = s.smooth[lower]
-        s.t_minimum[lower] = t
-        rise = np.maximum(self.release_rise, 4 * sigma)
-        released = touching & (s.smooth - s.minimum > rise)
+        # release: the smoothed temperature returns clearly from its in-contact extreme, or
+        # its departure stops short of the in-contact trend
+        touching = live & s.in_contact & ~onset
+        d = s.direction
+        further = touching & (d * (s.smooth - s.extreme) > 0)
+        s.extreme[further] = s.smooth[further]
+        s.t_extreme[further] = t
+        back = np.maximum(self.release_rise, 4 * sigma)
+        returned = touching & (d * (s.extreme - s.smooth) > back)
+        stopped &= touching & ~returned
+        released = returned | stopped
+        # a contact that stopped short ended where its CUSUM left zero, if not at its extreme
+        turn = np.where(warm, s.t_start, s.rise_start)
+        s.t_extreme[stopped] = np.minimum(s.t_extreme[stopped], turn[stopped])
         for k in np.flatnonzero(released):
-            events.append(OnsetEvent("release", int(k), float(s.t_minimum[k]), t,
-                                     float(s.minimum[k]), 0.0))
+            events.append(OnsetEvent("release", int(k), float(s.t_extreme[k]), t,
+                                     float(s.extreme[k]), 0.0, int(d[k])))
         if released.any():
             r = released
             s.in_contact[r] = False
-            s.slope[r] = (s.smooth[r] - s.minimum[r]) / np.maximum(t - s.t_minimum[r], 1e-3)
+            s.recover_dir[r] = -d[r]
+            s.recover_until[r] = t + self.recovery
+            s.direction[r] = 0.0
+            s.slope[returned] = ((s.smooth - s.extreme) / np.maximum(t - s.t_extreme, 1e-3)
+                                 )[returned]
+            s.slope[stopped] = 0.0
             s.level[r] = s.smooth[r]
             s.t_level[r] = t
             s.cusum[r] = 0.0
+            s.rise_cusum[r] = 0.0
             s.armed_at[r] = t + self.warmup
             s.slow[r] = s.smooth[r]
             s.slow_start[r] = np.nan

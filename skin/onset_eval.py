@@ -4,7 +4,9 @@
 every detected onset with `skin.onset_refine.refine_onset`, and matches the detections to the true
 contacts of the same taxel: a detection whose coarse onset falls between 0.1 s before a
 contact's onset and 0.1 s after its release belongs to that contact; the first one detects
-it, any further one in the same contact and any that belongs to none is a false alarm.
+it, any further one in the same contact and any that belongs to none is a false alarm. Given
+each contact's direction (a cool object: the reading falls; a warm one: it rises), the figures
+are also given for each direction apart.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from skin.onset import OnsetDetector
+from skin.onset import OnsetDetector, OnsetEvent
 from skin.onset_refine import refine_onset
 from skin.summary import median_p95
 
@@ -26,7 +28,8 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
                     truth: Sequence[tuple[int, float, float]], fs: float,
                     min_duration: float = 0.3, chunk: int = 20,
                     depth: float = 8e-5, diffusivity: float = 2.796e-9,
-                    progress: Callable[[int, int], None] | None = None) -> dict:
+                    progress: Callable[[int, int], None] | None = None,
+                    directions: Sequence[int] | None = None) -> dict:
     """Measure the detector's detection rate, false alarms, delay, onset error and cost.
 
     Parameters
@@ -50,6 +53,9 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
         Sensor constants for the onset refinement.
     progress : callable, optional
         Called as ``progress(done, total)`` with samples processed.
+    directions : sequence of int, optional
+        For each contact of ``truth``, -1 if the object was cooler than the taxel (its reading
+        falls) or +1 if warmer (it rises); adds ``by_direction``.
 
     Returns
     -------
@@ -58,9 +64,16 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
         ``detection_rate_all``, ``false_alarms``, ``taxel_hours``,
         ``false_alarms_per_taxel_hour``, ``delay_ms``, ``visible_ms`` (the floor, for the
         detected contacts) and ``onset_error_ms`` (median and p95 of the absolute values; the
-        signed median too), the detector's and the refinement's cost, and
-        ``detected_flags``: for each contact of ``truth``, whether it was detected.
+        signed median too), the detector's and the refinement's cost,
+        ``false_alarms_by_direction`` (``"fall"`` and ``"rise"``: the direction the detector
+        gave them), ``detected_flags``: for each contact of ``truth``, whether it was detected,
+        and with ``directions``, ``by_direction``: for ``"cool"`` and ``"warm"`` contacts,
+        ``contacts_counted``, ``detection_rate``, ``detection_rate_all``, ``right_direction``
+        (the share of the detected ones whose onset had the contact's direction), ``delay_ms``
+        and ``onset_error_ms``.
     """
+    if directions is not None and len(directions) != len(truth):
+        raise ValueError("directions needs one entry per contact of truth")
     y = np.asarray(temperature, dtype=float)
     n, n_taxels = y.shape
     detector = OnsetDetector(n_taxels)
@@ -84,49 +97,68 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
         if len(row) > 3:
             visible[(taxel, len(spans))] = float(row[3])
         spans.append((on, off))
-    found: dict[tuple[int, int], object] = {}
-    false_alarms = 0
+    found: dict[tuple[int, int], OnsetEvent] = {}
+    false_alarms = {"fall": 0, "rise": 0}
     for ev in onsets:
         spans = by_taxel.get(ev.taxel, [])
         hit = next((i for i, (on, off) in enumerate(spans)
                     if on - EARLY <= ev.time <= off + EARLY), None)
         if hit is None or (ev.taxel, hit) in found:
-            false_alarms += 1
+            false_alarms["rise" if ev.direction > 0 else "fall"] += 1
         else:
             found[(ev.taxel, hit)] = ev
     started = time.perf_counter()
-    delay, error, floor = [], [], []
+    delay: dict[tuple[int, int], float] = {}
+    error: dict[tuple[int, int], float] = {}
+    floor = []
     for (taxel, i), ev in found.items():
         on, _ = by_taxel[taxel][i]
         lo, hi = np.searchsorted(times, [ev.time - 0.6, ev.time + 0.6])
         refined, _ = refine_onset(times[lo:hi], y[lo:hi, taxel], ev.time, ev.baseline,
                                   ev.slope, depth, diffusivity)
-        delay.append(ev.detected_at - on)
-        error.append(refined - on)
+        delay[(taxel, i)] = ev.detected_at - on
+        error[(taxel, i)] = refined - on
         if (taxel, i) in visible:
             floor.append(visible[(taxel, i)])
     refine_s = time.perf_counter() - started
-    long_enough = [(t, i) for t, spans in by_taxel.items() for i, (on, off) in enumerate(spans)
-                   if off - on >= min_duration]
-    total = sum(len(s) for s in by_taxel.values())
     hours = n_taxels * n / fs / 3600.0
-    err = np.asarray(error)
-    dly = np.asarray(delay)
-
-    return {
-        "contacts": total, "contacts_counted": len(long_enough),
+    spans_of = {key: by_taxel[key[0]][key[1]] for key in keys}
+    n_false = sum(false_alarms.values())
+    result = {
+        **_figures(keys, spans_of, found, delay, error, min_duration),
         "min_duration": min_duration, "detected": len(found),
-        "detection_rate": round(sum((t, i) in found for t, i in long_enough)
-                                / max(len(long_enough), 1), 4),
-        "detection_rate_all": round(len(found) / max(total, 1), 4),
-        "false_alarms": false_alarms, "taxel_hours": round(hours, 3),
-        "false_alarms_per_taxel_hour": round(false_alarms / hours, 3),
-        "delay_ms": median_p95(np.abs(dly), 1e3, 1),
+        "false_alarms": n_false, "false_alarms_by_direction": false_alarms,
+        "taxel_hours": round(hours, 3),
+        "false_alarms_per_taxel_hour": round(n_false / hours, 3),
         "visible_ms": (median_p95(np.asarray(floor)[np.isfinite(floor)], 1e3, 1) if floor
                        else None),
-        "onset_error_ms": {**median_p95(np.abs(err), 1e3, 1), "signed_median": None if err.size == 0
-                           else round(1e3 * float(np.median(err)), 1)},
         "detector_us_per_taxel_sample": round(1e6 * detect_s / (n * n_taxels), 4),
         "refine_ms_per_onset": round(1e3 * refine_s / max(len(found), 1), 3),
         "detected_flags": [k in found for k in keys],
+    }
+    if directions is not None:
+        result["by_direction"] = {}
+        for name, sign in (("cool", -1), ("warm", 1)):
+            group = [k for k, d in zip(keys, directions, strict=True) if (d > 0) == (sign > 0)]
+            figures = _figures(group, spans_of, found, delay, error, min_duration)
+            got = [found[k] for k in group if k in found]
+            figures["right_direction"] = (round(sum(e.direction == sign for e in got) / len(got), 4)
+                                          if got else None)
+            result["by_direction"][name] = figures
+    return result
+
+
+def _figures(keys: Sequence[tuple[int, int]], spans: dict, found: dict, delay: dict,
+             error: dict, min_duration: float) -> dict:
+    """Return the detection rates, delay and onset error of the contacts ``keys``."""
+    counted = [k for k in keys if spans[k][1] - spans[k][0] >= min_duration]
+    err = np.asarray([error[k] for k in keys if k in found])
+    dly = np.asarray([delay[k] for k in keys if k in found])
+    return {
+        "contacts": len(keys), "contacts_counted": len(counted),
+        "detection_rate": round(sum(k in found for k in counted) / max(len(counted), 1), 4),
+        "detection_rate_all": round(sum(k in found for k in keys) / max(len(keys), 1), 4),
+        "delay_ms": median_p95(np.abs(dly), 1e3, 1),
+        "onset_error_ms": {**median_p95(np.abs(err), 1e3, 1), "signed_median": None if err.size == 0
+                           else round(1e3 * float(np.median(err)), 1)},
     }

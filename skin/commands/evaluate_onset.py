@@ -2,7 +2,10 @@
 
 By default it simulates a skin's stream (`skin.models.streams`): minutes of mostly
 contact-free time per taxel with heater switching, ambient drift and air currents (``--quiet``
-leaves them out), and contacts of 0.1-5 s with the table's materials. ``--data trials.npz``
+leaves them out), and contacts of 0.1-5 s with the table's materials; ``--warm FRACTION`` makes
+that fraction of them warm objects, hotter than the heated taxel by 2-25 K (the reading rises
+instead of falling), and the figures are then also given for cool and warm contacts apart.
+``--data trials.npz``
 runs the detector over each trial's whole recording instead (one taxel per trial; the
 dataset's onsets are the truth). It reports the detection rate of contacts longer than
 ``--min-duration``, false alarms per taxel-hour, the detection delay, the error of the refined
@@ -38,6 +41,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--materials", default=MATERIALS, help="comma-separated materials touched")
     ev.add_argument("--object-offset", type=float, default=0.0,
                     help="objects within +-OFFSET K of their resting temperature")
+    ev.add_argument("--warm", type=float, default=0.0, metavar="FRACTION",
+                    help="fraction of contacts with objects hotter than the taxel by 2-25 K "
+                         "(default 0; skin keeps its own temperature)")
     ev.add_argument("--quiet", action="store_true",
                     help="no heater switching, ambient drift or air currents")
     ev.add_argument("--min-duration", type=float, default=0.3,
@@ -80,18 +86,23 @@ def main(args: argparse.Namespace) -> int:
             raise SkinError(f"unknown material(s) {', '.join(unknown) or '(none given)'}")
         if args.taxels < 1 or args.minutes <= 0:
             raise SkinError("--taxels and --minutes must be positive")
+        if not 0.0 <= args.warm <= 1.0:
+            raise SkinError("--warm must lie between 0 and 1")
         progress.message(f"simulating {args.taxels} taxels x {args.minutes:g} min")
         stream = simulate_stream([table[n] for n in names], n_taxels=args.taxels,
                                  duration=60.0 * args.minutes, contacts_per_minute=args.rate,
                                  object_offset=(-args.object_offset, args.object_offset),
-                                 disturbances=not args.quiet, seed=args.seed)
+                                 disturbances=not args.quiet, seed=args.seed, warm=args.warm)
         times, temperature, fs = stream.times, stream.temperature, stream.fs
         contacts = stream.contacts
         truth = [(c.taxel, c.onset, c.release, c.visible_after) for c in contacts]
+        directions = [c.direction for c in contacts]
         source = (f"simulated stream ({args.taxels} taxels, {args.minutes:g} min, "
-                  f"{'quiet' if args.quiet else 'with disturbances'}, seed {args.seed})")
+                  f"{'quiet' if args.quiet else 'with disturbances'}, "
+                  + (f"{args.warm:g} warm, " if args.warm else "") + f"seed {args.seed})")
     result = evaluate_onsets(times, temperature, truth, fs, min_duration=args.min_duration,
-                             progress=lambda d, n: progress.bar(d, n, "samples", started))
+                             progress=lambda d, n: progress.bar(d, n, "samples", started),
+                             directions=None if args.data else directions)
     progress.done()
     flags = result.pop("detected_flags")
     if contacts is not None:
@@ -111,9 +122,11 @@ def main(args: argparse.Namespace) -> int:
     print(f"{source}: {doc['contacts']} contacts, {doc['taxel_hours']} taxel-hours "
           f"({doc['machine']['cpus']} cores)")
     d, e, v = doc["delay_ms"], doc["onset_error_ms"], doc.get("visible_ms")
+    fa = doc["false_alarms_by_direction"]
     print(f"detected {doc['detection_rate']:.2%} of contacts >= {args.min_duration:g} s "
           f"({doc['detection_rate_all']:.2%} of all); false alarms "
-          f"{doc['false_alarms_per_taxel_hour']:g} per taxel-hour ({doc['false_alarms']})")
+          f"{doc['false_alarms_per_taxel_hour']:g} per taxel-hour ({doc['false_alarms']}: "
+          f"{fa['fall']} falls, {fa['rise']} rises)")
     print(f"delay median {d['median']} ms, p95 {d['p95']} ms"
           + (f" (the reading first stands out of the noise after {v['median']} ms, median)"
              if v and v["median"] is not None else ""))
@@ -121,6 +134,15 @@ def main(args: argparse.Namespace) -> int:
           f"{e['signed_median']} ms")
     print(f"cost: detector {doc['detector_us_per_taxel_sample']} us per taxel-sample, "
           f"refinement {doc['refine_ms_per_onset']} ms per onset")
+    for name, g in doc.get("by_direction", {}).items():
+        if g["contacts"]:
+            right = g["right_direction"]
+            print(f"{name} contacts: detected {g['detection_rate']:.2%} of "
+                  f"{g['contacts_counted']} >= {args.min_duration:g} s "
+                  f"({g['detection_rate_all']:.2%} of {g['contacts']})"
+                  + (f", {right:.2%} with the right direction" if right is not None else "")
+                  + f"; delay median {g['delay_ms']['median']} ms; onset error median "
+                  f"{g['onset_error_ms']['median']} ms, p95 {g['onset_error_ms']['p95']} ms")
     if by_material:
         print("detected by material: " + ", ".join(
             f"{k} {v['detected']}/{v['contacts']}" for k, v in by_material.items()))
