@@ -260,11 +260,14 @@ class OnsetDetector:
         s = state.copy()
         events: list[OnsetEvent] = []
         temperature = np.asarray(temperature, dtype=float).reshape(len(times), self.n_taxels)
+        taus = np.array([self.smooth_tau, self.slow_tau, self.level_tau, self.slope_tau,
+                         self.contact_slope_tau, self.noise_tau])[:, None]
         for t, y in zip(np.asarray(times, dtype=float), temperature, strict=True):
-            self._step(float(t), y, s, events)
+            self._step(float(t), y, s, events, taus)
         return events, s
 
-    def _step(self, t: float, y: np.ndarray, s: DetectorState, events: list[OnsetEvent]) -> None:
+    def _step(self, t: float, y: np.ndarray, s: DetectorState, events: list[OnsetEvent],
+              taus: np.ndarray) -> None:
         valid = np.isfinite(y)
         new = valid & np.isnan(s.level)
         if new.any():
@@ -278,8 +281,10 @@ class OnsetDetector:
         if not live.any():
             return
         dt = np.maximum(np.where(live, t - s.t_last, 1.0), 1e-9)
+        # every smoothing gain at once: smooth, slow, level, slope (free, in contact), noise
+        gain = 1 - np.exp(-dt / taus)
         # the smoothed reading averages noise and dithered ADC steps; everything runs on it
-        s.smooth[live] += (y[live] - s.smooth[live]) * (1 - np.exp(-dt[live] / self.smooth_tau))
+        s.smooth[live] += (y[live] - s.smooth[live]) * gain[0, live]
         pred = s.level + s.slope * (t - s.t_level)
         resid = np.where(live, s.smooth - pred, 0.0)
         sigma = np.sqrt(np.maximum(s.var, self.noise_floor**2))
@@ -344,7 +349,7 @@ class OnsetDetector:
         onset = alarm | rise_alarm
         rebase = onset
         s.slow_start[onset] = np.nan
-        c = 1 - np.exp(-dt / self.slow_tau)
+        c = gain[1]
         calm = idle & ~onset
         s.slow[calm] += c[calm] * (s.smooth[calm] - s.slow[calm])
         # while the taxel recovers from a release, the slow average keeps up with it
@@ -378,14 +383,14 @@ class OnsetDetector:
         rise_ok = u <= self.rise_threshold / 4
         follow = ((idle & ~onset & fall_ok & rise_ok) | (warm & ~stopped & fall_ok)
                   | (cool & ~stopped & rise_ok))
-        a = 1 - np.exp(-dt / self.level_tau)
-        b = 1 - np.exp(-dt / np.where(idle, self.slope_tau, self.contact_slope_tau))
+        a = gain[2]
+        b = np.where(idle, gain[3], gain[4])
         err = a * resid
         s.level[follow] = pred[follow] + err[follow]
         s.slope[follow] += (b * err / dt)[follow]
         s.t_level[follow] = t
         quiet = follow & idle & (g == 0) & (u == 0)
-        v = 1 - np.exp(-dt / self.noise_tau)
+        v = gain[5]
         s.var[quiet] += v[quiet] * (resid[quiet] ** 2 - s.var[quiet])
 
         # release: the smoothed temperature returns clearly from its in-contact extreme, or
