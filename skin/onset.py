@@ -173,7 +173,7 @@ class OnsetDetector:
         level_tau: float = 0.1,
         slope_tau: float = 0.5,
         drift: float = 0.03,
-        threshold: float = 0.6,
+        threshold: float = 0.4,
         rise_threshold: float = 0.6,
         noise_floor: float = 0.003,
         noise_tau: float = 5.0,
