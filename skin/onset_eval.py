@@ -1,7 +1,8 @@
 """Judge the streaming onset detector against streams whose contacts are known.
 
 `evaluate_onsets` runs `skin.onset.OnsetDetector` over a multi-taxel stream in chunks, dates
-every detected onset with `skin.onset_refine.refine_onset`, and matches the detections to the true
+every detected onset with `skin.onset_refine.refine_onset` on the samples up to the taxel's
+detected release (as the pipeline's tracker cuts them), and matches the detections to the true
 contacts of the same taxel: a detection whose coarse onset falls between 0.1 s before a
 contact's onset and 0.1 s after its release belongs to that contact; the first one detects
 it, any further one in the same contact and any that belongs to none is a false alarm. Given
@@ -111,9 +112,16 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
     delay: dict[tuple[int, int], float] = {}
     error: dict[tuple[int, int], float] = {}
     floor = []
+    releases: dict[int, list[OnsetEvent]] = {}
+    for ev in events:
+        if ev.kind == "release":
+            releases.setdefault(ev.taxel, []).append(ev)
     for (taxel, i), ev in found.items():
         on, _ = by_taxel[taxel][i]
-        lo, hi = np.searchsorted(times, [ev.time - 0.6, ev.time + 0.6])
+        # the samples the pipeline would refine on: up to the release, if one was detected
+        end = next((r.time for r in releases.get(taxel, []) if r.detected_at > ev.detected_at),
+                   np.inf)
+        lo, hi = np.searchsorted(times, [ev.time - 0.6, min(ev.time + 0.6, end)], side="right")
         refined, _ = refine_onset(times[lo:hi], y[lo:hi, taxel], ev.time, ev.baseline,
                                   ev.slope, depth, diffusivity)
         delay[(taxel, i)] = ev.detected_at - on
