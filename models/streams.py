@@ -43,6 +43,8 @@ from skin.models.trials import adc_readings
 
 #: A change of the reading that stands out of its noise (about 3 x 0.5 LSB at 39 C), K.
 VISIBLE = 0.1
+#: How much a gust cools a taxel's face, K (drawn uniformly per gust).
+GUST_DEPTH = (0.05, 0.4)
 
 
 @dataclass(frozen=True)
@@ -65,6 +67,10 @@ class StreamContact:
         When the noise-free reading first differs from the sensor's temperature by
         `VISIBLE` K (about three times the reading's noise), s after onset; ``inf`` if never
         during the contact. No detector can be expected to react before it.
+    peak_change : float
+        The largest change of the noise-free reading from the sensor's temperature during
+        the contact, K: a contact that changes it less than a gust does (`GUST_DEPTH`) cannot
+        be told from one by its size.
     """
 
     taxel: int
@@ -74,6 +80,7 @@ class StreamContact:
     object_temperature: float
     sensor_temperature: float = float("nan")
     visible_after: float = float("inf")
+    peak_change: float = 0.0
 
     @property
     def duration(self) -> float:
@@ -190,7 +197,7 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
             for start in np.cumsum(rng.exponential(60.0, int(duration / 30.0) + 2)):
                 if start >= duration:
                     break
-                depth, rise, hold = rng.uniform(0.05, 0.4), rng.uniform(1.0, 4.0), \
+                depth, rise, hold = rng.uniform(*GUST_DEPTH), rng.uniform(1.0, 4.0), \
                     rng.uniform(1.0, 8.0)
                 s = np.maximum(times - start, 0.0)
                 shape = np.where(s < hold, 1.0 - np.exp(-s / rise),
@@ -226,8 +233,9 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
             reading[k1:, j] = free[k1:, j] + recovery
             change = np.abs(reading[k0:k1, j] - t0) >= VISIBLE
             seen = float(since[np.argmax(change)]) if change.any() else float("inf")
+            peak = float(np.max(np.abs(reading[k0:k1, j] - t0))) if k1 > k0 else 0.0
             truth.append(StreamContact(j, float(t), float(t + length), mat.name, float(t_obj),
-                                       t0, seen))
+                                       t0, seen, peak))
             t += length + 10.0 + rng.exponential(60.0 / max(contacts_per_minute, 1e-9))
     temperature = adc_readings(reading, rng, 0.5)
     truth.sort(key=lambda c: (c.onset, c.taxel))

@@ -29,6 +29,11 @@ def test_stream_has_its_contacts_where_the_truth_says():
             assert s.temperature[k0 + 190:k0 + 200, c.taxel].mean() < before - 0.2
         assert 0.05 < c.visible_after < 1.5 or (c.visible_after == np.inf
                                                  and c.duration < 1.0)
+        # the largest change the contact made: at least the one at its last sample
+        k1 = round(c.release * s.fs) - 1
+        seen = abs(s.temperature[k1 - 4:k1, c.taxel].mean() - c.sensor_temperature)
+        assert c.peak_change >= seen - 0.05 and (c.peak_change >= 0.1) == (
+            c.visible_after < np.inf)
     quiet = simulate_stream([MATS["glass"]], n_taxels=2, duration=60.0,
                             contacts_per_minute=0.0, disturbances=False, seed=1)
     assert quiet.contacts == [] and np.ptp(quiet.temperature) < 0.3  # a steady heated taxel
@@ -133,6 +138,8 @@ def test_evaluate_onset_command_on_a_stream_and_on_trials(tmp_path):
     assert out.returncode == 0, out.stderr
     doc = json.loads(out.stdout)
     assert doc["contacts"] > 0 and "by_material" in doc and "detected_flags" not in doc
+    assert doc["beyond_gusts"]["threshold_k"] == 0.4
+    assert 0 <= doc["beyond_gusts"]["detection_rate"] <= 1
     assert doc["detector_us_per_taxel_sample"] > 0
     out = skin("evaluate-onset", "--taxels", "3", "--minutes", "2", "--rate", "3", "--quiet",
                "--warm", "0.6", "--seed", "1")

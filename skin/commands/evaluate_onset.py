@@ -67,6 +67,7 @@ def _from_trials(path: str) -> tuple[np.ndarray, np.ndarray, list, float, str]:
 def main(args: argparse.Namespace) -> int:
     """Run the evaluation and print the figures (or JSON)."""
     from skin.commands.bench import machine
+    from skin.models.streams import GUST_DEPTH
     from skin.onset_eval import evaluate_onsets
 
     progress = Progress()
@@ -116,6 +117,12 @@ def main(args: argparse.Namespace) -> int:
            "wall_time": round(time.monotonic() - started, 2)}
     if by_material is not None:
         doc["by_material"] = by_material
+        # contacts whose reading moved more than any gust: the ones size alone can tell
+        big = [k for k, c in enumerate(contacts)
+               if c.duration >= args.min_duration and c.peak_change > GUST_DEPTH[1]]
+        doc["beyond_gusts"] = {"threshold_k": GUST_DEPTH[1], "contacts": len(big),
+                               "detection_rate": round(sum(flags[k] for k in big)
+                                                       / max(len(big), 1), 4)}
     if args.json:
         print(json.dumps(doc))
         return 0
@@ -127,6 +134,10 @@ def main(args: argparse.Namespace) -> int:
           f"({doc['detection_rate_all']:.2%} of all); false alarms "
           f"{doc['false_alarms_per_taxel_hour']:g} per taxel-hour ({doc['false_alarms']}: "
           f"{fa['fall']} falls, {fa['rise']} rises)")
+    if "beyond_gusts" in doc:
+        b = doc["beyond_gusts"]
+        print(f"of the {b['contacts']} contacts >= {args.min_duration:g} s that move the reading "
+              f"more than a gust can ({b['threshold_k']:g} K): detected {b['detection_rate']:.2%}")
     print(f"delay median {d['median']} ms, p95 {d['p95']} ms"
           + (f" (the reading first stands out of the noise after {v['median']} ms, median)"
              if v and v["median"] is not None else ""))
