@@ -130,10 +130,7 @@ def load_calibration(path: str | Path) -> CalibrationFile:
                                    f"(format {found})")
     taxels: dict[int, dict[str, Any]] = {}
     for key, entry in (doc.get("taxels") or {}).items():
-        try:
-            tid = int(key)
-        except ValueError:
-            raise CalibrationFileError(f"{path}: taxel id {key!r} is not an integer") from None
+        tid = _id(path, "taxel", key)
         if not isinstance(entry, dict):
             raise CalibrationFileError(f"{path}: taxel {tid}: entry must be an object")
         if "thermistor" in entry:
@@ -149,10 +146,7 @@ def load_calibration(path: str | Path) -> CalibrationFile:
         taxels[tid] = entry
     boards: dict[int, dict[str, float]] = {}
     for key, entry in (doc.get("boards") or {}).items():
-        try:
-            bid = int(key)
-        except ValueError:
-            raise CalibrationFileError(f"{path}: board id {key!r} is not an integer") from None
+        bid = _id(path, "board", key)
         if not isinstance(entry, dict) or set(entry) - set(BOARD):
             raise CalibrationFileError(f"{path}: board {bid}: entry must be an object with "
                                        f"any of {', '.join(BOARD)}, got {entry!r}")
@@ -166,6 +160,13 @@ def load_calibration(path: str | Path) -> CalibrationFile:
         raise CalibrationFileError(f"{path}: 'ambient_offset' must be a number, got {offset!r}")
     return CalibrationFile(taxels, dict(doc.get("references") or {}), float(offset),
                            str(doc.get("created", "")), boards)
+
+
+def _id(path: Path, what: str, key: str) -> int:
+    try:
+        return int(key)
+    except ValueError:
+        raise CalibrationFileError(f"{path}: {what} id {key!r} is not an integer") from None
 
 
 def _positive(value: object) -> bool:
