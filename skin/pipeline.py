@@ -186,7 +186,6 @@ class Pipeline:
             raise ValueError(f"budget must be None or >= 0 s, got {budget}")
         self.layout = layout
         self.classifier = classifier
-        self.window = float(window)
         self.assembler = FrameAssembler(layout, max_skew=max_skew)
         self.calibration = calibration or Calibration.from_layout(layout)
         self.detector = detector or OnsetDetector(len(layout))
@@ -285,7 +284,8 @@ class Pipeline:
                                                   self.tracker.search))
             else:
                 self._queue.popleft()
-                contact = finish_contact(head.decided, self.layout, head.refined, self.window)
+                contact = finish_contact(head.decided, self.layout, head.refined,
+                                         self.tracker.window)
                 result = ContactResult(contact, self.classifier.classify(contact), self._now)
             spent = time.perf_counter() - t0
             seconds[kind] += spent

@@ -163,7 +163,6 @@ class ContactTracker:
         if any(not 0 < p < window for p in provisional):
             raise ValueError(f"provisional instants must lie between 0 and the window "
                              f"({window} s), got {list(provisional)}")
-        self.layout = layout
         self.window = window
         self.join_window = join_window
         self.search = search
