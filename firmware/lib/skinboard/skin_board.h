@@ -1,0 +1,41 @@
+/* A skin board's sampling, heaters and command handling on an ATmega328P or ATmega2560.
+ *
+ * The sketch gives the transport: it calls skin_board_begin once, skin_board_poll from loop(),
+ * hands every received command to skin_board_command, and implements the two send hooks.
+ */
+#ifndef SKIN_BOARD_H
+#define SKIN_BOARD_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "skin_config.h"
+#include "skin_proto.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Implemented by the sketch: send one sample, or one reply body (without CRC). */
+void skin_transport_send_sample(const skin_sample_t *s);
+void skin_transport_send_reply(const uint8_t *body, size_t len);
+
+/* Filled in by the sketch before skin_board_begin. */
+extern uint8_t skin_transport_kind;   /* 0 serial, 1 CAN */
+extern uint16_t skin_transport_div;   /* IDENTITY.baud_div */
+extern uint16_t skin_transport_max_rate;  /* highest rate the link carries */
+
+void skin_board_begin(void);
+/* Handle a finished sample, if any: control the heaters and send it when streaming. */
+void skin_board_poll(void);
+/* Carry out a command that parsed cleanly; sends its reply. */
+void skin_board_command(const skin_command_t *cmd);
+/* Send an ERROR reply. */
+void skin_board_error(const skin_error_t *err);
+uint16_t skin_board_max_rate(void);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

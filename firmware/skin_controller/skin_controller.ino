@@ -1,0 +1,83 @@
+/* thermoskin skin controller, serial variant: protocol v1 (firmware/PROTOCOL.md) over UART0.
+ *
+ * Samples SKIN_TAXELS taxels at 200 Hz, drives their heaters and streams SAMPLE frames; reads
+ * commands framed the same way. Settings: lib/skinboard/skin_config.h; wiring: firmware/README.md.
+ */
+#include <string.h>
+
+#include "skin_board.h"
+#include "skin_control.h"
+#include "skin_proto.h"
+
+#define RX_MAX 32 /* the longest command body is 8 bytes; COBS and CRC add 3 */
+#define WIRE_MAX(len) ((len) + 2 + ((len) + 2) / 254 + 2)
+#define BODY_MAX (5 + 4 * SKIN_TAXELS)
+
+static uint8_t body[BODY_MAX + 2];
+static uint8_t wire[WIRE_MAX(BODY_MAX)];
+static uint8_t rx[RX_MAX];
+static uint8_t rx_len, rx_overflow;
+
+static void send_body(size_t len)
+{
+    size_t n = skin_frame(body, len, wire);
+    Serial.write(wire, n);
+}
+
+void skin_transport_send_sample(const skin_sample_t *s)
+{
+    send_body(skin_pack_sample(s, body));
+}
+
+void skin_transport_send_reply(const uint8_t *reply, size_t len)
+{
+    memmove(body, reply, len);
+    send_body(len);
+}
+
+static void packet_received(void)
+{
+    skin_command_t cmd;
+    skin_error_t err;
+    if (rx_overflow) {
+        err.token = 0;
+        err.command = 0;
+        err.code = SKIN_ERR_TOO_LONG;
+        err.detail = RX_MAX;
+        skin_board_error(&err);
+    } else if (skin_parse_command_packet(rx, rx_len, SKIN_TAXELS, skin_board_max_rate(), &cmd,
+                                         &err)) {
+        skin_board_error(&err);
+    } else {
+        skin_board_command(&cmd);
+    }
+    rx_len = 0;
+    rx_overflow = 0;
+}
+
+void setup()
+{
+    Serial.begin(SKIN_BAUD);
+    skin_transport_kind = 0;
+    skin_transport_div = (uint16_t)(SKIN_BAUD / 100UL);
+    /* the link's limit: a sample's bytes at 10 bit times each, with 5 % left for replies */
+    const uint32_t sample_bytes = 18UL + 3UL * SKIN_TAXELS + (18UL + 3UL * SKIN_TAXELS) / 254UL + 2UL;
+    skin_transport_max_rate = (uint16_t)(SKIN_BAUD / 10UL * 95UL / 100UL / sample_bytes);
+    skin_board_begin();
+}
+
+void loop()
+{
+    skin_board_poll();
+    while (Serial.available() > 0) {
+        uint8_t b = (uint8_t)Serial.read();
+        if (b == 0) {
+            if (rx_len > 0 || rx_overflow)
+                packet_received();
+        } else if (rx_len < RX_MAX) {
+            rx[rx_len++] = b;
+        } else {
+            rx_overflow = 1;
+        }
+    }
+}
