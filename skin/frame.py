@@ -6,11 +6,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-# Status flags carried in Frame.flags (protocol v0). Later protocol versions keep these bits.
+# Board flags carried in Frame.flags (wire protocol v1, firmware/PROTOCOL.md). Bits 0-3 are the
+# OR of every taxel's status bits (Frame.status), which use the same four bits.
 FLAG_ADC_SATURATED = 1 << 0
-FLAG_THERMISTOR_OPEN = 1 << 1
+FLAG_THERMISTOR_FAULT = 1 << 1
 FLAG_HEATER_FAULT = 1 << 2
 FLAG_OVER_TEMPERATURE = 1 << 3
+FLAG_AMBIENT_FAULT = 1 << 4
+FLAG_POWER_LIMITED = 1 << 5
+FLAG_TX_OVERRUN = 1 << 6
+FLAG_SAMPLE_OVERRUN = 1 << 7
+FLAG_SELFTEST = 1 << 8
+FLAG_STREAMING = 1 << 9
+#: The bits a taxel's status can hold.
+TAXEL_STATUS_BITS = 0xF
 
 
 @dataclass(frozen=True)
@@ -28,13 +37,17 @@ class Frame:
     counts : numpy.ndarray
         Raw ADC counts, one per channel of the board (uint16).
     ambient : float
-        Ambient temperature from the board's ambient sensor, in deg C.
+        Ambient temperature from the board's ambient sensor, in deg C (NaN when the board
+        does not know it).
     duty : numpy.ndarray
         Heater duty per channel, 0-255 (uint8).
     flags : int
         Board status flags (``FLAG_*``).
     board : int
         Board id, to merge several boards into one skin.
+    status : numpy.ndarray or None
+        The 4 status bits of each channel (uint8, the ``FLAG_*`` bits 0-3), when the source
+        reports them.
     """
 
     seq: int
@@ -45,3 +58,4 @@ class Frame:
     duty: np.ndarray
     flags: int = 0
     board: int = 0
+    status: np.ndarray | None = None
