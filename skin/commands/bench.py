@@ -16,6 +16,10 @@ reports taxel-samples per second of the chain and of each stage, the real-time f
 200 Hz, the per-sample latency, how long results wait for their share of the budget, and the
 memory growth (`skin.pipeline_bench`).
 
+``skin bench bus`` prints what protocol v1 costs on each bus at a sample rate: bytes (and CAN
+frames) per sample, bytes per second, the share of the bus, and the most taxels one board can
+stream (`skin.drivers.bus_load`), beside what one AVR's ADC can convert.
+
 ``skin bench calibration`` runs simulated calibrations (each taxel's constants drawn within
 +-10 % of the paper's, a few contacts with a reference material) and reports how well
 `skin.models.sensor_fit.fit_sensor_constants` recovers them, against the nominal constants,
@@ -72,6 +76,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                            "-1: no budget, every contact finished at once (1)")
     pipe.add_argument("--json", action="store_true", help="print one JSON document")
     pipe.set_defaults(func=main_pipeline)
+    bus = kinds.add_parser("bus", help="protocol cost and taxel limits per bus")
+    bus.add_argument("--taxels", default="16,64", help="board sizes (default 16,64)")
+    bus.add_argument("--rate", type=float, default=200.0, help="sample rate, Hz (default 200)")
+    bus.add_argument("--json", action="store_true", help="print one JSON document")
+    bus.set_defaults(func=main_bus)
     cal = kinds.add_parser("calibration", help="recovering each taxel's thermal constants")
     cal.add_argument("--reference", default="water", help="reference material (water)")
     cal.add_argument("--taxels", type=int, default=20, help="simulated taxels (20)")
@@ -268,4 +277,28 @@ def main_pipeline(args: argparse.Namespace) -> int:
         print(f"{r['taxels']:>7} {r['realtime_factor']:>11} {r['latency_ms']['p50']:>7} "
               f"{r['latency_ms']['p99']:>7} {r['contacts']:>8} {w['p50']!s:>11} "
               f"{w['p99']!s:>11} {r['peak_memory_mb_growth']:>9}")
+    return 0
+
+
+def main_bus(args: argparse.Namespace) -> int:
+    """``skin bench bus``."""
+    from skin.drivers.bus_load import adc_max_taxels, bus_table
+
+    sizes = tuple(int(v) for v in args.taxels.split(","))
+    rows = bus_table(sizes, args.rate)
+    adc = {os_: adc_max_taxels(args.rate, os_) for os_ in (1, 2, 4)}
+    if args.json:
+        print(json.dumps({"rate_hz": args.rate, "buses": [r.as_dict() for r in rows],
+                          "adc_max_taxels_by_oversampling": adc}))
+        return 0
+    print(f"protocol v1 at {args.rate:g} Hz (serial 8N1; CAN classic, 11-bit ids, worst-case "
+          "stuffing; best case in brackets)")
+    print(f"{'bus':>6} {'bit/s':>9} {'taxels':>6} {'bytes':>6} {'frames':>6} {'bytes/s':>8} "
+          f"{'load':>14} {'max taxels':>10}")
+    for r in rows:
+        load = f"{100 * r.load:.1f} %" + (f" ({100 * r.load_best:.1f})" if r.bus == "can" else "")
+        print(f"{r.bus:>6} {r.bit_rate:>9} {r.taxels:>6} {r.frame_bytes:>6} {r.frames:>6} "
+              f"{r.bytes_per_s:>8.0f} {load:>14} {r.max_taxels:>10}")
+    print("AVR ADC at 250 kHz (16 MHz / 64), 90 % of the period: at most "
+          + ", ".join(f"{n} taxels with {k}x oversampling" for k, n in adc.items()))
     return 0

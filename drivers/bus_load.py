@@ -1,0 +1,140 @@
+"""What protocol v1 costs on each bus: frame sizes, bytes per second, bus load, taxel limits.
+
+Plain arithmetic from ``firmware/PROTOCOL.md``; ``skin bench bus`` prints it. A serial byte takes
+10 bit times (8N1). A classic CAN data frame with an 11-bit identifier and d data bytes takes
+47 + 8d bits (interframe space included) plus stuff bits: none at best, (34 + 8d - 1) // 4 at
+worst.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+#: Bytes of a SAMPLE body (version .. flags) besides its 3 bytes per taxel, plus the CRC.
+_SAMPLE_FIXED = 16 + 2
+#: Taxels one CAN node carries (32 DATA groups of 4).
+CAN_MAX_TAXELS = 128
+
+
+def serial_sample_bytes(n: int) -> int:
+    """Bytes of one SAMPLE of ``n`` taxels on the wire: body, CRC, COBS overhead, delimiter."""
+    packet = _SAMPLE_FIXED + 3 * n
+    return packet + math.ceil(packet / 254) + 1
+
+
+def can_sample_frames(n: int) -> list[int]:
+    """Data lengths of the CAN frames of one sample: SYNC, DATA groups, one DUTY, STATUS."""
+    data = [8] * (n // 4) + ([2 * (n % 4)] if n % 4 else [])
+    duty = 8 if n >= 8 else n
+    return [8, *data, duty, 6]
+
+
+def can_frame_bits(dlc: int, worst: bool = True) -> int:
+    """Bits of a classic CAN data frame with an 11-bit identifier, with worst-case stuffing."""
+    return 47 + 8 * dlc + ((34 + 8 * dlc - 1) // 4 if worst else 0)
+
+
+@dataclass(frozen=True)
+class BusLoad:
+    """One sample stream on one bus.
+
+    Attributes
+    ----------
+    bus : str
+        ``"serial"`` or ``"can"``.
+    bit_rate : int
+        Baud rate or CAN bit rate, bit/s.
+    taxels : int
+        Taxels per board (per CAN node).
+    rate_hz : float
+        Sample rate.
+    frame_bytes : int
+        Serial: bytes per sample on the wire. CAN: data bytes of the sample's frames.
+    frames : int
+        Frames per sample (1 on serial).
+    bits_per_sample : int
+        Bus bits per sample (serial: 10 per byte; CAN: worst-case stuffing).
+    bytes_per_s : float
+        ``frame_bytes`` x rate.
+    load : float
+        Fraction of the bus the stream takes (CAN: worst case).
+    load_best : float
+        CAN without stuff bits (serial: same as ``load``).
+    max_taxels : int
+        Most taxels one board streams at ``rate_hz`` in at most 95 % of the bus (5 % kept for
+        replies), worst-case stuffing; a CAN node also stops at 128.
+    """
+
+    bus: str
+    bit_rate: int
+    taxels: int
+    rate_hz: float
+    frame_bytes: int
+    frames: int
+    bits_per_sample: int
+    bytes_per_s: float
+    load: float
+    load_best: float
+    max_taxels: int
+
+    def as_dict(self) -> dict:
+        """Plain values, for JSON."""
+        return asdict(self)
+
+
+def _fits(bus: str, n: int, bit_rate: int, rate_hz: float) -> bool:
+    if bus == "serial":
+        return serial_sample_bytes(n) * 10 * rate_hz <= 0.95 * bit_rate
+    bits = sum(can_frame_bits(d) for d in can_sample_frames(n))
+    return n <= CAN_MAX_TAXELS and bits * rate_hz <= 0.95 * bit_rate
+
+
+def bus_load(bus: str, bit_rate: int, taxels: int, rate_hz: float = 200.0) -> BusLoad:
+    """Load of one board's sample stream on a bus.
+
+    Parameters
+    ----------
+    bus : str
+        ``"serial"`` or ``"can"``.
+    bit_rate : int
+        Baud rate or CAN bit rate, bit/s.
+    taxels : int
+        Taxels on the board.
+    rate_hz : float
+        Sample rate.
+    """
+    if bus not in ("serial", "can"):
+        raise ValueError(f"bus must be 'serial' or 'can', got {bus!r}")
+    if taxels < 0 or bit_rate <= 0 or rate_hz <= 0:
+        raise ValueError("taxels must be >= 0, bit_rate and rate_hz > 0")
+    if bus == "serial":
+        size = serial_sample_bytes(taxels)
+        frames, bits, best = 1, 10 * size, 10 * size
+    else:
+        dlcs = can_sample_frames(taxels)
+        size, frames = sum(dlcs), len(dlcs)
+        bits = sum(can_frame_bits(d) for d in dlcs)
+        best = sum(can_frame_bits(d, worst=False) for d in dlcs)
+    limit = 0
+    while _fits(bus, limit + 1, bit_rate, rate_hz) and limit < 100_000:
+        limit += 1
+    return BusLoad(bus, bit_rate, taxels, rate_hz, size, frames, bits, size * rate_hz,
+                   bits * rate_hz / bit_rate, best * rate_hz / bit_rate, limit)
+
+
+#: The buses and board sizes of the firmware issue's closing note.
+STANDARD_BUSES = (("serial", 115_200), ("serial", 1_000_000), ("can", 500_000), ("can", 1_000_000))
+
+
+def bus_table(taxels: tuple[int, ...] = (16, 64), rate_hz: float = 200.0) -> list[BusLoad]:
+    """`bus_load` for every standard bus and board size."""
+    return [bus_load(bus, rate, n, rate_hz) for bus, rate in STANDARD_BUSES for n in taxels]
+
+
+def adc_max_taxels(rate_hz: float = 200.0, oversampling: int = 1, adc_hz: float = 250_000.0) -> int:
+    """Most taxels one AVR board converts per sample (plus its ambient sensor) in 90 % of the period.
+
+    A conversion takes 13 ADC clocks; the firmware's default clock is 16 MHz / 64 = 250 kHz.
+    """
+    return max(0, math.floor(0.9 * adc_hz / (13 * rate_hz * oversampling)) - 1)
