@@ -1066,15 +1066,47 @@ void builtin_checks()
     }
     builtin("command error: bad COBS");
     {
-        // The code at input offset 4 runs past the end, after 01 10 09 and the zero ending
-        // their block were decoded: offset 4 of the decoded body.
-        Bytes wire = {0x04, 0x01, 0x10, 0x09, 0x09};
+        // The detail is the decoded length before the code byte of the bad block.
+        const struct {
+            Bytes wire;
+            uint16_t detail;
+        } cases[] = {
+            {{0x04, 0x01, 0x10, 0x09, 0x09}, 4},        // the code at 4 runs past the end
+            {{0x04, 0x01, 0x10, 0x09, 0x03, 0x05}, 4},  // so does the one at 4 here
+            {{0x02, 0x01, 0x04, 0x09, 0x00, 0x01}, 2},  // a zero inside the block at 2
+            {{0x00, 0x01}, 0},                          // a zero code
+        };
+        for (const auto &c : cases) {
+            Bytes wire = c.wire;
+            skin_command_t cmd;
+            skin_error_t err{};
+            skin_error_t want = {0, 0, SKIN_ERR_FRAMING, c.detail};
+            if (skin_parse_command_packet(wire.data(), wire.size(), 16, 400, &cmd, &err) != 1 ||
+                err.code != want.code || err.detail != want.detail || err.token || err.command)
+                fail("ERROR " + error_text(err) + ", expected " + error_text(want) + " for " +
+                     hex(c.wire));
+        }
+    }
+    builtin("command error: too short for a CRC, too long");
+    {
+        Bytes one = {0x02, 0x01};  // decodes to 1 byte
         skin_command_t cmd;
         skin_error_t err{};
-        skin_error_t want = {0, 0, SKIN_ERR_FRAMING, 4};
-        if (skin_parse_command_packet(wire.data(), wire.size(), 16, 400, &cmd, &err) != 1 ||
-            err.code != want.code || err.detail != want.detail)
-            fail("ERROR " + error_text(err) + ", expected " + error_text(want));
+        if (skin_parse_command_packet(one.data(), one.size(), 16, 400, &cmd, &err) != 1 ||
+            err.code != SKIN_ERR_LENGTH || err.detail != 1)
+            fail("one byte: ERROR " + error_text(err));
+        Bytes body(SKIN_MAX_BODY + 1, 0x55);
+        body[0] = 1;
+        body[1] = SKIN_START;
+        Bytes wire = frame(body);
+        if (parse_wire(wire, 16, 400, &cmd, &err) != 1 || err.code != SKIN_ERR_TOO_LONG ||
+            err.detail != SKIN_MAX_BODY || err.token || err.command)
+            fail("too long: ERROR " + error_text(err));
+        body.resize(SKIN_MAX_BODY);  // the longest body is read (and its length refused)
+        wire = frame(body);
+        if (parse_wire(wire, 16, 400, &cmd, &err) != 1 || err.code != SKIN_ERR_LENGTH ||
+            err.detail != SKIN_MAX_BODY)
+            fail("longest: ERROR " + error_text(err));
     }
 
     builtin("sample size on the wire");

@@ -96,15 +96,17 @@ size_t skin_cobs_encode(const uint8_t *in, size_t len, uint8_t *out)
     return o;
 }
 
-/* Decode; on failure store the input offset and the decoded offset where it failed. */
-static long cobs_decode(const uint8_t *in, size_t len, uint8_t *out, size_t *fail_out)
+/* Decode; on failure return -1 - (the input offset of the bad byte) and store in *block_out the
+ * decoded length before the code byte of the bad block (the ERR_FRAMING detail). */
+static long cobs_decode(const uint8_t *in, size_t len, uint8_t *out, size_t *block_out)
 {
-    size_t i = 0, o = 0;
+    size_t i = 0, o = 0, block_o = 0;
 
     /* Reading in[i] always happens before writing out[o], and o <= i, so out may equal in. */
     while (i < len) {
         uint8_t code = in[i];
         size_t block_end;
+        block_o = o;
         if (code == 0 || (size_t)(len - i) < code)
             goto bad;
         block_end = i + code;
@@ -116,14 +118,15 @@ static long cobs_decode(const uint8_t *in, size_t len, uint8_t *out, size_t *fai
             out[o++] = b;
             ++i;
         }
+        /* a block shorter than 254 data bytes stands for a zero after it, except the last */
         if (code != 0xFF && i < len)
             out[o++] = 0;
     }
     return (long)o;
 
 bad:
-    if (fail_out)
-        *fail_out = o;
+    if (block_out)
+        *block_out = block_o;
     return -1L - (long)i;
 }
 
@@ -315,9 +318,10 @@ int skin_parse_command_body(const uint8_t *body, size_t len, uint16_t n_taxels,
     return 0;
 }
 
-/* Checks framing (ERR_FRAMING, detail = offset in the decoded bytes), then the length of what
- * was decoded (ERR_LENGTH if it cannot hold a CRC, detail 0), then the CRC (ERR_CRC, detail = the
- * CRC received), then the body. */
+/* Checks in order (as skin.drivers.protocol.parse_command_packet): framing (ERR_FRAMING, detail =
+ * the decoded length before the code byte of the bad block), size (ERR_TOO_LONG past
+ * SKIN_MAX_BODY, detail SKIN_MAX_BODY; ERR_LENGTH without room for a CRC, detail the decoded
+ * length), the CRC (ERR_CRC, detail the CRC received), then the body. */
 int skin_parse_command_packet(uint8_t *packet, size_t len, uint16_t n_taxels,
                               uint16_t max_rate_hz, skin_command_t *cmd, skin_error_t *err)
 {
@@ -327,8 +331,10 @@ int skin_parse_command_packet(uint8_t *packet, size_t len, uint16_t n_taxels,
 
     if (n < 0)
         return fail(err, 0, 0, SKIN_ERR_FRAMING, (uint16_t)at);
+    if (n > SKIN_MAX_BODY + 2L)
+        return fail(err, 0, 0, SKIN_ERR_TOO_LONG, SKIN_MAX_BODY);
     if (n < 2)
-        return fail(err, 0, 0, SKIN_ERR_LENGTH, 0);
+        return fail(err, 0, 0, SKIN_ERR_LENGTH, (uint16_t)n);
     len = (size_t)n - 2;
     crc = get16(packet + len);
     if (crc != skin_crc16(packet, len))
