@@ -29,7 +29,7 @@ from enum import IntEnum
 import numpy as np
 
 from skin._optional import require
-from skin.frame import FLAG_STREAMING, Frame
+from skin.frame import Frame
 
 VERSION = 1
 #: Longest body in either direction, bytes.
@@ -119,13 +119,18 @@ _ARGS: dict[int, tuple[struct.Struct | None, tuple[str, ...]]] = {
 _U8_FIELDS = {"token", "duty"}
 
 
+def argument_names(kind: int) -> tuple[str, ...]:
+    """Return the `Command` fields a command type sends, in wire order (``()`` for none)."""
+    return _ARGS[kind][1]
+
+
 def crc16(data: bytes) -> int:
     """CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF), computed in C by binascii."""
     return binascii.crc_hqx(data, 0xFFFF)
 
 
 def layout_hash(ids: Iterable[int | str]) -> int:
-    """FNV-1a (32 bit) of the taxel ids in address order, each followed by ``\\n``.
+    r"""Hash taxel ids with FNV-1a (32 bit): their text in address order, each followed by ``\n``.
 
     Parameters
     ----------
@@ -318,7 +323,7 @@ class Command:
     pulse_ms: int = 0
 
     def body(self) -> bytes:
-        """The command's body (without CRC); the only range checks are the fields' widths."""
+        """Return the body (without CRC); the only range checks are the fields' widths."""
         if self.type not in _ARGS:
             raise ValueError(f"0x{self.type:02X} is not a command type")
         args, names = _ARGS[self.type]
@@ -329,7 +334,7 @@ class Command:
         return head + args.pack(*values)
 
     def encode(self) -> bytes:
-        """The command's serial packet, framed and 0x00-terminated."""
+        """Return the serial packet, framed and 0x00-terminated."""
         return frame_packet(self.body())
 
 
@@ -343,12 +348,12 @@ class Ack:
     command: int
 
     def body(self) -> bytes:
-        """The reply's body (without CRC)."""
+        """Return the body (without CRC)."""
         return _ACK.pack(VERSION, MsgType.ACK, _u(self.token, 8, "token"),
                          _u(self.command, 8, "command"))
 
     def encode(self) -> bytes:
-        """The reply's serial packet."""
+        """Return the serial packet, framed and 0x00-terminated."""
         return frame_packet(self.body())
 
 
@@ -370,13 +375,13 @@ class ErrorReply:
             return f"ERR_{self.code}"
 
     def body(self) -> bytes:
-        """The reply's body (without CRC)."""
+        """Return the body (without CRC)."""
         return _ERROR.pack(VERSION, MsgType.ERROR, _u(self.token, 8, "token"),
                            _u(self.command, 8, "command"), _u(self.code, 8, "code"),
                            _u(self.detail, 16, "detail"))
 
     def encode(self) -> bytes:
-        """The reply's serial packet."""
+        """Return the serial packet, framed and 0x00-terminated."""
         return frame_packet(self.body())
 
 
@@ -405,13 +410,13 @@ class Identity:
                "layout_hash", "baud_div")
 
     def body(self) -> bytes:
-        """The reply's body (24 bytes, without CRC)."""
+        """Return the body (24 bytes, without CRC)."""
         widths = (8, 8, 8, 8, 8, 8, 8, 8, 16, 8, 8, 16, 16, 32, 16)
         values = [_u(getattr(self, k), w, k) for k, w in zip(self._FIELDS, widths, strict=True)]
         return _IDENTITY.pack(VERSION, MsgType.IDENTITY, *values)
 
     def encode(self) -> bytes:
-        """The reply's serial packet."""
+        """Return the serial packet, framed and 0x00-terminated."""
         return frame_packet(self.body())
 
 
@@ -427,7 +432,7 @@ class SelftestResult:
     strongest: tuple[int, ...]
 
     def body(self) -> bytes:
-        """The reply's body (5 + 4n bytes, without CRC)."""
+        """Return the body (5 + 4n bytes, without CRC)."""
         n = len(self.response)
         if len(self.strongest) != n:
             raise ValueError(f"{n} responses but {len(self.strongest)} strongest taxels")
@@ -446,7 +451,7 @@ class SelftestResult:
                               n) + per.tobytes()
 
     def encode(self) -> bytes:
-        """The reply's serial packet."""
+        """Return the serial packet, framed and 0x00-terminated."""
         return frame_packet(self.body())
 
 
@@ -678,7 +683,7 @@ CanFrame = tuple[int, bytes]
 
 
 def can_id(kind: int, node: int, index: int) -> int:
-    """The 11-bit identifier ``kind << 8 | node << 5 | index``."""
+    """Return the 11-bit identifier ``kind << 8 | node << 5 | index``."""
     return _u(kind, 3, "CAN type") << 8 | _u(node, 3, "node") << 5 | _u(index, 5, "index")
 
 
@@ -692,7 +697,7 @@ def can_sample_frames(
     flags: int = 0,
     status: Sequence[int] | np.ndarray | None = None,
 ) -> list[CanFrame]:
-    """The CAN frames of one sample: SYNC, DATA 0 .. G-1, DUTY group seq mod ceil(n/8), STATUS.
+    """Cut one sample into CAN frames: SYNC, DATA 0 .. G-1, DUTY group seq mod ceil(n/8), STATUS.
 
     Parameters are those of `encode_sample`, after the ``node`` (0-6); a node carries
     1 - `CAN_MAX_TAXELS` taxels.
@@ -723,12 +728,12 @@ def can_sample_frames(
 
 
 def can_command_frame(node: int, command: Command) -> CanFrame:
-    """The COMMAND frame of a command to ``node`` (`CAN_BROADCAST` for every node)."""
+    """Return the COMMAND frame of a command to ``node`` (`CAN_BROADCAST`: every node)."""
     return can_id(CanType.COMMAND, node, 0), command.body()
 
 
 def can_reply_frames(node: int, body: bytes) -> list[CanFrame]:
-    """A reply body cut into REPLY segments of up to 8 bytes, the u16 body length first."""
+    """Cut a reply body into REPLY segments of up to 8 bytes, the u16 body length first."""
     if len(body) > MAX_BODY:
         raise ValueError(f"a reply body of {len(body)} bytes; at most {MAX_BODY}")
     data = _U16.pack(len(body)) + body
@@ -869,7 +874,7 @@ class CanReassembler:
                 return
             node.reply, node.reply_next = bytearray(data[2:]), 1
         done = len(node.reply) >= node.reply_len
-        if len(data) != 8 and not done or len(node.reply) > node.reply_len:
+        if (len(data) != 8 and not done) or len(node.reply) > node.reply_len:
             self.stats.malformed += 1  # only the last segment is short
             node.reply = None
             return
