@@ -388,37 +388,42 @@ size_t skin_can_sample_frames(uint16_t n)
 
 void skin_can_sample_frame(const skin_sample_t *s, uint8_t node, size_t k, skin_can_frame_t *f)
 {
-    uint16_t n = s->n, groups = DATA_GROUPS(n);
+    uint16_t n = s->n, groups = DATA_GROUPS(n), first, rest;
     uint8_t *d = f->data;
-    uint8_t i, m;
+    uint8_t type, index = 0, dlc, i;
 
     if (k == 0) {
-        f->id = skin_can_id(SKIN_CAN_SYNC, node, 0);
-        f->dlc = 8;
+        type = SKIN_CAN_SYNC;
+        dlc = 8;
         put32(put32(d, s->seq), s->time_us);
     } else if (k <= groups) {
-        /* DATA group g: taxels 4g .. 4g+3 */
-        uint16_t g = (uint16_t)(k - 1), first = (uint16_t)(g << 2);
-        m = (uint8_t)(n - first < 4 ? n - first : 4);
-        f->id = skin_can_id(SKIN_CAN_DATA, node, (uint8_t)g);
-        f->dlc = (uint8_t)(2 * m);
-        for (i = 0; i < m; ++i)
+        /* DATA group g = k - 1: taxels 4g .. 4g+3 */
+        type = SKIN_CAN_DATA;
+        index = (uint8_t)(k - 1);
+        first = (uint16_t)(k - 1) << 2;
+        rest = n - first;
+        dlc = rest < 4 ? (uint8_t)rest : 4;
+        for (i = 0; i < dlc; ++i)
             d = put16(d, s->words[first + i]);
+        dlc <<= 1;
     } else if (k == (size_t)groups + 1 && n) {
         /* the DUTY group of this sample: seq mod ceil(n / 8) */
-        uint16_t dg = (uint16_t)(s->seq % DUTY_GROUPS(n)), first = (uint16_t)(dg << 3);
-        m = (uint8_t)(n - first < 8 ? n - first : 8);
-        f->id = skin_can_id(SKIN_CAN_DUTY, node, (uint8_t)dg);
-        f->dlc = m;
-        for (i = 0; i < m; ++i)
+        type = SKIN_CAN_DUTY;
+        index = (uint8_t)(s->seq % DUTY_GROUPS(n));
+        first = (uint16_t)index << 3;
+        rest = n - first;
+        dlc = rest < 8 ? (uint8_t)rest : 8;
+        for (i = 0; i < dlc; ++i)
             d[i] = s->duty[first + i];
     } else {
-        f->id = skin_can_id(SKIN_CAN_STATUS, node, 0);
-        f->dlc = 6;
+        type = SKIN_CAN_STATUS;
+        dlc = 6;
         d[0] = (uint8_t)s->seq;
         put16(put16(d + 1, s->flags), (uint16_t)s->ambient);
         d[5] = (uint8_t)groups;
     }
+    f->id = skin_can_id(type, node, index);
+    f->dlc = dlc;
 }
 
 size_t skin_can_reply_frames(size_t len)

@@ -137,13 +137,18 @@ typedef struct {
 } skin_command_t;
 
 /* Check a command body (version, type, length for the type, argument ranges: taxel < n_taxels
- * or SKIN_ALL_TAXELS, 4 <= rate <= max_rate_hz, count <= 4095, pulse_ms >= 1).
- * Returns 0 and fills cmd, or 1 and fills err. */
+ * or SKIN_ALL_TAXELS, 4 <= rate <= max_rate_hz, count <= 4095, pulse_ms >= 1), in that order
+ * after a first check that version, type and token are there. ERR_LENGTH has token and command
+ * 0, the other errors those received. Returns 0 and fills cmd, or 1 and fills err. */
 int skin_parse_command_body(const uint8_t *body, size_t len, uint16_t n_taxels,
                             uint16_t max_rate_hz, skin_command_t *cmd, skin_error_t *err);
 
 /* The same for a whole packet as received (COBS-encoded, without the 0x00): decodes it in place
- * (packet is overwritten) and checks its CRC first. */
+ * (packet is overwritten) and checks, before the body: COBS (ERR_FRAMING, detail = the decoded
+ * length before the code byte of the invalid block), size (ERR_TOO_LONG past SKIN_MAX_BODY,
+ * detail SKIN_MAX_BODY; ERR_LENGTH when no CRC fits, detail the decoded length), then the CRC
+ * (ERR_CRC, detail the CRC received); token and command are 0 in all of these. A board whose
+ * receive buffer is smaller than a packet replies ERR_TOO_LONG itself. */
 int skin_parse_command_packet(uint8_t *packet, size_t len, uint16_t n_taxels,
                               uint16_t max_rate_hz, skin_command_t *cmd, skin_error_t *err);
 
@@ -169,7 +174,8 @@ typedef struct {
 
 uint16_t skin_can_id(uint8_t type, uint8_t node, uint8_t index);
 
-/* Frames of one sample: SYNC, DATA 0..G-1, one DUTY group (seq mod ceil(n/8)), STATUS. */
+/* Frames of one sample: SYNC, DATA 0..G-1, one DUTY group (seq mod ceil(n/8)), STATUS; n <= 128
+ * (a node's 32 groups). With n = 0 there is no DUTY frame (SYNC and STATUS only). */
 size_t skin_can_sample_frames(uint16_t n);
 void skin_can_sample_frame(const skin_sample_t *s, uint8_t node, size_t k, skin_can_frame_t *f);
 
