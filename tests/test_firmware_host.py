@@ -49,3 +49,5 @@ def test_firmware_protocol_host_tests():
     empty = [kind for kind in KINDS if int(counts.get(kind, 0)) == 0]
     assert not empty, f"no vectors checked of kind {empty}:\n{output[-4000:]}"
     assert re.search(r"^OK$", result.stdout, re.MULTILINE), output[-4000:]
+    control = re.search(r"^control: (\d+) checks, (\d+) failures$", result.stdout, re.MULTILINE)
+    assert control and int(control[1]) > 1000 and control[2] == "0", output[-4000:]

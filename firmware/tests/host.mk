@@ -3,6 +3,8 @@
 #   make -C firmware -f tests/host.mk host-test   build build/host/test_proto with g++ and run it
 #                                                 against test_vectors/ (also checks that
 #                                                 skin_proto.c compiles warning-free as C and C++)
+#                                                 and build/host/test_control (the heater
+#                                                 control on a simulated thermal plant)
 #   make -C firmware -f tests/host.mk avr-size    compile skin_proto.c with -Os for the ATmega328P
 #                                                 and the ATmega2560 and print its size
 #
@@ -35,8 +37,9 @@ AVR_CFLAGS := -Os -std=gnu99 $(WARN) -ffunction-sections -fdata-sections -I$(PRO
 
 .PHONY: host-test host-build avr-size clean-host
 
-host-test: $(HOST_DIR)/test_proto
+host-test: $(HOST_DIR)/test_proto $(HOST_DIR)/test_control
 	$(HOST_DIR)/test_proto $(VECTOR_DIR)
+	$(HOST_DIR)/test_control
 
 host-build: $(HOST_DIR)/test_proto
 
@@ -55,6 +58,15 @@ $(HOST_DIR)/test_proto.o: $(TEST_SRC) $(PROTO_HDR)
 
 $(HOST_DIR)/test_proto: $(HOST_DIR)/test_proto.o $(HOST_DIR)/skin_proto.o $(HOST_DIR)/skin_proto_cxx.o
 	$(CXX) $(SANITIZE) -o $@ $(HOST_DIR)/test_proto.o $(HOST_DIR)/skin_proto.o
+
+# The heater control (lib/skincontrol) against a simulated thermal plant.
+CONTROL_DIR := lib/skincontrol
+$(HOST_DIR)/skin_control.o: $(CONTROL_DIR)/skin_control.c $(CONTROL_DIR)/skin_control.h $(PROTO_HDR)
+	@mkdir -p $(@D)
+	$(CC) $(HOST_CFLAGS) -I$(CONTROL_DIR) -c $< -o $@
+
+$(HOST_DIR)/test_control: tests/test_control.cpp $(HOST_DIR)/skin_control.o $(HOST_DIR)/skin_proto.o
+	$(CXX) -std=c++17 $(WARN) -O2 $(SANITIZE) -I$(PROTO_DIR) -I$(CONTROL_DIR) -o $@ $^
 
 $(AVR_DIR)/%/skin_proto.o: $(PROTO_SRC) $(PROTO_HDR)
 	@mkdir -p $(@D)
