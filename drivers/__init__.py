@@ -2,7 +2,8 @@
 
 ``open(url)`` understands:
 
-- ``serial:///dev/ttyACM0?baud=1000000``: a board on a serial port (pyserial);
+- ``serial:///dev/ttyACM0?baud=1000000``: a board on a serial port (pyserial), speaking wire
+  protocol v1 (`skin.drivers.protocol`); the driver also sends it commands;
 - ``serial+loop://``, ``serial+socket://host:port``: any other pyserial URL;
 - ``sim://default?speed=1&duration=20``: a simulated skin (a shipped scene name or a scene
   file path), frames handed over directly.
@@ -15,10 +16,18 @@ from __future__ import annotations
 from urllib.parse import parse_qs, urlsplit
 
 from skin.drivers.base import Driver
-from skin.drivers.protocol import LinkStats, StreamDecoder, encode_sample
+from skin.drivers.protocol import (
+    CanReassembler,
+    Command,
+    LinkStats,
+    MsgType,
+    StreamDecoder,
+    encode_sample,
+)
 from skin.errors import DeviceError
 
-__all__ = ["Driver", "LinkStats", "StreamDecoder", "encode_sample", "open"]
+__all__ = ["CanReassembler", "Command", "Driver", "LinkStats", "MsgType", "StreamDecoder",
+           "encode_sample", "open"]
 
 
 def _query(query: str, url: str) -> dict[str, str]:

@@ -11,7 +11,7 @@ thermistor divider and the 10-bit ADC.
 
 `SimDriver` hands those frames over directly (``sim://``); `PtySerialDevice` writes them, as
 wire-protocol bytes, into a real pseudo-terminal, so that the serial driver reads them exactly
-as it reads a board.
+as it reads a board, and answers the commands the driver sends.
 """
 
 from __future__ import annotations
@@ -27,9 +27,20 @@ import numpy as np
 
 from skin.calibration import Calibration
 from skin.drivers.base import Driver
-from skin.drivers.protocol import encode_sample
+from skin.drivers.protocol import (
+    ALL_TAXELS,
+    Ack,
+    Command,
+    ErrorReply,
+    Identity,
+    MsgType,
+    SelftestResult,
+    encode_sample,
+    layout_hash,
+    parse_command_packet,
+)
 from skin.errors import SceneError
-from skin.frame import Frame
+from skin.frame import FLAG_ADC_SATURATED, FLAG_STREAMING, Frame
 from skin.scene import Scene
 
 
@@ -130,7 +141,11 @@ class SkinSimulator:
         return out
 
     def frames(self) -> Iterator[Frame]:
-        """Yield the frames of the whole simulation, with noise and ADC quantisation."""
+        """Yield the frames of the whole simulation, with noise and ADC quantisation.
+
+        A reading at either rail of the ADC has its taxel's ``FLAG_ADC_SATURATED`` status bit
+        set, and the frame's flag with it.
+        """
         rng = np.random.default_rng(self.scene.seed + 1)
         temps = self.temperatures()
         noisy = temps + rng.normal(0.0, self.scene.noise, temps.shape)
@@ -139,10 +154,28 @@ class SkinSimulator:
         duty = np.full(self._channels, 255, dtype=np.uint8)
         channel_counts = np.zeros((self.n_samples, self._channels), dtype=np.uint16)
         channel_counts[:, self._addr] = counts[:, self._idx]
+        status = np.zeros((self.n_samples, self._channels), dtype=np.uint8)
+        rails = (counts <= 0) | (counts >= self.board.adc_max)
+        status[:, self._addr] = np.where(rails[:, self._idx], FLAG_ADC_SATURATED, 0)
+        flags = np.where(status.any(axis=1), FLAG_ADC_SATURATED, 0)
         for k in range(self.n_samples):
             t = k / self.sample_rate
-            yield Frame(k, t, time.monotonic(), channel_counts[k], float(ambient[k]), duty, 0,
-                        self.board.id)
+            yield Frame(k, t, time.monotonic(), channel_counts[k], float(ambient[k]), duty,
+                        int(flags[k]), self.board.id, status[k])
+
+    def identity(self, token: int = 0) -> Identity:
+        """Return the IDENTITY a board with this simulator's layout would reply.
+
+        ``adc_bits`` is the scale of the simulated counts (the layout's board), ``mcu`` 0 (a
+        host build), and the sample rate is fixed by the scene.
+        """
+        order = np.argsort(self._addr)
+        ids = self.layout.ids[self._idx[order]].tolist()
+        rate = round(self.sample_rate)
+        return Identity(token, fw_major=0, fw_minor=0, fw_patch=0, board_id=self.board.id & 0xFF,
+                        mcu=0, transport=0, options=0, taxels=self._channels,
+                        adc_bits=self.board.adc_bits, oversampling=1, rate_hz=rate,
+                        max_rate_hz=rate, layout_hash=layout_hash(ids), baud_div=10000)
 
 
 class _Pacer:
@@ -191,6 +224,15 @@ class PtySerialDevice:
     reader takes them). Start it after the reader has opened the port: opening a serial port
     empties its input buffer, which would drop the frames already written.
 
+    The device answers commands as a board does, between sample packets: IDENTIFY with
+    `SkinSimulator.identity`, STOP and START pause and resume the stream (the sequence number
+    goes on where it stopped), SET_DUTY sets the duties the samples report, SELFTEST is
+    acknowledged and then reports that no heater responded (the simulated readings do not
+    depend on the heaters). SET_RATE, SET_SETPOINT and CLEAR_FAULTS are acknowledged and change
+    nothing: the scene fixes the rate and the simulator has no heater control loop. Malformed
+    commands get the ERROR of `skin.drivers.protocol.parse_command_packet`. The device keeps
+    answering after its last frame, until closed.
+
     Parameters
     ----------
     simulator : SkinSimulator
@@ -207,8 +249,13 @@ class PtySerialDevice:
         os.set_blocking(self._master, False)
         self.port = os.ttyname(self._slave)
         self.frames_sent = 0
+        self.streaming = True
+        self.commands: list[Command] = []  # the valid commands received, in order
         self.done = threading.Event()
         self._stop = threading.Event()
+        self._duty: np.ndarray | None = None  # set by SET_DUTY
+        self._received = b""
+        self._outbox: list[bytes] = []  # replies, written between sample packets
         self._thread = threading.Thread(target=self._serve, name="pty-skin", daemon=True)
 
     def start(self) -> None:
@@ -220,24 +267,79 @@ class PtySerialDevice:
         while view:
             if self._stop.is_set():
                 return False
-            _, ready, _ = select.select([], [self._master], [], 0.1)
-            if ready:
+            readable, writable, _ = select.select([self._master], [self._master], [], 0.1)
+            if readable:
+                self._read_commands()
+            if writable:
                 try:
                     view = view[os.write(self._master, view) :]
                 except BlockingIOError:
                     continue
         return True
 
+    def _flush_replies(self) -> bool:
+        while self._outbox:
+            data = b"".join(self._outbox)
+            self._outbox.clear()
+            if not self._write(data):
+                return False
+        return True
+
+    def _poll(self, timeout: float) -> None:
+        """Wait up to ``timeout`` s for commands; answer them."""
+        readable, _, _ = select.select([self._master], [], [], timeout)
+        if readable:
+            self._read_commands()
+        self._flush_replies()
+
+    def _read_commands(self) -> None:
+        try:
+            data = os.read(self._master, 4096)
+        except (BlockingIOError, OSError):
+            return
+        *packets, self._received = (self._received + data).split(b"\x00")
+        for packet in packets:
+            if packet:
+                self._outbox += self._answer(packet)
+
+    def _answer(self, packet: bytes) -> list[bytes]:
+        sim = self.simulator
+        channels = sim._channels
+        command = parse_command_packet(packet, channels, round(sim.sample_rate))
+        if isinstance(command, ErrorReply):
+            return [command.encode()]
+        self.commands.append(command)
+        ack = Ack(command.token, command.type).encode()
+        if command.type == MsgType.IDENTIFY:
+            return [sim.identity(command.token).encode()]
+        if command.type in (MsgType.START, MsgType.STOP):
+            self.streaming = command.type == MsgType.START
+        elif command.type == MsgType.SET_DUTY:
+            if self._duty is None:
+                self._duty = np.full(channels, 255, dtype=np.uint8)
+            self._duty[slice(None) if command.taxel == ALL_TAXELS else command.taxel] = (
+                command.duty)
+        elif command.type == MsgType.SELFTEST:
+            return [ack, SelftestResult(command.token, (0,) * channels,
+                                        (0xFFFF,) * channels).encode()]
+        return [ack]
+
     def _serve(self) -> None:
         pacer = _Pacer(self.speed)
         chunk: list[bytes] = []
         try:
             for frame in self.simulator.frames():
+                paused = time.monotonic()
+                while not self.streaming and not self._stop.is_set():
+                    self._poll(0.05)
+                pacer.t0 += time.monotonic() - paused  # a pause does not make a backlog
+                duty = frame.duty if self._duty is None else self._duty
                 chunk.append(encode_sample(frame.seq, round(frame.device_time * 1e6),
-                                           frame.counts, frame.ambient, frame.duty, frame.flags))
+                                           frame.counts, frame.ambient, duty,
+                                           frame.flags | FLAG_STREAMING, frame.status))
                 if len(chunk) >= 10:  # 50 ms of frames per write
                     pacer.wait(frame.device_time, self._stop)
-                    if not self._write(b"".join(chunk)):
+                    if not self._write(b"".join(chunk)) or not self._flush_replies():
                         return
                     self.frames_sent += len(chunk)
                     chunk = []
@@ -245,6 +347,8 @@ class PtySerialDevice:
                 self.frames_sent += len(chunk)
         finally:
             self.done.set()
+        while not self._stop.is_set():  # the last frame is out: answer commands until closed
+            self._poll(0.1)
 
     def close(self) -> None:
         """Stop writing and close both ends; calling it again does nothing."""

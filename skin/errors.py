@@ -20,7 +20,7 @@ class CalibrationError(SkinError):
 
 
 class ProtocolError(SkinError):
-    """Bytes on a bus do not form a valid frame (used for reporting, never raised by readers)."""
+    """A board refused a command or did not answer it (readers count bad bytes, never raise)."""
 
 
 class DeviceError(SkinError):
