@@ -21,12 +21,13 @@ import numpy as np
 
 from skin.layout import Board, Layout, Taxel
 
-#: Channels per board in the benchmark's skins (protocol v0 carries at most 1024).
-BOARD_CHANNELS = 1000
+#: Channels per board in the benchmark's skins: an ATmega2560's 16 analog inputs behind 16-channel
+#: multiplexers (a v1 SAMPLE carries at most `skin.drivers.protocol.MAX_TAXELS`, 336).
+BOARD_CHANNELS = 256
 
 
 def cylinder_layout(n: int, radius: float = 0.05, pitch: float = 0.02) -> Layout:
-    """``n`` taxels in rings of 16 around one link, wired in order to boards of 1000."""
+    """``n`` taxels in rings of 16 around one link, wired in order to boards of 256."""
     taxels = []
     per_ring = 16
     for i in range(n):
