@@ -489,10 +489,10 @@ def parse_reply(body: bytes) -> Reply:
 def parse_command_body(body: bytes, n_taxels: int, max_rate_hz: int) -> Command | ErrorReply:
     """Check a command body as a board does; return the command, or the ERROR to reply.
 
-    The checks run in this order: length enough for version, type and token (else
-    ``ERR_LENGTH``), version, type, length for the type, then each argument's range
-    (taxel < ``n_taxels`` or `ALL_TAXELS`, 4 <= rate <= ``max_rate_hz``, count <= 4095,
-    pulse_ms >= 1). A body that could not be read (length errors) gets token and command 0.
+    The checks run in PROTOCOL.md's order: version, type, length for the type, then each
+    argument's range (taxel < ``n_taxels`` or `ALL_TAXELS`, 4 <= rate <= ``max_rate_hz``,
+    count <= 4095, pulse_ms >= 1). Length errors get token and command 0; the others echo
+    them (0 where the body is too short to hold them).
 
     Parameters
     ----------
@@ -503,11 +503,15 @@ def parse_command_body(body: bytes, n_taxels: int, max_rate_hz: int) -> Command 
     max_rate_hz : int
         The board's highest sample rate.
     """
-    if len(body) < _CMD.size:
-        return ErrorReply(0, 0, ErrorCode.ERR_LENGTH, len(body))
-    version, kind, token = _CMD.unpack_from(body)
+    if not body:
+        return ErrorReply(0, 0, ErrorCode.ERR_LENGTH, 0)
+    version = body[0]
+    kind = body[1] if len(body) > 1 else 0
+    token = body[2] if len(body) > 2 else 0
     if version != VERSION:
         return ErrorReply(token, kind, ErrorCode.ERR_VERSION, version)
+    if len(body) < 2:
+        return ErrorReply(0, 0, ErrorCode.ERR_LENGTH, len(body))
     if kind not in _ARGS:
         return ErrorReply(token, kind, ErrorCode.ERR_TYPE, kind)
     args, names = _ARGS[kind]
