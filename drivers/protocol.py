@@ -491,8 +491,9 @@ def parse_command_body(body: bytes, n_taxels: int, max_rate_hz: int) -> Command 
 
     The checks run in PROTOCOL.md's order: version, type, length for the type, then each
     argument's range (taxel < ``n_taxels`` or `ALL_TAXELS`, 4 <= rate <= ``max_rate_hz``,
-    count <= 4095, pulse_ms >= 1). Length errors get token and command 0; the others echo
-    them (0 where the body is too short to hold them).
+    count <= 4095, pulse_ms >= 1); before them, a body too short to hold version, type and
+    token is ``ERR_LENGTH``, as a command that could not be read at all (the firmware's
+    reading too). Length errors get token and command 0; the others echo them.
 
     Parameters
     ----------
@@ -503,15 +504,11 @@ def parse_command_body(body: bytes, n_taxels: int, max_rate_hz: int) -> Command 
     max_rate_hz : int
         The board's highest sample rate.
     """
-    if not body:
-        return ErrorReply(0, 0, ErrorCode.ERR_LENGTH, 0)
-    version = body[0]
-    kind = body[1] if len(body) > 1 else 0
-    token = body[2] if len(body) > 2 else 0
+    if len(body) < _CMD.size:
+        return ErrorReply(0, 0, ErrorCode.ERR_LENGTH, len(body))
+    version, kind, token = _CMD.unpack_from(body)
     if version != VERSION:
         return ErrorReply(token, kind, ErrorCode.ERR_VERSION, version)
-    if len(body) < 2:
-        return ErrorReply(0, 0, ErrorCode.ERR_LENGTH, len(body))
     if kind not in _ARGS:
         return ErrorReply(token, kind, ErrorCode.ERR_TYPE, kind)
     args, names = _ARGS[kind]
