@@ -23,8 +23,8 @@ def serial_sample_bytes(n: int) -> int:
     return packet + math.ceil(packet / 254) + 1
 
 
-def can_sample_frames(n: int) -> list[int]:
-    """Data lengths of the CAN frames of one sample: SYNC, DATA groups, one DUTY, STATUS."""
+def can_sample_dlcs(n: int) -> list[int]:
+    """Return the data lengths of one sample's CAN frames: SYNC, DATA groups, DUTY, STATUS."""
     data = [8] * (n // 4) + ([2 * (n % 4)] if n % 4 else [])
     duty = 8 if n >= 8 else n
     return [8, *data, duty, 6]
@@ -86,7 +86,7 @@ class BusLoad:
 def _fits(bus: str, n: int, bit_rate: int, rate_hz: float) -> bool:
     if bus == "serial":
         return serial_sample_bytes(n) * 10 * rate_hz <= 0.95 * bit_rate
-    bits = sum(can_frame_bits(d) for d in can_sample_frames(n))
+    bits = sum(can_frame_bits(d) for d in can_sample_dlcs(n))
     return n <= CAN_MAX_TAXELS and bits * rate_hz <= 0.95 * bit_rate
 
 
@@ -112,7 +112,7 @@ def bus_load(bus: str, bit_rate: int, taxels: int, rate_hz: float = 200.0) -> Bu
         size = serial_sample_bytes(taxels)
         frames, bits, best = 1, 10 * size, 10 * size
     else:
-        dlcs = can_sample_frames(taxels)
+        dlcs = can_sample_dlcs(taxels)
         size, frames = sum(dlcs), len(dlcs)
         bits = sum(can_frame_bits(d) for d in dlcs)
         best = sum(can_frame_bits(d, worst=False) for d in dlcs)
@@ -132,8 +132,11 @@ def bus_table(taxels: tuple[int, ...] = (16, 64), rate_hz: float = 200.0) -> lis
     return [bus_load(bus, rate, n, rate_hz) for bus, rate in STANDARD_BUSES for n in taxels]
 
 
-def adc_max_taxels(rate_hz: float = 200.0, oversampling: int = 1, adc_hz: float = 250_000.0) -> int:
-    """Most taxels one AVR board converts per sample (plus its ambient sensor) in 90 % of the period.
+def adc_max_taxels(rate_hz: float = 200.0, oversampling: int = 1,
+                   adc_hz: float = 250_000.0) -> int:
+    """Return the most taxels one AVR board converts per sample, in 90 % of the period.
+
+    The board also converts its ambient sensor.
 
     A conversion takes 13 ADC clocks; the firmware's default clock is 16 MHz / 64 = 250 kHz.
     """
