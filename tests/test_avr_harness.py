@@ -227,6 +227,21 @@ def test_back_pressure_holds_the_emulation_and_loses_no_bytes(builds, tmp_path):
     assert waited > 1.0, board.summary
 
 
+def test_uart_bytes_take_ten_bit_times_at_1_mbaud(builds, tmp_path):
+    scene = constant_scene(tmp_path / "s.sksc", np.full(16, 30.0), ambient=22.0)
+    n = 2000
+    with EmulatedBoard(builds.elf["atmega328p"], scene, taxels=16, muxes=1) as board:
+        prog = ProgLink(board.port)
+        prog.s.write(b"U" + n.to_bytes(2, "little"))
+        data = prog._reply(n + 3)
+        prog.close()
+    assert data[:n] == b"\x55" * n and data[n : n + 1] == b"U"
+    # 8N1: 10 bits of 1 us each (simavr alone counts 11, a parity bit). simavr's UART has no
+    # transmit double buffer: a polling sender adds its loop's latency (~0.5 us) to every byte.
+    per_byte_us = int.from_bytes(data[n + 1 :], "little") * 4.0 / n
+    assert 10.0 <= per_byte_us < 10.8
+
+
 def test_ends_at_the_end_of_the_scene_with_a_summary(builds, tmp_path):
     scene = constant_scene(tmp_path / "s.sksc", np.full(16, 30.0), ambient=22.0, seconds=0.5)
     board = EmulatedBoard(builds.elf["atmega328p"], scene, taxels=16, muxes=1)

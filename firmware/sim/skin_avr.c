@@ -13,6 +13,8 @@
  * simavr's ADC reads its input when the firmware reads ADCL/ADCH, not when the conversion
  * starts; the harness adds the sample-and-hold: the value of the channel being converted is
  * captured when the conversion starts, so firmware may move the multiplexer during a conversion.
+ * simavr also times a UART byte with a parity bit that 8N1 does not have (11 bit times); the
+ * harness retimes it from the configured frame format (10 bit times: 10 us at 1 Mbaud).
  *
  * Usage: skin_avr --mcu atmega328p|atmega2560 --freq 16000000 --elf FILE --scene FILE
  *                 --taxels N --muxes M [--swap I,J] [--realtime X] [--duration SECONDS]
@@ -50,6 +52,7 @@
 #define SIM_ADC_CHANNELS 8 /* simavr 1.6 keeps values for ADC0-ADC7 only */
 #define ADCL_ADDR 0x78     /* data-space addresses, the same on the 328P and the 2560 */
 #define ADCH_ADDR 0x79
+#define UBRR0L_ADDR 0xC4   /* also the same on both */
 #define OUT_HIGH_WATER 4096      /* pending UART output before the emulation waits */
 #define IN_CAPACITY (64 * 1024)  /* host bytes buffered before the pty is no longer read */
 #define EXIT_LINGER_S 0.25       /* at the end, wait while the host reads the rest */
@@ -79,6 +82,8 @@ typedef struct {
 	uint32_t hold_mv;
 	avr_io_read_t adc_read_orig[2];
 	void *adc_read_param[2];
+	avr_io_write_t ubrr_write_orig;
+	void *ubrr_write_param;
 
 	/* heaters */
 	int n_bytes;
@@ -279,6 +284,22 @@ static uint8_t adc_read_held(avr_t *avr, avr_io_addr_t addr, void *param)
 	uint8_t v = S.adc_read_orig[k](avr, addr, S.adc_read_param[k]);
 	avr_raise_irq(S.adc_irq + ch, S.live_mv[ch]);
 	return v;
+}
+
+/* simavr times a UART byte as start + data + parity + stop bits even without parity (11 bit
+ * times for 8N1, 10 % slow); after the firmware sets the baud rate, time it from the frame format
+ * actually configured. */
+static void ubrr_write_fixed(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
+{
+	S.ubrr_write_orig(avr, addr, v, S.ubrr_write_param);
+	avr_uart_t *p = S.ubrr_write_param;
+	uint32_t ubrr = avr_regbit_get(avr, p->ubrrl) | (avr_regbit_get(avr, p->ubrrh) << 8);
+	avr_cycle_count_t per_bit = (ubrr + 1) * (avr_regbit_get(avr, p->u2x) ? 8 : 16);
+	static const int databits[8] = {5, 6, 7, 8, 8, 8, 8, 9};
+	int data = databits[avr_regbit_get(avr, p->ucsz) | (avr_regbit_get(avr, p->ucsz2) << 2)];
+	int parity = p->r_ucsrc && (avr->data[p->r_ucsrc] & 0x30) ? 1 : 0; /* UPMn1:0 */
+	int stop = 1 + avr_regbit_get(avr, p->usbs);
+	p->cycles_per_byte = per_bit * (1 + data + parity + stop);
 }
 
 static avr_cycle_count_t on_sample_boundary(avr_t *avr, avr_cycle_count_t when, void *param)
@@ -567,6 +588,12 @@ int main(int argc, char **argv)
 	}
 
 	/* UART0 */
+	int ubrr_io = AVR_DATA_TO_IO(UBRR0L_ADDR);
+	S.ubrr_write_orig = S.avr->io[ubrr_io].w.c;
+	S.ubrr_write_param = S.avr->io[ubrr_io].w.param;
+	if (!S.ubrr_write_orig)
+		die("simavr's UART0 does not hook UBRR0L at 0x%02x on %s", UBRR0L_ADDR, S.mcu);
+	S.avr->io[ubrr_io].w.c = ubrr_write_fixed;
 	uint32_t flags = 0;
 	avr_ioctl(S.avr, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
 	flags &= ~(AVR_UART_FLAG_STDIO | AVR_UART_FLAG_POLL_SLEEP);

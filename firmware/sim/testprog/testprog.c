@@ -13,6 +13,8 @@
  *   'H' k byte*k            -> "H"                        shift k bytes over SPI, pulse the latch PB0
  *   'W' u16 ms              -> "W"                        busy-wait ms milliseconds
  *   'B' u16 kib             -> "B" 1024*kib bytes "E"     burst: byte i = (i + (i >> 8)) & 0xFF
+ *   'U' u16 n               -> n x 0x55, 'U' u16 ticks    the time the n bytes took to queue,
+ *                                                          in 4 us ticks of Timer1 (F_CPU / 64)
  * On reset it sends "READY\n".
  */
 #include <avr/io.h>
@@ -144,6 +146,19 @@ int main(void)
 			for (uint32_t i = 0; i < n; i++)
 				uart_put((uint8_t)(i + (i >> 8)));
 			uart_put('E');
+			break;
+		}
+		case 'U': {
+			uint16_t n = uart_get();
+			n |= (uint16_t)uart_get() << 8;
+			TCCR1A = 0;
+			TCCR1B = _BV(CS11) | _BV(CS10);
+			TCNT1 = 0;
+			while (n--)
+				uart_put(0x55);
+			uint16_t ticks = TCNT1;
+			uart_put('U');
+			put_u16(ticks);
 			break;
 		}
 		default:
