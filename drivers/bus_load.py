@@ -138,6 +138,7 @@ def adc_max_taxels(rate_hz: float = 200.0, oversampling: int = 1,
 
     The board also converts its ambient sensor.
 
-    A conversion takes 13 ADC clocks; the firmware's default clock is 16 MHz / 64 = 250 kHz.
+    A conversion takes 13 ADC clocks and its interrupt about 3 more (10 us, measured in simavr);
+    the firmware's default clock is 16 MHz / 64 = 250 kHz.
     """
-    return max(0, math.floor(0.9 * adc_hz / (13 * rate_hz * oversampling)) - 1)
+    return max(0, math.floor(0.9 * adc_hz / (16 * rate_hz * oversampling)) - 1)

@@ -3,6 +3,8 @@
  * Samples SKIN_TAXELS taxels at 200 Hz, drives their heaters and streams SAMPLE frames; reads
  * commands framed the same way. Settings: lib/skinboard/skin_config.h; wiring: firmware/README.md.
  */
+#include <avr/interrupt.h>
+#include <avr/io.h>
 #include <string.h>
 
 #include "skin_board.h"
@@ -13,15 +15,63 @@
 #define WIRE_MAX(len) ((len) + 2 + ((len) + 2) / 254 + 2)
 #define BODY_MAX (5 + 4 * SKIN_TAXELS)
 
+#if defined(USART0_UDRE_vect)
+#define UDRE_VECT USART0_UDRE_vect
+#define RX_VECT USART0_RX_vect
+#else
+#define UDRE_VECT USART_UDRE_vect
+#define RX_VECT USART_RX_vect
+#endif
+
 static uint8_t body[BODY_MAX + 2];
 static uint8_t wire[WIRE_MAX(BODY_MAX)];
 static uint8_t rx[RX_MAX];
 static uint8_t rx_len, rx_overflow;
 
+/* UART0 driven directly rather than through Arduino's Serial: a whole packet leaves from `wire`
+ * under the data-register-empty interrupt, so queuing it costs the main loop nothing (Serial's
+ * per-byte write() took about half of a 72-taxel board's sample period). Received bytes go
+ * through a small ring. */
+static volatile uint16_t tx_pos, tx_len;
+static volatile uint8_t rx_ring[64];
+static volatile uint8_t rx_head, rx_tail;
+
+ISR(UDRE_VECT)
+{
+    uint16_t pos = tx_pos;
+    UDR0 = wire[pos++];
+    tx_pos = pos;
+    if (pos >= tx_len)
+        UCSR0B &= ~(1 << UDRIE0);
+}
+
+ISR(RX_VECT)
+{
+    uint8_t b = UDR0;
+    uint8_t next = (uint8_t)((rx_head + 1) & 63);
+    if (next != rx_tail) { /* a full ring drops the byte: the packet then fails its CRC */
+        rx_ring[rx_head] = b;
+        rx_head = next;
+    }
+}
+
+static void uart_begin(void)
+{
+    UCSR0A = (1 << U2X0);
+    UBRR0 = (uint16_t)(F_CPU / 8UL / SKIN_BAUD - 1UL);
+    UCSR0C = (1 << UCSZ01) | (1 << UCSZ00); /* 8N1 */
+    UCSR0B = (1 << RXEN0) | (1 << TXEN0) | (1 << RXCIE0);
+}
+
 static void send_body(size_t len)
 {
+    while (UCSR0B & (1 << UDRIE0)) {
+        /* the previous packet is still leaving */
+    }
     size_t n = skin_frame(body, len, wire);
-    Serial.write(wire, n);
+    tx_pos = 0;
+    tx_len = (uint16_t)n;
+    UCSR0B |= (1 << UDRIE0);
 }
 
 void skin_transport_send_sample(const skin_sample_t *s)
@@ -57,7 +107,7 @@ static void packet_received(void)
 
 void setup()
 {
-    Serial.begin(SKIN_BAUD);
+    uart_begin();
     skin_transport_kind = 0;
     skin_transport_div = (uint16_t)(SKIN_BAUD / 100UL);
     /* the link's limit: a sample's bytes at 10 bit times each, with 5 % left for replies */
@@ -69,8 +119,9 @@ void setup()
 void loop()
 {
     skin_board_poll();
-    while (Serial.available() > 0) {
-        uint8_t b = (uint8_t)Serial.read();
+    while (rx_tail != rx_head) {
+        uint8_t b = rx_ring[rx_tail];
+        rx_tail = (uint8_t)((rx_tail + 1) & 63);
         if (b == 0) {
             if (rx_len > 0 || rx_overflow)
                 packet_received();

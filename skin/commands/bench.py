@@ -299,6 +299,7 @@ def main_bus(args: argparse.Namespace) -> int:
         load = f"{100 * r.load:.1f} %" + (f" ({100 * r.load_best:.1f})" if r.bus == "can" else "")
         print(f"{r.bus:>6} {r.bit_rate:>9} {r.taxels:>6} {r.frame_bytes:>6} {r.frames:>6} "
               f"{r.bytes_per_s:>8.0f} {load:>14} {r.max_taxels:>10}")
-    print("AVR ADC at 250 kHz (16 MHz / 64), 90 % of the period: at most "
+    print("AVR ADC at 250 kHz (16 MHz / 64, 16 clocks per conversion with its interrupt), "
+          "90 % of the period: at most "
           + ", ".join(f"{n} taxels with {k}x oversampling" for k, n in adc.items()))
     return 0

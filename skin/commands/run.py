@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from skin.errors import SkinError
+from skin.errors import DeviceError, SkinError
 from skin.pipeline import ContactResult, Pipeline
 from skin.progress import Progress
 from skin.sinks import JsonLinesSink, TerminalSink, event_record
@@ -28,6 +28,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     run.add_argument("--port", metavar="URL",
                      help="device URL (serial:///dev/ttyACM0, sim://default, ...); "
                           "default: a simulated skin served on a pseudo-terminal")
+    run.add_argument("--firmware-sim", action="store_true",
+                     help="play the scene to the compiled firmware (ATmega2560, 64 taxels) "
+                          "running in simavr, read over its pseudo-terminal; needs "
+                          "`make -C firmware all harness`")
     run.add_argument("--scene", default="default",
                      help="simulation scene: a shipped name or a TOML file (default: default)")
     run.add_argument("--layout", help="layout TOML file (default: the scene's, or 'arm')")
@@ -74,7 +78,20 @@ def main(args: argparse.Namespace) -> int:
     progress = Progress()
     device = None
     scene = None
-    if args.port is None:
+    if args.port is None and args.firmware_sim:
+        from skin.drivers.firmware_board import emulated_board, firmware_scene
+        from skin.drivers.sim import SkinSimulator
+
+        scene = firmware_scene(load_scene(args.scene))
+        layout = scene.layout
+        sim = SkinSimulator(scene, duration=args.duration, contact=args.contact)
+        device = emulated_board(sim, folder=out,
+                                realtime=args.speed if args.speed > 0 else None)
+        url = f"serial://{device.start()}"
+        duration = sim.duration
+        progress.message(f"scene '{scene.name}' ({len(layout)} taxels, {len(scene.touches)} "
+                         f"touches) played to the firmware in simavr on {device.port}")
+    elif args.port is None:
         from skin.drivers.sim import PtySerialDevice, SkinSimulator
 
         scene = load_scene(args.scene)
@@ -130,14 +147,26 @@ def main(args: argparse.Namespace) -> int:
     pipeline.sinks += [events, TerminalSink(progress)]
     try:
         with drivers.open(url) as driver:
-            if device is not None:
+            if args.firmware_sim:
+                from skin.drivers.protocol import ALL_TAXELS, Command, MsgType
+
+                # the scene was simulated with every heater on; the firmware boots with them off
+                driver.request(Command(MsgType.SET_DUTY, taxel=ALL_TAXELS, duty=255),
+                               timeout=5.0)
+            elif device is not None:
                 device.start()  # after the port is open: opening it empties its buffer
             chunk: list = []
             now = 0.0
             received = 0
             idle_since = time.monotonic()
             while True:
-                frame = driver.recv(timeout=0.2)
+                try:
+                    frame = driver.recv(timeout=0.2)
+                except DeviceError:
+                    if not args.firmware_sim or device.running:
+                        raise
+                    frame = None  # the emulated board played its whole scene and stopped
+                    now = duration
                 if frame is not None:
                     if first_time is None:
                         first_time = frame.device_time
@@ -147,8 +176,9 @@ def main(args: argparse.Namespace) -> int:
                     idle_since = time.monotonic()
                 idle = frame is None
                 # a simulated board is done once all it sent is in (or after 2 s of silence)
-                end_of_sim = device is not None and device.done.is_set() and (
-                    received >= device.frames_sent or time.monotonic() - idle_since > 2.0)
+                end_of_sim = device is not None and not args.firmware_sim and (
+                    device.done.is_set() and (received >= device.frames_sent
+                                              or time.monotonic() - idle_since > 2.0))
                 finished = now >= duration - 1e-9 or end_of_sim or (
                     device is None and idle and time.monotonic() - t_wall > duration + 5)
                 if chunk and (len(chunk) >= 20 or idle or finished):

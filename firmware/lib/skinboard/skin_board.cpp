@@ -27,8 +27,11 @@ static volatile uint16_t done_acc[N + 1]; /* the last finished scan */
 static volatile uint8_t done_sat[N + 1];
 static volatile uint32_t done_seq, done_time;
 static volatile uint8_t done_ready, lost, overrun;
-static volatile uint8_t scan_busy, slot_os;
-static volatile uint8_t cur_c, cur_m;     /* multiplexer channel and multiplexer (or direct input) */
+static volatile uint8_t scan_busy, slot_os, slot;
+/* The scan order, computed once: per slot, the ADC channel, the multiplexer select lines and
+ * the input (taxel, or N for the ambient sensor). Multiplexer channel c of every multiplexer
+ * is converted before the select lines move on, so they move 16 times per scan. */
+static uint8_t slot_adc[N + 1], slot_sel[N + 1], slot_input[N + 1];
 static volatile uint32_t seq, now_us, scan_seq, scan_time;
 static volatile uint32_t period_us;
 
@@ -64,44 +67,27 @@ static inline void mux_select(uint8_t c)
 #endif
 }
 
-/* The taxel at the current position of the scan; N for the ambient sensor. */
-static inline uint8_t current_input(void)
+static void build_scan(void)
 {
+    uint8_t k = 0;
 #if SKIN_MUXES > 0
-    if (cur_c >= 16)
-        return N;
-    return (uint8_t)(cur_m * 16 + cur_c);
+    for (uint8_t c = 0; c < 16; c++)
+        for (uint8_t m = 0; m < SKIN_MUXES; m++)
+            if (m * 16 + c < N) {
+                slot_adc[k] = m;
+                slot_sel[k] = c;
+                slot_input[k++] = (uint8_t)(m * 16 + c);
+            }
 #else
-    return cur_m;
-#endif
-}
-
-/* Move the scan to its next input and select it; returns 0 when the scan is complete. */
-static inline uint8_t advance(void)
-{
-#if SKIN_MUXES > 0
-    if (cur_c >= 16)
-        return 0; /* the ambient sensor was last */
-    for (;;) {
-        if (++cur_m >= SKIN_MUXES) {
-            cur_m = 0;
-            if (++cur_c >= 16)
-                break;
-            mux_select(cur_c);
-        }
-        if (cur_m * 16 + cur_c < N) {
-            adc_select(cur_m);
-            return 1;
-        }
+    for (uint8_t t = 0; t < N; t++) {
+        slot_adc[k] = t;
+        slot_sel[k] = 0;
+        slot_input[k++] = t;
     }
-    adc_select(SKIN_AMBIENT_CHANNEL);
-    return 1;
-#else
-    if (++cur_m > N)
-        return 0;
-    adc_select(cur_m); /* cur_m == N: the ambient sensor's channel */
-    return 1;
 #endif
+    slot_adc[k] = SKIN_AMBIENT_CHANNEL;
+    slot_sel[k] = 15;
+    slot_input[k] = N;
 }
 
 ISR(TIMER1_COMPA_vect)
@@ -121,19 +107,19 @@ ISR(TIMER1_COMPA_vect)
     }
     scan_busy = 1;
     slot_os = 0;
-    cur_c = 0;
-    cur_m = 0;
+    slot = 0;
 #if SKIN_MUXES > 0
-    mux_select(0);
+    mux_select(slot_sel[0]);
 #endif
-    adc_select(0);
+    adc_select(slot_adc[0]);
     ADCSRA |= (1 << ADSC);
 }
 
 ISR(ADC_vect)
 {
     uint16_t v = ADC;
-    uint8_t i = current_input();
+    uint8_t k = slot;
+    uint8_t i = slot_input[k];
     acc[i] += v;
     if (v == 0 || v >= 1023)
         sat[i] = 1;
@@ -142,7 +128,13 @@ ISR(ADC_vect)
         return;
     }
     slot_os = 0;
-    if (advance()) {
+    if (++k <= N) {
+        slot = k;
+#if SKIN_MUXES > 0
+        if (slot_sel[k] != slot_sel[k - 1])
+            mux_select(slot_sel[k]);
+#endif
+        adc_select(slot_adc[k]);
         ADCSRA |= (1 << ADSC);
         return;
     }
@@ -201,6 +193,7 @@ void skin_board_begin(void)
     control.st_response = st_response;
     control.st_strongest = st_strongest;
     skin_control_init(&control);
+    build_scan();
 
     /* heaters: the 74HC595 chain on hardware SPI, latch on PB0; all off first */
 #if defined(__AVR_ATmega2560__) || defined(__AVR_ATmega1280__)

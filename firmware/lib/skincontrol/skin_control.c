@@ -1,3 +1,8 @@
+#if defined(__AVR__)
+/* Speed over size here: this loop runs for every taxel of every sample. */
+#pragma GCC optimize("O2")
+#endif
+
 #include "skin_control.h"
 
 #include "skin_proto.h"
