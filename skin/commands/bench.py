@@ -10,7 +10,7 @@ taxels (at one initial temperature, or staggered) and reports the accuracy and c
 contact of the joint model that shares the object's temperature between them
 (`skin.models.joint`).
 
-``skin bench pipeline`` pushes a simulated skin of each size (boards of 1000 taxels) through
+``skin bench pipeline`` pushes a simulated skin of each size (boards of 256 taxels) through
 decode, assemble, calibrate, onset, track, refine and classify one sample at a time and
 reports taxel-samples per second of the chain and of each stage, the real-time factor at
 200 Hz, the per-sample latency, how long results wait for their share of the budget, and the
@@ -66,7 +66,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     fusion.set_defaults(func=main_fusion)
     pipe = kinds.add_parser("pipeline", help="throughput of the streaming chain")
     pipe.add_argument("--taxels", default="64,1000,10000",
-                      help="skin sizes (default 64,1000,10000; boards of 1000 taxels)")
+                      help="skin sizes (default 64,1000,10000; boards of 256 taxels)")
     pipe.add_argument("--seconds", type=float, default=30.0,
                       help="simulated seconds (30; contacts start in all but the last 10)")
     pipe.add_argument("--contacts-per-minute", type=float, default=6.0,
