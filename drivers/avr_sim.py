@@ -133,6 +133,9 @@ class EmulatedBoard:
         Pace emulated time to this multiple of real time (None: as fast as possible).
     duration : float, optional
         Stop after this many emulated seconds rather than at the end of the scene.
+    wait_host : bool
+        Power the board up when the host first writes to it, rather than at `start`: a host
+        that opens the port (which empties its input) then misses none of the board's output.
     harness : str or os.PathLike, optional
         The harness executable (default `DEFAULT_HARNESS`, or ``$SKIN_AVR_HARNESS``).
     start_timeout : float
@@ -162,6 +165,7 @@ class EmulatedBoard:
         swap: tuple[int, int] | None = None,
         realtime: float | None = None,
         duration: float | None = None,
+        wait_host: bool = False,
         harness: str | os.PathLike[str] | None = None,
         start_timeout: float = 10.0,
     ) -> None:
@@ -178,6 +182,8 @@ class EmulatedBoard:
             self.args += ["--realtime", repr(float(realtime))]
         if duration:
             self.args += ["--duration", repr(float(duration))]
+        if wait_host:
+            self.args += ["--wait-host", "1"]
         self.start_timeout = start_timeout
         self.port: str | None = None
         self.summary: str | None = None

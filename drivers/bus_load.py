@@ -134,11 +134,11 @@ def bus_table(taxels: tuple[int, ...] = (16, 64), rate_hz: float = 200.0) -> lis
 
 def adc_max_taxels(rate_hz: float = 200.0, oversampling: int = 1,
                    adc_hz: float = 250_000.0) -> int:
-    """Return the most taxels one AVR board converts per sample, in 90 % of the period.
+    """Return the most taxels one AVR board converts per sample, in 95 % of the period.
 
     The board also converts its ambient sensor.
 
-    A conversion takes 13 ADC clocks and its interrupt about 3 more (10 us, measured in simavr);
+    A conversion takes 13 ADC clocks and, with its interrupt, about 16 (measured in simavr);
     the firmware's default clock is 16 MHz / 64 = 250 kHz.
     """
-    return max(0, math.floor(0.9 * adc_hz / (16 * rate_hz * oversampling)) - 1)
+    return max(0, math.floor(0.95 * adc_hz / (16 * rate_hz * oversampling)) - 1)

@@ -3,7 +3,7 @@
 The scene's physics (`skin.drivers.sim.SkinSimulator`) gives every taxel's thermistor
 temperature; the harness turns them into ADC voltages for the emulated ATmega2560 running the
 real ``skin_controller`` build, whose frames the serial driver reads from its pseudo-terminal.
-The build serves 64 taxels, so the scene is cut to the layout's first 64 addresses, and the
+The build serves 72 taxels (the default arm); a larger scene is cut to its first 72 addresses. The
 layout's board reports the firmware's 12-bit counts.
 """
 
@@ -21,7 +21,7 @@ from skin.layout import Layout
 from skin.scene import Scene
 
 #: The emulated board: ``make -C firmware`` builds it as ``build/mega``.
-BOARD, MCU, TAXELS, MUXES = "mega", "atmega2560", 64, 4
+BOARD, MCU, TAXELS, MUXES = "mega", "atmega2560", 72, 5
 
 
 def firmware_scene(scene: Scene, taxels: int = TAXELS) -> Scene:
@@ -73,7 +73,7 @@ def emulated_board(simulator, folder: str | Path | None = None,
     Returns
     -------
     EmulatedBoard
-        Not started yet.
+        Not started yet; once started, it powers up on the host's first command.
     """
     scene = simulator.scene
     rng = np.random.default_rng(scene.seed + 1)
@@ -83,9 +83,10 @@ def emulated_board(simulator, folder: str | Path | None = None,
     channels = np.full((temps.shape[0], TAXELS), simulator.heated)
     channels[:, addr] = temps[:, idx]
     folder = Path(folder or tempfile.mkdtemp(prefix="skin-firmware-sim-"))
+    folder.mkdir(parents=True, exist_ok=True)
     path = write_scene(folder / "scene.bin", channels.astype(np.float32),
                        np.full(temps.shape[0], scene.ambient), simulator.sample_rate,
                        nominal_duty=1.0, heater_rise=simulator.heated - scene.ambient,
                        heater_tau=simulator.sensor.reheat_time_constant)
     return EmulatedBoard(firmware_elf(BOARD), path, taxels=TAXELS, muxes=MUXES, mcu=MCU,
-                         realtime=realtime, duration=simulator.duration + 1.0)
+                         realtime=realtime, duration=simulator.duration + 1.0, wait_host=True)

@@ -18,6 +18,7 @@
  *
  * Usage: skin_avr --mcu atmega328p|atmega2560 --freq 16000000 --elf FILE --scene FILE
  *                 --taxels N --muxes M [--swap I,J] [--realtime X] [--duration SECONDS]
+ *                 [--wait-host 1]  (start on the first byte the host writes)
  * The first line on stdout is "PTY <path>"; a one-line summary goes to stderr at exit.
  */
 #define _GNU_SOURCE
@@ -53,6 +54,7 @@
 #define ADCL_ADDR 0x78     /* data-space addresses, the same on the 328P and the 2560 */
 #define ADCH_ADDR 0x79
 #define UBRR0L_ADDR 0xC4   /* also the same on both */
+#define SPDR_ADDR 0x4E     /* SPI data register, the same on both */
 #define OUT_HIGH_WATER 4096      /* pending UART output before the emulation waits */
 #define IN_CAPACITY (64 * 1024)  /* host bytes buffered before the pty is no longer read */
 #define EXIT_LINGER_S 0.25       /* at the end, wait while the host reads the rest */
@@ -63,6 +65,7 @@ typedef struct {
 	uint32_t freq;
 	int n_taxels, n_muxes, swap_i, swap_j;
 	double realtime, duration;
+	int wait_host; /* start emulating on the first byte from the host */
 	double c0, c1, r_ref, v_plus;
 	int verbose;
 
@@ -302,6 +305,28 @@ static void ubrr_write_fixed(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *pa
 	p->cycles_per_byte = per_bit * (1 + data + parity + stop);
 }
 
+/* simavr 1.6 takes 100 us for every SPI byte whatever the clock (8 bytes of heaters took 0.8 ms
+ * of a 5 ms sample period); time it from SPCR/SPSR instead: 8 bits at F_CPU / divider. */
+static avr_cycle_count_t spi_done(avr_t *avr, avr_cycle_count_t when, void *param)
+{
+	avr_spi_t *p = param;
+	avr_raise_irq(p->io.irq + SPI_IRQ_OUTPUT, avr->data[p->r_spdr]);
+	avr_raise_interrupt(avr, &p->spi);
+	return 0;
+}
+
+static void spdr_write_timed(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
+{
+	avr_spi_t *p = param;
+	static const uint8_t div[4] = {4, 16, 64, 128};
+	avr_clear_interrupt(avr, &p->spi);
+	avr_core_watch_write(avr, addr, v);
+	avr_cycle_count_t bit = div[avr->data[p->r_spcr] & 3];
+	if (avr->data[p->r_spsr] & 1) /* SPI2X */
+		bit /= 2;
+	avr_cycle_timer_register(avr, 8 * bit, spi_done, p);
+}
+
 static avr_cycle_count_t on_sample_boundary(avr_t *avr, avr_cycle_count_t when, void *param)
 {
 	refresh_all();
@@ -441,7 +466,7 @@ static void usage(void)
 	fprintf(stderr,
 		"usage: skin_avr --mcu atmega328p|atmega2560 --freq 16000000 --elf FILE --scene FILE\n"
 		"                --taxels N --muxes M [--swap I,J] [--realtime X] [--duration SECONDS]\n"
-		"                [--r-ref OHM] [--v-plus VOLT] [--c0 C0] [--c1 C1] [--verbose]\n");
+		"                [--r-ref OHM] [--v-plus VOLT] [--c0 C0] [--c1 C1] [--wait-host 1] [--verbose]\n");
 	exit(2);
 }
 
@@ -486,6 +511,8 @@ static void parse_args(int argc, char **argv)
 			S.realtime = atof(v);
 		else if (!strcmp(a, "--duration"))
 			S.duration = atof(v);
+		else if (!strcmp(a, "--wait-host"))
+			S.wait_host = atoi(v);
 		else if (!strcmp(a, "--r-ref"))
 			S.r_ref = atof(v);
 		else if (!strcmp(a, "--v-plus"))
@@ -587,6 +614,12 @@ int main(int argc, char **argv)
 		S.heater_of[S.swap_j] = S.swap_i;
 	}
 
+	int spdr_io = AVR_DATA_TO_IO(SPDR_ADDR);
+	/* SPI: retime each byte (see spdr_write_timed) */
+	if (!S.avr->io[spdr_io].w.c)
+		die("simavr's SPI does not hook SPDR at 0x%02x on %s", SPDR_ADDR, S.mcu);
+	S.avr->io[spdr_io].w.c = spdr_write_timed;
+
 	/* UART0 */
 	int ubrr_io = AVR_DATA_TO_IO(UBRR0L_ADDR);
 	S.ubrr_write_orig = S.avr->io[ubrr_io].w.c;
@@ -617,6 +650,13 @@ int main(int argc, char **argv)
 	fprintf(out, "PTY %s\n", S.pty_name);
 	fflush(out);
 
+	/* --wait-host 1: the board powers up when the host first writes, so that a host which
+	 * opens the port (and so empties its input) misses none of the board's output */
+	while (S.wait_host && !g_stop) {
+		struct pollfd p = {.fd = S.master, .events = POLLIN};
+		if (poll(&p, 1, 100) > 0 && (p.revents & POLLIN))
+			break;
+	}
 	double end_s = S.duration > 0 ? S.duration : S.n_samples / (double)S.rate_hz;
 	avr_cycle_count_t end_cycle = (avr_cycle_count_t)ceil(end_s * S.freq);
 	avr_cycle_count_t chunk = S.freq / 2000; /* 0.5 ms of emulated time between pty services */

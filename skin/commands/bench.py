@@ -300,6 +300,6 @@ def main_bus(args: argparse.Namespace) -> int:
         print(f"{r.bus:>6} {r.bit_rate:>9} {r.taxels:>6} {r.frame_bytes:>6} {r.frames:>6} "
               f"{r.bytes_per_s:>8.0f} {load:>14} {r.max_taxels:>10}")
     print("AVR ADC at 250 kHz (16 MHz / 64, 16 clocks per conversion with its interrupt), "
-          "90 % of the period: at most "
+          "95 % of the period: at most "
           + ", ".join(f"{n} taxels with {k}x oversampling" for k, n in adc.items()))
     return 0

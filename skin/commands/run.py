@@ -29,7 +29,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                      help="device URL (serial:///dev/ttyACM0, sim://default, ...); "
                           "default: a simulated skin served on a pseudo-terminal")
     run.add_argument("--firmware-sim", action="store_true",
-                     help="play the scene to the compiled firmware (ATmega2560, 64 taxels) "
+                     help="play the scene to the compiled firmware (ATmega2560, 72 taxels) "
                           "running in simavr, read over its pseudo-terminal; needs "
                           "`make -C firmware all harness`")
     run.add_argument("--scene", default="default",

@@ -59,10 +59,11 @@
 #error "one board carries at most 128 taxels (CAN groups); use several boards"
 #endif
 
-/* Conversions per sample and the highest rate they allow (90 % of the time): a conversion takes
- * 13 ADC clocks and its interrupt about 10 us more (3 clocks at 250 kHz, measured in simavr). */
+/* Conversions per sample and the highest rate they allow (95 % of the period): a conversion
+ * takes 13 ADC clocks and, with its interrupt, about 16 (64 us at 250 kHz, measured in simavr:
+ * a 72-taxel scan takes 4.65 ms). */
 #define SKIN_CONVERSIONS ((SKIN_TAXELS + 1UL) * SKIN_OVERSAMPLING)
 #define SKIN_ADC_HZ (F_CPU / SKIN_ADC_PRESCALER)
-#define SKIN_MAX_RATE_ADC (SKIN_ADC_HZ * 9UL / (10UL * 16UL * SKIN_CONVERSIONS))
+#define SKIN_MAX_RATE_ADC (SKIN_ADC_HZ * 95UL / (100UL * 16UL * SKIN_CONVERSIONS))
 
 #endif

@@ -134,14 +134,14 @@ uint16_t skin_control_step(skin_control_t *c, const uint16_t *counts, const uint
 {
     uint16_t flags = 0;
     uint32_t total = 0;
-    if (c->st_active)
+    const uint16_t n = c->n;
+    const uint8_t st_active = c->st_active;
+    if (st_active)
         selftest_step(c, counts);
-    for (uint16_t i = 0; i < c->n; i++) {
-        skin_heater_t *h = &c->heater[i];
+    skin_heater_t *h = c->heater;
+    for (uint16_t i = 0; i < n; i++, h++) {
         uint16_t count = counts[i];
-        uint8_t status = 0;
-        if (saturated[i])
-            status |= SKIN_TAXEL_SATURATED;
+        uint8_t status = saturated[i] ? SKIN_TAXEL_SATURATED : 0;
         if (count <= SKIN_RAIL_LOW || count >= SKIN_RAIL_HIGH) {
             if (h->rail_run < 255)
                 h->rail_run++;
@@ -153,7 +153,7 @@ uint16_t skin_control_step(skin_control_t *c, const uint16_t *counts, const uint
         if (count >= c->over_temp && !(h->latched & SKIN_TAXEL_THERMISTOR_FAULT))
             h->latched |= SKIN_TAXEL_OVER_TEMPERATURE;
         uint8_t u;
-        if (c->st_active) {
+        if (st_active) {
             u = (i == c->st_taxel) ? c->st_duty : 0;
         } else if (h->mode == SKIN_MODE_SETPOINT) {
             u = pi_step(c, h, count);
@@ -179,22 +179,30 @@ uint16_t skin_control_step(skin_control_t *c, const uint16_t *counts, const uint
     /* The power budget scales every duty by the same factor. */
     if (total > c->power_budget) {
         flags |= SKIN_FLAG_POWER_LIMITED;
-        for (uint16_t i = 0; i < c->n; i++)
+        for (uint16_t i = 0; i < n; i++)
             c->heater[i].out = (uint8_t)(((uint32_t)c->heater[i].out * c->power_budget) / total);
     }
-    for (uint16_t k = 0; k < (uint16_t)((c->n + 7u) / 8u); k++)
-        bits[k] = 0;
-    for (uint16_t i = 0; i < c->n; i++) {
-        skin_heater_t *h = &c->heater[i];
-        duty[i] = h->out;
-        /* First-order sigma-delta: on for `out` of every 255 samples; 255 is always on. */
-        uint16_t acc = (uint16_t)h->sd + h->out;
+    /* First-order sigma-delta: on for `out` of every 255 samples; 255 is always on. */
+    uint8_t byte = 0, mask = 1;
+    h = c->heater;
+    for (uint16_t i = 0; i < n; i++, h++) {
+        uint8_t out = h->out;
+        duty[i] = out;
+        uint16_t acc = (uint16_t)h->sd + out;
         if (acc >= 255u) {
             acc -= 255u;
-            bits[i >> 3] |= (uint8_t)(1u << (i & 7u));
+            byte |= mask;
         }
         h->sd = (uint8_t)acc;
+        mask <<= 1;
+        if (!mask) {
+            *bits++ = byte;
+            byte = 0;
+            mask = 1;
+        }
     }
+    if (mask != 1)
+        *bits = byte;
     if (c->st_active)
         flags |= SKIN_FLAG_SELFTEST;
     return flags;
