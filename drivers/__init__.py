@@ -5,10 +5,12 @@
 - ``serial:///dev/ttyACM0?baud=1000000``: a board on a serial port (pyserial), speaking wire
   protocol v1 (`skin.drivers.protocol`); the driver also sends it commands;
 - ``serial+loop://``, ``serial+socket://host:port``: any other pyserial URL;
+- ``can://virtual/ch0``, ``can://socketcan/can0?bitrate=1000000``: protocol-v1 nodes on a CAN
+  bus through python-can (``can://<interface>/<channel>``, any python-can interface);
 - ``sim://default?speed=1&duration=20``: a simulated skin (a shipped scene name or a scene
   file path), frames handed over directly.
 
-CAN and replay of recordings come with the drivers work.
+Replay of recordings comes with the drivers work.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ def _query(query: str, url: str) -> dict[str, str]:
     out = {}
     for key, values in parse_qs(query, keep_blank_values=True).items():
         out[key] = values[-1]
-    allowed = {"baud", "speed", "duration"}
+    allowed = {"baud", "bitrate", "speed", "duration"}
     unknown = set(out) - allowed
     if unknown:
         raise DeviceError(f"{url}: unknown option {sorted(unknown)[0]!r} "
@@ -73,6 +75,14 @@ def open(url: str) -> Driver:
         if not parts.path:
             raise DeviceError(f"{url}: no port: write serial:///dev/ttyACM0")
         return SerialDriver(parts.path, baudrate=int(_float(opts, "baud", 1_000_000, url)))
+    if parts.scheme == "can":
+        from skin.drivers.can_bus import CanDriver
+
+        channel = parts.path.lstrip("/")
+        if not parts.netloc or not channel:
+            raise DeviceError(f"{url}: write can://<interface>/<channel>, e.g. can://virtual/ch0")
+        bitrate = _float(opts, "bitrate", None, url)
+        return CanDriver(parts.netloc, channel, None if bitrate is None else int(bitrate))
     if parts.scheme == "sim":
         from skin.drivers.sim import SimDriver, SkinSimulator
         from skin.scene import load_scene
@@ -81,4 +91,4 @@ def open(url: str) -> Driver:
         sim = SkinSimulator(scene, duration=_float(opts, "duration", None, url))
         return SimDriver(sim, speed=_float(opts, "speed", 1.0, url))
     raise DeviceError(f"{url}: unknown scheme {parts.scheme!r}: use serial://, serial+<pyserial "
-                      f"URL>, or sim://")
+                      f"URL>, can://, or sim://")

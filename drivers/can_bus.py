@@ -1,0 +1,127 @@
+"""The CAN driver: protocol-v1 nodes on a CAN bus, through python-can's ``can.Bus``.
+
+Any python-can interface works (``socketcan``, ``pcan``, ``virtual``, ``udp_multicast`` ...):
+``can://virtual/ch0``, ``can://socketcan/can0``. Frames of every node are put back together by
+`skin.drivers.protocol.CanReassembler`; a node's samples come out as frames of board = node
+(unless ``boards`` maps it). Frames that are not ours (extended identifiers, remote and error
+frames) are counted as ``malformed`` and skipped, never raised.
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses
+import time
+
+from skin._optional import require
+from skin.drivers.base import Driver
+from skin.drivers.protocol import (
+    CAN_BROADCAST,
+    CanReassembler,
+    Command,
+    ErrorReply,
+    Reply,
+    can_command_frame,
+)
+from skin.errors import DeviceError, ProtocolError
+from skin.frame import Frame
+
+
+class CanDriver(Driver):
+    """Frames from protocol-v1 nodes on one CAN bus.
+
+    Parameters
+    ----------
+    interface : str
+        python-can interface name (``"virtual"``, ``"socketcan"``, ...).
+    channel : str
+        The interface's channel.
+    bitrate : int, optional
+        Bit rate, for interfaces that set it.
+    boards : dict of int to int, optional
+        Board id of each node (the node number by default).
+    """
+
+    def __init__(self, interface: str, channel: str, bitrate: int | None = None,
+                 boards: dict[int, int] | None = None) -> None:
+        super().__init__()
+        can = require("can", "the CAN driver")
+        self.url = f"can://{interface}/{channel}"
+        kwargs = {} if bitrate is None else {"bitrate": bitrate}
+        try:
+            self._bus = can.Bus(interface=interface, channel=channel, **kwargs)
+        except Exception as exc:  # python-can raises per backend; name the bus either way
+            raise DeviceError(f"{self.url}: cannot open the bus ({exc})") from exc
+        self._can = can
+        self._reassembler = CanReassembler(boards)
+        self.stats = self._reassembler.stats
+        self._frames: collections.deque[Frame] = collections.deque()
+        self._token = 0
+
+    @property
+    def replies(self) -> collections.deque[tuple[int, Reply]]:
+        """Replies received and not yet taken, as (node, reply)."""
+        return self._reassembler.replies
+
+    def _read(self, timeout: float | None) -> None:
+        try:
+            msg = self._bus.recv(timeout=timeout)
+        except self._can.CanError as exc:
+            raise DeviceError(f"{self.url}: the bus failed ({exc}); "
+                              f"{self.stats.frames} frames were received before") from exc
+        if msg is None:
+            return
+        self.stats.bytes += len(msg.data)
+        if msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
+            self.stats.malformed += 1
+            return
+        frame = self._reassembler.push(msg.arbitration_id, bytes(msg.data))
+        if frame is not None:
+            self._frames.append(frame)
+
+    def _recv_internal(self, timeout: float | None) -> Frame | None:
+        if not self._frames:
+            self._read(timeout)
+        return self._frames.popleft() if self._frames else None
+
+    def send(self, command: Command, node: int = CAN_BROADCAST) -> Command:
+        """Send a command to a node (`CAN_BROADCAST`: every node); token 0 gets the next one."""
+        if command.token == 0:
+            self._token = self._token % 255 + 1
+            command = dataclasses.replace(command, token=self._token)
+        ident, data = can_command_frame(node, command)
+        try:
+            self._bus.send(self._can.Message(arbitration_id=ident, data=data,
+                                             is_extended_id=False))
+        except self._can.CanError as exc:
+            raise DeviceError(f"{self.url}: cannot send ({exc})") from exc
+        return command
+
+    def request(self, command: Command, node: int, timeout: float = 1.0) -> Reply:
+        """Send a command to one node and wait for its reply, keeping every frame meanwhile.
+
+        Raises
+        ------
+        ProtocolError
+            If the node answers with an ERROR, or not within ``timeout`` seconds.
+        """
+        sent = self.send(command, node)
+        deadline = time.monotonic() + timeout
+        while True:
+            for item in self.replies:
+                who, reply = item
+                if who == node and reply.token == sent.token:
+                    self.replies.remove(item)
+                    if isinstance(reply, ErrorReply):
+                        raise ProtocolError(f"{self.url}: node {node} refused command "
+                                            f"0x{sent.type:02X}: {reply.name}, "
+                                            f"detail {reply.detail}")
+                    return reply
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise ProtocolError(f"{self.url}: no reply from node {node} to command "
+                                    f"0x{sent.type:02X} within {timeout:g} s")
+            self._read(min(remaining, 0.05))
+
+    def _close_internal(self) -> None:
+        self._bus.shutdown()
