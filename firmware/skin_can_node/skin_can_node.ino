@@ -8,7 +8,6 @@
 #include <avr/io.h>
 
 #include "skin_board.h"
-#include "skin_control.h"
 #include "skin_proto.h"
 
 #ifndef SKIN_CAN_NODE

@@ -8,7 +8,6 @@
 #include <string.h>
 
 #include "skin_board.h"
-#include "skin_control.h"
 #include "skin_proto.h"
 
 #define RX_MAX 32 /* the longest command body is 8 bytes; COBS and CRC add 3 */
