@@ -7,9 +7,9 @@ idempotent ``close``, context management and statistics.
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
-from skin.drivers.protocol import LinkStats
+from skin.drivers.protocol import Command, LinkStats
 from skin.errors import DeviceError
 from skin.frame import Frame
 
@@ -23,13 +23,22 @@ class Driver:
         Counts of bytes, frames and errors seen.
     finished : bool
         True once a finite source (a simulation, a replay) has delivered its last frame.
+    wire : str
+        The format of the bytes handed to ``tap``: ``"serial"`` (the serial protocol's byte
+        stream) or ``"can"`` (one record per CAN message: `skin.drivers.protocol.can_record`).
+    tap : callable or None
+        If set, called as ``tap(host_time, data)`` with every chunk of raw bytes the driver
+        takes off its wire, before decoding (``host_time``: ``time.monotonic()`` on arrival).
+        Recordings use it (`skin.drivers.recording`).
     """
 
     url: str = ""
+    wire: str = "serial"
 
     def __init__(self) -> None:
         self.stats = LinkStats()
         self.finished = False
+        self.tap: Callable[[float, bytes], None] | None = None
         self._closed = False
 
     def _recv_internal(self, timeout: float | None) -> Frame | None:
@@ -38,6 +47,16 @@ class Driver:
 
     def _close_internal(self) -> None:
         """Release the backend's resources."""
+
+    def send(self, command: Command) -> Command:
+        """Send a command to the device; return it as sent (with its token).
+
+        Raises
+        ------
+        DeviceError
+            If the source takes no commands (a replay), or the device cannot be written.
+        """
+        raise DeviceError(f"{self.url}: this source takes no commands")
 
     def recv(self, timeout: float | None = None) -> Frame | None:
         """Return the next frame, or None if none arrived within ``timeout`` seconds.

@@ -22,6 +22,7 @@ from skin.drivers.protocol import (
     ErrorReply,
     Reply,
     can_command_frame,
+    can_record,
 )
 from skin.errors import DeviceError, ProtocolError
 from skin.frame import Frame
@@ -41,6 +42,8 @@ class CanDriver(Driver):
     boards : dict of int to int, optional
         Board id of each node (the node number by default).
     """
+
+    wire = "can"
 
     def __init__(self, interface: str, channel: str, bitrate: int | None = None,
                  boards: dict[int, int] | None = None) -> None:
@@ -72,6 +75,10 @@ class CanDriver(Driver):
         if msg is None:
             return
         self.stats.bytes += len(msg.data)
+        if self.tap is not None:
+            self.tap(time.monotonic(), can_record(msg.arbitration_id, bytes(msg.data),
+                                                  msg.is_extended_id or msg.is_remote_frame
+                                                  or msg.is_error_frame))
         if msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
             self.stats.malformed += 1
             return

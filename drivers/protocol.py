@@ -29,6 +29,7 @@ from enum import IntEnum
 import numpy as np
 
 from skin._optional import require
+from skin.errors import ProtocolError
 from skin.frame import Frame
 
 VERSION = 1
@@ -731,6 +732,47 @@ def can_sample_frames(
 def can_command_frame(node: int, command: Command) -> CanFrame:
     """Return the COMMAND frame of a command to ``node`` (`CAN_BROADCAST`: every node)."""
     return can_id(CanType.COMMAND, node, 0), command.body()
+
+
+_CAN_RECORD = struct.Struct("<HB")
+#: Set in a `can_record`'s identifier when the message was not a standard data frame.
+CAN_RECORD_FOREIGN = 0x8000
+
+
+def can_record(ident: int, data: bytes, foreign: bool = False) -> bytes:
+    """Pack one CAN message as the raw record a driver's tap and a recording hold.
+
+    The record is u16 identifier (bit 15 set for extended, remote or error frames: not ours),
+    u8 length, then the data bytes.
+    """
+    if not 0 <= len(data) <= 64:
+        raise ValueError(f"a CAN message of {len(data)} bytes")
+    return _CAN_RECORD.pack((ident & 0x7FF) | (CAN_RECORD_FOREIGN if foreign else 0),
+                            len(data)) + bytes(data)
+
+
+def split_can_records(raw: bytes) -> list[tuple[int, bytes, bool]]:
+    """Unpack records written by `can_record`: a list of (identifier, data, foreign).
+
+    Raises
+    ------
+    ProtocolError
+        If ``raw`` ends inside a record (the byte offset is named).
+    """
+    out = []
+    offset = 0
+    while offset < len(raw):
+        if offset + _CAN_RECORD.size > len(raw):
+            raise ProtocolError(f"a CAN record truncated at byte {offset}")
+        ident, length = _CAN_RECORD.unpack_from(raw, offset)
+        end = offset + _CAN_RECORD.size + length
+        if end > len(raw):
+            raise ProtocolError(f"a CAN record at byte {offset} claims {length} bytes; "
+                                f"{len(raw) - offset - _CAN_RECORD.size} remain")
+        out.append((ident & 0x7FF, raw[offset + _CAN_RECORD.size : end],
+                    bool(ident & CAN_RECORD_FOREIGN)))
+        offset = end
+    return out
 
 
 def can_reply_frames(node: int, body: bytes) -> list[CanFrame]:

@@ -67,6 +67,8 @@ class SerialDriver(Driver):
         except (self._serial_exception, OSError) as exc:
             raise DeviceError(f"{self.url}: device stopped answering ({exc}); "
                               f"{self.stats.frames} frames were received before") from None
+        if data and self.tap is not None:
+            self.tap(time.monotonic(), data)
         self._pending.extend(self._decoder.feed(data))
 
     def _recv_internal(self, timeout: float | None) -> Frame | None:

@@ -213,6 +213,10 @@ class SimDriver(Driver):
             return None
         self._pacer.wait(frame.device_time)
         self.stats.frames += 1
+        if self.tap is not None:  # the bytes a board would have sent (ambient to 0.01 K)
+            self.tap(time.monotonic(), encode_sample(
+                frame.seq, round(frame.device_time * 1e6), frame.counts, frame.ambient,
+                frame.duty, frame.flags, frame.status))
         return frame
 
 
