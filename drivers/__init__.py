@@ -10,11 +10,16 @@
 - ``sim://default?speed=1&duration=20``: a simulated skin (a shipped scene name or a scene
   file path), frames handed over directly.
 
-Replay of recordings comes with the drivers work.
+Options every device URL takes: ``reconnect=S`` (seconds to keep reopening the device after
+a fault, with back-off; 0, the default, raises at once), ``queue=N`` (read in a background
+thread into a queue of N frames, `skin.drivers.reader.BackgroundReader`); serial URLs also take
+``board=N`` (the board id given to the frames). ``open([url, url, ...])`` reads several boards
+or buses in background threads into one queue: one skin, on one time base.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from urllib.parse import parse_qs, urlsplit
 
 from skin.drivers.base import Driver
@@ -36,7 +41,7 @@ def _query(query: str, url: str) -> dict[str, str]:
     out = {}
     for key, values in parse_qs(query, keep_blank_values=True).items():
         out[key] = values[-1]
-    allowed = {"baud", "bitrate", "speed", "duration"}
+    allowed = {"baud", "bitrate", "speed", "duration", "board", "reconnect", "queue"}
     unknown = set(out) - allowed
     if unknown:
         raise DeviceError(f"{url}: unknown option {sorted(unknown)[0]!r} "
@@ -53,20 +58,49 @@ def _float(opts: dict[str, str], key: str, default: float | None, url: str) -> f
         raise DeviceError(f"{url}: option {key!r} must be a number, got {opts[key]!r}") from None
 
 
-def open(url: str) -> Driver:
-    """Open a frame source by URL (see the module docstring for the schemes).
+def _serial_options(opts: dict[str, str], url: str) -> dict:
+    return {"baudrate": int(_float(opts, "baud", 1_000_000, url)),
+            "board": int(_float(opts, "board", 0, url)),
+            "reconnect": _float(opts, "reconnect", 0.0, url)}
+
+
+def open(url: str | Sequence[str]) -> Driver:
+    """Open a frame source by URL, or several as one (see the module docstring).
 
     Raises
     ------
     DeviceError
-        If the URL is malformed or the device cannot be opened.
+        If a URL is malformed or a device cannot be opened.
     """
+    if not isinstance(url, str):
+        from skin.drivers.reader import BackgroundReader
+
+        opened: list[Driver] = []
+        try:
+            for one in url:
+                opened.append(open(one))
+        except BaseException:
+            for driver in opened:
+                driver.close()
+            raise
+        return BackgroundReader(opened)
+    opts = _query(url.partition("?")[2], url)
+    queue = _float(opts, "queue", None, url)
+    driver = _open_one(url)
+    if queue is not None:
+        from skin.drivers.reader import BackgroundReader
+
+        return BackgroundReader(driver, maxsize=int(queue))
+    return driver
+
+
+def _open_one(url: str) -> Driver:
     if url.startswith("serial+"):
         from skin.drivers.serial_port import SerialDriver
 
         inner, _, query = url[len("serial+") :].partition("?")
         opts = _query(query, url)
-        return SerialDriver(inner, baudrate=int(_float(opts, "baud", 1_000_000, url)))
+        return SerialDriver(inner, **_serial_options(opts, url))
     parts = urlsplit(url)
     opts = _query(parts.query, url)
     if parts.scheme == "serial":
@@ -74,7 +108,7 @@ def open(url: str) -> Driver:
 
         if not parts.path:
             raise DeviceError(f"{url}: no port: write serial:///dev/ttyACM0")
-        return SerialDriver(parts.path, baudrate=int(_float(opts, "baud", 1_000_000, url)))
+        return SerialDriver(parts.path, **_serial_options(opts, url))
     if parts.scheme == "can":
         from skin.drivers.can_bus import CanDriver
 
@@ -82,7 +116,8 @@ def open(url: str) -> Driver:
         if not parts.netloc or not channel:
             raise DeviceError(f"{url}: write can://<interface>/<channel>, e.g. can://virtual/ch0")
         bitrate = _float(opts, "bitrate", None, url)
-        return CanDriver(parts.netloc, channel, None if bitrate is None else int(bitrate))
+        return CanDriver(parts.netloc, channel, None if bitrate is None else int(bitrate),
+                         reconnect=_float(opts, "reconnect", 0.0, url))
     if parts.scheme == "sim":
         from skin.drivers.sim import SimDriver, SkinSimulator
         from skin.scene import load_scene

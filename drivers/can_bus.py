@@ -5,12 +5,18 @@ Any python-can interface works (``socketcan``, ``pcan``, ``virtual``, ``udp_mult
 `skin.drivers.protocol.CanReassembler`; a node's samples come out as frames of board = node
 (unless ``boards`` maps it). Frames that are not ours (extended identifiers, remote and error
 frames) are counted as ``malformed`` and skipped, never raised.
+
+Faults: a bus-off (an error frame with SocketCAN's ``CAN_ERR_BUSOFF`` class bit, or the
+interface raising) is a fault: with ``reconnect`` the bus is shut down and opened again with
+back-off (`skin.drivers.base`). A node that has sent samples and then stays silent for
+``silent_after`` seconds is reported (``health.silent``, a warning) until it speaks again.
 """
 
 from __future__ import annotations
 
 import collections
 import dataclasses
+import logging
 import time
 
 from skin._optional import require
@@ -27,6 +33,11 @@ from skin.drivers.protocol import (
 from skin.errors import DeviceError, ProtocolError
 from skin.frame import Frame
 
+log = logging.getLogger("skin.drivers")
+
+#: SocketCAN's error class bit for bus-off, in an error frame's identifier (linux/can/error.h).
+CAN_ERR_BUSOFF = 0x40
+
 
 class CanDriver(Driver):
     """Frames from protocol-v1 nodes on one CAN bus.
@@ -41,21 +52,27 @@ class CanDriver(Driver):
         Bit rate, for interfaces that set it.
     boards : dict of int to int, optional
         Board id of each node (the node number by default).
+    reconnect : float
+        Seconds to keep reopening the bus after a fault (0: raise at once).
+    silent_after : float
+        Seconds without a frame after which a node that was sending is reported silent.
     """
 
     wire = "can"
 
     def __init__(self, interface: str, channel: str, bitrate: int | None = None,
-                 boards: dict[int, int] | None = None) -> None:
-        super().__init__()
-        can = require("can", "the CAN driver")
+                 boards: dict[int, int] | None = None, reconnect: float = 0.0,
+                 silent_after: float = 0.5) -> None:
+        super().__init__(reconnect)
+        self._can = require("can", "the CAN driver")
         self.url = f"can://{interface}/{channel}"
-        kwargs = {} if bitrate is None else {"bitrate": bitrate}
-        try:
-            self._bus = can.Bus(interface=interface, channel=channel, **kwargs)
-        except Exception as exc:  # python-can raises per backend; name the bus either way
-            raise DeviceError(f"{self.url}: cannot open the bus ({exc})") from exc
-        self._can = can
+        self._kwargs = {"interface": interface, "channel": channel}
+        if bitrate is not None:
+            self._kwargs["bitrate"] = bitrate
+        self._bus = self._open()
+        self.silent_after = float(silent_after)
+        self._last_seen: dict[int, float] = {}
+        self._next_check = 0.0
         self._reassembler = CanReassembler(boards)
         self.stats = self._reassembler.stats
         self._frames: collections.deque[Frame] = collections.deque()
@@ -66,12 +83,25 @@ class CanDriver(Driver):
         """Replies received and not yet taken, as (node, reply)."""
         return self._reassembler.replies
 
+    def _open(self) -> object:
+        try:
+            return self._can.Bus(**self._kwargs)
+        except Exception as exc:  # python-can raises per backend; name the bus either way
+            raise DeviceError(f"{self.url}: cannot open the bus ({exc})") from exc
+
+    def _reopen(self) -> None:
+        self._bus = self._open()
+        self._last_seen.clear()
+
     def _read(self, timeout: float | None) -> None:
         try:
             msg = self._bus.recv(timeout=timeout)
-        except self._can.CanError as exc:
+        except (self._can.CanError, OSError) as exc:
             raise DeviceError(f"{self.url}: the bus failed ({exc}); "
                               f"{self.stats.frames} frames were received before") from exc
+        now = time.monotonic()
+        if now >= self._next_check:
+            self._check_silent(now)
         if msg is None:
             return
         self.stats.bytes += len(msg.data)
@@ -79,12 +109,27 @@ class CanDriver(Driver):
             self.tap(time.monotonic(), can_record(msg.arbitration_id, bytes(msg.data),
                                                   msg.is_extended_id or msg.is_remote_frame
                                                   or msg.is_error_frame))
+        if msg.is_error_frame and msg.arbitration_id & CAN_ERR_BUSOFF:
+            raise DeviceError(f"{self.url}: the controller went bus-off; "
+                              f"{self.stats.frames} frames were received before")
         if msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
             self.stats.malformed += 1
             return
         frame = self._reassembler.push(msg.arbitration_id, bytes(msg.data))
         if frame is not None:
             self._frames.append(frame)
+            self._last_seen[frame.board] = now
+            if frame.board in self.health.silent:
+                self.health.silent.discard(frame.board)
+                log.warning("%s: board %d is sending again", self.url, frame.board)
+
+    def _check_silent(self, now: float) -> None:
+        """Report the boards that were sending and have been silent for ``silent_after``."""
+        self._next_check = now + self.silent_after / 4
+        for board, seen in self._last_seen.items():
+            if now - seen > self.silent_after and board not in self.health.silent:
+                self.health.silent.add(board)
+                log.warning("%s: board %d silent for %.2f s", self.url, board, now - seen)
 
     def _recv_internal(self, timeout: float | None) -> Frame | None:
         if not self._frames:
@@ -96,6 +141,8 @@ class CanDriver(Driver):
         if command.token == 0:
             self._token = self._token % 255 + 1
             command = dataclasses.replace(command, token=self._token)
+        if not self.health.connected:
+            raise DeviceError(f"{self.url}: disconnected ({self.health.last_fault})")
         ident, data = can_command_frame(node, command)
         try:
             self._bus.send(self._can.Message(arbitration_id=ident, data=data,

@@ -634,6 +634,12 @@ class StreamDecoder:
         self._buffer = b""
         self._cobs = _cobs()
 
+    def reset(self) -> None:
+        """Drop a partly received packet (the link was cut); counted as a resync."""
+        if self._buffer:
+            self._buffer = b""
+            self.stats.resyncs += 1
+
     def feed(self, data: bytes) -> list[Frame]:
         """Add received bytes; return the sample frames completed by them."""
         self.stats.bytes += len(data)

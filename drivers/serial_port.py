@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections import deque
+from typing import Any
 
 from skin._optional import require
 from skin.drivers.base import Driver
@@ -37,6 +38,9 @@ class SerialDriver(Driver):
         Line rate (ignored by pseudo-terminals and URL handlers).
     board : int
         Board id given to the frames.
+    reconnect : float
+        Seconds to keep reopening the port after it vanished (a board unplugged), with
+        back-off (`skin.drivers.base`); 0 raises at once.
 
     Attributes
     ----------
@@ -44,20 +48,30 @@ class SerialDriver(Driver):
         Replies received that no `request` or `wait_reply` has taken yet.
     """
 
-    def __init__(self, port: str, baudrate: int = 1_000_000, board: int = 0) -> None:
-        super().__init__()
-        serial = require("serial", "the serial driver")
+    def __init__(self, port: str, baudrate: int = 1_000_000, board: int = 0,
+                 reconnect: float = 0.0) -> None:
+        super().__init__(reconnect)
+        self._serial = require("serial", "the serial driver")
         self.url = f"serial://{port}"
-        self._serial_exception = serial.SerialException
-        try:
-            self._port = serial.serial_for_url(port, baudrate=baudrate, timeout=0.05)
-        except (serial.SerialException, ValueError) as exc:
-            raise DeviceError(f"{self.url}: cannot open: {exc}") from None
+        self._serial_exception = self._serial.SerialException
+        self._name, self._baudrate = port, baudrate
+        self._port = self._open()
         self._decoder = StreamDecoder(board)
         self.stats = self._decoder.stats
         self.replies: deque[Reply] = self._decoder.replies
         self._pending: deque[Frame] = deque()
         self._token = 0
+
+    def _open(self) -> Any:  # a serial.Serial
+        try:
+            return self._serial.serial_for_url(self._name, baudrate=self._baudrate,
+                                               timeout=0.05)
+        except (self._serial_exception, ValueError, OSError) as exc:
+            raise DeviceError(f"{self.url}: cannot open: {exc}") from None
+
+    def _reopen(self) -> None:
+        self._port = self._open()
+        self._decoder.reset()  # a packet cut by the fault cannot be completed
 
     def _read(self, timeout: float | None) -> None:
         """Read what arrives within ``timeout`` s; queue its frames (replies queue themselves)."""
@@ -94,6 +108,8 @@ class SerialDriver(Driver):
         """
         if self._closed:
             raise DeviceError(f"{self.url}: the driver is closed")
+        if not self.health.connected:
+            raise DeviceError(f"{self.url}: disconnected ({self.health.last_fault})")
         if command.token == 0:
             self._token = self._token % 255 + 1
             command = dataclasses.replace(command, token=self._token)
