@@ -7,6 +7,9 @@
 - ``serial+loop://``, ``serial+socket://host:port``: any other pyserial URL;
 - ``can://virtual/ch0``, ``can://socketcan/can0?bitrate=1000000``: protocol-v1 nodes on a CAN
   bus through python-can (``can://<interface>/<channel>``, any python-can interface);
+  ``can://udp_multicast/239.74.163.2?port=43113`` (or an IPv6 group, such as python-can's
+  default ``ff15:7079:7468:6f6e:6465:6d6f:6d63:6173``) is a bus shared by processes over UDP
+  multicast (it needs msgpack); ``port`` goes to the interfaces that take one;
 - ``sim://default?speed=1&duration=20``: a simulated skin (a shipped scene name or a scene
   file path), frames handed over directly.
 
@@ -41,7 +44,7 @@ def _query(query: str, url: str) -> dict[str, str]:
     out = {}
     for key, values in parse_qs(query, keep_blank_values=True).items():
         out[key] = values[-1]
-    allowed = {"baud", "bitrate", "speed", "duration", "board", "reconnect", "queue"}
+    allowed = {"baud", "bitrate", "port", "speed", "duration", "board", "reconnect", "queue"}
     unknown = set(out) - allowed
     if unknown:
         raise DeviceError(f"{url}: unknown option {sorted(unknown)[0]!r} "
@@ -116,8 +119,10 @@ def _open_one(url: str) -> Driver:
         if not parts.netloc or not channel:
             raise DeviceError(f"{url}: write can://<interface>/<channel>, e.g. can://virtual/ch0")
         bitrate = _float(opts, "bitrate", None, url)
+        port = _float(opts, "port", None, url)
         return CanDriver(parts.netloc, channel, None if bitrate is None else int(bitrate),
-                         reconnect=_float(opts, "reconnect", 0.0, url))
+                         reconnect=_float(opts, "reconnect", 0.0, url),
+                         port=None if port is None else int(port))
     if parts.scheme == "sim":
         from skin.drivers.sim import SimDriver, SkinSimulator
         from skin.scene import load_scene

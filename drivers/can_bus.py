@@ -56,19 +56,25 @@ class CanDriver(Driver):
         Seconds to keep reopening the bus after a fault (0: raise at once).
     silent_after : float
         Seconds without a frame after which a node that was sending is reported silent.
+    port : int, optional
+        The IP port, for interfaces that take one (``udp_multicast``: 43113 by default; on
+        Linux a bus hears every group joined on its port, so separate buses take separate
+        ports).
     """
 
     wire = "can"
 
     def __init__(self, interface: str, channel: str, bitrate: int | None = None,
                  boards: dict[int, int] | None = None, reconnect: float = 0.0,
-                 silent_after: float = 0.5) -> None:
+                 silent_after: float = 0.5, port: int | None = None) -> None:
         super().__init__(reconnect)
         self._can = require("can", "the CAN driver")
-        self.url = f"can://{interface}/{channel}"
+        self.url = f"can://{interface}/{channel}" + ("" if port is None else f"?port={port}")
         self._kwargs = {"interface": interface, "channel": channel}
         if bitrate is not None:
             self._kwargs["bitrate"] = bitrate
+        if port is not None:
+            self._kwargs["port"] = port
         self._bus = self._open()
         self.silent_after = float(silent_after)
         self._last_seen: dict[int, float] = {}
