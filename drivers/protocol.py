@@ -577,10 +577,14 @@ class LinkStats:
     orphans : int
         CAN: DATA, STATUS or REPLY frames that arrived with nothing open to add them to.
     lost_samples : int
-        CAN: samples lost whole (seq gaps between complete samples, beyond those counted in
-        ``missing``).
+        Samples lost whole: gaps in seq between the frames decoded (CAN: between complete
+        samples, beyond those counted in ``missing``).
     lost_replies : int
         CAN: replies dropped because a segment was skipped.
+    duplicates : int
+        Frames whose seq equals the newest one of their board or is at most
+        `DUPLICATE_WINDOW` behind it (they are still returned); a jump further back is taken
+        as the board restarting.
     """
 
     bytes: int = 0
@@ -594,6 +598,28 @@ class LinkStats:
     orphans: int = 0
     lost_samples: int = 0
     lost_replies: int = 0
+    duplicates: int = 0
+
+
+#: A frame at most this many samples behind the newest of its board is a duplicate; further
+#: back, the board restarted (its seq began again at 0).
+DUPLICATE_WINDOW = 1024
+
+
+def _follow(stats: LinkStats, last: int | None, seq: int, dropped: int = 0) -> bool:
+    """Count the gap or duplicate from the newest seq ``last`` to ``seq``; True if it advances.
+
+    ``dropped`` samples since ``last`` were already counted elsewhere (CAN's ``missing``).
+    """
+    if last is None:
+        return True
+    step = (seq - last) % (1 << 32)
+    if step == 0 or step > (1 << 32) - DUPLICATE_WINDOW:
+        stats.duplicates += 1
+        return False
+    if step < 1 << 31:  # forward; a jump far back is a restart, not a loss
+        stats.lost_samples += max(0, step - 1 - dropped)
+    return True
 
 
 #: Longest packet on the serial wire, delimiter included.
@@ -618,6 +644,7 @@ class StreamDecoder:
     """Turn a serial byte stream into frames and replies; bad bytes are counted, never raised.
 
     A reader that starts in the middle of a packet sees one malformed packet, then locks on.
+    Gaps in seq count ``stats.lost_samples``, repeats ``stats.duplicates`` (see `LinkStats`).
     Sample frames are returned by `feed`; replies (`Ack`, `ErrorReply`, `Identity`,
     `SelftestResult`) are appended to ``replies``.
 
@@ -633,6 +660,7 @@ class StreamDecoder:
         self.replies: deque[Reply] = deque()
         self._buffer = b""
         self._cobs = _cobs()
+        self._last_seq: int | None = None
 
     def reset(self) -> None:
         """Drop a partly received packet (the link was cut); counted as a resync."""
@@ -672,6 +700,8 @@ class StreamDecoder:
             if frame is None:
                 return self._bad("malformed")
             self.stats.frames += 1
+            if _follow(self.stats, self._last_seq, frame.seq):
+                self._last_seq = frame.seq
             return frame
         try:
             self.replies.append(parse_reply(body))
@@ -812,9 +842,9 @@ class CanReassembler:
     Per node: SYNC opens a sample, DATA fills its groups, STATUS closes it; an incomplete
     sample is dropped (``stats.missing``, ``stats.lost_groups``), DATA or STATUS with no sample
     open is ignored (``stats.orphans``), seq gaps count the samples lost whole
-    (``stats.lost_samples``). Duties are the last received per taxel. REPLY segments are
-    concatenated per node into ``replies``, as (node, reply). COMMAND frames (the host's own)
-    are ignored.
+    (``stats.lost_samples``) and repeats ``stats.duplicates``. Duties are the last received
+    per taxel. REPLY segments are concatenated per node into ``replies``, as (node, reply).
+    COMMAND frames (the host's own) are ignored.
 
     Parameters
     ----------
@@ -887,11 +917,8 @@ class CanReassembler:
             return None
         seq = node.seq
         node.seq = None
-        if node.last_seq is not None:
-            gap = (seq - node.last_seq - 1) % (1 << 32)
-            if gap < 1 << 31:  # a jump backwards is a node restarting, not a loss
-                self.stats.lost_samples += max(0, gap - node.dropped)
-        node.last_seq, node.dropped = seq, 0
+        if _follow(self.stats, node.last_seq, seq, node.dropped):
+            node.last_seq, node.dropped = seq, 0
         words = np.frombuffer(b"".join(groups), dtype="<u2")  # type: ignore[arg-type]
         n = words.size
         duty = np.zeros(n, dtype=np.uint8)

@@ -392,3 +392,43 @@ def test_can_malformed_frames_are_counted():
     can = CanReassembler()
     can.feed([(0x800, b""), (0x700, b"\x00"), (0x000, b"\x00" * 3), (0x500, b"\x00")])
     assert can.stats.malformed == 4
+
+
+# ---- sequence accounting: gaps and duplicates ----
+
+def test_serial_gaps_and_duplicates_are_counted_and_duplicates_still_returned():
+    dec = StreamDecoder()
+    out = dec.feed(b"".join(frame_bytes(s)[0] for s in (0, 1, 2, 2, 1, 5, 6)))
+    assert [f.seq for f in out] == [0, 1, 2, 2, 1, 5, 6]
+    assert dec.stats.duplicates == 2  # the second 2, and 1 after 2
+    assert dec.stats.lost_samples == 2  # 3 and 4
+    assert dec.stats.frames == 7
+
+
+def test_serial_seq_wraps_and_restarts_are_neither_gaps_nor_duplicates():
+    dec = StreamDecoder()
+    dec.feed(b"".join(frame_bytes(s)[0] for s in ((1 << 32) - 2, (1 << 32) - 1, 0, 1)))
+    assert dec.stats.lost_samples == dec.stats.duplicates == 0
+    dec.feed(b"".join(frame_bytes(s)[0] for s in (5000, 0, 1)))  # a jump ahead, then a restart
+    assert dec.stats.lost_samples == 5000 - 2 and dec.stats.duplicates == 0
+
+
+def test_duplicate_window_separates_repeats_from_restarts():
+    from skin.drivers.protocol import DUPLICATE_WINDOW
+
+    dec = StreamDecoder()
+    back = DUPLICATE_WINDOW + 10
+    dec.feed(b"".join(frame_bytes(s)[0] for s in (back, 10, back - DUPLICATE_WINDOW)))
+    assert dec.stats.duplicates == 1  # 10 is a restart (too far back); 10 again a repeat
+
+
+def test_can_duplicates_and_gaps_per_node():
+    can = CanReassembler()
+    frames = [f for s in (0, 1, 1, 0, 2) for f in can_sample(0, s)] + can_sample(1, 7)
+    frames += [f for s in (7, 9) for f in can_sample(1, s)]
+    out = can.feed(frames)
+    assert [(f.board, f.seq) for f in out] == [(0, 0), (0, 1), (0, 1), (0, 0), (0, 2),
+                                                (1, 7), (1, 7), (1, 9)]
+    assert can.stats.duplicates == 3  # node 0: 1 again, 0 after 1; node 1: 7 again
+    assert can.stats.lost_samples == 1  # node 1's sample 8
+    assert can.stats.missing == 0
