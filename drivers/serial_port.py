@@ -75,8 +75,8 @@ class SerialDriver(Driver):
 
     def _read(self, timeout: float | None) -> None:
         """Read what arrives within ``timeout`` s; queue its frames (replies queue themselves)."""
-        self._port.timeout = timeout
         try:
+            self._port.timeout = timeout
             data = self._port.read(max(1, self._port.in_waiting))
         except (self._serial_exception, OSError) as exc:
             raise DeviceError(f"{self.url}: device stopped answering ({exc}); "
