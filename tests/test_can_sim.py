@@ -1,0 +1,103 @@
+"""The simulated CAN node: nodes beyond 128 taxels, commands and refusals, the command line."""
+
+import dataclasses
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from skin import drivers
+from skin.drivers.protocol import (
+    ALL_TAXELS,
+    CAN_BROADCAST,
+    Ack,
+    Command,
+    ErrorCode,
+    Identity,
+    MsgType,
+    can_command_frame,
+)
+from skin.drivers.sim import SkinSimulator
+from skin.errors import DeviceError, ProtocolError
+from skin.pipeline_bench import cylinder_layout
+from skin.scene import load_scene
+
+can = pytest.importorskip("can")
+from skin.drivers.can_sim import CanSimNode  # noqa: E402
+
+
+@pytest.fixture
+def channel(request):
+    return f"can-sim-{request.node.name}"
+
+
+def test_a_board_of_200_channels_takes_two_nodes(channel):
+    scene = dataclasses.replace(load_scene("default"), layout=cylinder_layout(200), touches=())
+    sim = SkinSimulator(scene, duration=0.2)
+    expected = list(sim.frames())
+    with drivers.open(f"can://virtual/{channel}") as driver, CanSimNode(
+            sim, ("virtual", channel), node=3, speed=0) as node:
+        assert node.nodes == [3, 4]
+        node.start()
+        got = {3: [], 4: []}
+        while (frame := driver.recv(timeout=0.3)) is not None:
+            got[frame.board].append(frame)
+        assert [f.seq for f in got[3]] == [f.seq for f in got[4]] == list(range(40))
+        for a, b, want in zip(got[3], got[4], expected, strict=True):
+            assert np.array_equal(np.concatenate([a.counts, b.counts]), want.counts)
+        first = driver.request(Command(MsgType.IDENTIFY), node=3)
+        second = driver.request(Command(MsgType.IDENTIFY), node=4)
+        assert isinstance(first, Identity) and (first.taxels, second.taxels) == (128, 72)
+        assert first.transport == second.transport == 1
+        assert first.layout_hash != second.layout_hash
+    with pytest.raises(ValueError, match="nodes are 0-6"):
+        CanSimNode(sim, ("virtual", channel), node=6)
+
+
+def test_commands_duty_refusals_and_broadcast(channel):
+    sim = SkinSimulator(load_scene("default"), duration=5.0)
+    with drivers.open(f"can://virtual/{channel}") as driver, CanSimNode(
+            sim, f"can://virtual/{channel}", node=1, streaming=False) as node:
+        node.start()
+        assert driver.recv(timeout=0.2) is None  # booted stopped
+        assert isinstance(driver.request(Command(MsgType.SET_DUTY, taxel=ALL_TAXELS, duty=9),
+                                         node=1), Ack)
+        driver.request(Command(MsgType.SET_DUTY, taxel=5, duty=77), node=1)
+        driver.request(Command(MsgType.START), node=1)
+        frames = [driver.recv(timeout=1.0) for _ in range(12)]  # every DUTY group refreshed
+        assert frames[-1].duty[5] == 77 and frames[-1].duty[4] == 9
+        with pytest.raises(ProtocolError, match="ERR_ARGUMENT"):
+            driver.request(Command(MsgType.SET_RATE, rate_hz=1000), node=1)
+        with pytest.raises(ProtocolError, match="no reply"):
+            driver.request(Command(MsgType.IDENTIFY), node=5, timeout=0.2)  # not ours
+        sent = driver.send(Command(MsgType.IDENTIFY), node=CAN_BROADCAST)
+        ident, _ = can_command_frame(1, sent)
+        driver._bus.send(can.Message(arbitration_id=ident, data=b"\x01", is_extended_id=False))
+        while len(driver.replies) < 2:
+            assert driver.recv(timeout=1.0) is not None
+        (who, identity), (_, refusal) = driver.replies
+        assert who == 1 and identity.token == sent.token and identity.taxels == 72
+        assert refusal.code == ErrorCode.ERR_LENGTH and refusal.token == 0
+        assert [c.type for c in node.commands][-1] == MsgType.IDENTIFY
+        assert node.send_errors == 0
+
+
+def test_bad_bus_urls():
+    sim = SkinSimulator(load_scene("default"), duration=0.1)
+    with pytest.raises(DeviceError, match="can://<interface>/<channel>"):
+        CanSimNode(sim, "can://virtual")
+    with pytest.raises(DeviceError, match="unknown option"):
+        CanSimNode(sim, "can://virtual/x?colour=red")
+    with pytest.raises(DeviceError, match="cannot open the bus"):
+        CanSimNode(sim, ("no-such-interface", "x"))
+
+
+def test_the_command_line_names_its_errors():
+    proc = subprocess.run([sys.executable, "-m", "skin.drivers.can_sim", "--interface",
+                           "virtual"], capture_output=True, text=True, timeout=30)
+    assert proc.returncode == 2 and "--channel is required" in proc.stderr
+    proc = subprocess.run([sys.executable, "-m", "skin.drivers.can_sim", "--interface",
+                           "virtual", "--channel", "x", "--scene", "no-such-scene"],
+                          capture_output=True, text=True, timeout=30)
+    assert proc.returncode == 1 and proc.stderr.startswith("can_sim: ")
