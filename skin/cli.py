@@ -12,6 +12,7 @@ import sys
 from skin.commands import (
     bench,
     calibrate,
+    devices,
     evaluate,
     evaluate_onset,
     plot,
@@ -21,7 +22,7 @@ from skin.commands import (
 )
 from skin.errors import SkinError
 
-COMMANDS = (run, simulate, calibrate, train, evaluate, evaluate_onset, bench, plot)
+COMMANDS = (run, simulate, calibrate, train, evaluate, evaluate_onset, bench, plot, devices)
 
 
 def build_parser() -> argparse.ArgumentParser:
