@@ -33,7 +33,9 @@ class Frame:
     device_time : float
         Device clock at sampling, in seconds.
     host_time : float
-        Host clock (``time.monotonic``) when the frame was decoded, in seconds.
+        Host clock (``time.monotonic``), s: a decoder gives the arrival time; a driver's
+        ``recv`` gives the host time at sampling, mapped from the device time by the board's
+        clock map (`skin.drivers.clock`), the time base several boards and buses share.
     counts : numpy.ndarray
         Raw ADC counts, one per channel of the board (uint16).
     ambient : float
