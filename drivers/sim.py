@@ -16,6 +16,7 @@ as it reads a board, and answers the commands the driver sends.
 
 from __future__ import annotations
 
+import itertools
 import os
 import select
 import threading
@@ -329,10 +330,12 @@ class PtySerialDevice:
         return [ack]
 
     def _serve(self) -> None:
-        pacer = _Pacer(self.speed)
         chunk: list[bytes] = []
         try:
-            for frame in self.simulator.frames():
+            frames = self.simulator.frames()
+            first = next(frames, None)  # computes the simulation: before the pacing starts
+            pacer = _Pacer(self.speed)
+            for frame in itertools.chain([] if first is None else [first], frames):
                 paused = time.monotonic()
                 while not self.streaming and not self._stop.is_set():
                     self._poll(0.05)
