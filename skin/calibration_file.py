@@ -72,12 +72,15 @@ class CalibrationFile:
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         self.created = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
-        doc = {"format": FORMAT, "created": self.created, "ambient_offset": self.ambient_offset,
-               "references": self.references,
-               "boards": {str(k): v for k, v in sorted(self.boards.items())},
-               "taxels": {str(k): v for k, v in sorted(self.taxels.items())}}
-        path.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+        path.write_text(json.dumps(self.document(), indent=1) + "\n", encoding="utf-8")
         return path
+
+    def document(self) -> dict[str, Any]:
+        """Return the file's JSON document (what `save` writes, with the current date)."""
+        return {"format": FORMAT, "created": self.created, "ambient_offset": self.ambient_offset,
+                "references": self.references,
+                "boards": {str(k): v for k, v in sorted(self.boards.items())},
+                "taxels": {str(k): v for k, v in sorted(self.taxels.items())}}
 
     def missing(self, layout: Layout, part: str) -> list[int]:
         """Ids of the layout's taxels without ``part`` (``"thermistor"`` or ``"thermal"``)."""
@@ -119,9 +122,17 @@ def load_calibration(path: str | Path) -> CalibrationFile:
     """Read and check a calibration file; errors name the file, the key and the taxel."""
     path = Path(path)
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
+        text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise CalibrationFileError(f"{path}: no such calibration file") from None
+    return parse_calibration(text, str(path))
+
+
+def parse_calibration(text: str, source: str = "<string>") -> CalibrationFile:
+    """Check calibration file text (as `load_calibration`); errors name ``source``."""
+    path = source
+    try:
+        doc = json.loads(text)
     except json.JSONDecodeError as exc:
         raise CalibrationFileError(f"{path}, line {exc.lineno}: not JSON ({exc.msg})") from None
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
@@ -162,7 +173,7 @@ def load_calibration(path: str | Path) -> CalibrationFile:
                            str(doc.get("created", "")), boards)
 
 
-def _id(path: Path, what: str, key: str) -> int:
+def _id(path: str, what: str, key: str) -> int:
     try:
         return int(key)
     except ValueError:
