@@ -160,6 +160,14 @@ class Pipeline:
     provisional : sequence of float
         Seconds after a contact's first onset at which it is also classified while still
         open (results with ``contact.final`` False; `skin.tracking.ContactTracker`).
+
+    Attributes
+    ----------
+    observers : list of callable
+        Each is called as ``observer(times, temperature)`` with every block of calibrated
+        samples (device times (n,), deg C (n, taxels) in layout order, NaN where flagged),
+        before onset detection; a recording keeps them (`skin.drivers.recording.Recorder`).
+        Their time counts as the ``sinks`` stage's. Observers must not modify the arrays.
     """
 
     def __init__(
@@ -201,6 +209,7 @@ class Pipeline:
             self.diffusivity = layout.board_array("sensor_diffusivity")
         self.ambient_offset = float(ambient_offset)
         self.sinks = list(sinks)
+        self.observers: list[Callable[[np.ndarray, np.ndarray], None]] = []
         self.budget = budget
         self.max_wait = float(max_wait)
         self._state = self.detector.initial_state()
@@ -250,6 +259,11 @@ class Pipeline:
         self.stats.flagged += (status != 0).sum(axis=0)
         self.last_temperature = temperature[-1]
         self._now = float(samples.times[-1])
+        if self.observers:
+            t0 = time.perf_counter()
+            for observe in self.observers:
+                observe(samples.times, temperature)
+            self.stats.seconds["sinks"] += time.perf_counter() - t0
         events, self._state = self._timed("onset", self.detector.process, samples.times,
                                           temperature, self._state)
         self.stats.onsets += sum(e.kind == "onset" for e in events)
