@@ -12,6 +12,9 @@
   multicast (it needs msgpack); ``port`` goes to the interfaces that take one;
 - ``sim://default?speed=1&duration=20``: a simulated skin (a shipped scene name or a scene
   file path), frames handed over directly.
+- ``replay://run.mcap?speed=0``: a recording (`skin.drivers.recording`) played through the same
+  decoders (`skin.drivers.replay`); ``speed`` 1 (default) is real time, 0 as fast as possible;
+  the path is relative (``replay://out/run.mcap``) or absolute (``replay:///data/run.mcap``).
 
 Options every device URL takes: ``reconnect=S`` (seconds to keep reopening the device after
 a fault, with back-off; 0, the default, raises at once), ``queue=N`` (read in a background
@@ -130,5 +133,9 @@ def _open_one(url: str) -> Driver:
         scene = load_scene(parts.netloc + parts.path or "default")
         sim = SkinSimulator(scene, duration=_float(opts, "duration", None, url))
         return SimDriver(sim, speed=_float(opts, "speed", 1.0, url))
+    if parts.scheme == "replay":
+        from skin.drivers.replay import ReplayDriver, replay_path
+
+        return ReplayDriver(replay_path(url), speed=_float(opts, "speed", 1.0, url))
     raise DeviceError(f"{url}: unknown scheme {parts.scheme!r}: use serial://, serial+<pyserial "
-                      f"URL>, can://, or sim://")
+                      f"URL>, can://, sim:// or replay://")
