@@ -16,13 +16,14 @@ from skin.commands import (
     evaluate,
     evaluate_onset,
     plot,
+    record,
     run,
     simulate,
     train,
 )
 from skin.errors import SkinError
 
-COMMANDS = (run, simulate, calibrate, train, evaluate, evaluate_onset, bench, plot, devices)
+COMMANDS = (run, simulate, calibrate, train, evaluate, evaluate_onset, bench, plot, record, devices)
 
 
 def build_parser() -> argparse.ArgumentParser:

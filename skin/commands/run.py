@@ -2,13 +2,17 @@
 
 Read a skin (a device, or a simulated skin served on a real pseudo-terminal when no device is
 given), detect contacts, label their materials, and write ``events.jsonl``, ``summary.json`` and
-``contact_map.png``.
+``contact_map.png``. ``--record run.mcap`` also keeps the wire bytes, temperatures and events
+(`skin.drivers.recording`); ``--port replay://run.mcap`` plays such a recording again, with
+its layout and calibration unless ``--layout`` / ``--calibration`` say otherwise.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -58,6 +62,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     run.add_argument("--provisional", default="", metavar="SECONDS",
                      help="also classify contacts still open at these seconds after their "
                           "onset, e.g. 0.5,1 (anytime answers, marked ~ and \"final\": false)")
+    run.add_argument("--record", metavar="FILE.mcap",
+                     help="record the wire bytes, temperatures, events, layout and calibration "
+                          "to an MCAP file (replay it with --port replay://FILE.mcap)")
     run.add_argument("--no-map", action="store_true", help="do not render contact_map.png")
     run.add_argument("--json", action="store_true",
                      help="print one JSON summary on stdout and nothing else")
@@ -66,7 +73,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Run the main job (see the module docstring)."""
-    if args.duration is None and args.port is not None:
+    replay = args.port is not None and args.port.startswith("replay:")
+    if args.duration is None and args.port is not None and not replay:
         args.duration = 20.0
     from skin import drivers
     from skin.layout import load_layout
@@ -78,6 +86,7 @@ def main(args: argparse.Namespace) -> int:
     progress = Progress()
     device = None
     scene = None
+    recorded_cal: Any = None  # a replay's recorded calibration
     if args.port is None and args.firmware_sim:
         from skin.drivers.firmware_board import emulated_board, firmware_scene
         from skin.drivers.sim import SkinSimulator
@@ -103,11 +112,34 @@ def main(args: argparse.Namespace) -> int:
         progress.message(f"simulated skin '{scene.name}' ({len(layout)} taxels, "
                          f"{len(scene.touches)} touches) served on {device.port}")
     else:
-        layout = load_layout(args.layout or "arm")
         url = args.port
         duration = args.duration
+        recorded_layout = None
+        if replay:  # the recording's layout and calibration, unless the user gives others
+            from skin.drivers.replay import recorded_setup, replay_path
+
+            recorded_layout, recorded_cal = recorded_setup(replay_path(url))
+            if duration is None:
+                duration = math.inf  # to the end of the recording
+        if args.layout or recorded_layout is None:
+            layout = load_layout(args.layout or "arm")
+            recorded_cal = None  # it belongs to the recording's layout
+        else:
+            layout = recorded_layout
+            progress.message(f"replaying {url}: its layout ({len(layout)} taxels)"
+                             + ("" if recorded_cal is None or args.calibration
+                                else " and calibration"))
     materials = load_materials()
     calibration, sensors = None, None
+    cal_file: Any = None
+    if not args.calibration and recorded_cal is not None:
+        from skin.calibration import Calibration
+
+        if isinstance(recorded_cal, Calibration):
+            calibration = recorded_cal
+        else:
+            cal_file = recorded_cal
+            calibration, sensors = cal_file.apply(layout)
     if args.calibration:
         from skin.calibration_file import load_calibration
 
@@ -138,15 +170,26 @@ def main(args: argparse.Namespace) -> int:
     try:
         provisional = [float(v) for v in args.provisional.split(",") if v.strip()]
         pipeline = Pipeline(layout, classifier, calibration=calibration, sensors=sensors,
-                            ambient_offset=0.0 if not args.calibration else
+                            ambient_offset=0.0 if cal_file is None else
                             cal_file.ambient_offset, window=args.window,
                             provisional=provisional)
     except ValueError as exc:
         raise SkinError(f"--window / --provisional: {exc}") from None
     events = JsonLinesSink(events_path)  # a killed run keeps every contact already given
     pipeline.sinks += [events, TerminalSink(progress)]
+    recorder = None
+    if args.record:
+        from skin.drivers.recording import Recorder
+
+        recorder = Recorder(args.record, layout,
+                            calibration=args.calibration or cal_file or calibration,
+                            metadata={"command": " ".join(["skin", *sys.argv[1:]])})
+        pipeline.sinks.append(recorder)
+        pipeline.observers.append(recorder.temperature)
     try:
         with drivers.open(url) as driver:
+            if recorder is not None:
+                recorder.add_driver(driver)
             if args.firmware_sim:
                 from skin.drivers.protocol import ALL_TAXELS, Command, MsgType
 
@@ -179,13 +222,14 @@ def main(args: argparse.Namespace) -> int:
                 end_of_sim = device is not None and not args.firmware_sim and (
                     device.done.is_set() and (received >= device.frames_sent
                                               or time.monotonic() - idle_since > 2.0))
-                finished = now >= duration - 1e-9 or end_of_sim or (
+                finished = now >= duration - 1e-9 or end_of_sim or (idle and driver.finished) or (
                     device is None and idle and time.monotonic() - t_wall > duration + 5)
                 if chunk and (len(chunk) >= 20 or idle or finished):
                     given.extend(pipeline.process(chunk))
                     chunk = []
                     progress.status(
-                        f"[{now:6.1f}/{duration:.1f} s] frames {pipeline.stats.frames}  "
+                        f"[{now:6.1f}{'' if math.isinf(duration) else f'/{duration:.1f}'} s] "
+                        f"frames {pipeline.stats.frames}  "
                         f"in contact {int(pipeline.in_contact().sum()):2d}  "
                         f"contacts {pipeline.stats.contacts}  "
                         f"crc errors {driver.stats.crc_errors}", now)
@@ -198,10 +242,14 @@ def main(args: argparse.Namespace) -> int:
         link = None
     finally:
         events.close()
+        if recorder is not None:
+            recorder.close()
         progress.done()
         if device is not None:
             device.close()
     wall = time.monotonic() - t_wall
+    if math.isinf(duration):  # a replay to its end: the time it held
+        duration = pipeline.stats.samples / next(iter(layout.boards.values())).sample_rate
     results = [r for r in given if r.contact.final]
     records = [event_record(r) for r in given]
 
