@@ -36,6 +36,7 @@ Surviving a kill: the file is unchunked and every record is handed to the operat
 it is written (the file is flushed after each message), so a recording process killed at any
 moment (SIGKILL included) leaves a file whose every complete record is readable: only the
 record being written and the summary and footer, which `Recorder.close` adds, are missing.
+(The file is not fsync'ed: a power cut may still lose what the OS had not written to disk.)
 `RecordingReader` reads such a file to its last complete record and says where and how it
 ends (``problem``); a record that cannot be what it claims (an unknown opcode, a field running
 past its record, a bad attachment CRC) stops reading with a `RecordingError` naming the file
