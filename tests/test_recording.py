@@ -117,14 +117,14 @@ def test_replay_paces_at_real_speed_or_as_fast_as_possible(tmp_path):
         t0 = time.monotonic()
         assert len(list(source)) == 120
         recorded = time.monotonic() - t0
-    assert recorded == pytest.approx(0.6, abs=0.1)
+    assert recorded == pytest.approx(0.6, abs=0.15)
     for speed, expected in ((1, recorded), (2, recorded / 2), (0, 0.0)):
         with drivers.open(f"replay://{path}?speed={speed}") as replay:
             t0 = time.monotonic()
             frames = list(replay)
             took = time.monotonic() - t0
             assert replay.finished and len(frames) == 120
-        assert took == pytest.approx(expected, abs=0.1), speed
+        assert took == pytest.approx(expected, abs=0.15), speed
         # frames arrive on the replay's time line, in step with the recorded one
         span = frames[-1].device_time - frames[0].device_time
         assert span == pytest.approx(0.595, abs=1e-6)
