@@ -101,3 +101,32 @@ def test_the_command_line_names_its_errors():
                            "virtual", "--channel", "x", "--scene", "no-such-scene"],
                           capture_output=True, text=True, timeout=30)
     assert proc.returncode == 1 and proc.stderr.startswith("can_sim: ")
+
+
+@pytest.mark.parametrize("group", ["239.74.163.2", "ff15:7079:7468:6f6e:6465:6d6f:6d63:6173"],
+                         ids=["ipv4", "ipv6-default"])
+def test_udp_multicast_through_open(group):
+    pytest.importorskip("msgpack")
+    import socket
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("", 0))
+        port = sock.getsockname()[1]  # a port of our own: other buses on the host stay apart
+    url = f"can://udp_multicast/{group}?port={port}"
+    sim = SkinSimulator(load_scene("default"), duration=1.0)
+    try:
+        node = CanSimNode(sim, url, node=4, streaming=False)
+    except DeviceError as exc:
+        pytest.skip(f"no UDP multicast here: {exc}")
+    with node, drivers.open(url) as driver:
+        node.start()
+        try:
+            identity = driver.request(Command(MsgType.IDENTIFY), node=4, timeout=1.0)
+        except ProtocolError as exc:
+            pytest.skip(f"multicast does not loop back here: {exc} ({node.send_errors} "
+                        f"send errors)")
+        assert identity.transport == 1 and identity.taxels == 72
+        driver.request(Command(MsgType.START), node=4)
+        frames = [driver.recv(timeout=1.0) for _ in range(10)]
+        assert [f.seq for f in frames] == list(range(10)) and frames[0].board == 4
+        assert driver.url == url
