@@ -80,3 +80,11 @@ def test_skin_run_gives_provisional_answers_when_asked(tmp_path):
                           str(out), "--provisional", "3"], capture_output=True, text=True,
                          timeout=300)
     assert bad.returncode == 2 and "--provisional" in bad.stderr
+
+
+def test_several_ports_make_one_skin_but_simulations_come_alone(tmp_path, capsys):
+    from skin.cli import main
+
+    assert main(["run", "--port", "sim://default", "--port", "sim://default",
+                 "--out", str(tmp_path)]) == 2
+    assert "sim:// and replay:// are whole skins" in capsys.readouterr().err

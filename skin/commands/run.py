@@ -29,9 +29,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register ``skin run``."""
     run = sub.add_parser("run", help="read a skin, detect contacts, label materials (main job)",
                          description=__doc__)
-    run.add_argument("--port", metavar="URL",
-                     help="device URL (serial:///dev/ttyACM0, sim://default, ...); "
-                          "default: a simulated skin served on a pseudo-terminal")
+    run.add_argument("--port", metavar="URL", action="append",
+                     help="device URL (serial:///dev/ttyACM0, can://socketcan/can0, "
+                          "sim://default, replay://run.mcap ...); repeat it for a skin of "
+                          "several boards or buses; default: a simulated skin served on a "
+                          "pseudo-terminal")
+    run.add_argument("--reconnect", type=float, default=10.0, metavar="SECONDS",
+                     help="after a serial or CAN device fails (unplugged, bus-off), keep "
+                          "reopening it for this long before giving up (default 10; 0: "
+                          "stop at once; a URL's own reconnect= wins)")
     run.add_argument("--firmware-sim", action="store_true",
                      help="play the scene to the compiled firmware (ATmega2560, 72 taxels) "
                           "running in simavr, read over its pseudo-terminal; needs "
@@ -73,7 +79,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Run the main job (see the module docstring)."""
-    replay = args.port is not None and args.port.startswith("replay:")
+    ports = args.port or []
+    if len(ports) > 1 and any(p.startswith(("replay:", "sim:")) for p in ports):
+        raise SkinError("--port: several URLs make one skin of several boards or buses; "
+                        "sim:// and replay:// are whole skins and come alone")
+    args.port = ports[0] if len(ports) == 1 else ports or None
+    replay = isinstance(args.port, str) and args.port.startswith("replay:")
     if args.duration is None and args.port is not None and not replay:
         args.duration = 20.0
     from skin import drivers
@@ -188,6 +199,10 @@ def main(args: argparse.Namespace) -> int:
         pipeline.observers.append(recorder.temperature)
     try:
         with drivers.open(url) as driver:
+            # a device given by the user reconnects; the simulated ones end by going away
+            for one, port_url in zip(getattr(driver, "drivers", [driver]), ports, strict=False):
+                if port_url.startswith(("serial", "can:")) and "reconnect=" not in port_url:
+                    one.reconnect = args.reconnect
             if recorder is not None:
                 recorder.add_driver(driver)
             if args.firmware_sim:
@@ -236,10 +251,10 @@ def main(args: argparse.Namespace) -> int:
                 if finished:
                     break
             given.extend(pipeline.flush())
-            link = driver.stats
+            link, health = driver.stats, driver.health
     except KeyboardInterrupt:
         progress.message("interrupted: writing what was received")
-        link = None
+        link = health = None
     finally:
         events.close()
         if recorder is not None:
@@ -262,6 +277,8 @@ def main(args: argparse.Namespace) -> int:
         "gaps": pipeline.stats.gaps,
         "crc_errors": None if link is None else link.crc_errors,
         "malformed": None if link is None else link.malformed,
+        "faults": None if health is None else health.faults,
+        "reconnects": None if health is None else health.reconnects,
         "flagged_taxels": [int(layout.ids[k]) for k in np.flatnonzero(pipeline.stats.flagged)],
         "contacts": len(results),
     }
