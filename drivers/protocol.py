@@ -874,7 +874,9 @@ class CanReassembler:
             self.stats.malformed += 1
             return None
         kind, node_id, index = ident >> 8, ident >> 5 & 7, ident & 31
-        node = self._nodes.setdefault(node_id, _Node())
+        node = self._nodes.get(node_id)
+        if node is None:  # not setdefault: a _Node costs more than the rest of a push
+            node = self._nodes[node_id] = _Node()
         if kind == CanType.SYNC and len(data) == _SYNC.size and index == 0:
             if node.seq is not None:
                 self._drop(node, node.n_groups)
