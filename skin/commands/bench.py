@@ -20,6 +20,12 @@ memory growth (`skin.pipeline_bench`).
 frames) per sample, bytes per second, the share of the bus, and the most taxels one board can
 stream (`skin.drivers.bus_load`), beside what one AVR's ADC can convert.
 
+``skin bench drivers`` measures decode throughput (frames/s, taxel-samples/s, us per frame) of
+each driver backend at 64 and 1000 taxels, beside the physical frame rate of the links, so the
+margins are plain (`skin.drivers.driver_bench`). ``skin bench fuzz`` feeds every decoder
+damaged streams and reports crashes, corrupt frames accepted against the CRC's theoretical
+rate, and resynchronisation (`skin.drivers.fuzz`).
+
 ``skin bench calibration`` runs simulated calibrations (each taxel's constants drawn within
 +-10 % of the paper's, a few contacts with a reference material) and reports how well
 `skin.models.sensor_fit.fit_sensor_constants` recovers them, against the nominal constants,
@@ -34,6 +40,7 @@ import platform
 import time
 from pathlib import Path
 
+from skin.commands import bench_drivers
 from skin.progress import Progress
 
 
@@ -89,6 +96,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     cal.add_argument("--seed", type=int, default=0, help="seed")
     cal.add_argument("--json", action="store_true", help="print one JSON document")
     cal.set_defaults(func=main_calibration)
+    bench_drivers.add_parsers(kinds)
 
 
 def machine() -> dict:
