@@ -95,3 +95,20 @@ def test_two_boards_on_two_ports_share_one_time_base():
     for board in (0, 7):  # and each board's times advance at the sample rate
         times = np.array([by_board[board][s] for s in sorted(by_board[board])])
         assert np.median(np.diff(times)) == pytest.approx(0.005, abs=2e-4)
+
+
+def test_bench_clock_prints_error_and_cost_per_method(capsys):
+    import json
+
+    from skin.cli import main
+
+    assert main(["bench", "clock", "--seconds", "40", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    rows = {(r["scenario"], r["method"]): r for r in doc["rows"]}
+    for scenario in ("USB serial", "loaded host", "CAN over UDP"):
+        mapped, arrival = rows[scenario, "ClockMap, 1 s blocks"], rows[scenario, "arrival time"]
+        assert mapped["p99_abs_error_ms"] < 0.2 * arrival["p99_abs_error_ms"]
+        assert abs(mapped["drift_error_ppm"]) < 2
+        assert mapped["us_per_frame"] > 0
+    assert abs(rows["USB serial", "running min, no drift"]["drift_error_ppm"] + 50) < 1
+    assert main(["bench", "clock", "--seconds", "5"]) == 2

@@ -24,7 +24,11 @@ stream (`skin.drivers.bus_load`), beside what one AVR's ADC can convert.
 each driver backend at 64 and 1000 taxels, beside the physical frame rate of the links, so the
 margins are plain (`skin.drivers.driver_bench`). ``skin bench fuzz`` feeds every decoder
 damaged streams and reports crashes, corrupt frames accepted against the CRC's theoretical
-rate, and resynchronisation (`skin.drivers.fuzz`).
+rate, and resynchronisation (`skin.drivers.fuzz`). ``skin bench clock`` maps device time to
+host time under three transports (USB serial, a loaded host with stalls, CAN over UDP) with
+each method (the arrival time, a running minimum offset, `skin.drivers.clock.ClockMap` with
+blocks of 0.5-2 s) and prints the error against the true sampling time beside the cost per
+frame (`skin.drivers.clock_bench`).
 
 ``skin bench calibration`` runs simulated calibrations (each taxel's constants drawn within
 +-10 % of the paper's, a few contacts with a reference material) and reports how well

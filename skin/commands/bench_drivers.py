@@ -1,7 +1,7 @@
-"""``skin bench drivers`` and ``skin bench fuzz``: the drivers' speed and robustness, printed.
+"""``skin bench drivers``, ``fuzz`` and ``clock``: the drivers' speed, robustness and timing.
 
 Registered by `skin.commands.bench`; the work is done in `skin.drivers.driver_bench` and
-`skin.drivers.fuzz`, imported when the command runs.
+`skin.drivers.fuzz` and `skin.drivers.clock_bench`, imported when the command runs.
 """
 
 from __future__ import annotations
@@ -27,6 +27,12 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
     fuzz.add_argument("--seed", type=int, default=0, help="seed (default 0)")
     fuzz.add_argument("--json", action="store_true", help="print one JSON document")
     fuzz.set_defaults(func=main_fuzz)
+    clock = kinds.add_parser("clock", help="device-to-host time mapping: error and cost")
+    clock.add_argument("--seconds", type=float, default=300.0,
+                       help="simulated seconds per scenario (default 300)")
+    clock.add_argument("--seed", type=int, default=0, help="seed (default 0)")
+    clock.add_argument("--json", action="store_true", help="print one JSON document")
+    clock.set_defaults(func=main_clock)
 
 
 def _si(value: float) -> str:
@@ -171,3 +177,38 @@ def main_fuzz(args: argparse.Namespace) -> int:
 
 def _ci(ci: list[float]) -> str:
     return f"[{ci[0]:.2g}, {ci[1]:.2g}]"
+
+
+def main_clock(args: argparse.Namespace) -> int:
+    """Run ``skin bench clock``."""
+    from skin.commands.bench import machine
+    from skin.drivers import clock_bench
+
+    if args.seconds < 30:
+        raise SkinError("--seconds must be at least 30 (10 s settle, then blocks to fit)")
+    progress = Progress()
+    t0 = time.perf_counter()
+    doc = clock_bench.run(seconds=args.seconds, seed=args.seed, progress=progress.status)
+    progress.done()
+    doc = {"machine": machine(), **doc}
+    if args.json:
+        print(json.dumps(doc))
+        return 0
+    print(f"device -> host time: a board clock {doc['drift_ppm']:g} ppm fast, "
+          f"{doc['seconds']:g} s at {doc['rate_hz']:g} Hz per scenario, errors after "
+          f"{doc['settle_s']:g} s against the true sampling time plus the smallest delay "
+          f"({doc['machine']['cpus']} cores, Python {doc['machine']['python']})")
+    print(f"{'scenario':<14} {'method':<24} {'median ms':>9} {'p99 |e| ms':>10} "
+          f"{'max |e| ms':>10} {'step sd ms':>10} {'drift ppm':>9} {'us/frame':>8}")
+    base = {r["scenario"]: r for r in doc["rows"] if r["method"] == "arrival time"}
+    for r in doc["rows"]:
+        print(f"{r['scenario']:<14} {r['method']:<24} {r['median_error_ms']:>9.3f} "
+              f"{r['p99_abs_error_ms']:>10.3f} {r['max_abs_error_ms']:>10.3f} "
+              f"{r['step_jitter_ms']:>10.4f} {r['drift_error_ppm']:>9.2f} "
+              f"{r['us_per_frame']:>8.2f}")
+    print("p99 |error| against the arrival time, same run: " + "; ".join(
+        f"{r['scenario']} {r['method']}: "
+        f"{r['p99_abs_error_ms'] / max(base[r['scenario']]['p99_abs_error_ms'], 1e-9):.3f}x"
+        for r in doc["rows"] if r["method"].startswith("ClockMap, 1")))
+    print(f"wall time {time.perf_counter() - t0:.2f} s")
+    return 0
