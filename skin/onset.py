@@ -106,6 +106,34 @@ class DetectorState:
         return replace(self, **{f.name: getattr(self, f.name).copy() for f in fields(self)})
 
 
+@dataclass(frozen=True)
+class DetectorTrace:
+    """What `OnsetDetector` saw at every sample of a chunk (`OnsetDetector.trace`).
+
+    Attributes
+    ----------
+    times : numpy.ndarray, shape (n_samples,)
+        Sample times, s.
+    smooth : numpy.ndarray, shape (n_samples, n_taxels)
+        The smoothed reading after each sample, deg C (NaN before a taxel's first reading).
+    slope : numpy.ndarray, shape (n_samples, n_taxels)
+        The baseline slope after each sample, K/s: the detector's smoothed derivative of the
+        reading (free: time constant ``slope_tau``; in contact: ``contact_slope_tau``; held
+        while a CUSUM gathers evidence of a contact or of its end, re-based at an onset and a
+        release).
+    events : list of OnsetEvent
+        The events of the chunk, in time order (as `OnsetDetector.process` gives them).
+    state : DetectorState
+        State after the chunk.
+    """
+
+    times: np.ndarray
+    smooth: np.ndarray
+    slope: np.ndarray
+    events: list[OnsetEvent]
+    state: DetectorState
+
+
 class OnsetDetector:
     """Vectorised streaming onset/release detector.
 
@@ -265,6 +293,42 @@ class OnsetDetector:
         for t, y in zip(np.asarray(times, dtype=float), temperature, strict=True):
             self._step(float(t), y, s, events, taus)
         return events, s
+
+    def trace(
+        self, times: np.ndarray, temperature: np.ndarray, state: DetectorState | None = None
+    ) -> DetectorTrace:
+        """Run the detector over a chunk and keep its smoothed reading and slope per sample.
+
+        The events and the final state are those of `process`; this costs a copy of two
+        arrays per sample more, for plots and diagnosis.
+
+        Parameters
+        ----------
+        times : numpy.ndarray, shape (n_samples,)
+            Sample times, s, increasing.
+        temperature : numpy.ndarray, shape (n_samples, n_taxels)
+            Temperatures, deg C; NaN marks a missing sample.
+        state : DetectorState, optional
+            State after the previous chunk (default: `initial_state`); not modified.
+
+        Returns
+        -------
+        DetectorTrace
+            Per-sample smoothed reading and slope, the events and the state after the chunk.
+        """
+        s = (self.initial_state() if state is None else state).copy()
+        times = np.asarray(times, dtype=float)
+        temperature = np.asarray(temperature, dtype=float).reshape(len(times), self.n_taxels)
+        smooth = np.empty_like(temperature)
+        slope = np.empty_like(temperature)
+        events: list[OnsetEvent] = []
+        taus = np.array([self.smooth_tau, self.slow_tau, self.level_tau, self.slope_tau,
+                         self.contact_slope_tau, self.noise_tau])[:, None]
+        for i, (t, y) in enumerate(zip(times, temperature, strict=True)):
+            self._step(float(t), y, s, events, taus)
+            smooth[i] = s.smooth
+            slope[i] = s.slope
+        return DetectorTrace(times, smooth, slope, events, s)
 
     def _step(self, t: float, y: np.ndarray, s: DetectorState, events: list[OnsetEvent],
               taus: np.ndarray) -> None:

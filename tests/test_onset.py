@@ -92,6 +92,23 @@ def test_chunk_size_does_not_change_events(stream, sizes):
     assert_same_state(s_parts, s_whole)
 
 
+def test_trace_gives_the_events_and_state_of_process_and_the_slope_per_sample(stream):
+    _, times, temps = stream
+    n = 600
+    det = OnsetDetector(temps.shape[1])
+    events, state = det.process(times[:n], temps[:n], det.initial_state())
+    # resumed from the state after 400 samples, as a stream would be
+    _, head = det.process(times[:400], temps[:400], det.initial_state())
+    tr = det.trace(times[400:n], temps[400:n], head)
+    assert tr.events == [e for e in events if e.detected_at >= times[400]]
+    assert_same_state(tr.state, state)
+    assert tr.slope.shape == tr.smooth.shape == (n - 400, temps.shape[1])
+    # each row is the state after that sample
+    _, after = det.process(times[400:450], temps[400:450], head)
+    assert np.array_equal(tr.slope[49], after.slope)
+    assert np.array_equal(tr.smooth[49], after.smooth, equal_nan=True)
+
+
 @settings(max_examples=6, deadline=None)
 @given(st.lists(st.integers(1, 900), min_size=1, max_size=12))
 def test_chunk_size_does_not_change_rises(warm_stream, sizes):
