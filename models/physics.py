@@ -27,9 +27,16 @@ and when the sensor starts at the object's temperature; such samples are dropped
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.special import erfc, erfcx
+
+if TYPE_CHECKING:
+    from skin.models.materials import Material
+
+#: Forward models of one contact's trace (`material_trace`).
+TRACE_MODELS = ("semi-infinite", "contact", "multilayer")
 
 
 @dataclass(frozen=True)
@@ -249,3 +256,56 @@ def contact_trace(
     surface = contact_temperature(t_sensor, t_object, e_s, e_object)
     rate = conductance_rate(conductance, e_s, e_object)
     return t_sensor + (surface - t_sensor) * contact_response(t, rate, sensor)
+
+
+def material_trace(material: Material, t_sensor: float, t_object: float, *,
+                   duration: float, fs: float = 200.0, model: str = "semi-infinite",
+                   conductance: float = 3000.0, ambient: float = 25.0,
+                   sensor: SensorConstants | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Simulate one contact's thermistor trace from its onset (``skin simulate trace``).
+
+    Parameters
+    ----------
+    material : skin.models.materials.Material
+        The object's material (its nominal properties).
+    t_sensor, t_object : float
+        Sensor and object temperatures at contact, deg C.
+    duration : float
+        Length of the contact, s.
+    fs : float, optional
+        Sampling rate, Hz.
+    model : str, optional
+        ``"semi-infinite"`` (the paper's eq. 5), ``"contact"`` (a finite contact conductance)
+        or ``"multilayer"`` (finite volumes, heater on).
+    conductance : float, optional
+        Contact conductance h, W/(m^2 K), of ``"contact"`` and ``"multilayer"``.
+    ambient : float, optional
+        Ambient temperature, deg C (the multilayer column's losses).
+    sensor : skin.models.physics.SensorConstants, optional
+        Sensor constants (default: the paper's).
+
+    Returns
+    -------
+    t : numpy.ndarray
+        Time since onset of each sample, s (``round(duration * fs) + 1`` samples from 0).
+    temperature : numpy.ndarray
+        The thermistor's temperature, deg C.
+    """
+    s = SensorConstants() if sensor is None else sensor
+    t = np.arange(round(duration * fs) + 1) / fs
+    if model == "multilayer":
+        from skin.models.multilayer import MultilayerModel, ObjectBody, Phase, SensorStack
+
+        body = ObjectBody.of(material.nominal["k"], material.nominal["rho"],
+                             material.nominal["c"])
+        column = MultilayerModel(SensorStack.paper(s), body, ambient=ambient, dt=1.0 / fs)
+        state = column.state(t_sensor, t_object)
+        res = column.run(state, [Phase(duration, True, heater=1.0, conductance=conductance)],
+                         fs=fs)
+        return t, np.asarray(res.thermistor[0][: t.size], dtype=float)
+    if model not in TRACE_MODELS:
+        raise ValueError(f"unknown contact model {model!r}; choose one of "
+                         f"{', '.join(TRACE_MODELS)}")
+    h = np.inf if model == "semi-infinite" else conductance
+    return t, np.asarray(contact_trace(t, t_sensor, t_object, material.effusivity, s, h),
+                         dtype=float)

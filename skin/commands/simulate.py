@@ -66,7 +66,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def main_trace(args: argparse.Namespace) -> int:
     """Print one contact's trace."""
     from skin.models import load_materials
-    from skin.models.physics import SensorConstants, contact_trace, heated_temperature
+    from skin.models.physics import SensorConstants, heated_temperature, material_trace
 
     materials = load_materials()
     if args.material not in materials:
@@ -81,20 +81,9 @@ def main_trace(args: argparse.Namespace) -> int:
         else args.t_sensor
     t_object = mat.resting_temperature(args.ambient) if args.t_object is None \
         else args.t_object
-    t = np.arange(round(args.duration * args.fs) + 1) / args.fs
-    if args.model == "multilayer":
-        from skin.models.multilayer import MultilayerModel, ObjectBody, Phase, SensorStack
-
-        body = ObjectBody.of(mat.nominal["k"], mat.nominal["rho"], mat.nominal["c"])
-        model = MultilayerModel(SensorStack.paper(s), body, ambient=args.ambient,
-                                dt=1.0 / args.fs)
-        state = model.state(t_sensor, t_object)
-        res = model.run(state, [Phase(args.duration, True, heater=1.0,
-                                      conductance=args.conductance)], fs=args.fs)
-        y = res.thermistor[0][: t.size]
-    else:
-        h = np.inf if args.model == "semi-infinite" else args.conductance
-        y = contact_trace(t, t_sensor, t_object, mat.effusivity, s, h)
+    t, y = material_trace(mat, t_sensor, t_object, duration=args.duration, fs=args.fs,
+                          model=args.model, conductance=args.conductance, ambient=args.ambient,
+                          sensor=s)
     doc = {"material": mat.name, "model": args.model, "fs": args.fs,
            "t_sensor": t_sensor, "t_object": t_object, "ambient": args.ambient,
            "effusivity": mat.effusivity,
