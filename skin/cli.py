@@ -20,10 +20,12 @@ from skin.commands import (
     run,
     simulate,
     train,
+    view,
 )
 from skin.errors import SkinError
 
-COMMANDS = (run, simulate, calibrate, train, evaluate, evaluate_onset, bench, plot, record, devices)
+COMMANDS = (run, simulate, calibrate, train, evaluate, evaluate_onset, bench, plot, record, devices,
+            view)
 
 
 def build_parser() -> argparse.ArgumentParser:
