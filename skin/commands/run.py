@@ -2,7 +2,8 @@
 
 Read a skin (a device, or a simulated skin served on a real pseudo-terminal when no device is
 given), detect contacts, label their materials, and write ``events.jsonl``, ``summary.json`` and
-``contact_map.png``. ``--record run.mcap`` also keeps the wire bytes, temperatures and events
+``contact_map.png`` (and ``layout.toml``, with ``chain.toml`` for a simulation: the arm's pose,
+for ``skin view --map``). ``--record run.mcap`` also keeps the wire bytes, temperatures and events
 (`skin.drivers.recording`); ``--port replay://run.mcap`` plays such a recording again, with
 its layout and calibration unless ``--layout`` / ``--calibration`` say otherwise.
 """
@@ -318,6 +319,12 @@ def main(args: argparse.Namespace) -> int:
                 for m in matches
             ],
         })
+    from skin.kinematics import default_chain
+    from skin.world_map import write_run_setup
+
+    # what `skin view --map` needs: the layout, and for a simulation the arm's pose (standing
+    # at the default chain's default angles); a device's poses are unknown here
+    summary.update(write_run_setup(out, layout, default_chain() if scene is not None else None))
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
 
     if not args.no_map:
