@@ -2,7 +2,9 @@
 
 `plot_materials` draws the effusivity range of each material, like Fig. 10 of the paper
 (Bhattacharjee, Wade, Kemp 2015): one horizontal bar per material on a log10 effusivity axis.
-`plot_work_precision` and `plot_estimator_errors` draw the figures of ``skin bench thermal``.
+`plot_work_precision` and `plot_estimator_errors` draw the figures of ``skin bench thermal``,
+`plot_accuracy` and `plot_confusions` those of ``skin evaluate``. Taxels' temperature and
+slope traces are in `skin.viz.trace_plots`. Every figure is reachable as ``skin plot KIND``.
 """
 
 from __future__ import annotations
@@ -309,15 +311,18 @@ def plot_estimator_errors(rows: list[dict], path: str | Path) -> Path:
     return _save(fig, path)
 
 
-def plot_accuracy(results: list[dict], path: str | Path) -> Path:
+def plot_accuracy(results: list[dict], path: str | Path, *, title: str | None = None) -> Path:
     """Draw accuracy against contact duration, one line per method (``skin evaluate``).
 
     Parameters
     ----------
     results : list of dict
-        The ``results`` of ``skin evaluate --json``.
+        The ``results`` of ``skin evaluate --json`` (``method``, ``duration``, ``accuracy``,
+        ``accuracy_std``); a band shows the spread over the folds.
     path : str or Path
         Output file (``.png``, ``.svg`` or ``.pdf``).
+    title : str, optional
+        Title of the figure (default: "accuracy against contact duration").
 
     Returns
     -------
@@ -335,52 +340,75 @@ def plot_accuracy(results: list[dict], path: str | Path) -> Path:
         d = [r["duration"] for r in mine]
         acc = np.array([r["accuracy"] for r in mine])
         sd = np.array([r["accuracy_std"] for r in mine])
-        line, = ax.plot(d, 100 * acc, marker="o", label=method)
+        line, = ax.plot(d, 100 * acc, marker="o", label=method, gid=f"accuracy:{method}")
         ax.fill_between(d, 100 * (acc - sd), 100 * (acc + sd), color=line.get_color(),
                         alpha=0.15)
     ax.set_xlabel("contact duration, s")
     ax.set_ylabel("accuracy, % (mean +- std over folds)")
     ax.set_ylim(0, 100)
-    ax.set_title("accuracy against contact duration")
+    ax.set_title(title or "accuracy against contact duration")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize="small")
     return _save(fig, path)
 
 
-def plot_confusions(results: list[dict], path: str | Path) -> Path:
-    """Draw the confusion matrices of one method, one panel per duration, as row fractions.
+def plot_confusions(results: list[dict], path: str | Path, *, title: str | None = None) -> Path:
+    """Draw confusion matrices as row fractions: one row per method, one panel per duration.
 
     Parameters
     ----------
     results : list of dict
-        ``skin evaluate`` results of one method.
+        ``skin evaluate`` results (``method``, ``duration``, ``accuracy``, ``confusion``,
+        ``classes``) of one method or several, in the order their rows are drawn.
     path : str or Path
         Output file (``.png``, ``.svg`` or ``.pdf``).
+    title : str, optional
+        Title of the figure (default: "confusion matrices: METHOD" for one method).
 
     Returns
     -------
     Path
         The path written.
+
+    Raises
+    ------
+    SkinError
+        When ``results`` is empty.
     """
+    if not results:
+        raise SkinError("no result to draw confusion matrices of")
     figure_cls, canvas_cls = _figure_class()
-    results = sorted(results, key=lambda r: r["duration"])
-    n = len(results)
-    k = len(results[0]["classes"])
-    fig = figure_cls(figsize=(0.45 * k * n + 2.0, 0.45 * k + 1.8), layout="constrained")
+    methods = list(dict.fromkeys(r["method"] for r in results))
+    durations = sorted({r["duration"] for r in results})
+    cell = {(r["method"], r["duration"]): r for r in results}
+    n, rows = len(durations), len(methods)
+    k = max(len(r["classes"]) for r in results)
+    fig = figure_cls(figsize=(0.45 * k * n + 2.0, rows * (0.45 * k + 1.4) + 0.4),
+                     layout="constrained")
     canvas_cls(fig)
-    axes = fig.subplots(1, n, squeeze=False)[0]
-    names = [display_name(c) for c in results[0]["classes"]]
+    grid = fig.subplots(rows, n, squeeze=False)
     image = None
-    for ax, r in zip(axes, results, strict=True):
-        conf = np.asarray(r["confusion"], dtype=float)
-        frac = conf / np.maximum(conf.sum(axis=1, keepdims=True), 1)
-        image = ax.imshow(frac, vmin=0, vmax=1, cmap="viridis")
-        ax.set_xticks(range(k), names, rotation=90, fontsize="x-small")
-        ax.set_yticks(range(k), names if ax is axes[0] else [], fontsize="x-small")
-        acc = "-" if r["accuracy"] is None else f"{100 * r['accuracy']:.0f} %"
-        ax.set_title(f"{r['duration']:g} s: {acc}", fontsize="small")
-        ax.set_xlabel("predicted", fontsize="x-small")
-    axes[0].set_ylabel("true", fontsize="x-small")
-    fig.colorbar(image, ax=list(axes), shrink=0.8, label="fraction of the true class")
-    fig.suptitle(f"confusion matrices: {results[0]['method']}")
+    for i, method in enumerate(methods):
+        for j, duration in enumerate(durations):
+            ax = grid[i, j]
+            r = cell.get((method, duration))
+            if r is None:
+                ax.set_axis_off()
+                continue
+            names = [display_name(c) for c in r["classes"]]
+            conf = np.asarray(r["confusion"], dtype=float)
+            frac = conf / np.maximum(conf.sum(axis=1, keepdims=True), 1)
+            image = ax.imshow(frac, vmin=0, vmax=1, cmap="viridis",
+                              gid=f"confusion:{method}:{duration:g}")
+            ax.set_xticks(range(len(names)), names, rotation=90, fontsize="x-small")
+            ax.set_yticks(range(len(names)), names if j == 0 else [], fontsize="x-small")
+            acc = "-" if r["accuracy"] is None else f"{100 * r['accuracy']:.0f} %"
+            head = f"{duration:g} s: {acc}" if rows == 1 else f"{method}, {duration:g} s: {acc}"
+            ax.set_title(head, fontsize="small")
+            ax.set_xlabel("predicted", fontsize="x-small")
+            if j == 0:
+                ax.set_ylabel("true", fontsize="x-small")
+    fig.colorbar(image, ax=list(grid.ravel()), shrink=0.8, label="fraction of the true class")
+    fig.suptitle(title or (f"confusion matrices: {methods[0]}" if rows == 1
+                           else "confusion matrices"))
     return _save(fig, path)
