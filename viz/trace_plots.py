@@ -132,7 +132,7 @@ class TaxelTrace:
     def summary(self) -> dict[str, Any]:
         """Return the marks of the trace as a JSON-ready dict (``skin plot traces --json``)."""
         def r(values: tuple[float, ...]) -> list[float]:
-            return [round(float(v), 4) for v in values]
+            return [round(float(v), 4) + 0.0 for v in values]  # no -0.0
 
         return {"name": self.name, "samples": int(self.times.size),
                 "onsets": r(self.onsets), "detected_at": r(self.detected_at),
