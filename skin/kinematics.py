@@ -7,9 +7,9 @@ joint angle (revolute) or nothing (fixed); a root's origin is its pose in the wo
 ``chain.poses(q)`` gives each link's 4x4 pose, link frame -> world.
 
 `default_chain` is the default arm of ``skin/data/layouts/arm.toml``: shoulder -> upper_arm
-(joint ``shoulder``, about the world's vertical) -> forearm (joint ``elbow``) -> hand (joint
-``wrist``); at its default angles (all 0) the upper arm and forearm are where the procedural arm
-of `skin.viz.arm.default_arm` draws them.
+(joint ``shoulder``, about the world's vertical) -> elbow -> forearm (joint ``elbow``) -> wrist
+(joint ``wrist``) -> hand; at its default angles (all 0) every link is where the procedural arm
+of `skin.viz.arm.default_arm` draws it.
 
 A chain file is TOML, validated on load (every error names the file, line and link)::
 
@@ -359,23 +359,25 @@ class Chain:
 def default_chain() -> Chain:
     """Return the chain of the default arm (``skin/data/layouts/arm.toml``).
 
-    shoulder (the world's origin) -> upper_arm (revolute ``shoulder``, about the world's
-    vertical; along the world's +x at 0) -> forearm (revolute ``elbow``, about the upper arm's
-    y, bent 30 deg down at 0, 0.355 m along the upper arm: its 0.30 m plus the elbow) -> hand
-    (revolute ``wrist``, about the forearm's y, at the forearm's far end, 0.26 m). At the
-    default angles (all 0) the links sit where `skin.viz.arm.default_arm` draws them.
+    shoulder (at the world's origin, its z along the world's +x) -> upper_arm (revolute
+    ``shoulder``, about the world's vertical) -> elbow (0.355 m along the upper arm: its 0.30 m
+    of skin and the elbow's radius) -> forearm (revolute ``elbow``, about the world's y at 0,
+    bent 30 deg down at 0) -> wrist (revolute ``wrist``, about the forearm's y, at its far end,
+    0.26 m) -> hand. At the default angles (all 0) every link stands where the procedural arm of
+    `skin.viz.arm.default_arm` draws it.
     """
     deg = math.radians
-    lim = (deg(-180.0), deg(180.0))
     links = [
-        Link("shoulder", None, np.eye(4)),
-        # the upper arm's z runs along it; its joint frame's -x is the world's vertical
-        Link("upper_arm", "shoulder", transform(rpy=(0.0, deg(90.0), 0.0)), "revolute",
-             "shoulder", (-1.0, 0.0, 0.0), lim),
-        Link("forearm", "upper_arm", transform((0.0, 0.0, 0.355), (0.0, deg(30.0), 0.0)),
-             "revolute", "elbow", (0.0, 1.0, 0.0), (deg(-120.0), deg(150.0))),
-        Link("hand", "forearm", transform((0.0, 0.0, 0.26)), "revolute", "wrist",
+        Link("shoulder", None, transform(rpy=(0.0, deg(90.0), 0.0))),
+        # in the shoulder's frame the world's vertical is -x
+        Link("upper_arm", "shoulder", np.eye(4), "revolute", "shoulder", (-1.0, 0.0, 0.0),
+             (deg(-180.0), deg(180.0))),
+        Link("elbow", "upper_arm", transform((0.0, 0.0, 0.355))),
+        Link("forearm", "elbow", transform(rpy=(0.0, deg(30.0), 0.0)), "revolute", "elbow",
+             (0.0, 1.0, 0.0), (deg(-120.0), deg(150.0))),
+        Link("wrist", "forearm", transform((0.0, 0.0, 0.26)), "revolute", "wrist",
              (0.0, 1.0, 0.0), (deg(-90.0), deg(90.0))),
+        Link("hand", "wrist", np.eye(4)),
     ]
     return Chain(links, name="default arm", source="default_chain()")
 
