@@ -273,3 +273,89 @@ def test_loading_something_else_is_named(tmp_path):
         WorldMap.load(lines)
     with pytest.raises(WorldMapError, match=r"\.npz or \.jsonl"):
         WorldMap().save(tmp_path / "map.csv")
+
+
+# ---- skin run -> skin view --map ----
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    from skin.cli import main
+
+    out = tmp_path_factory.mktemp("wm") / "run"
+    assert main(["run", "--speed", "0", "--duration", "5", "--out", str(out), "--no-map",
+                 "--record", str(out.parent / "run.mcap"), "--json"]) == 0
+    return out
+
+
+def test_skin_run_saves_what_a_world_map_needs(run_dir):
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["layout"] == "layout.toml" and summary["chain"] == "chain.toml"
+    assert len(load_layout(run_dir / "layout.toml")) == 72
+    still = load_chain(run_dir / "chain.toml").poses()
+    for name, pose in default_chain().poses().items():
+        np.testing.assert_allclose(still[name], pose, atol=1e-12)
+    wm = WorldMap.from_run(run_dir)
+    events = [json.loads(line) for line in (run_dir / "events.jsonl").read_text().splitlines()]
+    assert len(wm) == sum(len(ev["taxels"]) for ev in events if ev["final"]) > 0
+    assert wm.notes == [f"poses: {run_dir / 'chain.toml'} at its default angles"]
+    # the recording of the same run gives the same map
+    rec = WorldMap.from_recording(run_dir.parent / "run.mcap")
+    np.testing.assert_allclose(np.sort(rec.points, axis=0), np.sort(wm.points, axis=0))
+
+
+def test_skin_view_map_writes_a_png_with_the_materials_colours(run_dir, tmp_path, capsys):
+    pytest.importorskip("pyvista")
+    from PIL import Image
+
+    from skin.cli import main
+    from skin.models import load_materials
+    from skin.viz.arm import UNKNOWN_COLOUR, hex_rgb
+
+    png = tmp_path / "map.png"
+    assert main(["view", "--map", str(run_dir), "--out", str(png), "--save",
+                 str(tmp_path / "map.npz")]) == 0
+    line = capsys.readouterr().out.strip().splitlines()[-1]
+    wm = WorldMap.load(tmp_path / "map.npz")
+    assert line.startswith(f"world map: {len(wm)} points from {wm.contacts()} contacts (")
+    for name, n in wm.counts().items():
+        assert f"{name} {n}" in line
+    img = np.asarray(Image.open(png).convert("RGB")).astype(int)
+    colours = {m.name: m.colour for m in load_materials().values()}
+    half = img.shape[1] // 2
+    for label in wm.counts():
+        colour = UNKNOWN_COLOUR if label == "unknown" else colours[label]
+        near = np.abs(img - hex_rgb(colour).astype(int)).max(axis=-1) <= 20
+        # the back view has no legend: its pixels of the colour are the points' own; the
+        # unknown look is dark grey, as the edges of text are (about 50 pixels a view)
+        least = 150 if label == "unknown" else 1
+        assert near[:, half:].sum() >= least, f"no point of {label} in the back view"
+        assert near[:, :half].sum() >= least, f"no point of {label} in the front view"
+
+
+def test_skin_view_without_a_display_says_so(run_dir, monkeypatch, capsys):
+    pytest.importorskip("pyvista")
+    from skin.cli import main
+
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    assert main(["view", "--map", str(run_dir)]) == 2
+    err = capsys.readouterr().err
+    assert "cannot open a window" in err and "--out" in err
+
+
+def test_skin_view_with_poses_over_time(run_dir, tmp_path, capsys):
+    pytest.importorskip("pyvista")
+    from skin.cli import main
+
+    poses = tmp_path / "poses.csv"
+    poses.write_text("time,shoulder\n0,0\n10,1.0\n")
+    assert main(["view", "--map", str(run_dir), "--poses", str(poses), "--out",
+                 str(tmp_path / "m.png"), "--save", str(tmp_path / "m.jsonl"), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    moved, still = WorldMap.load(tmp_path / "m.jsonl"), WorldMap.from_run(run_dir)
+    assert summary["points"] == len(moved) == len(still)
+    # each point turned about the vertical by its onset's shoulder angle (0.1 rad per s)
+    for k in range(len(moved)):
+        a = 0.1 * moved.time[k]
+        rz = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+        np.testing.assert_allclose(moved.points[k], rz @ still.points[k], atol=1e-9)
