@@ -91,14 +91,45 @@ class WorldMap:
             self._parts = [self._arrays]
         return self._arrays
 
-    points = property(lambda self: self._data()["points"], doc="(n, 3) world positions, m.")
-    normals = property(lambda self: self._data()["normals"], doc="(n, 3) world unit normals.")
-    contact = property(lambda self: self._data()["contact"], doc="Contact id of each point.")
-    taxel = property(lambda self: self._data()["taxel"], doc="Taxel id of each point.")
-    link = property(lambda self: self._data()["link"], doc="Link name of each point.")
-    label = property(lambda self: self._data()["label"], doc="Material label of each point.")
-    confidence = property(lambda self: self._data()["confidence"], doc="Confidence, 0-1.")
-    time = property(lambda self: self._data()["time"], doc="Contact onset of each point, s.")
+    @property
+    def points(self) -> np.ndarray:
+        """(n, 3) world positions, m."""
+        return self._data()["points"]
+
+    @property
+    def normals(self) -> np.ndarray:
+        """(n, 3) outward unit normals in the world frame."""
+        return self._data()["normals"]
+
+    @property
+    def contact(self) -> np.ndarray:
+        """Contact id of each point."""
+        return self._data()["contact"]
+
+    @property
+    def taxel(self) -> np.ndarray:
+        """Taxel id of each point."""
+        return self._data()["taxel"]
+
+    @property
+    def link(self) -> np.ndarray:
+        """Link name of each point."""
+        return self._data()["link"]
+
+    @property
+    def label(self) -> np.ndarray:
+        """Material label of each point (``"unknown"`` included)."""
+        return self._data()["label"]
+
+    @property
+    def confidence(self) -> np.ndarray:
+        """The classifier's confidence in each point's label, 0-1."""
+        return self._data()["confidence"]
+
+    @property
+    def time(self) -> np.ndarray:
+        """Onset of each point's contact, s (the skin's clock)."""
+        return self._data()["time"]
 
     def __len__(self) -> int:
         return int(self._data()["points"].shape[0])
