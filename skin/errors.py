@@ -33,3 +33,7 @@ class MaterialsError(SkinError):
 
 class MissingDependencyError(SkinError, ImportError):
     """An optional dependency is needed for the feature that was used."""
+
+
+class ViewError(SkinError):
+    """A view cannot be made or shown: an arm file or mesh, a pose, or no display to show it on."""
