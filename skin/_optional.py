@@ -17,6 +17,7 @@ _HINTS: dict[str, tuple[str, str]] = {
     "skops": ("skops", "ml"),
     "pyvista": ("pyvista", "viz"),
     "matplotlib": ("matplotlib", "viz"),
+    "imageio": ("imageio", "viz"),
     "mcap": ("mcap", "record"),
 }
 

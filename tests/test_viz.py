@@ -434,3 +434,34 @@ def test_a_thousand_taxels_on_a_hundred_thousand_vertices_build_and_update_fast(
         painter.fill(out)
         times.append(time.perf_counter() - t)
     assert np.median(times) < 2e-3  # the budget per update (about 0.2 ms here)
+
+
+# --- skin run --------------------------------------------------------------------------------
+
+
+SKIN = Path(__import__("sys").executable).with_name("skin")
+
+
+def test_skin_run_view_without_a_display_fails_clearly(tmp_path):
+    import subprocess
+
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    proc = subprocess.run([str(SKIN), "run", "--view", "--speed", "0", "--duration", "1",
+                           "--out", str(tmp_path)], capture_output=True, text=True, env=env,
+                          timeout=60)
+    assert proc.returncode == 2
+    assert "--view: a window needs a display" in proc.stderr and "--video" in proc.stderr
+
+
+def test_skin_run_writes_a_gif_of_the_run(tmp_path):
+    import subprocess
+
+    pytest.importorskip("imageio")
+    proc = subprocess.run([str(SKIN), "run", "--speed", "0", "--duration", "2", "--no-map",
+                           "--out", str(tmp_path), "--video", str(tmp_path / "run.gif"),
+                           "--view-mode", "temperature", "--json"],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "video:" in proc.stderr
+    with Image.open(tmp_path / "run.gif") as gif:
+        assert 19 <= gif.n_frames <= 21 and gif.size == (960, 440)  # one per 0.1 s

@@ -73,6 +73,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                      help="record the wire bytes, temperatures, events, layout and calibration "
                           "to an MCAP file (replay it with --port replay://FILE.mcap)")
     run.add_argument("--no-map", action="store_true", help="do not render contact_map.png")
+    run.add_argument("--view", action="store_true",
+                     help="show the arm in a window, painted as contacts come (at most 10 "
+                          "redraws a second; key t: material / temperature); needs a display")
+    run.add_argument("--video", metavar="FILE",
+                     help="write a movie of the arm view (.gif; .mp4 needs imageio-ffmpeg), "
+                          "10 frames per second of the run, off screen")
+    run.add_argument("--view-mode", choices=("material", "temperature"), default="material",
+                     help="what --view and --video show first: material labels (default) or "
+                          "each taxel's temperature")
+    run.add_argument("--arm", metavar="FILE",
+                     help="arm file (TOML: a mesh file and pose per link) for the views and "
+                          "contact_map.png; default: the procedural arm of the default layout")
     run.add_argument("--json", action="store_true",
                      help="print one JSON summary on stdout and nothing else")
     run.set_defaults(func=main)
@@ -93,6 +105,13 @@ def main(args: argparse.Namespace) -> int:
     from skin.models import HistogramClassifier, JointClassifier, load_materials
     from skin.scene import load_scene, match_touches
 
+    if args.view:
+        from skin.viz.arm import has_display
+
+        if not has_display():
+            raise SkinError("--view: a window needs a display, and neither DISPLAY nor "
+                            "WAYLAND_DISPLAY is set; use --video out/run.gif to record the "
+                            "view off screen")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     progress = Progress()
@@ -198,7 +217,10 @@ def main(args: argparse.Namespace) -> int:
                             metadata={"command": " ".join(["skin", *sys.argv[1:]])})
         pipeline.sinks.append(recorder)
         pipeline.observers.append(recorder.temperature)
+    live = None
     try:
+        if args.view or args.video:
+            live = _live_view(args, layout, materials)
         with drivers.open(url) as driver:
             # a device given by the user reconnects; the simulated ones end by going away
             for one, port_url in zip(getattr(driver, "drivers", [driver]), ports, strict=False):
@@ -241,8 +263,11 @@ def main(args: argparse.Namespace) -> int:
                 finished = now >= duration - 1e-9 or end_of_sim or (idle and driver.finished) or (
                     device is None and idle and time.monotonic() - t_wall > duration + 5)
                 if chunk and (len(chunk) >= 20 or idle or finished):
-                    given.extend(pipeline.process(chunk))
+                    new = pipeline.process(chunk)
+                    given.extend(new)
                     chunk = []
+                    if live is not None:
+                        live.step(now, new, pipeline.in_contact(), pipeline.last_temperature)
                     progress.status(
                         f"[{now:6.1f}{'' if math.isinf(duration) else f'/{duration:.1f}'} s] "
                         f"frames {pipeline.stats.frames}  "
@@ -251,13 +276,20 @@ def main(args: argparse.Namespace) -> int:
                         f"crc errors {driver.stats.crc_errors}", now)
                 if finished:
                     break
-            given.extend(pipeline.flush())
+            new = pipeline.flush()
+            given.extend(new)
+            if live is not None:
+                live.step(now, new, pipeline.in_contact(), pipeline.last_temperature)
             link, health = driver.stats, driver.health
     except KeyboardInterrupt:
         progress.message("interrupted: writing what was received")
         link = health = None
     finally:
         events.close()
+        if live is not None:
+            live.close()
+            if live.movie is not None:
+                progress.message(f"video: {live.movie} ({live.frames} frames)")
         if recorder is not None:
             recorder.close()
         progress.done()
@@ -330,9 +362,10 @@ def main(args: argparse.Namespace) -> int:
     if not args.no_map:
         from skin.viz import ArmView
 
-        view = ArmView(layout, {m.name: m.colour for m in materials.values()})
-        for r in results:
-            view.paint(r.contact.taxels, r.estimate.label)
+        # every contact of the run, at its confidence, none faded
+        view = ArmView(layout, {m.name: m.colour for m in materials.values()}, arm=args.arm,
+                       memory=None)
+        view.update(duration, results=results)
         title = f"contact map: {len(results)} contacts in {duration:g} s"
         view.screenshot(out / "contact_map.png", title=title)
         view.close()
@@ -342,6 +375,21 @@ def main(args: argparse.Namespace) -> int:
     else:
         _print_table([r for r in records if r["final"]], summary, out)
     return 0
+
+
+def _live_view(args: argparse.Namespace, layout: Any, materials: Any) -> Any:
+    """Open the window (--view) and/or the movie (--video) of the run."""
+    from skin.viz import ArmView
+    from skin.viz.arm_live import LiveArm
+
+    view = ArmView(layout, {m.name: m.colour for m in materials.values()}, arm=args.arm,
+                   off_screen=not args.view, window_size=(1200, 560) if args.view else (960, 440))
+    view.mode = args.view_mode
+    try:
+        return LiveArm(view, window=args.view, movie=args.video)
+    except BaseException:
+        view.close()
+        raise
 
 
 def _with_touches(scene: Any, touches: list) -> Any:
