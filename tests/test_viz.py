@@ -465,3 +465,19 @@ def test_skin_run_writes_a_gif_of_the_run(tmp_path):
     assert "video:" in proc.stderr
     with Image.open(tmp_path / "run.gif") as gif:
         assert 19 <= gif.n_frames <= 21 and gif.size == (960, 440)  # one per 0.1 s
+
+
+def test_skin_bench_view_quick_json():
+    import json
+    import subprocess
+
+    proc = subprocess.run([str(SKIN), "bench", "view", "--quick", "--json"],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads(proc.stdout)  # one JSON document, nothing else
+    assert doc["machine"]["cpus"] >= 1 and doc["machine"]["renderer"]
+    assert [r["taxels"] for r in doc["results"]] == [72, 300]
+    for r in doc["results"]:
+        assert 0 < r["update_ms"]["p50"] < 2.0  # the budget
+        assert r["render_ms"] > 0 and r["baseline_take_ms"] > 0
+        assert r["render_per_update"] > 1

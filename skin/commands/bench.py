@@ -30,6 +30,10 @@ each method (the arrival time, a running minimum offset, `skin.drivers.clock.Clo
 blocks of 0.5-2 s) and prints the error against the true sampling time beside the cost per
 frame (`skin.drivers.clock_bench`).
 
+``skin bench view`` times one update of the arm view (every taxel's colour computed and
+written into the mesh's colour array) beside one render, for skins of 72-1000 taxels on
+meshes of 14k and 100k vertices, with a baseline of the same run (`skin.viz.view_bench`).
+
 ``skin bench calibration`` runs simulated calibrations (each taxel's constants drawn within
 +-10 % of the paper's, a few contacts with a reference material) and reports how well
 `skin.models.sensor_fit.fit_sensor_constants` recovers them, against the nominal constants,
@@ -44,7 +48,7 @@ import platform
 import time
 from pathlib import Path
 
-from skin.commands import bench_drivers
+from skin.commands import bench_drivers, bench_view
 from skin.progress import Progress
 
 
@@ -101,6 +105,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     cal.add_argument("--json", action="store_true", help="print one JSON document")
     cal.set_defaults(func=main_calibration)
     bench_drivers.add_parsers(kinds)
+    bench_view.add_parsers(kinds)
 
 
 def machine() -> dict:
