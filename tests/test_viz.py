@@ -481,3 +481,28 @@ def test_skin_bench_view_quick_json():
         assert 0 < r["update_ms"]["p50"] < 2.0  # the budget
         assert r["render_ms"] > 0 and r["baseline_take_ms"] > 0
         assert r["render_per_update"] > 1
+
+
+@pytest.mark.skipif(__import__("shutil").which("xvfb-run") is None,
+                    reason="needs xvfb-run (a virtual display) to open a window")
+def test_skin_run_view_opens_a_window_on_a_virtual_display(tmp_path):
+    import subprocess
+
+    proc = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1280x800x24", str(SKIN), "run",
+                           "--view", "--speed", "0", "--duration", "2", "--no-map", "--out",
+                           str(tmp_path), "--json"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_cylinder_link_geometry_is_still_accepted():
+    from skin.viz import LinkGeometry
+    from skin.viz.arm_mesh import rotation_pose
+
+    layout = parse_layout(one_taxel("upper_arm", "[0.05, 0.0, 0.1]"), "one.toml")
+    arm = {"upper_arm": LinkGeometry(0.05, 0.2, rotation_pose(90.0, (0.0, 0.0, 0.0)))}
+    v = ArmView(layout, COLOURS, arm=arm, window_size=(200, 100))
+    try:
+        assert np.allclose(v.taxel_world[0], [0.1, 0.0, -0.05])
+        assert v.patch.max() == 0
+    finally:
+        v.close()
