@@ -303,6 +303,17 @@ def test_gif_of_a_run(tmp_path):
             tmp_path / "run.avi")
 
 
+def test_window_redraws_are_throttled():
+    now = [0.0]
+    v = ArmView(load_layout("arm"), COLOURS, window_size=(100, 50), sides=("front",))
+    live = LiveArm(v, window=True, rate=8.0, clock=lambda: now[0])
+    for k in range(16):  # 16 blocks in 1 s of wall time (binary fractions: exact)
+        now[0] = k / 16
+        live.step(k / 16)
+    live.close()
+    assert live.draws == 8 and live.frames == 0  # one per 1/8 s
+
+
 def test_a_window_without_a_display_is_a_clear_error(monkeypatch):
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)

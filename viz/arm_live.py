@@ -3,8 +3,10 @@
 `LiveArm.step` is called after every block of frames with the results the block gave, the
 taxels in contact and the last temperatures. The view's colours are brought up to date on
 every call (a fraction of a millisecond); what costs is drawing, so a window is drawn at most
-``rate`` times per second of wall time, and a movie gets one frame per ``1 / fps`` seconds of
-device time (so it plays at the run's own pace, however fast the run went).
+``rate`` times per second of wall time and never more than half of the time (a renderer in
+software takes 50-150 ms a frame), and a movie gets one frame per ``1 / fps`` seconds of device
+time, so it plays at the run's own pace however fast the run went (a run at real speed falls
+behind while it renders them; the frames wait in the device's buffer, none is lost).
 """
 
 from __future__ import annotations
@@ -60,13 +62,13 @@ class LiveArm:
         self.clock = clock
         self.movie = None if movie is None else view.open_movie(movie, fps=self.fps)
         self._next_frame = 0.0
-        self._last_draw = -math.inf
+        self._next_draw = -math.inf
         self.contacts = 0
         self.frames = 0
         self.draws = 0
         self.update_seconds = 0.0
         self.draw_seconds = 0.0
-        if window:
+        if window and view.plotter.iren is not None:
             view.plotter.add_key_event("t", self.toggle_mode)
 
     def toggle_mode(self) -> None:
@@ -89,11 +91,14 @@ class LiveArm:
             self.view.write_frame(repeat=due)
             self.frames += due
             self._next_frame += due / self.fps
-            self._last_draw = self.clock()
-        if self.window and self.clock() - self._last_draw >= 1.0 / self.rate:
+        if self.window and self.clock() >= self._next_draw:
+            started_draw = self.clock()
             self.view.render()
             self.draws += 1
-            self._last_draw = self.clock()
+            took = self.clock() - started_draw
+            # at most `rate` draws a second, and drawing at most half of the time: a slow
+            # (software) renderer must not starve the reading of frames
+            self._next_draw = started_draw + max(1.0 / self.rate, 2.0 * took)
         self.draw_seconds += time.perf_counter() - drawn
 
     def close(self) -> None:
