@@ -103,6 +103,11 @@ class ArmView:
         (N, 3) taxels snapped onto the surface, world frame.
     plotter : pyvista.Plotter
         The plotter (one subplot per side).
+    surface : ArmSurface
+        The geometry: snapped taxels, patches and rims (`skin.viz.arm_mesh`).
+    painter : TaxelPainter
+        Each taxel's label, confidence, time, contact and temperature, and the colours they
+        give (`skin.viz.arm_paint`).
     """
 
     def __init__(
