@@ -40,18 +40,30 @@ from skin.viz.arm_mesh import (
 )
 from skin.viz.arm_paint import BARE, MODES, UNKNOWN_COLOUR, TaxelPainter, hex_rgb
 
-__all__ = ["BARE", "UNKNOWN_COLOUR", "ArmLink", "ArmView", "LinkGeometry", "default_arm",
-           "has_display", "hex_rgb"]
+__all__ = [
+    "BARE",
+    "UNKNOWN_COLOUR",
+    "ArmLink",
+    "ArmView",
+    "LinkGeometry",
+    "default_arm",
+    "hex_rgb",
+    "window_problem",
+]
 
 
 _SQUARE = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
 
 
-def has_display() -> bool:
-    """Whether a window can be opened (on Linux and BSD: DISPLAY or WAYLAND_DISPLAY is set)."""
-    if sys.platform.startswith(("linux", "freebsd", "openbsd", "netbsd")):
-        return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
-    return True
+def window_problem() -> str | None:
+    """Return why no window can open here, or None if one can.
+
+    On Linux and BSD a window needs DISPLAY or WAYLAND_DISPLAY.
+    """
+    if sys.platform.startswith(("linux", "freebsd", "openbsd", "netbsd")) and not (
+            os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        return "there is no display (neither DISPLAY nor WAYLAND_DISPLAY is set)"
+    return None
 
 
 class ArmView:
@@ -131,10 +143,11 @@ class ArmView:
         pv = require("pyvista", "the arm view")
         self._pv = pv
         _quiet_vtk()
-        if not off_screen and not has_display():
-            raise ViewError("a window needs a display, and neither DISPLAY nor WAYLAND_DISPLAY "
-                            "is set: render off screen instead (skin run --video out/run.gif), "
-                            "or run under a virtual display (xvfb-run)")
+        why = None if off_screen else window_problem()
+        if why is not None:
+            raise ViewError(f"cannot open a window: {why}; render off screen instead "
+                            "(skin run --video out/run.gif), or run under a virtual display "
+                            "(xvfb-run)")
         bad = [s for s in sides if s not in ("front", "back")]
         if bad or not sides:
             raise ViewError(f"sides must be 'front' and/or 'back', got {list(sides)}")

@@ -11,8 +11,6 @@ a label that has no colour is grey. A legend names every label with its number o
 from __future__ import annotations
 
 import dataclasses
-import os
-import sys
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -23,7 +21,7 @@ from skin._optional import require
 from skin.contact import UNKNOWN
 from skin.errors import SkinError
 from skin.layout import Layout
-from skin.viz.arm import UNKNOWN_COLOUR, ArmView, default_arm
+from skin.viz.arm import UNKNOWN_COLOUR, ArmView, default_arm, window_problem
 from skin.world_map import WorldMap
 
 #: Colour of a label that the colour table does not know (not "unknown": a foreign material).
@@ -115,16 +113,6 @@ def add_world_map(view: ArmView, world_map: WorldMap, colours: Mapping[str, str]
     return actors
 
 
-def has_display() -> str | None:
-    """Return why no window can open here (None if one can): no display, or off screen forced."""
-    if os.environ.get("PYVISTA_OFF_SCREEN", "").lower() in ("1", "true", "yes"):
-        return "PYVISTA_OFF_SCREEN is set, so pyvista renders off screen"
-    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
-                                                  or os.environ.get("WAYLAND_DISPLAY")):
-        return "there is no display (neither DISPLAY nor WAYLAND_DISPLAY is set)"
-    return None
-
-
 def render_world_map(world_map: WorldMap, layout: Layout, colours: Mapping[str, str], *,
                      poses: Mapping[str, np.ndarray] | None = None,
                      path: str | Path | None = None, title: str | None = None,
@@ -159,7 +147,7 @@ def render_world_map(world_map: WorldMap, layout: Layout, colours: Mapping[str, 
         Without ``path``, if no window can open here (naming why).
     """
     if path is None:
-        why = has_display()
+        why = window_problem()
         if why is not None:
             raise SkinError(f"cannot open a window: {why}; give --out map.png to write a PNG "
                             "instead")

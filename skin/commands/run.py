@@ -106,12 +106,12 @@ def main(args: argparse.Namespace) -> int:
     from skin.scene import load_scene, match_touches
 
     if args.view:
-        from skin.viz.arm import has_display
+        from skin.viz.arm import window_problem
 
-        if not has_display():
-            raise SkinError("--view: a window needs a display, and neither DISPLAY nor "
-                            "WAYLAND_DISPLAY is set; use --video out/run.gif to record the "
-                            "view off screen")
+        why = window_problem()
+        if why is not None:
+            raise SkinError(f"--view: cannot open a window: {why}; use --video out/run.gif to "
+                            "record the view off screen")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     progress = Progress()
