@@ -139,7 +139,13 @@ def _firmware_missing() -> str | None:
     if not Path("/usr/include/simavr/sim_avr.h").exists():
         return "simavr's headers (libsimavr-dev) are not installed"
     if not DEFAULT_HARNESS.is_file() or not firmware_elf(BOARD).is_file():
-        return "the firmware is not built (make -C firmware all harness)"
+        from skin.drivers.avr_sim import FIRMWARE_DIR
+
+        for target in ("all", "harness"):  # a fresh clone: build what the backend runs
+            proc = subprocess.run(["make", "-C", str(FIRMWARE_DIR), target],
+                                  capture_output=True, text=True)
+            if proc.returncode != 0:
+                return f"make -C firmware {target} failed: {proc.stderr[-2000:]}"
     return None
 
 
