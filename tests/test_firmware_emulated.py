@@ -6,8 +6,6 @@ bytes come from the firmware's own ADC interrupts, controller and UART.
 """
 
 import math
-import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -17,8 +15,6 @@ import pytest
 
 from skin import drivers
 from skin.drivers.avr_sim import (
-    DEFAULT_HARNESS,
-    FIRMWARE_DIR,
     EmulatedBoard,
     firmware_elf,
     write_scene,
@@ -37,34 +33,8 @@ from skin.drivers.protocol import (
 from skin.errors import DeviceError, ProtocolError
 from skin.frame import FLAG_SAMPLE_OVERRUN, FLAG_STREAMING, FLAG_TX_OVERRUN
 
-REQUIRE = os.environ.get("SKIN_REQUIRE_FIRMWARE") == "1"
 pytestmark = pytest.mark.slow
 C0, C1, R_REF, V_PLUS = 9.5594e-4, 2.6181e-4, 668.0, 5.06
-
-
-def _missing_tools() -> str | None:
-    for tool in ("make", "avr-gcc", "g++"):
-        if shutil.which(tool) is None:
-            return f"{tool} is not installed"
-    if not Path("/usr/share/arduino/Arduino.mk").exists():
-        return "arduino-mk is not installed"
-    if not Path("/usr/include/simavr/sim_avr.h").exists():
-        return "simavr's headers (libsimavr-dev) are not installed"
-    return None
-
-
-@pytest.fixture(scope="module")
-def built() -> None:
-    reason = _missing_tools()
-    if reason:
-        if REQUIRE:
-            pytest.fail(f"SKIN_REQUIRE_FIRMWARE=1 but {reason}")
-        pytest.skip(f"the firmware cannot be built and emulated here: {reason}")
-    for target in ("all", "harness"):
-        proc = subprocess.run(["make", "-C", str(FIRMWARE_DIR), target], capture_output=True,
-                              text=True)
-        assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
-    assert DEFAULT_HARNESS.is_file() and firmware_elf("uno").is_file()
 
 
 def count_of(temp_c: float) -> float:
@@ -117,7 +87,7 @@ class Board:
         return self.driver.stats.crc_errors + self.driver.stats.malformed - self.errors_at_start
 
 
-def test_uno_streams_at_200_hz_every_frame_valid_and_the_counts_right(built, tmp_path):
+def test_uno_streams_at_200_hz_every_frame_valid_and_the_counts_right(firmware_built, tmp_path):
     with Board(tmp_path) as board:
         frames = board.frames(400)
         t = np.array([f.device_time for f in frames])
@@ -136,7 +106,7 @@ def test_uno_streams_at_200_hz_every_frame_valid_and_the_counts_right(built, tmp
         assert not np.any(last.status) and not np.any(last.duty)
 
 
-def test_identify_answers_with_the_build(built, tmp_path):
+def test_identify_answers_with_the_build(firmware_built, tmp_path):
     with Board(tmp_path) as board:
         reply = board.driver.request(Command(MsgType.IDENTIFY), timeout=5.0)
         assert isinstance(reply, Identity)
@@ -145,7 +115,7 @@ def test_identify_answers_with_the_build(built, tmp_path):
         assert reply.options & 1 and reply.max_rate_hz >= 200
 
 
-def test_set_duty_drives_the_heater_and_warms_its_own_thermistor(built, tmp_path):
+def test_set_duty_drives_the_heater_and_warms_its_own_thermistor(firmware_built, tmp_path):
     with Board(tmp_path) as board:
         before = board.frames(5)[-1].counts.astype(int)
         ack = board.driver.request(Command(MsgType.SET_DUTY, taxel=5, duty=255), timeout=5.0)
@@ -162,7 +132,7 @@ def test_set_duty_drives_the_heater_and_warms_its_own_thermistor(built, tmp_path
         assert np.all(duty[[0, 1, 2, 3]] > 0)  # below the setpoint: the PI heats
 
 
-def test_selftest_answers_and_finds_a_swapped_heater_pair(built, tmp_path):
+def test_selftest_answers_and_finds_a_swapped_heater_pair(firmware_built, tmp_path):
     with Board(tmp_path, swap=(2, 4)) as board:
         ack = board.driver.request(Command(MsgType.SELFTEST, pulse_ms=200, duty=255),
                                    timeout=5.0)
@@ -179,7 +149,7 @@ def test_selftest_answers_and_finds_a_swapped_heater_pair(built, tmp_path):
         assert np.all(np.delete(response, [2, 4]) > 20) and np.all(response[[2, 4]] < 8)
 
 
-def test_malformed_commands_get_errors_and_streaming_goes_on(built, tmp_path):
+def test_malformed_commands_get_errors_and_streaming_goes_on(firmware_built, tmp_path):
     with Board(tmp_path) as board:
         port = board.driver._port  # write raw bytes, as a faulty host would
         good = Command(MsgType.SET_DUTY, token=9, taxel=1, duty=10).body()
@@ -203,7 +173,7 @@ def test_malformed_commands_get_errors_and_streaming_goes_on(built, tmp_path):
         assert not np.any(frames[-1].duty)  # the damaged SET_DUTY was not carried out
 
 
-def test_set_rate_changes_the_sample_period(built, tmp_path):
+def test_set_rate_changes_the_sample_period(firmware_built, tmp_path):
     with Board(tmp_path) as board:
         board.driver.request(Command(MsgType.SET_RATE, rate_hz=100), timeout=5.0)
         frames = board.frames(50)[5:]
@@ -212,7 +182,8 @@ def test_set_rate_changes_the_sample_period(built, tmp_path):
             board.driver.request(Command(MsgType.SET_RATE, rate_hz=5000), timeout=5.0)
 
 
-def test_mega_streams_72_taxels_through_five_multiplexers_with_every_heater_on(built, tmp_path):
+def test_mega_streams_72_taxels_through_five_multiplexers_with_every_heater_on(
+        firmware_built, tmp_path):
     temps = 30.0 + 0.15 * np.arange(72)  # 0.15 K apart: about 9 counts, 2 ADC steps
     with Board(tmp_path, board="mega", taxels=72, muxes=5, temps=temps) as board:
         frames = board.frames(200)
@@ -235,7 +206,7 @@ def test_a_missing_firmware_build_is_named(tmp_path):
         board.start()
 
 
-def test_skin_run_with_the_firmware_in_the_loop(built, tmp_path):
+def test_skin_run_with_the_firmware_in_the_loop(firmware_built, tmp_path):
     import json
 
     proc = subprocess.run(
