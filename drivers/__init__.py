@@ -128,7 +128,7 @@ def _open_one(url: str) -> Driver:
                          port=None if port is None else int(port))
     if parts.scheme == "sim":
         from skin.drivers.sim import SimDriver, SkinSimulator
-        from skin.scene import load_scene
+        from skin.formats.scene import load_scene
 
         scene = load_scene(parts.netloc + parts.path or "default")
         sim = SkinSimulator(scene, duration=_float(opts, "duration", None, url))

@@ -342,7 +342,7 @@ class CanSimNode:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run a simulated CAN node until the scene is served and SIGTERM or Ctrl-C arrives."""
-    from skin.scene import load_scene
+    from skin.formats.scene import load_scene
 
     parser = argparse.ArgumentParser(
         prog="python -m skin.drivers.can_sim",

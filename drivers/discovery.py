@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from skin._optional import require
 from skin.drivers.protocol import CAN_BROADCAST, Command, Identity, MsgType, layout_hash
 from skin.errors import DeviceError, ProtocolError
-from skin.layout import Layout
+from skin.formats.layout import Layout
 
 MCU_NAMES = {0: "host", 1: "ATmega328P", 2: "ATmega2560"}
 

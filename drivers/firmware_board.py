@@ -17,8 +17,8 @@ import numpy as np
 
 from skin.drivers.avr_sim import EmulatedBoard, firmware_elf, write_scene
 from skin.errors import SceneError
-from skin.layout import Layout
-from skin.scene import Scene
+from skin.formats.layout import Layout
+from skin.formats.scene import Scene
 
 #: The emulated board: ``make -C firmware`` builds it as ``build/mega``.
 BOARD, MCU, TAXELS, MUXES = "mega", "atmega2560", 72, 5

@@ -13,11 +13,12 @@ metadata ``thermoskin``  ``format`` ("1"), ``library`` (thermoskin's version), `
                        date, UTC), ``clock_offset`` (s: wall-clock time minus
                        ``time.monotonic()`` at the start; log times are wall-clock ns)
 attachment             ``layout.toml`` (``application/toml``): the layout used, as layout TOML
-                       (`layout_toml`; `skin.layout.parse_layout` reads it back)
+                       (`layout_toml`; `skin.formats.layout.parse_layout` reads it back)
 attachment             ``calibration.json`` (``application/json``), if one was used: either a
-                       calibration file (`skin.calibration_file`, format 1, verbatim) or, for a
-                       bare `skin.calibration.Calibration`, ``{"format": "calibration-arrays",
-                       "c0": [...], ...}``: its per-taxel arrays in layout order
+                       calibration file (`skin.formats.calibration_file`, format 1, verbatim)
+                       or, for a bare `skin.stream.calibration.Calibration`,
+                       ``{"format": "calibration-arrays", "c0": [...], ...}``: its per-taxel
+                       arrays in layout order
 channel ``/wire/<k>``  one per source (driver): the bytes as they came off the wire, one message
                        per chunk the driver read, log time = host arrival time. Encoding
                        ``thermoskin.serial`` (the serial protocol's byte stream) or
@@ -28,8 +29,8 @@ channel                deg C after calibration, one message per block of samples
 ``/temperature``       processed, encoding ``thermoskin.temperature``: u32 n, u32 taxels,
                        f64 device times [n] (s), f32 deg C [n, taxels] in layout order (NaN:
                        no reading), all little-endian
-channel ``/events``    one JSON object per contact result (`skin.sinks.event_record`), encoding
-                       ``json`` with a JSON schema
+channel ``/events``    one JSON object per contact result (`skin.stream.sinks.event_record`),
+                       encoding ``json`` with a JSON schema
 =====================  ==========================================================================
 
 Surviving a kill: the file is unchunked and every record is handed to the operating system as
@@ -87,7 +88,7 @@ _OPCODES = {0x01: "HEADER", 0x02: "FOOTER", 0x03: "SCHEMA", 0x04: "CHANNEL", 0x0
             0x0D: "METADATA_INDEX", 0x0E: "SUMMARY_OFFSET", 0x0F: "DATA_END"}
 
 _EVENT_SCHEMA = {
-    "title": "thermoskin contact result (skin.sinks.event_record)",
+    "title": "thermoskin contact result (skin.stream.sinks.event_record)",
     "type": "object",
     "properties": {
         "contact": {"type": "integer"},
@@ -135,14 +136,14 @@ def _toml_value(value: Any) -> str:
 
 
 def layout_toml(layout: Any) -> str:
-    """Return layout TOML text that `skin.layout.parse_layout` reads back as ``layout``.
+    """Return layout TOML text that `skin.formats.layout.parse_layout` reads back as ``layout``.
 
     Every board constant and every taxel field is written out, floats exactly, so a layout
     built in memory (a cut of a shipped one, say) round-trips too.
 
     Parameters
     ----------
-    layout : skin.layout.Layout
+    layout : skin.formats.layout.Layout
         The layout.
 
     Returns
@@ -169,8 +170,8 @@ def layout_toml(layout: Any) -> str:
 
 def _calibration_bytes(calibration: Any) -> bytes | None:
     """Return the ``calibration.json`` attachment of what `Recorder` was given (None: none)."""
-    from skin.calibration import Calibration
-    from skin.calibration_file import CalibrationFile
+    from skin.formats.calibration_file import CalibrationFile
+    from skin.stream.calibration import Calibration
 
     if calibration is None:
         return None
@@ -194,8 +195,8 @@ def _calibration_bytes(calibration: Any) -> bytes | None:
 
 
 def _parse_calibration(data: bytes, source: str) -> Any:
-    from skin.calibration import Calibration
-    from skin.calibration_file import parse_calibration
+    from skin.formats.calibration_file import parse_calibration
+    from skin.stream.calibration import Calibration
 
     text = data.decode("utf-8")
     try:
@@ -245,12 +246,12 @@ class Recorder:
     ----------
     path : str or Path
         The MCAP file to create (replaced if it exists).
-    layout : skin.layout.Layout
+    layout : skin.formats.layout.Layout
         The layout the data belong to.
     calibration : str, Path, CalibrationFile or Calibration, optional
         The calibration used: a calibration file (its path: its text is kept verbatim; or the
-        loaded `skin.calibration_file.CalibrationFile`), or a bare
-        `skin.calibration.Calibration` (its per-taxel arrays are kept).
+        loaded `skin.formats.calibration_file.CalibrationFile`), or a bare
+        `skin.stream.calibration.Calibration` (its per-taxel arrays are kept).
     metadata : dict of str to str, optional
         More entries for the ``thermoskin`` metadata record (the command line, say).
 
@@ -376,7 +377,7 @@ class Recorder:
         self._add(channel, host_time, bytes(data), wire=True)
 
     def temperature(self, times: np.ndarray, temperature: np.ndarray) -> None:
-        """Record a block of calibrated temperatures (a `skin.pipeline.Pipeline` observer).
+        """Record a block of calibrated temperatures (a `skin.stream.pipeline.Pipeline` observer).
 
         Parameters
         ----------
@@ -394,8 +395,8 @@ class Recorder:
         self._add(self._temperature, time.monotonic(), data)
 
     def write(self, result: Any) -> None:
-        """Record a contact result as its JSON event record (a sink: `skin.sinks`)."""
-        from skin.sinks import event_record
+        """Record a contact result as its JSON event record (a sink: `skin.stream.sinks`)."""
+        from skin.stream.sinks import event_record
 
         self.event(event_record(result))
 
@@ -613,8 +614,8 @@ class RecordingReader:
         return out
 
     def layout(self) -> Any:
-        """Return the recorded layout (`skin.layout.Layout`), or None if the file has none."""
-        from skin.layout import parse_layout
+        """Return the recorded layout (`skin.formats.layout.Layout`), or None without one."""
+        from skin.formats.layout import parse_layout
 
         data = self.attachments.get(LAYOUT_ATTACHMENT)
         if data is None:
@@ -797,7 +798,7 @@ class Recording:
     ----------
     path : Path
         The file.
-    layout : skin.layout.Layout or None
+    layout : skin.formats.layout.Layout or None
         The recorded layout.
     calibration : CalibrationFile, Calibration or None
         The recorded calibration.

@@ -61,8 +61,8 @@ def recorded_setup(path: str | Path) -> tuple[Any, Any]:
     """Return the (layout, calibration) a recording holds, each None if it has none.
 
     Reads only the head of the file. The calibration is a
-    `skin.calibration_file.CalibrationFile` (a calibration file was used) or a bare
-    `skin.calibration.Calibration`.
+    `skin.formats.calibration_file.CalibrationFile` (a calibration file was used) or a bare
+    `skin.stream.calibration.Calibration`.
 
     Raises
     ------
@@ -138,7 +138,7 @@ class ReplayDriver(Driver):
 
     @property
     def layout(self) -> Any:
-        """The recorded layout (`skin.layout.Layout`), or None."""
+        """The recorded layout (`skin.formats.layout.Layout`), or None."""
         if self._layout is None:
             self._layout = self.reader.layout()
         return self._layout

@@ -26,7 +26,6 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from skin.calibration import Calibration
 from skin.drivers.base import Driver
 from skin.drivers.protocol import (
     ALL_TAXELS,
@@ -41,8 +40,9 @@ from skin.drivers.protocol import (
     parse_command_packet,
 )
 from skin.errors import SceneError
+from skin.formats.scene import Scene
 from skin.frame import FLAG_ADC_SATURATED, FLAG_STREAMING, Frame
-from skin.scene import Scene
+from skin.stream.calibration import Calibration
 
 
 class SkinSimulator:

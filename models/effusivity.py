@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from skin.contact import UNKNOWN, Contact, MaterialEstimate
-from skin.layout import Layout
+from skin.formats.layout import Layout
 from skin.models.materials import Material, load_materials
 from skin.models.physics import SensorConstants, effusivity_estimates
 

@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from skin.dataset import TrialSet
 from skin.errors import SkinError
+from skin.formats.dataset import TrialSet
 
 PRE = 10  # samples before onset averaged into T0
 KINDS = ("raw", "slope", "both")

@@ -210,7 +210,7 @@ class JointClassifier:
     fs : float
         Sampling rate of the common grid, Hz.
     sensors : dict, optional
-        Taxel id -> calibrated `SensorConstants` (`skin.calibration_file`); taxels not in it
+        Taxel id -> calibrated `SensorConstants` (`skin.formats.calibration_file`); taxels not in it
         use their board's constants.
     **model_options
         Passed to `JointContactModel` (``noise``, ``object_std``, ``h_points``,

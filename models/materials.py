@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from skin.datafiles import is_number
 from skin.errors import MaterialsError
+from skin.formats.datafiles import is_number
 from skin.models.physics import effusivity
 
 _RANGES = ("k", "rho", "c")

@@ -100,7 +100,7 @@ def load_model(path: str | Path) -> dict[str, Any]:
 
 
 def training_summary(data: Any, duration: float) -> dict[str, Any]:
-    """Summarise a `skin.dataset.TrialSet` for the model file."""
+    """Summarise a `skin.formats.dataset.TrialSet` for the model file."""
     labels, counts = np.unique(data.label, return_counts=True)
     summary: dict[str, Any] = {
         "source": data.source, "trials": len(data), "duration": float(duration),

@@ -63,7 +63,7 @@ class SensorConstants:
 
     @classmethod
     def from_board(cls, board: object) -> SensorConstants:
-        """Take the constants from a `skin.layout.Board`."""
+        """Take the constants from a `skin.formats.layout.Board`."""
         return cls(
             depth=board.sensor_depth,
             diffusivity=board.sensor_diffusivity,

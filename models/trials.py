@@ -39,11 +39,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from skin.calibration import Calibration
-from skin.dataset import TrialSet
-from skin.layout import Board
+from skin.formats.dataset import TrialSet
+from skin.formats.layout import Board
 from skin.models.materials import Material
 from skin.models.physics import SensorConstants, contact_trace, heated_temperature
+from skin.stream.calibration import Calibration
 
 MODELS = ("contact", "semi-infinite", "multilayer")
 PAPER_MATERIALS = ("acrylic", "aluminium", "brick", "cardboard", "glass", "mdf", "neoprene",

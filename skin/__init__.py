@@ -4,7 +4,6 @@
 views (``skin.viz``) load their own dependencies when used.
 """
 
-from skin.calibration import Calibration
 from skin.contact import UNKNOWN, Contact, MaterialEstimate, TaxelWindow
 from skin.errors import (
     CalibrationError,
@@ -16,12 +15,13 @@ from skin.errors import (
     SceneError,
     SkinError,
 )
+from skin.formats.layout import Board, Layout, Taxel, load_layout, parse_layout
 from skin.frame import Frame
-from skin.layout import Board, Layout, Taxel, load_layout, parse_layout
-from skin.onset import DetectorState, OnsetDetector, OnsetEvent
-from skin.onset_refine import refine_onset
-from skin.pipeline import ContactResult, Pipeline
-from skin.tracking import ContactTracker
+from skin.stream.calibration import Calibration
+from skin.stream.onset import DetectorState, OnsetDetector, OnsetEvent
+from skin.stream.onset_refine import refine_onset
+from skin.stream.pipeline import ContactResult, Pipeline
+from skin.stream.tracking import ContactTracker
 
 __version__ = "0.1.0"
 

@@ -1,11 +1,11 @@
 import numpy as np
 import pytest
 
-from skin.assembly import FrameAssembler
-from skin.calibration import TAXEL_MISSING, Calibration
 from skin.errors import SkinError
+from skin.formats.layout import Board, Layout, Taxel
 from skin.frame import Frame
-from skin.layout import Board, Layout, Taxel
+from skin.stream.assembly import FrameAssembler
+from skin.stream.calibration import TAXEL_MISSING, Calibration
 
 
 def two_boards():
@@ -68,9 +68,9 @@ def test_bad_frames_are_errors_that_name_the_board_and_channel():
 
 def test_a_skin_of_two_boards_runs_through_the_pipeline():
     from skin.drivers.sim import SkinSimulator
+    from skin.formats.scene import load_scene
     from skin.models import HistogramClassifier
-    from skin.pipeline import Pipeline
-    from skin.scene import load_scene
+    from skin.stream.pipeline import Pipeline
 
     scene = load_scene("default")
     one = scene.layout

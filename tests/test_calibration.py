@@ -3,7 +3,8 @@ import math
 import numpy as np
 import pytest
 
-from skin.calibration import (
+from skin.formats.layout import load_layout
+from skin.stream.calibration import (
     KELVIN,
     TAXEL_OPEN,
     TAXEL_SATURATED,
@@ -11,7 +12,6 @@ from skin.calibration import (
     ambient_from_counts,
     ambient_to_counts,
 )
-from skin.layout import load_layout
 
 N_TAXELS = 72
 

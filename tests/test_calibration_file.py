@@ -7,9 +7,9 @@ import sys
 import numpy as np
 import pytest
 
-from skin.calibration import Calibration, fit_steinhart_hart
-from skin.calibration_file import CalibrationFileError, load_calibration
-from skin.layout import load_layout
+from skin.formats.calibration_file import CalibrationFileError, load_calibration
+from skin.formats.layout import load_layout
+from skin.stream.calibration import Calibration, fit_steinhart_hart
 
 C0, C1, C2 = 9.5594e-4, 2.6181e-4, 1.2e-7
 

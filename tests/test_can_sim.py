@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from skin import drivers
+from skin.bench.pipeline import cylinder_layout
 from skin.drivers.protocol import (
     ALL_TAXELS,
     CAN_BROADCAST,
@@ -20,8 +21,7 @@ from skin.drivers.protocol import (
 )
 from skin.drivers.sim import SkinSimulator
 from skin.errors import DeviceError, ProtocolError
-from skin.pipeline_bench import cylinder_layout
-from skin.scene import load_scene
+from skin.formats.scene import load_scene
 
 can = pytest.importorskip("can")
 from skin.drivers.can_sim import CanSimNode  # noqa: E402

@@ -11,8 +11,8 @@ pytest.importorskip("sklearn")
 pytest.importorskip("hmmlearn")
 pytest.importorskip("skops")
 
-from skin.dataset import DatasetError, TrialSet, with_detected_onsets
 from skin.errors import SkinError
+from skin.formats.dataset import DatasetError, TrialSet, with_detected_onsets
 from skin.models import load_materials
 from skin.models.classifiers import HMMClassifier, TraceFeatures, make_method, parse_method
 from skin.models.features import slope, slope_filter, split_rows, trace_features, trial_matrix
@@ -353,7 +353,7 @@ def test_calibration_error_of_honest_and_overconfident_probabilities():
 
 
 def test_ceiling_knows_the_nuisances_and_beats_the_learners_early():
-    from skin.models.ceiling import known_nuisance_ceiling
+    from skin.bench.ceiling import known_nuisance_ceiling
 
     ds = simulate_trials([MATS[m] for m in ("aluminium", "glass", "pine", "cardboard")],
                          Protocol(trials=20, run_length=10), seed=5)

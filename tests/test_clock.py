@@ -6,7 +6,7 @@ import pytest
 from skin import drivers
 from skin.drivers.clock import DEVICE_WRAP, ClockMap
 from skin.drivers.sim import PtySerialDevice, SkinSimulator
-from skin.scene import load_scene
+from skin.formats.scene import load_scene
 
 
 def feed(clock, device, host):

@@ -10,8 +10,8 @@ import skin
 from skin.cli import main
 from skin.drivers.discovery import Found, check, identify
 from skin.drivers.sim import PtySerialDevice, SkinSimulator
-from skin.layout import load_layout
-from skin.scene import load_scene
+from skin.formats.layout import load_layout
+from skin.formats.scene import load_scene
 
 
 @pytest.fixture

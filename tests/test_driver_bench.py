@@ -4,9 +4,9 @@ import json
 
 import pytest
 
+from skin.bench.drivers import BUSES, wiring
 from skin.cli import main
 from skin.drivers.bus_load import bus_load
-from skin.drivers.driver_bench import BUSES, wiring
 from skin.drivers.protocol import CAN_MAX_TAXELS, MAX_TAXELS
 
 pytest.importorskip("cobs")

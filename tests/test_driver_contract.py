@@ -48,8 +48,8 @@ from skin.drivers.protocol import (
 )
 from skin.drivers.sim import PtySerialDevice, SkinSimulator
 from skin.errors import DeviceError
+from skin.formats.scene import load_scene
 from skin.frame import FLAG_STREAMING, Frame
-from skin.scene import load_scene
 
 N = 40  # frames a check reads: 0.2 s at 200 Hz
 SIM_SECONDS = 3.0  # the simulated scene every simulated source plays

@@ -4,7 +4,7 @@ import pytest
 import skin.drivers
 from skin.drivers.sim import PtySerialDevice, SimDriver, SkinSimulator
 from skin.errors import DeviceError
-from skin.scene import load_scene
+from skin.formats.scene import load_scene
 
 
 @pytest.fixture(scope="module")

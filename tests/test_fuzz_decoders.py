@@ -1,7 +1,7 @@
 """Fuzzing every decoder with hypothesis: damaged streams, random chunks, the documented errors.
 
 The damage and the oracle (which packets came through intact and so must be decoded) live in
-`skin.drivers.fuzz`, shared with ``skin bench fuzz``; the properties are asserted here.
+`skin.bench.fuzz`, shared with ``skin bench fuzz``; the properties are asserted here.
 """
 
 import numpy as np
@@ -9,7 +9,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from skin.drivers.fuzz import (
+from skin.bench.fuzz import (
     BYTE_DAMAGE,
     FRAME_DAMAGE,
     Damage,

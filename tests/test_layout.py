@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from skin.errors import LayoutError
-from skin.layout import Board, Layout, load_layout, parse_layout
+from skin.formats.layout import Board, Layout, load_layout, parse_layout
 
 BOARDS = "[[boards]]\nid = 0\n"
 
@@ -210,3 +210,11 @@ def test_load_layout_missing_path(tmp_path):
 def test_load_layout_unknown_shipped_name():
     with pytest.raises(LayoutError, match="no_such_layout"):
         load_layout("no_such_layout")
+
+
+def test_a_folder_named_like_a_shipped_layout_does_not_hide_it(tmp_path, monkeypatch):
+    (tmp_path / "arm").mkdir()
+    monkeypatch.chdir(tmp_path)
+    assert len(load_layout("arm")) == 72
+    with pytest.raises(LayoutError, match="elsewhere/arm: cannot read layout: No such file"):
+        load_layout("elsewhere/arm")

@@ -5,11 +5,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from skin.calibration import Calibration
 from skin.drivers.sim import SkinSimulator
-from skin.onset import OnsetDetector
-from skin.onset_refine import refine_onset
-from skin.scene import load_scene
+from skin.formats.scene import load_scene
+from skin.stream.calibration import Calibration
+from skin.stream.onset import OnsetDetector
+from skin.stream.onset_refine import refine_onset
 
 
 @pytest.fixture(scope="module")
@@ -66,8 +66,8 @@ def test_release_follows_each_touch(stream):
 def warm_stream():
     # four quiet taxels, contacts every few seconds, most of them with objects hotter than
     # the taxel: in its first 20 s two rises and their releases
+    from skin.bench.streams import simulate_stream
     from skin.models import load_materials
-    from skin.models.streams import simulate_stream
 
     mats = load_materials()
     s = simulate_stream([mats["aluminium"], mats["glass"]], n_taxels=4, duration=40.0,
@@ -183,8 +183,8 @@ def test_warm_touch_on_a_taxel_still_reheating_is_released():
 def test_heater_steps_up_and_reheats_after_contacts_raise_no_rise():
     # disturbed streams with no warm object: heater duty steps up and down, drift, gusts and
     # every contact's reheat; the rising channel must stay silent (falls are all contacts)
+    from skin.bench.streams import simulate_stream
     from skin.models import load_materials
-    from skin.models.streams import simulate_stream
 
     mats = load_materials()
     s = simulate_stream([mats[m] for m in ("aluminium", "glass", "neoprene", "pine")],
@@ -208,7 +208,7 @@ def test_quiet_reheating_taxel_raises_no_alarm():
     fs = 200.0
     t = np.arange(0, 600, 1 / fs)
     true = 38.963 + (31.0 - 38.963) * np.exp(-t / 20.6)
-    from skin.layout import load_layout
+    from skin.formats.layout import load_layout
 
     full = Calibration.from_layout(load_layout("arm"))
     cal = Calibration(full.c0[:1], full.c1[:1], full.divider_resistor[:1],
@@ -269,8 +269,8 @@ def test_refine_onset_dates_a_rise(h):
 
 
 def test_slow_channel_finds_more_contacts_among_air_currents_without_false_alarms():
+    from skin.bench.streams import simulate_stream
     from skin.models import load_materials
-    from skin.models.streams import simulate_stream
 
     mats = load_materials()
     stream = simulate_stream([mats[m] for m in ("brick", "cardboard", "pine", "human_skin")],

@@ -7,11 +7,11 @@ import sys
 import numpy as np
 import pytest
 
+from skin.bench.onset_eval import evaluate_onsets
+from skin.bench.streams import simulate_stream
 from skin.models import load_materials
 from skin.models.physics import SensorConstants, contact_trace
-from skin.models.streams import simulate_stream
-from skin.onset_eval import evaluate_onsets
-from skin.onset_refine import refine_onset
+from skin.stream.onset_refine import refine_onset
 
 MATS = load_materials()
 

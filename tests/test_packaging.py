@@ -79,7 +79,7 @@ def test_wheel_installs_and_imports_subpackages(tmp_path):
                     str(target), str(wheel)], check=True, capture_output=True)
     code = (
         "import skin, skin.drivers, skin.models, skin.viz\n"
-        "from skin.layout import load_layout\n"
+        "from skin.formats.layout import load_layout\n"
         "from skin.models import load_materials\n"
         "print(skin.__file__); print(skin.drivers.__file__); "
         "print(len(load_layout('arm')), len(load_materials()))"
@@ -90,3 +90,56 @@ def test_wheel_installs_and_imports_subpackages(tmp_path):
     out = run_py(code, cwd=tmp_path, env=env).split()
     assert out[0].startswith(str(target)) and out[1].startswith(str(target))
     assert out[2] == "72" and int(out[3]) >= 12
+
+
+# commands whose job is to measure: they may import the measuring tools
+MEASURING_COMMANDS = {"skin.commands.bench", "skin.commands.bench_drivers",
+                      "skin.commands.bench_view", "skin.commands.evaluate",
+                      "skin.commands.evaluate_onset"}
+
+
+def _module_files():
+    """(module name, path) of every module of the package, from its source folders."""
+    import tomllib
+
+    dirs = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["package-dir"]
+    for package, folder in dirs.items():
+        base = ROOT / folder
+        for path in base.rglob("*.py"):
+            rel = path.relative_to(base).with_suffix("")
+            parts = [p for p in rel.parts if p != "__init__"]
+            if package == "skin" and parts and parts[0] in {"drivers", "models", "viz"}:
+                continue  # not there: those live in their own folders
+            yield ".".join([package, *parts]), path
+
+
+def _imports(path: Path) -> set[str]:
+    import ast
+
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            names.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            names.add(node.module)
+            names.update(f"{node.module}.{a.name}" for a in node.names)
+    return names
+
+
+def test_no_runtime_module_imports_a_measuring_tool():
+    modules = dict(_module_files())
+    assert "skin.stream.pipeline" in modules and "skin.bench.fuzz" in modules
+    offenders = []
+    for name, path in modules.items():
+        if name.startswith("skin.bench") or name in MEASURING_COMMANDS:
+            continue
+        bad = sorted(m for m in _imports(path) if m == "skin.bench" or m.startswith("skin.bench."))
+        if bad:
+            offenders.append(f"{name} imports {', '.join(bad)}")
+    assert offenders == []
+
+
+def test_the_command_line_loads_no_measuring_tool():
+    code = ("import sys, skin.cli\nskin.cli.build_parser()\n"
+            "print(sorted(m for m in sys.modules if m.startswith('skin.bench')))")
+    assert run_py(code).strip() == "[]"

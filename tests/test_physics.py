@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from skin.layout import Board
+from skin.formats.layout import Board
 from skin.models.physics import (
     SensorConstants,
     contact_temperature,

@@ -3,10 +3,10 @@ import pytest
 
 from skin.drivers.sim import SkinSimulator
 from skin.errors import SkinError
-from skin.layout import Board, Layout, Taxel
+from skin.formats.layout import Board, Layout, Taxel
+from skin.formats.scene import load_scene, match_touches
 from skin.models import HistogramClassifier
-from skin.pipeline import Pipeline
-from skin.scene import load_scene, match_touches
+from skin.stream.pipeline import Pipeline
 
 
 @pytest.fixture(scope="module")
@@ -136,7 +136,7 @@ def test_spreading_the_work_over_frames_gives_the_same_results_later(scene_frame
 def test_sinks_get_every_result_in_order(scene_frames, tmp_path):
     import json
 
-    from skin.sinks import JsonLinesSink
+    from skin.stream.sinks import JsonLinesSink
 
     scene, frames = scene_frames
 

@@ -3,7 +3,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from skin.pipeline_bench import cylinder_layout, run
+from skin.bench.pipeline import cylinder_layout, run
 
 SKIN = Path(sys.executable).with_name("skin")
 

@@ -121,7 +121,7 @@ def test_matplotlib_is_imported_only_when_drawing(tmp_path):
 
 
 def test_bench_figures_are_written(tmp_path):
-    from skin.models.thermal_bench import forward
+    from skin.bench.thermal import forward
     from skin.viz.plots import plot_estimator_errors, plot_work_precision
 
     rows = forward(cells=(12,), dts=(0.1, 0.02))
@@ -144,7 +144,7 @@ import json  # noqa: E402
 import numpy as np  # noqa: E402
 
 from skin import cli  # noqa: E402
-from skin.onset import OnsetDetector  # noqa: E402
+from skin.stream.onset import OnsetDetector  # noqa: E402
 from skin.viz import trace_plots  # noqa: E402
 
 SVG_START = "<?xml"
@@ -223,7 +223,7 @@ def test_trace_figure_has_two_panels_sharing_time_and_onset_lines(material_set):
 
 
 def test_slope_panel_is_the_detectors_slope_sample_by_sample(files):
-    from skin.dataset import load_trials
+    from skin.formats.dataset import load_trials
 
     data = load_trials(files / "trials.npz")
     traces = trace_plots.trial_traces(data, [0, 9])
@@ -260,7 +260,7 @@ def test_paper_slope_is_the_filtered_first_difference(material_set):
 
 
 def test_trial_traces_take_the_first_of_each_class_and_their_truth(files):
-    from skin.dataset import load_trials
+    from skin.formats.dataset import load_trials
 
     data = load_trials(files / "trials.npz")
     traces = trace_plots.trial_traces(data)

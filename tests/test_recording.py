@@ -16,7 +16,6 @@ import pytest
 pytest.importorskip("mcap")
 
 from skin import drivers
-from skin.calibration import Calibration
 from skin.drivers.protocol import StreamDecoder
 from skin.drivers.recording import (
     Recorder,
@@ -27,7 +26,8 @@ from skin.drivers.recording import (
 )
 from skin.drivers.replay import ReplayDriver, replay_path
 from skin.errors import DeviceError
-from skin.layout import Layout, load_layout, parse_layout
+from skin.formats.layout import Layout, load_layout, parse_layout
+from skin.stream.calibration import Calibration
 
 SKIN = Path(sys.executable).with_name("skin")
 EVENT_KEYS = ("contact", "taxels", "onset", "release", "decided_at", "final", "label",
@@ -134,7 +134,7 @@ def test_can_recording_over_the_virtual_bus_replays_the_same_frames(tmp_path, re
     pytest.importorskip("can")
     from skin.drivers.can_sim import CanSimNode
     from skin.drivers.sim import SkinSimulator
-    from skin.scene import load_scene
+    from skin.formats.scene import load_scene
 
     channel = f"rec-{request.node.name}"
     path = tmp_path / "can.mcap"
@@ -289,7 +289,7 @@ def test_replay_url_paths():
 
 
 def test_recorded_calibration_is_used_by_the_replay(tmp_path):
-    from skin.calibration_file import CalibrationFile, load_calibration
+    from skin.formats.calibration_file import CalibrationFile, load_calibration
 
     layout = load_layout("arm")
     cal = CalibrationFile(taxels={0: {"thermistor": [9.6e-4, 2.6e-4, 0.0]}}, ambient_offset=0.5)
@@ -332,7 +332,7 @@ def test_without_mcap_recording_fails_with_the_install_hint(tmp_path):
         "sys.meta_path.insert(0, Block())\n"
         "from skin.drivers.recording import Recorder\n"
         "from skin.errors import MissingDependencyError\n"
-        "from skin.layout import load_layout\n"
+        "from skin.formats.layout import load_layout\n"
         "try:\n"
         f"    Recorder({str(tmp_path / 'x.mcap')!r}, load_layout('arm'))\n"
         "except MissingDependencyError as exc:\n"

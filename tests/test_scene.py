@@ -3,7 +3,7 @@ from collections import Counter
 import pytest
 
 from skin.errors import SceneError
-from skin.scene import Scene, Touch, load_scene, match_touches, parse_scene
+from skin.formats.scene import Scene, Touch, load_scene, match_touches, parse_scene
 
 HEAD = """duration = 10.0
 ambient = 25.0

@@ -14,8 +14,8 @@ from skin.drivers.protocol import (
 )
 from skin.drivers.sim import PtySerialDevice, SkinSimulator
 from skin.errors import ProtocolError
+from skin.formats.scene import load_scene
 from skin.frame import FLAG_STREAMING
-from skin.scene import load_scene
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,7 @@ import sys
 import numpy as np
 import pytest
 
-from skin.dataset import DatasetError, TrialSet, load_trials
+from skin.formats.dataset import DatasetError, TrialSet, load_trials
 from skin.models import load_materials
 from skin.models.trials import PAPER_MATERIALS, Protocol, simulate_trials
 
@@ -287,7 +287,7 @@ def test_evaluate_ceiling_on_simulated_data(tmp_path):
 
 
 def test_one_class_is_a_dataset_but_not_a_classifier_dataset(tmp_path):
-    from skin.dataset import require_classes
+    from skin.formats.dataset import require_classes
 
     one = make(label=np.array(["a", "a", "a"]))  # a calibration's reference contacts
     with pytest.raises(DatasetError, match="1 class"):

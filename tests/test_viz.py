@@ -13,18 +13,18 @@ import numpy as np
 import pytest
 
 from skin.errors import LayoutError, ViewError
-from skin.layout import Board, Layout, Taxel, load_layout, parse_layout
+from skin.formats.layout import Board, Layout, Taxel, load_layout, parse_layout
 from skin.models import load_materials
 
 pytest.importorskip("pyvista")
 from PIL import Image
 
+from skin.bench.view import arm_layout
 from skin.viz import ArmView, default_arm
 from skin.viz.arm import BARE, UNKNOWN_COLOUR, hex_rgb
 from skin.viz.arm_live import LiveArm
 from skin.viz.arm_mesh import ArmSurface, load_arm
 from skin.viz.arm_paint import TaxelPainter, colormap_table
-from skin.viz.view_bench import arm_layout
 
 IMAGES = Path(__file__).parent / "data" / "images"
 COLOURS = {m.name: m.colour for m in load_materials().values()}
@@ -178,7 +178,7 @@ def test_temperature_mode_shows_the_colormap_and_a_scalar_bar(view):
 
 def test_paint_result_uses_label_confidence_and_release():
     from skin.contact import Contact, MaterialEstimate
-    from skin.pipeline import ContactResult
+    from skin.stream.pipeline import ContactResult
 
     painter = TaxelPainter(4, COLOURS, np.array([0, 1, 2, 3, -1]), np.zeros(5, bool),
                            memory=5.0)

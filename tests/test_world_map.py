@@ -6,7 +6,9 @@ import pytest
 
 from skin.contact import Contact, MaterialEstimate
 from skin.errors import LayoutError
-from skin.kinematics import (
+from skin.formats.layout import load_layout
+from skin.stream.pipeline import ContactResult
+from skin.world.kinematics import (
     Chain,
     JointTrack,
     KinematicsError,
@@ -19,9 +21,7 @@ from skin.kinematics import (
     parse_chain,
     transform,
 )
-from skin.layout import load_layout
-from skin.pipeline import ContactResult
-from skin.world_map import WorldMap, WorldMapError
+from skin.world.map import WorldMap, WorldMapError
 
 # ---- the chain ----
 

@@ -28,7 +28,7 @@ import numpy as np
 
 from skin._optional import require
 from skin.errors import MissingDependencyError, ViewError
-from skin.layout import Layout
+from skin.formats.layout import Layout
 from skin.viz.arm_mesh import (
     SNAP_TOLERANCE,
     ArmLink,
@@ -361,7 +361,7 @@ class ArmView:
         self._refresh()
 
     def paint_result(self, result: Any) -> None:
-        """Paint a `skin.pipeline.ContactResult`: its taxels, label, confidence and time."""
+        """Paint a `skin.stream.pipeline.ContactResult`: its taxels, label, confidence and time."""
         self._paint_result(result)
         self._refresh()
 

@@ -23,9 +23,9 @@ from typing import Any
 import numpy as np
 
 from skin._optional import require
-from skin.datafiles import header_lines, is_number
 from skin.errors import LayoutError, ViewError
-from skin.layout import Layout
+from skin.formats.datafiles import header_lines, is_number
+from skin.formats.layout import Layout
 
 #: Mesh files an arm can be made of (read by pyvista / VTK).
 MESH_SUFFIXES = (".stl", ".obj", ".ply", ".vtk", ".vtp")

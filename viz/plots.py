@@ -233,7 +233,7 @@ def plot_work_precision(rows: list[dict], path: str | Path) -> Path:
     Parameters
     ----------
     rows : list of dict
-        The ``forward`` rows of `skin.models.thermal_bench.forward`.
+        The ``forward`` rows of `skin.bench.thermal.forward`.
     path : str or Path
         Output file (``.png``, ``.svg`` or ``.pdf``).
 
@@ -281,7 +281,7 @@ def plot_estimator_errors(rows: list[dict], path: str | Path) -> Path:
     Parameters
     ----------
     rows : list of dict
-        The ``inverse`` rows of `skin.models.thermal_bench.inverse`.
+        The ``inverse`` rows of `skin.bench.thermal.inverse`.
     path : str or Path
         Output file (``.png``, ``.svg`` or ``.pdf``).
 

@@ -2,20 +2,20 @@
 
 A figure has two panels sharing the time axis: the temperature (deg C) above and its slope
 (K/s) below; by default the slope is the onset detector's own smoothed derivative
-(`skin.onset.DetectorTrace.slope`, what the detector compares the reading with), or, with
+(`skin.stream.onset.DetectorTrace.slope`, what the detector compares the reading with), or, with
 ``slope="paper"``, the paper's feature: the first difference through its causal 2 Hz
 Butterworth low-pass (`skin.models.features.slope_filter`, the paper's Fig. 6).
 
 Vertical lines in both panels mark what the detector found in each trace, in the trace's
 colour: each onset (solid), dated by the contact-response fit as the pipeline dates it
-(`skin.onset_refine.refine_onset`), and each release (dash-dot); a triangle on the
+(`skin.stream.onset_refine.refine_onset`), and each release (dash-dot); a triangle on the
 temperature marks the sample at which the onset was recognised. Black lines mark the truth
 where it is known: onsets dashed, releases dotted. Contacts a recording holds (the pipeline's
 results) are shaded in their label's colour.
 
 Traces come from three sources, each a list of `TaxelTrace`:
 
-- `trial_traces`: trials of a trial dataset (`skin.dataset`), the truth from its
+- `trial_traces`: trials of a trial dataset (`skin.formats.dataset`), the truth from its
   ``true_onset_time`` column (simulated data) or its ``onset`` column;
 - `recording_traces`: taxels of an MCAP recording (`skin.drivers.recording`), with its
   recorded contacts, the truth from the scene of a simulated run (`recording_scene`);
@@ -36,13 +36,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from skin.errors import SkinError
-from skin.onset import OnsetDetector
+from skin.stream.onset import OnsetDetector
 
 if TYPE_CHECKING:
-    from skin.dataset import TrialSet
     from skin.drivers.recording import Recording
+    from skin.formats.dataset import TrialSet
+    from skin.formats.scene import Scene
     from skin.models.materials import Material
-    from skin.scene import Scene
 
 #: The paper's thermistor depth (m) and sensor diffusivity (m^2/s), a layout's defaults.
 DEPTH = 8e-5
@@ -99,7 +99,7 @@ class TaxelTrace:
     temperature : numpy.ndarray
         Readings, deg C (NaN: no reading).
     slope : numpy.ndarray
-        The detector's slope after each sample, K/s (`skin.onset.DetectorTrace.slope`).
+        The detector's slope after each sample, K/s (`skin.stream.onset.DetectorTrace.slope`).
     onsets : tuple of float
         Detected onsets, s, dated by the contact-response fit.
     detected_at : tuple of float
@@ -154,7 +154,7 @@ def detect_traces(
     """Run the onset detector over columns of temperatures and keep what it saw.
 
     Each column is one taxel (the detector treats them independently). Onsets are dated by
-    `skin.onset_refine.refine_onset` over the samples from 0.6 s before the detector's coarse
+    `skin.stream.onset_refine.refine_onset` over the samples from 0.6 s before the detector's coarse
     onset to the release (at most 2.5 s after it), as the pipeline dates them.
 
     Parameters
@@ -175,7 +175,7 @@ def detect_traces(
     list of TaxelTrace
         One per column, in the palette's colours (set ``colour`` and the truth after).
     """
-    from skin.onset_refine import refine_onset
+    from skin.stream.onset_refine import refine_onset
 
     times = np.asarray(times, dtype=float)
     temperature = np.asarray(temperature, dtype=float).reshape(times.size, len(names))
@@ -239,7 +239,7 @@ def trial_traces(
     Parameters
     ----------
     data : TrialSet
-        The dataset (`skin.dataset.load_trials`).
+        The dataset (`skin.formats.dataset.load_trials`).
     trials : sequence of int, optional
         Trial indices (default: the first trial of each class, in class order).
     materials : dict of str to Material, optional
@@ -303,7 +303,7 @@ def recording_scene(recording: Recording) -> Scene | None:
         The scene, or None when the recording came from a device or a replay, or the scene
         cannot be loaded any more.
     """
-    from skin.scene import load_scene
+    from skin.formats.scene import load_scene
 
     command = recording.metadata.get("thermoskin", {}).get("command", "")
     try:

@@ -1,6 +1,6 @@
 """The world material map drawn around the arm (pyvista): a coloured glyph per contact point.
 
-`add_world_map` adds a `skin.world_map.WorldMap` to an `ArmView`, in both of its subplots: one
+`add_world_map` adds a `skin.world.map.WorldMap` to an `ArmView`, in both of its subplots: one
 sphere per point in its material's colour (the materials table's ``colour``), set on the skin
 along the point's normal so it is not buried in the mesh; "unknown" points are dark cubes, and
 a label that has no colour is grey. A legend names every label with its number of points.
@@ -20,9 +20,9 @@ import numpy as np
 from skin._optional import require
 from skin.contact import UNKNOWN
 from skin.errors import SkinError
-from skin.layout import Layout
+from skin.formats.layout import Layout
 from skin.viz.arm import UNKNOWN_COLOUR, ArmView, default_arm, window_problem
-from skin.world_map import WorldMap
+from skin.world.map import WorldMap
 
 #: Colour of a label that the colour table does not know (not "unknown": a foreign material).
 NO_COLOUR = "#777777"

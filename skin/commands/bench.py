@@ -14,7 +14,7 @@ contact of the joint model that shares the object's temperature between them
 decode, assemble, calibrate, onset, track, refine and classify one sample at a time and
 reports taxel-samples per second of the chain and of each stage, the real-time factor at
 200 Hz, the per-sample latency, how long results wait for their share of the budget, and the
-memory growth (`skin.pipeline_bench`).
+memory growth (`skin.bench.pipeline`).
 
 ``skin bench bus`` prints what protocol v1 costs on each bus at a sample rate: bytes (and CAN
 frames) per sample, bytes per second, the share of the bus, and the most taxels one board can
@@ -22,17 +22,17 @@ stream (`skin.drivers.bus_load`), beside what one AVR's ADC can convert.
 
 ``skin bench drivers`` measures decode throughput (frames/s, taxel-samples/s, us per frame) of
 each driver backend at 64 and 1000 taxels, beside the physical frame rate of the links, so the
-margins are plain (`skin.drivers.driver_bench`). ``skin bench fuzz`` feeds every decoder
+margins are plain (`skin.bench.drivers`). ``skin bench fuzz`` feeds every decoder
 damaged streams and reports crashes, corrupt frames accepted against the CRC's theoretical
-rate, and resynchronisation (`skin.drivers.fuzz`). ``skin bench clock`` maps device time to
+rate, and resynchronisation (`skin.bench.fuzz`). ``skin bench clock`` maps device time to
 host time under three transports (USB serial, a loaded host with stalls, CAN over UDP) with
 each method (the arrival time, a running minimum offset, `skin.drivers.clock.ClockMap` with
 blocks of 0.5-2 s) and prints the error against the true sampling time beside the cost per
-frame (`skin.drivers.clock_bench`).
+frame (`skin.bench.clock`).
 
 ``skin bench view`` times one update of the arm view (every taxel's colour computed and
 written into the mesh's colour array) beside one render, for skins of 72-1000 taxels on
-meshes of 14k and 100k vertices, with a baseline of the same run (`skin.viz.view_bench`).
+meshes of 14k and 100k vertices, with a baseline of the same run (`skin.bench.view`).
 
 ``skin bench calibration`` runs simulated calibrations (each taxel's constants drawn within
 +-10 % of the paper's, a few contacts with a reference material) and reports how well
@@ -44,7 +44,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
 import time
 from pathlib import Path
 
@@ -108,19 +107,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     bench_view.add_parsers(kinds)
 
 
-def machine() -> dict:
-    """Describe the machine the figures come from."""
-    import os
-
-    import numpy as np
-
-    return {"platform": platform.platform(), "python": platform.python_version(),
-            "numpy": np.__version__, "cpus": os.cpu_count()}
-
-
 def main_thermal(args: argparse.Namespace) -> int:
     """Run the thermal benchmark."""
-    from skin.models import thermal_bench
+    from skin import bench
+    from skin.bench import thermal as thermal_bench
 
     progress = Progress()
     started = time.monotonic()
@@ -135,7 +125,7 @@ def main_thermal(args: argparse.Namespace) -> int:
         trials=3 if args.quick else args.trials,
         progress=lambda d, n: progress.bar(d, n, "inverse", started_inv))
     progress.done()
-    doc = {"machine": machine(), "wall_time": round(time.monotonic() - started, 2),
+    doc = {"machine": bench.machine(), "wall_time": round(time.monotonic() - started, 2),
            "forward": forward, "inverse": inverse}
     if args.plot:
         from skin.viz.plots import plot_estimator_errors, plot_work_precision
@@ -174,8 +164,10 @@ def main_thermal(args: argparse.Namespace) -> int:
 
 def main_fusion(args: argparse.Namespace) -> int:
     """Run the fusion benchmark."""
+    from skin import bench
+    from skin.bench import fusion as fusion_bench
     from skin.errors import SkinError
-    from skin.models import fusion_bench, load_materials
+    from skin.models import load_materials
 
     table = load_materials()
     names = [n.strip() for n in args.materials.split(",") if n.strip()]
@@ -195,7 +187,7 @@ def main_fusion(args: argparse.Namespace) -> int:
                             offsets=((0.0, 0.0), (-args.offset, args.offset)), seed=args.seed,
                             progress=lambda d, n: progress.bar(d, n, "contacts", started))
     progress.done()
-    doc = {"machine": machine(), "materials": names, "trials": args.trials,
+    doc = {"machine": bench.machine(), "materials": names, "trials": args.trials,
            "wall_time": round(time.monotonic() - started, 2), "results": rows}
     if args.json:
         print(json.dumps(doc))
@@ -217,6 +209,7 @@ def main_fusion(args: argparse.Namespace) -> int:
 
 def main_calibration(args: argparse.Namespace) -> int:
     """Run the calibration recovery benchmark."""
+    from skin import bench
     from skin.errors import SkinError
     from skin.models import load_materials
     from skin.models.sensor_fit import recovery
@@ -225,10 +218,10 @@ def main_calibration(args: argparse.Namespace) -> int:
         raise SkinError(f"unknown reference material {args.reference!r}")
     if args.taxels < 1 or args.contacts < 1 or args.duration <= 0:
         raise SkinError("--taxels and --contacts must be at least 1, --duration positive")
-    from skin.calibration import thermistor_recovery
+    from skin.stream.calibration import thermistor_recovery
 
     started = time.monotonic()
-    doc = {"machine": machine(), **recovery(args.taxels, args.contacts, args.duration,
+    doc = {"machine": bench.machine(), **recovery(args.taxels, args.contacts, args.duration,
                                             reference=args.reference, seed=args.seed),
            "thermistors": thermistor_recovery(args.taxels, seed=args.seed),
            "wall_time": round(time.monotonic() - started, 2)}
@@ -255,8 +248,9 @@ def main_calibration(args: argparse.Namespace) -> int:
 
 def main_pipeline(args: argparse.Namespace) -> int:
     """Run the pipeline throughput benchmark."""
+    from skin import bench
+    from skin.bench.pipeline import run
     from skin.errors import SkinError
-    from skin.pipeline_bench import run
 
     try:
         sizes = [int(v) for v in args.taxels.split(",") if v.strip()]
@@ -274,7 +268,7 @@ def main_pipeline(args: argparse.Namespace) -> int:
         rows.append(run(n, args.seconds, contacts_per_minute=args.contacts_per_minute,
                         budget=budget))
     progress.done()
-    doc = {"machine": machine(), "results": rows}
+    doc = {"machine": bench.machine(), "results": rows}
     if args.json:
         print(json.dumps(doc))
         return 0

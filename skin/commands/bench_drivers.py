@@ -1,7 +1,7 @@
 """``skin bench drivers``, ``fuzz`` and ``clock``: the drivers' speed, robustness and timing.
 
-Registered by `skin.commands.bench`; the work is done in `skin.drivers.driver_bench` and
-`skin.drivers.fuzz` and `skin.drivers.clock_bench`, imported when the command runs.
+Registered by `skin.commands.bench`; the work is done in `skin.bench.drivers` and
+`skin.bench.fuzz` and `skin.bench.clock`, imported when the command runs.
 """
 
 from __future__ import annotations
@@ -49,8 +49,8 @@ def _link(bus: str, bit_rate: int) -> str:
 
 def main_drivers(args: argparse.Namespace) -> int:
     """Run ``skin bench drivers``."""
-    from skin.commands.bench import machine
-    from skin.drivers import driver_bench
+    from skin.bench import drivers as driver_bench
+    from skin.bench import machine
 
     try:
         sizes = tuple(int(v) for v in args.taxels.split(",") if v.strip())
@@ -105,8 +105,7 @@ def main_drivers(args: argparse.Namespace) -> int:
 
 def main_fuzz(args: argparse.Namespace) -> int:
     """Run ``skin bench fuzz``."""
-    from skin.commands.bench import machine
-    from skin.drivers import fuzz
+    from skin.bench import fuzz, machine
 
     if args.frames < 128:
         raise SkinError("--frames must be at least 128")
@@ -181,8 +180,8 @@ def _ci(ci: list[float]) -> str:
 
 def main_clock(args: argparse.Namespace) -> int:
     """Run ``skin bench clock``."""
-    from skin.commands.bench import machine
-    from skin.drivers import clock_bench
+    from skin.bench import clock as clock_bench
+    from skin.bench import machine
 
     if args.seconds < 30:
         raise SkinError("--seconds must be at least 30 (10 s settle, then blocks to fit)")

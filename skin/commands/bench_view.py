@@ -1,6 +1,6 @@
 """``skin bench view``: the arm view's own work per update beside the render, by size.
 
-Registered by `skin.commands.bench`; the work is done in `skin.viz.view_bench`, imported when
+Registered by `skin.commands.bench`; the work is done in `skin.bench.view`, imported when
 the command runs.
 """
 
@@ -42,8 +42,8 @@ def _ints(text: str, what: str) -> list[int]:
 
 def main_view(args: argparse.Namespace) -> int:
     """Run ``skin bench view``."""
-    from skin.commands.bench import machine
-    from skin.viz import view_bench
+    from skin.bench import machine
+    from skin.bench import view as view_bench
 
     taxels = _ints(args.taxels, "taxels")
     vertices = _ints(args.vertices, "vertices")

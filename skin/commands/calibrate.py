@@ -66,7 +66,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _existing(path: str):
-    from skin.calibration_file import CalibrationFile, load_calibration
+    from skin.formats.calibration_file import CalibrationFile, load_calibration
 
     return load_calibration(path) if Path(path).exists() else CalibrationFile()
 
@@ -119,8 +119,8 @@ def read_references(path: str) -> tuple[dict[int, tuple[np.ndarray, np.ndarray]]
 
 def main_thermistors(args: argparse.Namespace) -> int:
     """Fit the thermistors."""
-    from skin.calibration import fit_steinhart_hart, resistance_from_counts
-    from skin.layout import load_layout
+    from skin.formats.layout import load_layout
+    from skin.stream.calibration import fit_steinhart_hart, resistance_from_counts
 
     layout = load_layout(args.layout)
     refs, ambient_errors = read_references(args.data)
@@ -162,7 +162,7 @@ def main_thermistors(args: argparse.Namespace) -> int:
 
 def main_thermal(args: argparse.Namespace) -> int:
     """Fit the thermal constants."""
-    from skin.dataset import load_trials
+    from skin.formats.dataset import load_trials
     from skin.models import load_materials
     from skin.models.features import PRE
     from skin.models.sensor_fit import fit_sensor_constants
@@ -206,8 +206,8 @@ def main_thermal(args: argparse.Namespace) -> int:
 
 def main_board(args: argparse.Namespace) -> int:
     """Keep a board's measured constants."""
-    from skin.calibration_file import BOARD
-    from skin.layout import load_layout
+    from skin.formats.calibration_file import BOARD
+    from skin.formats.layout import load_layout
 
     layout = load_layout(args.layout)
     if args.board not in layout.boards:
@@ -230,8 +230,8 @@ def main_board(args: argparse.Namespace) -> int:
 
 def main_show(args: argparse.Namespace) -> int:
     """Describe a calibration file against a layout."""
-    from skin.calibration_file import load_calibration
-    from skin.layout import load_layout
+    from skin.formats.calibration_file import load_calibration
+    from skin.formats.layout import load_layout
 
     cal = load_calibration(args.file)
     layout = load_layout(args.layout)

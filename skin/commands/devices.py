@@ -37,7 +37,7 @@ def main(args: argparse.Namespace) -> int:
     """List and check the boards (see the module docstring)."""
     from skin.drivers.discovery import can_channels, check, identify, serial_ports
     from skin.errors import DeviceError
-    from skin.layout import load_layout
+    from skin.formats.layout import load_layout
 
     layout = load_layout(args.layout)
     progress = Progress()

@@ -9,7 +9,7 @@ method and duration: accuracy (mean and std over the folds), per-class recall, t
 matrix, and fit and predict time per trial; for methods with probabilities, the expected
 calibration error and the coverage and accuracy when unsure answers become "unknown".
 ``--ceiling`` adds, on simulated data, the accuracy of a classifier told every nuisance
-(`skin.models.ceiling`): what no method can be expected to beat.
+(`skin.bench.ceiling`): what no method can be expected to beat.
 """
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                          "confusion matrix), e.g. aluminium+steel,glass+porcelain")
     ev.add_argument("--ceiling", action="store_true",
                     help="also report the known-nuisance ceiling (simulated data only; "
-                         "skin.models.ceiling): the accuracy no method can be expected to beat")
+                         "skin.bench.ceiling): the accuracy no method can be expected to beat")
     ev.add_argument("--plot", metavar="DIR",
                     help="draw accuracy against duration and the confusion matrices into DIR")
     ev.add_argument("--json", action="store_true", help="print one JSON document")
@@ -247,7 +247,7 @@ def _parse_merge(text: str | None, classes: list[str]) -> list[set[str]]:
 
 def main(args: argparse.Namespace) -> int:
     """Run the evaluation and print a table (or JSON)."""
-    from skin.dataset import load_trials, require_classes, with_detected_onsets
+    from skin.formats.dataset import load_trials, require_classes, with_detected_onsets
     from skin.models.classifiers import parse_method
 
     if args.train and not args.test:
@@ -283,7 +283,7 @@ def main(args: argparse.Namespace) -> int:
             if merge:
                 results[-1]["merged_accuracy"] = round(merged_accuracy(results[-1], merge), 4)
     if args.ceiling:
-        from skin.models.ceiling import known_nuisance_ceiling
+        from skin.bench.ceiling import known_nuisance_ceiling
 
         for d in durations:
             progress.message(f"ceiling {d:g} s")

@@ -1,6 +1,6 @@
 """``skin evaluate-onset``: how well the streaming detector finds and dates contacts.
 
-By default it simulates a skin's stream (`skin.models.streams`): minutes of mostly
+By default it simulates a skin's stream (`skin.bench.streams`): minutes of mostly
 contact-free time per taxel with heater switching, ambient drift and air currents (``--quiet``
 leaves them out), and contacts of 0.1-5 s with the table's materials; ``--warm FRACTION`` makes
 that fraction of them warm objects, hotter than the heated taxel by 2-25 K (the reading rises
@@ -54,7 +54,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _from_trials(path: str) -> tuple[np.ndarray, np.ndarray, list, float, str]:
-    from skin.dataset import load_trials
+    from skin.formats.dataset import load_trials
 
     data = load_trials(path)
     if np.any(data.onset < 0):
@@ -66,9 +66,9 @@ def _from_trials(path: str) -> tuple[np.ndarray, np.ndarray, list, float, str]:
 
 def main(args: argparse.Namespace) -> int:
     """Run the evaluation and print the figures (or JSON)."""
-    from skin.commands.bench import machine
-    from skin.models.streams import GUST_DEPTH
-    from skin.onset_eval import evaluate_onsets
+    from skin.bench import machine
+    from skin.bench.onset_eval import evaluate_onsets
+    from skin.bench.streams import GUST_DEPTH
 
     progress = Progress()
     started = time.monotonic()
@@ -77,8 +77,8 @@ def main(args: argparse.Namespace) -> int:
         times, temperature, truth, fs, source = _from_trials(args.data)
         contacts = None
     else:
+        from skin.bench.streams import simulate_stream
         from skin.models import load_materials
-        from skin.models.streams import simulate_stream
 
         table = load_materials()
         names = [n.strip() for n in args.materials.split(",") if n.strip()]

@@ -180,7 +180,7 @@ def _traces(args: argparse.Namespace, out: Path) -> tuple[Path, dict]:
                  + (f", noise {args.noise:g} °C" if args.noise else "") + ")")
         xlabel = "time since contact, s"
     elif suffix == ".npz":
-        from skin.dataset import load_trials
+        from skin.formats.dataset import load_trials
 
         data = load_trials(source)
         traces = trial_traces(data, args.trial)
@@ -189,7 +189,7 @@ def _traces(args: argparse.Namespace, out: Path) -> tuple[Path, dict]:
         xlabel = "time from the trial's first sample, s"
     elif suffix == ".mcap":
         from skin.drivers.recording import read_recording
-        from skin.scene import load_scene
+        from skin.formats.scene import load_scene
 
         rec = read_recording(source)
         scene = load_scene(args.scene) if args.scene else recording_scene(rec)

@@ -53,7 +53,7 @@ def main(args: argparse.Namespace) -> int:
     """Record (see the module docstring)."""
     from skin import drivers
     from skin.drivers.recording import Recorder
-    from skin.layout import load_layout
+    from skin.formats.layout import load_layout
 
     if args.duration is not None and args.duration <= 0:
         from skin.errors import SkinError

@@ -21,9 +21,9 @@ from typing import Any
 import numpy as np
 
 from skin.errors import DeviceError, SkinError
-from skin.pipeline import ContactResult, Pipeline
 from skin.progress import Progress
-from skin.sinks import JsonLinesSink, TerminalSink, event_record
+from skin.stream.pipeline import ContactResult, Pipeline
+from skin.stream.sinks import JsonLinesSink, TerminalSink, event_record
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -101,9 +101,9 @@ def main(args: argparse.Namespace) -> int:
     if args.duration is None and args.port is not None and not replay:
         args.duration = 20.0
     from skin import drivers
-    from skin.layout import load_layout
+    from skin.formats.layout import load_layout
+    from skin.formats.scene import load_scene, match_touches
     from skin.models import HistogramClassifier, JointClassifier, load_materials
-    from skin.scene import load_scene, match_touches
 
     if args.view:
         from skin.viz.arm import window_problem
@@ -164,7 +164,7 @@ def main(args: argparse.Namespace) -> int:
     calibration, sensors = None, None
     cal_file: Any = None
     if not args.calibration and recorded_cal is not None:
-        from skin.calibration import Calibration
+        from skin.stream.calibration import Calibration
 
         if isinstance(recorded_cal, Calibration):
             calibration = recorded_cal
@@ -172,7 +172,7 @@ def main(args: argparse.Namespace) -> int:
             cal_file = recorded_cal
             calibration, sensors = cal_file.apply(layout)
     if args.calibration:
-        from skin.calibration_file import load_calibration
+        from skin.formats.calibration_file import load_calibration
 
         cal_file = load_calibration(args.calibration)
         calibration, sensors = cal_file.apply(layout)
@@ -351,8 +351,8 @@ def main(args: argparse.Namespace) -> int:
                 for m in matches
             ],
         })
-    from skin.kinematics import default_chain
-    from skin.world_map import write_run_setup
+    from skin.world.kinematics import default_chain
+    from skin.world.map import write_run_setup
 
     # what `skin view --map` needs: the layout, and for a simulation the arm's pose (standing
     # at the default chain's default angles); a device's poses are unknown here

@@ -34,8 +34,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Fit and save."""
-    from skin.dataset import load_trials, require_classes, with_detected_onsets
     from skin.errors import SkinError
+    from skin.formats.dataset import load_trials, require_classes, with_detected_onsets
     from skin.models.classifiers import AnytimeClassifier, make_method, parse_method
     from skin.models.features import trial_matrix
     from skin.models.modelfile import save_model, training_summary

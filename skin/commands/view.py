@@ -50,9 +50,9 @@ def _arm_poses(source: Any) -> Any:
 
 def main(args: argparse.Namespace) -> int:
     """Build and show the world map (see the module docstring)."""
-    from skin.kinematics import as_pose_source, default_chain, load_chain, load_poses
-    from skin.layout import load_layout
-    from skin.world_map import CHAIN_FILE, WorldMap
+    from skin.formats.layout import load_layout
+    from skin.world.kinematics import as_pose_source, default_chain, load_chain, load_poses
+    from skin.world.map import CHAIN_FILE, WorldMap
 
     source = Path(args.map)
     if not source.exists():

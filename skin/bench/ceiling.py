@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from skin.dataset import TrialSet
 from skin.errors import SkinError
+from skin.formats.dataset import TrialSet
 
 NEEDED = ("true_onset_time", "true_sensor_temperature", "true_object_temperature",
           "true_effusivity", "true_conductance", "true_sensor_depth",

@@ -21,9 +21,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from skin.contact import Contact, TaxelWindow
-from skin.layout import Layout
-from skin.onset import OnsetEvent
-from skin.onset_refine import refine_onset
+from skin.formats.layout import Layout
+from skin.stream.onset import OnsetEvent
+from skin.stream.onset_refine import refine_onset
 
 #: The heap key of a contact's final decision (provisional snapshots count 0, 1, ...).
 FINAL = 1 << 30

@@ -176,17 +176,17 @@ def with_detected_onsets(data: TrialSet, depth: float = 8e-5,
                          diffusivity: float = 2.796e-9) -> TrialSet:
     """Fill unknown onsets (-1) with the library's streaming detector, refined by the fit.
 
-    The trials are run through `skin.onset.OnsetDetector` as if each were a taxel (so the
+    The trials are run through `skin.stream.onset.OnsetDetector` as if each were a taxel (so the
     detector needs its 0.5 s warm-up before contact), and each first onset is dated by
-    `skin.onset_refine.refine_onset` with the sensor's depth and diffusivity.
+    `skin.stream.onset_refine.refine_onset` with the sensor's depth and diffusivity.
 
     Raises
     ------
     DatasetError
         Naming the first trial in which no onset was found.
     """
-    from skin.onset import OnsetDetector
-    from skin.onset_refine import refine_onset
+    from skin.stream.onset import OnsetDetector
+    from skin.stream.onset_refine import refine_onset
 
     todo = np.flatnonzero(data.onset < 0)
     if todo.size == 0:

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from skin.layout import Board, Layout, Taxel
+from skin.formats.layout import Board, Layout, Taxel
 from skin.viz.arm_mesh import FORE_LENGTH, FORE_RADIUS, UPPER_LENGTH, UPPER_RADIUS
 
 if TYPE_CHECKING:

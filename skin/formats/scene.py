@@ -13,9 +13,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from skin.datafiles import header_lines, is_number, read_data_file
 from skin.errors import SceneError
-from skin.layout import Layout, load_layout
+from skin.formats.datafiles import header_lines, is_number, read_data_file
+from skin.formats.layout import Layout, load_layout
 
 
 @dataclass(frozen=True)

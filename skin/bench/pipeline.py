@@ -1,10 +1,10 @@
 """Throughput of the streaming chain: decode, assemble, calibrate, onset, track, refine, classify.
 
 `run` builds a skin of ``n`` taxels (a cylinder of rings) wired to boards of at most
-`BOARD_CHANNELS` channels sampled in step, simulates its stream (`skin.models.streams`:
+`BOARD_CHANNELS` channels sampled in step, simulates its stream (`skin.bench.streams`:
 disturbances and contacts with known materials), turns the readings into ADC counts and
 wire-protocol bytes per board, and pushes them through the chain one sample at a time, as a
-live skin would arrive: each board's serial decoder, then `skin.pipeline.Pipeline` with the
+live skin would arrive: each board's serial decoder, then `skin.stream.pipeline.Pipeline` with the
 joint classifier and a per-sample ``budget`` for refining and classifying (the work of
 contacts decided together is spread over the samples that follow). It reports taxel-samples
 per second of the whole chain and of each stage (timed inside the pipeline), the real-time
@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 
-from skin.layout import Board, Layout, Taxel
+from skin.formats.layout import Board, Layout, Taxel
 
 #: Channels per board in the benchmark's skins: an ATmega2560's 16 analog inputs behind 16-channel
 #: multiplexers (a v1 SAMPLE carries at most `skin.drivers.protocol.MAX_TAXELS`, 336).
@@ -54,7 +54,7 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
     seed : int
         Seed of the stream.
     contacts_per_minute : float
-        Contacts per taxel and minute (`skin.models.streams.simulate_stream` starts none
+        Contacts per taxel and minute (`skin.bench.streams.simulate_stream` starts none
         in the last 10 s).
     budget : float or None
         The pipeline's per-sample budget for refining and classifying, s (None: none).
@@ -67,11 +67,11 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
         ``result_wait_ms`` (p50, p99 of device time from a contact's decision to its result),
         ``contacts`` decided and ``peak_memory_mb_growth``.
     """
-    from skin.calibration import Calibration
+    from skin.bench.streams import simulate_stream
     from skin.drivers.protocol import StreamDecoder, encode_sample
     from skin.models import JointClassifier, load_materials
-    from skin.models.streams import simulate_stream
-    from skin.pipeline import Pipeline
+    from skin.stream.calibration import Calibration
+    from skin.stream.pipeline import Pipeline
 
     peak0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     layout = cylinder_layout(n_taxels)

@@ -49,8 +49,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from skin.datafiles import header_lines, is_number
 from skin.errors import SkinError
+from skin.formats.datafiles import header_lines, is_number
 
 JOINT_TYPES = ("revolute", "fixed")
 
@@ -547,7 +547,7 @@ def chain_toml(chain: Chain) -> str:
     -------
     str
     """
-    out = [f"# kinematic chain (skin.kinematics): {chain.name or 'unnamed'}",
+    out = [f"# kinematic chain (skin.world.kinematics): {chain.name or 'unnamed'}",
            f"name = {_toml_str(chain.name)}"]
     for link in chain.links.values():
         roll, pitch, yaw = (math.degrees(a) for a in _rpy_of(link.origin[:3, :3]))

@@ -5,13 +5,13 @@ The chain is declared once, in `Pipeline`, as stages that each know only the one
 ==============  ======================================  =========================================
 stage           object                                  takes -> gives
 ==============  ======================================  =========================================
-assemble        `skin.assembly.FrameAssembler`          frames of every board -> `Samples`
-calibrate       `skin.calibration.Calibration`          counts -> deg C and per-taxel status
-onset           `skin.onset.OnsetDetector`              deg C -> onset and release events
-track           `skin.tracking.ContactTracker`          deg C and events -> `DecidedContact`
-refine          `skin.tracking.refine_member`           each taxel's samples -> dated onset
+assemble        `skin.stream.assembly.FrameAssembler`          frames of every board -> `Samples`
+calibrate       `skin.stream.calibration.Calibration`          counts -> deg C and per-taxel status
+onset           `skin.stream.onset.OnsetDetector`              deg C -> onset and release events
+track           `skin.stream.tracking.ContactTracker`          deg C and events -> `DecidedContact`
+refine          `skin.stream.tracking.refine_member`           each taxel's samples -> dated onset
 classify        the classifier (`Classifier`)           `Contact` -> `MaterialEstimate`
-sinks           `skin.sinks` (JSON lines, terminal...)  `ContactResult` -> wherever it goes
+sinks           `skin.stream.sinks` (JSON lines, terminal...)  `ContactResult` -> wherever it goes
 ==============  ======================================  =========================================
 
 The first four stages run on every block of frames. Refining and classifying are the costly
@@ -36,14 +36,14 @@ from typing import Protocol, TypeVar
 
 import numpy as np
 
-from skin.assembly import FrameAssembler, Samples
-from skin.calibration import Calibration
 from skin.contact import Contact, MaterialEstimate
 from skin.errors import SkinError
+from skin.formats.layout import Layout
 from skin.frame import Frame
-from skin.layout import Layout
-from skin.onset import OnsetDetector
-from skin.tracking import ContactTracker, DecidedContact, finish_contact, refine_member
+from skin.stream.assembly import FrameAssembler, Samples
+from skin.stream.calibration import Calibration
+from skin.stream.onset import OnsetDetector
+from skin.stream.tracking import ContactTracker, DecidedContact, finish_contact, refine_member
 
 T = TypeVar("T")
 
@@ -78,7 +78,7 @@ class ContactResult:
 
 
 class Sink(Protocol):
-    """Anything that takes results as they come (`skin.sinks`)."""
+    """Anything that takes results as they come (`skin.stream.sinks`)."""
 
     def write(self, result: ContactResult) -> None:  # noqa: D102
         ...
@@ -156,10 +156,10 @@ class Pipeline:
         Device seconds after its decision by which a contact is finished whatever the budget.
     max_skew : int
         Samples a board may lag the others before its frame counts as missing
-        (`skin.assembly.FrameAssembler`).
+        (`skin.stream.assembly.FrameAssembler`).
     provisional : sequence of float
         Seconds after a contact's first onset at which it is also classified while still
-        open (results with ``contact.final`` False; `skin.tracking.ContactTracker`).
+        open (results with ``contact.final`` False; `skin.stream.tracking.ContactTracker`).
 
     Attributes
     ----------

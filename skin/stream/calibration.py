@@ -6,7 +6,7 @@ ADC reads the voltage across ``R_REF``::
     V = counts / adc_max * V_REF,  Rth = R_REF (V+ / V - 1),  1/T = C0 + C1 ln Rth + C2 ln^3 Rth.
 
 The paper's two-term Steinhart-Hart form is the default; a per-taxel calibration
-(`skin.calibration_file`) may add the full form's cubic term C2.
+(`skin.formats.calibration_file`) may add the full form's cubic term C2.
 
 Counts at 0 (no current: open thermistor or wire) and at full scale (ADC saturated: shorted
 thermistor, or hotter than the range) have no temperature: they are flagged per taxel.
@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from skin.layout import Layout
+from skin.formats.layout import Layout
 
 KELVIN = 273.15
 

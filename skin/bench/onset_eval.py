@@ -1,7 +1,7 @@
 """Judge the streaming onset detector against streams whose contacts are known.
 
-`evaluate_onsets` runs `skin.onset.OnsetDetector` over a multi-taxel stream in chunks, dates
-every detected onset with `skin.onset_refine.refine_onset` on the samples up to the taxel's
+`evaluate_onsets` runs `skin.stream.onset.OnsetDetector` over a multi-taxel stream in chunks, dates
+every detected onset with `skin.stream.onset_refine.refine_onset` on the samples up to the taxel's
 detected release (as the pipeline's tracker cuts them), and matches the detections to the true
 contacts of the same taxel: a detection whose coarse onset falls between 0.1 s before a
 contact's onset and 0.1 s after its release belongs to that contact; the first one detects
@@ -17,8 +17,8 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from skin.onset import OnsetDetector, OnsetEvent
-from skin.onset_refine import refine_onset
+from skin.stream.onset import OnsetDetector, OnsetEvent
+from skin.stream.onset_refine import refine_onset
 from skin.summary import median_p95
 
 #: A detection may start this much before the true onset and still belong to the contact, s.
@@ -41,7 +41,7 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
         Readings, deg C, (n_samples, n_taxels).
     truth : sequence of (taxel, onset, release) or (taxel, onset, release, visible_after)
         Every true contact; ``visible_after`` (s after onset) is when its reading first stood
-        out of the noise (`skin.models.streams.StreamContact.visible_after`), the floor of any
+        out of the noise (`skin.bench.streams.StreamContact.visible_after`), the floor of any
         detector's delay.
     fs : float
         Sampling rate, Hz.

@@ -37,7 +37,9 @@ def read_data_file(
         The folder of a user's file (for relative references), None for a shipped one.
     """
     p = Path(path)
-    if not p.suffix and not p.exists():
+    # a bare name (no folder, no suffix) that is not a file names a shipped one: a folder of
+    # that name in the working directory does not hide it
+    if not p.suffix and len(p.parts) == 1 and not p.is_file():
         res = resources.files("skin") / "data" / folder / f"{p.name}.toml"
         if not res.is_file():
             raise error(f"no {what} file {str(path)!r} and no shipped {what} of that name")

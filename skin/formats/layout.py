@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from skin.datafiles import header_lines, is_number, read_data_file
 from skin.errors import LayoutError
+from skin.formats.datafiles import header_lines, is_number, read_data_file
 
 
 @dataclass(frozen=True)

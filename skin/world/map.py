@@ -1,8 +1,8 @@
 """The world material map: contacts as labelled points in the world frame.
 
-Each contact (an ``events.jsonl`` record of `skin.sinks.event_record`, or a `ContactResult`)
+Each contact (an ``events.jsonl`` record of `skin.stream.sinks.event_record`, or a `ContactResult`)
 becomes one point per taxel: the taxel's position and normal in its link's frame (the layout),
-carried to the world by the link's pose at the contact's onset time (`skin.kinematics`: a
+carried to the world by the link's pose at the contact's onset time (`skin.world.kinematics`: a
 chain standing still, joint angles over time, or link poses over time). Each point keeps the
 contact's label, confidence, onset time and id, and its taxel id: the robot's memory of where
 it touched metal, wood or a person.
@@ -24,8 +24,8 @@ from typing import Any
 import numpy as np
 
 from skin.errors import LayoutError, SkinError
-from skin.kinematics import Chain, KinematicsError, as_pose_source, chain_toml
-from skin.layout import Layout
+from skin.formats.layout import Layout
+from skin.world.kinematics import Chain, KinematicsError, as_pose_source, chain_toml
 
 #: Version of the saved world map (NPZ key ``format`` / JSON field ``format``).
 FORMAT = "thermoskin.world_map/1"
@@ -47,7 +47,7 @@ class WorldMap:
         The taxels (positions and normals in their link frames); needed to `add` contacts,
         not to hold or draw a loaded map.
     poses : Chain, pose track, dict of 4x4 arrays, or None
-        Link poses (`skin.kinematics.as_pose_source`); None: the default chain standing still.
+        Link poses (`skin.world.kinematics.as_pose_source`); None: the default chain standing still.
     final_only : bool
         Skip provisional results (``final`` false): their final answer follows.
 
@@ -156,7 +156,7 @@ class WorldMap:
         ----------
         event : dict or ContactResult
             An `event_record` dict (``contact``, ``taxels``, ``onset``, ``label``,
-            ``confidence``, optional ``final``) or a `skin.pipeline.ContactResult`.
+            ``confidence``, optional ``final``) or a `skin.stream.pipeline.ContactResult`.
         where : str
             Where the event came from (file and line), for messages.
 
@@ -216,7 +216,7 @@ class WorldMap:
         return n
 
     def write(self, result: Any) -> None:
-        """Add a pipeline result (the sink interface, `skin.sinks`)."""
+        """Add a pipeline result (the sink interface, `skin.stream.sinks`)."""
         self.add(result)
 
     @classmethod
@@ -262,8 +262,8 @@ class WorldMap:
         WorldMapError
             If the folder has no ``events.jsonl`` or a line of it is malformed (file:line).
         """
-        from skin.kinematics import load_chain
-        from skin.layout import load_layout
+        from skin.formats.layout import load_layout
+        from skin.world.kinematics import load_chain
 
         folder = Path(folder)
         events_path = folder / "events.jsonl"

@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from skin.errors import SkinError
+from skin.formats.layout import Layout
 from skin.frame import Frame
-from skin.layout import Layout
 
 _WRAP = 1 << 32
 

@@ -1,6 +1,6 @@
 """Date a contact onset precisely by fitting the heated sensor's contact response.
 
-The streaming detector (`skin.onset`) recognises a contact some hundred milliseconds after it
+The streaming detector (`skin.stream.onset`) recognises a contact some hundred milliseconds after it
 began and dates it coarsely; the classifiers align each taxel's window on its onset, so
 `refine_onset` fits the thermistor's response (the paper's eq. 5, or a contact that closes at
 a finite rate) to the samples around the coarse onset.

@@ -12,7 +12,7 @@ Every taxel entry may hold the thermistor's Steinhart-Hart coefficients, the sen
 constants, its heater's resistance, or any of them; a board entry the divider's measured
 constants (``divider_resistor``, ``supply_voltage``, ``adc_reference``) and the heaters'
 resistance; what an entry lacks falls back to the layout's nominal board constants. `apply` turns a
-file into the vectorised `skin.calibration.Calibration` and the per-taxel sensor constants of
+file into the vectorised `skin.stream.calibration.Calibration` and the per-taxel sensor constants of
 a layout, and says which taxels the file does not cover, so that they are flagged, never
 silently treated as calibrated.
 """
@@ -28,9 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from skin.calibration import Calibration
 from skin.errors import SkinError
-from skin.layout import Layout
+from skin.formats.layout import Layout
+from skin.stream.calibration import Calibration
 
 FORMAT = 1
 THERMAL = ("diffusivity", "conductivity", "depth")
@@ -89,7 +89,7 @@ class CalibrationFile:
                 if not all(k in self.taxels.get(int(t.id), {}) for k in keys)]
 
     def board(self, layout: Layout, board: int) -> Any:
-        """Return the layout's `skin.layout.Board` with this file's measured constants."""
+        """Return the layout's `skin.formats.layout.Board` with this file's measured constants."""
         return dataclasses.replace(layout.boards[board], **self.boards.get(board, {}))
 
     def apply(self, layout: Layout) -> tuple[Calibration, list]:

@@ -20,7 +20,7 @@ In contact the baseline follows the in-contact trend.  Release is the return of 
 temperature from its in-contact extreme (a rise above the minimum after a fall, a fall below
 the maximum after a rise), dated at the extreme, or the trend stopping short (the CUSUM of the
 other sign), dated where that CUSUM left zero: a taxel still reheating from an earlier contact
-keeps rising after a warm touch ends.  `skin.onset_refine.refine_onset` then dates the onset
+keeps rising after a warm touch ends.  `skin.stream.onset_refine.refine_onset` then dates the onset
 precisely by fitting the heated sensor's contact response to the window.
 
 The detector is vectorised over taxels and keeps all its state in `DetectorState`: processing

@@ -1,6 +1,6 @@
 """Where the pipeline's results go: sinks that take each `ContactResult` as it is given.
 
-A sink has one method, ``write(result)``; `skin.pipeline.Pipeline` hands every result to each
+A sink has one method, ``write(result)``; `skin.stream.pipeline.Pipeline` hands every result to each
 of its sinks in order. `JsonLinesSink` appends one JSON object per contact to a file (flushed
 at once, so a killed run keeps every contact already decided); `TerminalSink` prints a line
 per contact. Recordings (MCAP) and the live arm view are sinks of the same kind.
@@ -12,8 +12,8 @@ import json
 from pathlib import Path
 from typing import Any, TextIO
 
-from skin.pipeline import ContactResult
 from skin.progress import Progress
+from skin.stream.pipeline import ContactResult
 
 
 def event_record(result: ContactResult) -> dict[str, Any]:
