@@ -72,6 +72,8 @@ def test_wheel_installs_and_imports_subpackages(tmp_path):
     tops = {n.split("/")[0] for n in names}
     assert not tops & {"drivers", "models", "viz", "tests"}
     assert "skin/drivers/serial_port.py" in names
+    assert {"skin/commands/run.py", "skin/stream/pipeline.py", "skin/bench/fuzz.py",
+            "skin/formats/layout.py", "skin/world/map.py"} <= set(names)
     assert "skin/data/layouts/arm.toml" in names
     assert "skin/models/data/materials.toml" in names
     target = tmp_path / "site"
