@@ -8,8 +8,10 @@ frames) are counted as ``malformed`` and skipped, never raised.
 
 Faults: a bus-off (an error frame with SocketCAN's ``CAN_ERR_BUSOFF`` class bit, or the
 interface raising) is a fault: with ``reconnect`` the bus is shut down and opened again with
-back-off (`skin.drivers.base`). A node that has sent samples and then stays silent for
-``silent_after`` seconds is reported (``health.silent``, a warning) until it speaks again.
+back-off (`skin.drivers.base`). Samples are stamped with python-can's message timestamp
+(kernel or hardware time) of their SYNC frame, not the time they are read. A node that has
+sent samples and then stays silent for ``silent_after`` seconds is reported
+(``health.silent``, a warning) until it speaks again.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import time
 
 from skin._optional import require
 from skin.drivers.base import Driver
+from skin.drivers.clock import WALL_OFFSET
 from skin.drivers.protocol import (
     CAN_BROADCAST,
     CanReassembler,
@@ -111,8 +114,9 @@ class CanDriver(Driver):
         if msg is None:
             return
         self.stats.bytes += len(msg.data)
+        arrival = self._arrival(msg.timestamp, time.monotonic())
         if self.tap is not None:
-            self.tap(time.monotonic(), can_record(msg.arbitration_id, bytes(msg.data),
+            self.tap(arrival, can_record(msg.arbitration_id, bytes(msg.data),
                                                   msg.is_extended_id or msg.is_remote_frame
                                                   or msg.is_error_frame))
         if msg.is_error_frame and msg.arbitration_id & CAN_ERR_BUSOFF:
@@ -121,13 +125,24 @@ class CanDriver(Driver):
         if msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
             self.stats.malformed += 1
             return
-        frame = self._reassembler.push(msg.arbitration_id, bytes(msg.data))
+        frame = self._reassembler.push(msg.arbitration_id, bytes(msg.data), arrival)
         if frame is not None:
             self._frames.append(frame)
             self._last_seen[frame.board] = now
             if frame.board in self.health.silent:
                 self.health.silent.discard(frame.board)
                 log.warning("%s: board %d is sending again", self.url, frame.board)
+
+    @staticmethod
+    def _arrival(timestamp: float, now: float) -> float:
+        """Host arrival time (``time.monotonic`` clock) of a message stamped ``timestamp``.
+
+        python-can stamps messages with Unix time, taken by the kernel or the interface's
+        hardware where it can: the better arrival time. A stamp that cannot be Unix time
+        (some interfaces count from their own start) is not used: the time of reading is.
+        """
+        arrival = timestamp - WALL_OFFSET
+        return arrival if now - 60.0 < arrival <= now + 0.01 else now
 
     def _check_silent(self, now: float) -> None:
         """Report the boards that were sending and have been silent for ``silent_after``."""

@@ -64,6 +64,7 @@ from typing import Any
 import numpy as np
 
 from skin._optional import require
+from skin.drivers.clock import WALL_OFFSET
 from skin.errors import SkinError
 
 #: Version of the recording layout described in the module docstring.
@@ -106,6 +107,12 @@ _EVENT_SCHEMA = {
         "initial_temperature": {"type": "object",
                                 "additionalProperties": {"type": "number"}},
         "ambient": {"type": "number"},
+        "host_onset": {"type": ["number", "null"]},
+        "host_release": {"type": ["number", "null"]},
+        "host_decided_at": {"type": ["number", "null"]},
+        "host_reported_at": {"type": ["number", "null"]},
+        "family": {"type": ["string", "null"]},
+        "probabilities": {"type": "object", "additionalProperties": {"type": "number"}},
     },
 }
 
@@ -279,7 +286,7 @@ class Recorder:
         self._closed = False
         self._sources = 0
         self._sequence: dict[int, int] = {}
-        self._clock_offset = time.time() - time.monotonic()
+        self._clock_offset = WALL_OFFSET
         cal = _calibration_bytes(calibration)
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -376,7 +383,8 @@ class Recorder:
         """Record raw bytes that arrived on a wire channel (of `add_driver`) at ``host_time``."""
         self._add(channel, host_time, bytes(data), wire=True)
 
-    def temperature(self, times: np.ndarray, temperature: np.ndarray) -> None:
+    def temperature(self, times: np.ndarray, temperature: np.ndarray,
+                    host_times: np.ndarray | None = None) -> None:
         """Record a block of calibrated temperatures (a `skin.stream.pipeline.Pipeline` observer).
 
         Parameters
@@ -385,6 +393,9 @@ class Recorder:
             Device time of each sample, s, (n,).
         temperature : numpy.ndarray
             deg C in layout order, (n, taxels).
+        host_times : numpy.ndarray, optional
+            Host time of each sample, s; the message's log time is the last one's (the time
+            of writing without them).
         """
         times = np.ascontiguousarray(times, dtype="<f8")
         temp = np.ascontiguousarray(temperature, dtype="<f4")
@@ -392,7 +403,9 @@ class Recorder:
             raise ValueError(f"temperature has shape {temp.shape}; expected "
                              f"({times.size}, {len(self.layout)})")
         data = _TEMP_HEAD.pack(times.size, temp.shape[1]) + times.tobytes() + temp.tobytes()
-        self._add(self._temperature, time.monotonic(), data)
+        stamp = time.monotonic() if host_times is None or not len(host_times) else float(
+            host_times[-1])
+        self._add(self._temperature, stamp, data)
 
     def write(self, result: Any) -> None:
         """Record a contact result as its JSON event record (a sink: `skin.stream.sinks`)."""
