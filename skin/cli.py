@@ -19,13 +19,14 @@ from skin.commands import (
     record,
     run,
     simulate,
+    subscribe,
     train,
     view,
 )
 from skin.errors import SkinError
 
 COMMANDS = (run, simulate, calibrate, train, evaluate, evaluate_onset, bench, plot, record, devices,
-            view)
+            view, subscribe)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -72,6 +72,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     run.add_argument("--record", metavar="FILE.mcap",
                      help="record the wire bytes, temperatures, events, layout and calibration "
                           "to an MCAP file (replay it with --port replay://FILE.mcap)")
+    run.add_argument("--publish", metavar="URL", action="append", default=[],
+                     help="publish live: foxglove://HOST:PORT (a Foxglove WebSocket server) or "
+                          "zenoh://[PREFIX] (Zenoh keys PREFIX/ROBOT/temperature, contacts, "
+                          "health); repeatable (skin.stream.publish)")
     run.add_argument("--no-map", action="store_true", help="do not render contact_map.png")
     run.add_argument("--view", action="store_true",
                      help="show the arm in a window, painted as contacts come (at most 10 "
@@ -217,8 +221,12 @@ def main(args: argparse.Namespace) -> int:
                             metadata={"command": " ".join(["skin", *sys.argv[1:]])})
         pipeline.sinks.append(recorder)
         pipeline.observers.append(recorder.temperature)
+    from skin.stream.publish import open_publisher
+
+    publishers = []
     live = None
     try:
+        publishers += [open_publisher(u, layout).attach(pipeline) for u in args.publish]
         if args.view or args.video:
             live = _live_view(args, layout, materials)
         with drivers.open(url) as driver:
@@ -286,6 +294,8 @@ def main(args: argparse.Namespace) -> int:
         link = health = None
     finally:
         events.close()
+        for pub in publishers:
+            pub.close()
         if live is not None:
             live.close()
             if live.movie is not None:
@@ -314,6 +324,7 @@ def main(args: argparse.Namespace) -> int:
         "reconnects": None if health is None else health.reconnects,
         "flagged_taxels": [int(layout.ids[k]) for k in np.flatnonzero(pipeline.stats.flagged)],
         "contacts": len(results),
+        "published": {p.url: dict(p.sent) for p in publishers},
     }
     if scene is not None:
         in_time = [t for t in scene.touches if t.start < duration]
