@@ -60,6 +60,27 @@ def test_contact_geometry_is_on_the_link_of_most_taxels():
     assert np.linalg.norm(geo["normal"]) == pytest.approx(1.0, abs=1e-4)
 
 
+def test_foxglove_temperature_message_round_trips():
+    pytest.importorskip("foxglove")
+    from skin.stream.publish_foxglove import (
+        _field,
+        _temperature_descriptor,
+        _varint,
+        decode_temperature,
+        encode_temperature,
+    )
+
+    ids = [3, 200, 70000]
+    row = np.array([21.5, np.nan, 40.25])
+    msg = decode_temperature(encode_temperature(1.7e9 + 0.123, 4.5, row,
+                                                _field(4, b"".join(_varint(i) for i in ids))))
+    assert msg["host_time"] == 1.7e9 + 0.123 and msg["device_time"] == 4.5
+    assert msg["taxel"] == ids and np.isnan(msg["temperature"][1])
+    assert msg["temperature"][2] == 40.25
+    desc = _temperature_descriptor()
+    assert b"thermoskin/Temperature.proto" in desc and b"proto3" in desc
+
+
 def test_open_publisher_names_bad_urls():
     layout = load_scene("default").layout
     with pytest.raises(SkinError, match="unknown publisher 'mqtt'"):
@@ -73,6 +94,8 @@ def test_open_publisher_names_bad_urls():
 async def _foxglove_client(port: int, deadline: float) -> dict:
     """Connect (retrying until the server is up), subscribe to every channel, collect."""
     import websockets
+
+    from skin.stream.publish_foxglove import decode_temperature
 
     got: dict = {"temperature": [], "contacts": [], "topics": {}}
     while True:
@@ -101,7 +124,7 @@ async def _foxglove_client(port: int, deadline: float) -> dict:
             chan = channels[sub]
             got["topics"][chan["topic"]] = chan.get("schemaName")
             if chan["topic"] == "/temperature":
-                got["temperature"].append(json.loads(data[13:])["device_time"])
+                got["temperature"].append(decode_temperature(data[13:])["device_time"])
             elif chan["topic"] == "/contacts":
                 got["contacts"].append(json.loads(data[13:]))
     except websockets.ConnectionClosed:
@@ -143,6 +166,7 @@ def test_skin_run_publishes_every_contact_to_foxglove_and_zenoh(tmp_path):
     # Foxglove: every contact event, >= 99.9 % of the temperature messages (one per sample)
     assert got["topics"]["/tf"] == "foxglove.FrameTransforms"
     assert got["topics"]["/arm"] == "foxglove.SceneUpdate"
+    assert got["topics"]["/temperature"] == "thermoskin.Temperature"
     assert {(c["contact"], c["final"]) for c in got["contacts"]} == keys
     assert all(c["label"] and len(c["centroid"]) == 3 for c in got["contacts"])
     assert len(set(got["temperature"])) >= 0.999 * samples

@@ -75,17 +75,22 @@ def contact_payload(result: ContactResult, layout: Layout, robot: str) -> dict[s
 
 
 def temperature_payload(layout: Layout, robot: str, times: np.ndarray,
-                        temperature: np.ndarray, host_times: np.ndarray) -> bytes:
-    """Return the ``thermoskin.temperature`` payload of a block (see the module docstring)."""
+                        temperature: np.ndarray, host_times: np.ndarray,
+                        taxels_json: str | None = None) -> bytes:
+    """Return the ``thermoskin.temperature`` payload of a block (see the module docstring).
+
+    ``taxels_json`` is ``json.dumps(layout.ids.tolist())``, if the caller keeps it.
+    """
     from skin.drivers.clock import WALL_OFFSET
 
-    head = {"schema": "thermoskin.temperature", "version": PAYLOAD_VERSION, "robot": robot,
-            "taxels": layout.ids.tolist(), "samples": len(times),
-            "device_time": np.round(times, 6).tolist(),
-            "host_time": np.round(np.asarray(host_times) + WALL_OFFSET, 6).tolist(),
-            "dtype": "<f4"}
+    head = json.dumps({
+        "schema": "thermoskin.temperature", "version": PAYLOAD_VERSION, "robot": robot,
+        "samples": len(times), "device_time": np.round(times, 6).tolist(),
+        "host_time": np.round(np.asarray(host_times) + WALL_OFFSET, 6).tolist(),
+        "dtype": "<f4"}, separators=(",", ":"))
+    ids = taxels_json or json.dumps(layout.ids.tolist(), separators=(",", ":"))
     data = np.ascontiguousarray(temperature, dtype="<f4")
-    return json.dumps(head, separators=(",", ":")).encode() + b"\n" + data.tobytes()
+    return f'{head[:-1]},"taxels":{ids}}}'.encode() + b"\n" + data.tobytes()
 
 
 def health_payload(pipeline: Pipeline, robot: str) -> dict[str, Any]:

@@ -5,10 +5,11 @@ Open ``ws://HOST:PORT`` in Foxglove (any browser) and add panels:
 ==============  ==================  ========================================================
 topic           schema              what
 ==============  ==================  ========================================================
-``/temperature``  JSON schema       one message per sample, log time = the sample's host
-                ``thermoskin.       time (Unix): ``device_time`` and ``temperature.t<ID>``
-                temperature``       (deg C, null without a reading) per taxel: a Plot panel
-                                    plots ``/temperature.temperature.t12``
+``/temperature``  protobuf          one message per sample, log time = the sample's host
+                ``thermoskin.       time (Unix): ``host_time`` (Unix s), ``device_time`` (s),
+                Temperature``       ``temperature`` (deg C per taxel, layout order, NaN
+                                    without a reading) and ``taxel`` (their ids): a Plot
+                                    panel plots ``/temperature.temperature[12]``
 ``/contacts``   JSON schema         each contact result (`skin.stream.publish.contact_payload`:
                 ``thermoskin.       material, family, probabilities, centroid and normal in
                 contact``           its link's frame, device and host times)
@@ -27,6 +28,7 @@ topic: the skin pays for what someone watches.
 
 from __future__ import annotations
 
+import struct
 import time
 from typing import Any
 
@@ -37,16 +39,91 @@ from skin.formats.layout import Layout
 from skin.stream.pipeline import ContactResult
 from skin.stream.publish import Publisher, contact_payload
 
-TEMPERATURE_SCHEMA = {
-    "title": "thermoskin.temperature",
-    "type": "object",
-    "properties": {
-        "timestamp": {"type": "object", "properties": {"sec": {"type": "integer"},
-                                                       "nsec": {"type": "integer"}}},
-        "device_time": {"type": "number"},
-        "temperature": {"type": "object", "additionalProperties": {"type": ["number", "null"]}},
-    },
-}
+
+def _varint(n: int) -> bytes:
+    out = bytearray()
+    while True:
+        low, n = n & 0x7F, n >> 7
+        out.append(low | (0x80 if n else 0))
+        if not n:
+            return bytes(out)
+
+
+def _field(number: int, data: bytes | str | int) -> bytes:
+    """One protobuf field: a varint for an int, else length-delimited bytes."""
+    if isinstance(data, int):
+        return _varint(number << 3) + _varint(data)
+    raw = data.encode() if isinstance(data, str) else data
+    return _varint(number << 3 | 2) + _varint(len(raw)) + raw
+
+
+def _temperature_descriptor() -> bytes:
+    """Return the FileDescriptorSet of ``thermoskin.Temperature`` (proto3), made by hand.
+
+    message Temperature { double host_time = 1; double device_time = 2;
+                          repeated float temperature = 3; repeated uint32 taxel = 4; }
+    """
+    double, float32, uint32, optional, repeated = 1, 2, 13, 1, 3
+    fields = [("host_time", 1, optional, double), ("device_time", 2, optional, double),
+              ("temperature", 3, repeated, float32), ("taxel", 4, repeated, uint32)]
+    message = _field(1, "Temperature") + b"".join(
+        _field(2, _field(1, name) + _field(3, num) + _field(4, label) + _field(5, kind))
+        for name, num, label, kind in fields)
+    file = (_field(1, "thermoskin/Temperature.proto") + _field(2, "thermoskin")
+            + _field(4, message) + _field(12, "proto3"))
+    return _field(1, file)
+
+
+def encode_temperature(host_time: float, device_time: float, temperature: np.ndarray,
+                       taxels: bytes) -> bytes:
+    """Encode one sample as a ``thermoskin.Temperature`` protobuf message.
+
+    ``taxels`` is the packed ``taxel`` field (`_field` of the ids' varints), made once.
+    """
+    data = np.ascontiguousarray(temperature, dtype="<f4").tobytes()
+    return (b"\x09" + struct.pack("<d", host_time) + b"\x11" + struct.pack("<d", device_time)
+            + b"\x1a" + _varint(len(data)) + data + taxels)
+
+
+def decode_temperature(data: bytes) -> dict[str, Any]:
+    """Decode a ``thermoskin.Temperature`` message (as `encode_temperature` writes it)."""
+    out: dict[str, Any] = {"host_time": None, "device_time": None,
+                           "temperature": np.zeros(0), "taxel": []}
+    i = 0
+    while i < len(data):
+        key = data[i]
+        i += 1
+        if key in (0x09, 0x11):
+            out["host_time" if key == 0x09 else "device_time"] = struct.unpack_from(
+                "<d", data, i)[0]
+            i += 8
+            continue
+        n = shift = 0
+        while True:
+            b = data[i]
+            i += 1
+            n |= (b & 0x7F) << shift
+            shift += 7
+            if b < 0x80:
+                break
+        body = data[i : i + n]
+        i += n
+        if key == 0x1A:
+            out["temperature"] = np.frombuffer(body, dtype="<f4").astype(float)
+        elif key == 0x22:
+            ids, v, shift = [], 0, 0
+            for b in body:
+                v |= (b & 0x7F) << shift
+                shift += 7
+                if b < 0x80:
+                    ids.append(v)
+                    v = shift = 0
+            out["taxel"] = ids
+        else:
+            raise ValueError(f"thermoskin.Temperature: unknown field key 0x{key:02X}")
+    return out
+
+
 CONTACT_SCHEMA = {
     "title": "thermoskin.contact",
     "type": "object",
@@ -120,14 +197,28 @@ class FoxglovePublisher(Publisher):
         self.port = self._server.port
         self.url = url or f"foxglove://{host}:{self.port}"
         ctx = self._ctx
-        self._temperature = fg.Channel("/temperature", schema=TEMPERATURE_SCHEMA, context=ctx)
+        self._temperature = fg.Channel(
+            "/temperature", message_encoding="protobuf", context=ctx,
+            schema=fg.Schema(name="thermoskin.Temperature", encoding="protobuf",
+                             data=_temperature_descriptor()))
         self._contacts = fg.Channel("/contacts", schema=CONTACT_SCHEMA, context=ctx)
         self._health = fg.Channel("/health", schema=HEALTH_SCHEMA, context=ctx)
         self._tf = channels.FrameTransformsChannel("/tf", context=ctx)
         self._arm = channels.SceneUpdateChannel("/arm", context=ctx)
-        self._keys = [f'"t{int(i)}":' for i in layout.ids]
+        self._taxels = _field(4, b"".join(_varint(int(i)) for i in layout.ids))
         self._labels: dict[int, str] = {}  # taxel index -> material of its last contact
         self._poses = self._link_poses()
+        self._tf_msg = self._transforms()
+        m = self._msg
+        self._disc_poses = []
+        for k in range(len(layout)):
+            w, x, y, z = _z_to(layout.normals[k])
+            p = layout.positions[k]
+            self._disc_poses.append(m.Pose(
+                position=m.Vector3(x=float(p[0]), y=float(p[1]), z=float(p[2])),
+                orientation=m.Quaternion(x=float(x), y=float(y), z=float(z), w=float(w))))
+        self._discs = [self._disc(k) for k in range(len(layout))]
+        self._scene_msg: Any = None
         self._next_static = 0.0
         self._closed = False
 
@@ -141,16 +232,17 @@ class FoxglovePublisher(Publisher):
         poses = chain.poses() if links <= set(chain.links) else {}
         return {link: poses.get(link, np.eye(4)) for link in sorted(links | set(poses))}
 
-    def _transforms(self, stamp: Any) -> Any:
+    def _transforms(self) -> Any:
+        """Return the layout's frames (built once: taxels do not move on their links)."""
+        from skin.world.kinematics import matrix_to_quaternion
+
         m = self._msg
 
         def tf(parent: str, child: str, pose: np.ndarray) -> Any:
-            from skin.world.kinematics import matrix_to_quaternion
-
             w, x, y, z = matrix_to_quaternion(pose[:3, :3])
             t = pose[:3, 3]
             return m.FrameTransform(
-                timestamp=stamp, parent_frame_id=parent, child_frame_id=child,
+                parent_frame_id=parent, child_frame_id=child,
                 translation=m.Vector3(x=float(t[0]), y=float(t[1]), z=float(t[2])),
                 rotation=m.Quaternion(x=float(x), y=float(y), z=float(z), w=float(w)))
 
@@ -162,37 +254,41 @@ class FoxglovePublisher(Publisher):
             out.append(tf(taxel.link, f"taxel_{taxel.id}", pose))
         return m.FrameTransforms(transforms=out)
 
-    def _scene(self, stamp: Any) -> Any:
+    def _disc(self, k: int) -> Any:
+        """Taxel ``k``'s disc, in the colour of its last contact's material."""
         m = self._msg
-        entities = []
+        label = self._labels.get(k)
+        r, g, b = self.colours.get(label, GREY) if label else GREY
+        return m.CylinderPrimitive(pose=self._disc_poses[k],
+                                   size=m.Vector3(x=DISC[0], y=DISC[0], z=DISC[1]),
+                                   bottom_scale=1.0, top_scale=1.0,
+                                   color=m.Color(r=r, g=g, b=b, a=1.0))
+
+    def _scene(self) -> Any:
+        """Return the arm: a stick figure of the links and every taxel's disc."""
+        if self._scene_msg is not None:
+            return self._scene_msg
+        m = self._msg
         by_link: dict[str, list[Any]] = {}
         for k, taxel in enumerate(self.layout.taxels):
-            label = self._labels.get(k)
-            r, g, b = self.colours.get(label, GREY) if label else GREY
-            w, x, y, z = _z_to(self.layout.normals[k])
-            p = self.layout.positions[k]
-            by_link.setdefault(taxel.link, []).append(m.CylinderPrimitive(
-                pose=m.Pose(position=m.Vector3(x=float(p[0]), y=float(p[1]), z=float(p[2])),
-                            orientation=m.Quaternion(x=float(x), y=float(y), z=float(z),
-                                                     w=float(w))),
-                size=m.Vector3(x=DISC[0], y=DISC[0], z=DISC[1]), bottom_scale=1.0,
-                top_scale=1.0, color=m.Color(r=r, g=g, b=b, a=1.0)))
-        for link, discs in by_link.items():
-            entities.append(m.SceneEntity(timestamp=stamp, frame_id=link, id=f"skin/{link}",
-                                          frame_locked=True, cylinders=discs))
+            by_link.setdefault(taxel.link, []).append(self._discs[k])
+        entities = [m.SceneEntity(frame_id=link, id=f"skin/{link}", frame_locked=True,
+                                  cylinders=discs) for link, discs in by_link.items()]
         points = [m.Point3(x=float(p[0, 3]), y=float(p[1, 3]), z=float(p[2, 3]))
                   for p in self._poses.values()]
         if len(points) > 1:
             entities.append(m.SceneEntity(
-                timestamp=stamp, frame_id="world", id="arm/links", lines=[m.LinePrimitive(
+                frame_id="world", id="arm/links", lines=[m.LinePrimitive(
                     type=m.LinePrimitiveLineType.LineStrip, thickness=0.03, points=points,
                     color=m.Color(r=0.75, g=0.75, b=0.78, a=1.0))]))
-        return m.SceneUpdate(entities=entities)
+        self._scene_msg = m.SceneUpdate(entities=entities)
+        return self._scene_msg
 
     def _send_static(self, log_time: int) -> None:
-        stamp = self._msg.Timestamp.from_epoch_secs(log_time * 1e-9)
-        self._tf.log(self._transforms(stamp), log_time=log_time)
-        self._arm.log(self._scene(stamp), log_time=log_time)
+        if self._tf.has_sinks():
+            self._tf.log(self._tf_msg, log_time=log_time)
+        if self._arm.has_sinks():
+            self._arm.log(self._scene(), log_time=log_time)
 
     # -- the publisher's parts --
 
@@ -210,14 +306,10 @@ class FoxglovePublisher(Publisher):
         if not self._temperature.has_sinks():
             return
         stamps = np.asarray(host_times, dtype=float) + WALL_OFFSET
-        values = np.round(np.asarray(temperature, dtype=float), 3)
-        for t, stamp, row in zip(times, stamps, values, strict=True):
-            sec = int(stamp)
-            body = ",".join(k + repr(v) for k, v in zip(self._keys, row.tolist(), strict=True))
-            text = (f'{{"timestamp":{{"sec":{sec},"nsec":{int((stamp - sec) * 1e9)}}},'
-                    f'"device_time":{float(t)!r},"temperature":{{{body}}}}}')
-            self._temperature.log(text.replace("nan", "null").encode(),
-                                  log_time=int(stamp * 1e9))
+        log = self._temperature.log
+        temps = np.asarray(temperature, dtype="<f4")
+        for t, stamp, row in zip(times.tolist(), stamps.tolist(), temps, strict=True):
+            log(encode_temperature(stamp, t, row, self._taxels), log_time=int(stamp * 1e9))
 
     def publish_contact(self, result: ContactResult) -> None:
         """Send a contact result and repaint its taxels."""
@@ -228,7 +320,10 @@ class FoxglovePublisher(Publisher):
         self._contacts.log(payload, log_time=int(stamp * 1e9))
         if result.contact.final:
             for t in result.contact.taxels:
-                self._labels[self.layout.index(t)] = result.estimate.label
+                k = self.layout.index(t)
+                self._labels[k] = result.estimate.label
+                self._discs[k] = self._disc(k)
+            self._scene_msg = None
             self._send_static(int(stamp * 1e9))
 
     def publish_health(self, payload: dict[str, Any]) -> None:

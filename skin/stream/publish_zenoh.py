@@ -101,14 +101,15 @@ class ZenohPublisher(Publisher):
                 self.keys["health"], congestion_control=block, reliability=reliable,
                 encoding=zenoh.Encoding.APPLICATION_JSON),
         }
+        self._taxels_json = json.dumps(layout.ids.tolist(), separators=(",", ":"))
         self._closed = False
 
     def publish_temperature(self, times: np.ndarray, temperature: np.ndarray,
                             host_times: np.ndarray) -> None:
         """Send a block of samples."""
         if not self._closed:
-            self._pub["temperature"].put(temperature_payload(self.layout, self.robot, times,
-                                                             temperature, host_times))
+            self._pub["temperature"].put(temperature_payload(
+                self.layout, self.robot, times, temperature, host_times, self._taxels_json))
 
     def publish_contact(self, result: ContactResult) -> None:
         """Send a contact result."""
