@@ -62,12 +62,12 @@ def test_contact_geometry_is_on_the_link_of_most_taxels():
 
 def test_foxglove_temperature_message_round_trips():
     pytest.importorskip("foxglove")
-    from skin.stream.publish_foxglove import (
+    from skin.formats.protobuf import (
         _field,
-        _temperature_descriptor,
         _varint,
         decode_temperature,
         encode_temperature,
+        temperature_descriptor,
     )
 
     ids = [3, 200, 70000]
@@ -77,7 +77,7 @@ def test_foxglove_temperature_message_round_trips():
     assert msg["host_time"] == 1.7e9 + 0.123 and msg["device_time"] == 4.5
     assert msg["taxel"] == ids and np.isnan(msg["temperature"][1])
     assert msg["temperature"][2] == 40.25
-    desc = _temperature_descriptor()
+    desc = temperature_descriptor()
     assert b"thermoskin/Temperature.proto" in desc and b"proto3" in desc
 
 
@@ -95,7 +95,7 @@ async def _foxglove_client(port: int, deadline: float) -> dict:
     """Connect (retrying until the server is up), subscribe to every channel, collect."""
     import websockets
 
-    from skin.stream.publish_foxglove import decode_temperature
+    from skin.formats.protobuf import decode_temperature
 
     got: dict = {"temperature": [], "contacts": [], "topics": {}}
     while True:

@@ -28,7 +28,6 @@ topic: the skin pays for what someone watches.
 
 from __future__ import annotations
 
-import struct
 import time
 from typing import Any
 
@@ -36,93 +35,14 @@ import numpy as np
 
 from skin._optional import require
 from skin.formats.layout import Layout
+from skin.formats.protobuf import (
+    TEMPERATURE_SCHEMA,
+    encode_temperature,
+    packed_ids,
+    temperature_descriptor,
+)
 from skin.stream.pipeline import ContactResult
 from skin.stream.publish import Publisher, contact_payload
-
-
-def _varint(n: int) -> bytes:
-    out = bytearray()
-    while True:
-        low, n = n & 0x7F, n >> 7
-        out.append(low | (0x80 if n else 0))
-        if not n:
-            return bytes(out)
-
-
-def _field(number: int, data: bytes | str | int) -> bytes:
-    """One protobuf field: a varint for an int, else length-delimited bytes."""
-    if isinstance(data, int):
-        return _varint(number << 3) + _varint(data)
-    raw = data.encode() if isinstance(data, str) else data
-    return _varint(number << 3 | 2) + _varint(len(raw)) + raw
-
-
-def _temperature_descriptor() -> bytes:
-    """Return the FileDescriptorSet of ``thermoskin.Temperature`` (proto3), made by hand.
-
-    message Temperature { double host_time = 1; double device_time = 2;
-                          repeated float temperature = 3; repeated uint32 taxel = 4; }
-    """
-    double, float32, uint32, optional, repeated = 1, 2, 13, 1, 3
-    fields = [("host_time", 1, optional, double), ("device_time", 2, optional, double),
-              ("temperature", 3, repeated, float32), ("taxel", 4, repeated, uint32)]
-    message = _field(1, "Temperature") + b"".join(
-        _field(2, _field(1, name) + _field(3, num) + _field(4, label) + _field(5, kind))
-        for name, num, label, kind in fields)
-    file = (_field(1, "thermoskin/Temperature.proto") + _field(2, "thermoskin")
-            + _field(4, message) + _field(12, "proto3"))
-    return _field(1, file)
-
-
-def encode_temperature(host_time: float, device_time: float, temperature: np.ndarray,
-                       taxels: bytes) -> bytes:
-    """Encode one sample as a ``thermoskin.Temperature`` protobuf message.
-
-    ``taxels`` is the packed ``taxel`` field (`_field` of the ids' varints), made once.
-    """
-    data = np.ascontiguousarray(temperature, dtype="<f4").tobytes()
-    return (b"\x09" + struct.pack("<d", host_time) + b"\x11" + struct.pack("<d", device_time)
-            + b"\x1a" + _varint(len(data)) + data + taxels)
-
-
-def decode_temperature(data: bytes) -> dict[str, Any]:
-    """Decode a ``thermoskin.Temperature`` message (as `encode_temperature` writes it)."""
-    out: dict[str, Any] = {"host_time": None, "device_time": None,
-                           "temperature": np.zeros(0), "taxel": []}
-    i = 0
-    while i < len(data):
-        key = data[i]
-        i += 1
-        if key in (0x09, 0x11):
-            out["host_time" if key == 0x09 else "device_time"] = struct.unpack_from(
-                "<d", data, i)[0]
-            i += 8
-            continue
-        n = shift = 0
-        while True:
-            b = data[i]
-            i += 1
-            n |= (b & 0x7F) << shift
-            shift += 7
-            if b < 0x80:
-                break
-        body = data[i : i + n]
-        i += n
-        if key == 0x1A:
-            out["temperature"] = np.frombuffer(body, dtype="<f4").astype(float)
-        elif key == 0x22:
-            ids, v, shift = [], 0, 0
-            for b in body:
-                v |= (b & 0x7F) << shift
-                shift += 7
-                if b < 0x80:
-                    ids.append(v)
-                    v = shift = 0
-            out["taxel"] = ids
-        else:
-            raise ValueError(f"thermoskin.Temperature: unknown field key 0x{key:02X}")
-    return out
-
 
 CONTACT_SCHEMA = {
     "title": "thermoskin.contact",
@@ -199,13 +119,13 @@ class FoxglovePublisher(Publisher):
         ctx = self._ctx
         self._temperature = fg.Channel(
             "/temperature", message_encoding="protobuf", context=ctx,
-            schema=fg.Schema(name="thermoskin.Temperature", encoding="protobuf",
-                             data=_temperature_descriptor()))
+            schema=fg.Schema(name=TEMPERATURE_SCHEMA, encoding="protobuf",
+                             data=temperature_descriptor()))
         self._contacts = fg.Channel("/contacts", schema=CONTACT_SCHEMA, context=ctx)
         self._health = fg.Channel("/health", schema=HEALTH_SCHEMA, context=ctx)
         self._tf = channels.FrameTransformsChannel("/tf", context=ctx)
         self._arm = channels.SceneUpdateChannel("/arm", context=ctx)
-        self._taxels = _field(4, b"".join(_varint(int(i)) for i in layout.ids))
+        self._taxels = packed_ids(layout.ids)
         self._labels: dict[int, str] = {}  # taxel index -> material of its last contact
         self._poses = self._link_poses()
         self._tf_msg = self._transforms()
