@@ -178,7 +178,8 @@ def layout_toml(layout: Any) -> str:
     for board in layout.boards.values():
         lines.append("[[boards]]")
         lines += [f"{f.name} = {_toml_value(getattr(board, f.name))}"
-                  for f in dataclasses.fields(board)]
+                  for f in dataclasses.fields(board)
+                  if not (f.name == "sensor" and not board.sensor)]  # empty: the paper's
         lines.append("")
     for t in layout.taxels:
         lines += ["[[taxels]]", f"id = {int(t.id)}", f"board = {int(t.board)}",

@@ -18,6 +18,7 @@ from skin.commands import (
     plot,
     record,
     run,
+    sensors,
     simulate,
     subscribe,
     train,
@@ -26,7 +27,7 @@ from skin.commands import (
 from skin.errors import SkinError
 
 COMMANDS = (run, simulate, calibrate, train, evaluate, evaluate_onset, bench, plot, record, devices,
-            view, subscribe)
+            view, sensors, subscribe)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -218,6 +218,37 @@ def _query(url: str) -> tuple[Any, dict[str, str]]:
     return parts, query
 
 
+_OPTIONS = {"zenoh": {"robot", "listen", "connect", "mode"}, "foxglove": {"robot"}}
+_PACKAGES = {"zenoh": ("zenoh", "publishing over Zenoh"),
+             "foxglove": ("foxglove", "the Foxglove server")}
+
+
+def check_publisher_url(url: str) -> None:
+    """Check a publisher URL without opening it: scheme, options, port, installed package.
+
+    Raises
+    ------
+    SkinError
+        Naming the URL and the problem (or the install hint of a missing package).
+    """
+    from skin._optional import require
+
+    parts, query = _query(url)
+    if parts.scheme not in SCHEMES:
+        raise SkinError(f"{url}: unknown publisher {parts.scheme!r} (known: "
+                        f"{', '.join(s + '://' for s in SCHEMES)})")
+    unknown = set(query) - _OPTIONS[parts.scheme]
+    if unknown:
+        raise SkinError(f"{url}: unknown option(s) {sorted(unknown)} (known: "
+                        f"{', '.join(sorted(_OPTIONS[parts.scheme]))})")
+    if parts.scheme == "foxglove":
+        try:
+            parts.port  # noqa: B018 (parsing it is the check)
+        except ValueError:
+            raise SkinError(f"{url}: the port is not a number from 0 to 65535") from None
+    require(*_PACKAGES[parts.scheme])
+
+
 def open_publisher(url: str, layout: Layout, robot: str | None = None) -> Publisher:
     """Open the publisher a URL names (see the module docstring).
 
@@ -235,16 +266,13 @@ def open_publisher(url: str, layout: Layout, robot: str | None = None) -> Publis
     SkinError
         An unknown scheme or option, a bad port; the optional dependency's install hint.
     """
+    check_publisher_url(url)
     parts, query = _query(url)
     name = query.pop("robot", None) or robot or layout.name or "skin"
     name = "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
     if parts.scheme == "zenoh":
         from skin.stream.publish_zenoh import ZenohPublisher
 
-        unknown = set(query) - {"listen", "connect", "mode"}
-        if unknown:
-            raise SkinError(f"{url}: unknown option(s) {sorted(unknown)} (known: robot, "
-                            "listen, connect, mode)")
         prefix = (parts.netloc + parts.path).strip("/") or "thermoskin"
 
         def endpoints(key: str) -> list[str]:
@@ -255,13 +283,7 @@ def open_publisher(url: str, layout: Layout, robot: str | None = None) -> Publis
     if parts.scheme == "foxglove":
         from skin.stream.publish_foxglove import FoxglovePublisher
 
-        if query:
-            raise SkinError(f"{url}: unknown option(s) {sorted(query)} (known: robot)")
-        try:
-            port = parts.port if parts.port is not None else 8765
-        except ValueError:
-            raise SkinError(f"{url}: the port is not a number from 0 to 65535") from None
+        port = parts.port if parts.port is not None else 8765
         return FoxglovePublisher(layout, host=parts.hostname or "127.0.0.1", port=port,
                                  robot=name, url=url)
-    raise SkinError(f"{url}: unknown publisher {parts.scheme!r} (known: "
-                    f"{', '.join(s + '://' for s in SCHEMES)})")
+    raise AssertionError(parts.scheme)  # check_publisher_url knows every scheme
