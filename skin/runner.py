@@ -256,8 +256,8 @@ class Skin:
         """Load the arm once and check it covers the layout, if a view or the map needs it."""
         s = self.setup
         self.arm: Any = s.arm
-        if s.arm is not None and not Path(s.arm).is_file():
-            raise SkinError(f"--arm {s.arm}: no such arm file")
+        if s.arm is not None and not Path(s.arm).is_file() and s.arm != "xarm7":
+            raise SkinError(f"--arm {s.arm}: no such arm file (or the shipped 'xarm7')")
         if not (s.view or s.video or (s.map and s.out is not None)):
             return
         from skin.viz.arm_mesh import ArmSurface, resolve_arm

@@ -81,7 +81,8 @@ class Setup:
     map : bool
         Render ``contact_map.png``.
     arm : str or None
-        Arm file (meshes per link) for the views and the map; default the procedural arm.
+        Arm file (TOML of meshes per link, or a URDF), or ``xarm7`` (the shipped example
+        arm); default the procedural arm.
     view : bool
         Show the arm in a window.
     video : str or None

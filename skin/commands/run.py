@@ -78,7 +78,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                      help="what --view and --video show first: material labels (default) or "
                           "each taxel's temperature")
     run.add_argument("--arm", metavar="FILE",
-                     help="arm file (TOML: a mesh file and pose per link) for the views and "
+                     help="arm file (TOML: a mesh file and pose per link; or a URDF; or xarm7, "
+                          "the example arm) for the views and "
                           "contact_map.png; default: the procedural arm of the default layout")
     run.add_argument("--first-frame-timeout", type=float, metavar="SECONDS",
                      help="fail when a device sends no frame within this time (default 5)")
