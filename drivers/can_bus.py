@@ -63,17 +63,29 @@ class CanDriver(Driver):
         The IP port, for interfaces that take one (``udp_multicast``: 43113 by default; on
         Linux a bus hears every group joined on its port, so separate buses take separate
         ports).
+    context : str, optional
+        With no ``interface``: the section of python-can's configuration to use.
+
+    With ``interface`` None the bus comes from python-can's own configuration
+    (``can.util.load_config``: the environment's ``CAN_INTERFACE``, ``CAN_CHANNEL``,
+    ``CAN_BITRATE``, ``CAN_CONFIG``, then ``~/can.conf``, ``/etc/can.conf``, ``~/.can``,
+    ``~/.canrc``), as ``can.Bus()`` would; ``bitrate`` and ``port`` given here win.
     """
 
     wire = "can"
 
-    def __init__(self, interface: str, channel: str, bitrate: int | None = None,
+    def __init__(self, interface: str | None, channel: str | None, bitrate: int | None = None,
                  boards: dict[int, int] | None = None, reconnect: float = 0.0,
-                 silent_after: float = 0.5, port: int | None = None) -> None:
+                 silent_after: float = 0.5, port: int | None = None,
+                 context: str | None = None) -> None:
         super().__init__(reconnect)
         self._can = require("can", "the CAN driver")
+        self._kwargs: dict = {}
+        if interface is None:
+            self._kwargs = self._configured(context)
+            interface, channel = self._kwargs["interface"], self._kwargs["channel"]
         self.url = f"can://{interface}/{channel}" + ("" if port is None else f"?port={port}")
-        self._kwargs = {"interface": interface, "channel": channel}
+        self._kwargs.update({"interface": interface, "channel": channel})
         if bitrate is not None:
             self._kwargs["bitrate"] = bitrate
         if port is not None:
@@ -86,6 +98,29 @@ class CanDriver(Driver):
         self.stats = self._reassembler.stats
         self._frames: collections.deque[Frame] = collections.deque()
         self._token = 0
+
+    def _configured(self, context: str | None) -> dict:
+        """Return the bus of python-can's configuration (see the class docstring)."""
+        where = "python-can's configuration" + (f" (section {context!r})" if context else "")
+        util = self._can.util
+        named = {**util.load_file_config(None, context or "default"),
+                 **util.load_environment_config(context)}
+        if named.get("interface"):
+            try:
+                config = dict(util.load_config(context=context))
+            except Exception as exc:  # python-can raises CanInterfaceNotImplementedError & co
+                raise DeviceError(f"can://: {where} cannot be used ({exc})") from None
+        else:
+            config = {}
+        if not config.get("interface"):
+            raise DeviceError(f"can://: {where} names no interface: set CAN_INTERFACE and "
+                              f"CAN_CHANNEL, or write one of "
+                              f"{', '.join(self._can.util.CONFIG_FILES)}; or give the bus as "
+                              "can://<interface>/<channel>")
+        if config.get("channel") is None:
+            raise DeviceError(f"can://: {where} names interface {config['interface']!r} but no "
+                              "channel (CAN_CHANNEL)")
+        return config
 
     @property
     def replies(self) -> collections.deque[tuple[int, Reply]]:
