@@ -356,8 +356,13 @@ class Skin:
         if s.publish:
             from skin.stream.publish import open_publisher
 
+            chain = None
+            if s.arm is not None and (s.arm == "xarm7" or s.arm.lower().endswith(".urdf")):
+                from skin.world.urdf import example_urdf, load_urdf
+
+                chain = load_urdf(example_urdf() if s.arm == "xarm7" else s.arm).chain
             for url in s.publish:
-                pub = open_publisher(url, self.layout).attach(self.pipeline)
+                pub = open_publisher(url, self.layout, chain=chain).attach(self.pipeline)
                 self._closers.append(pub)
                 self.publishers.append(pub)
 

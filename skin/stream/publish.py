@@ -249,7 +249,8 @@ def check_publisher_url(url: str) -> None:
     require(*_PACKAGES[parts.scheme])
 
 
-def open_publisher(url: str, layout: Layout, robot: str | None = None) -> Publisher:
+def open_publisher(url: str, layout: Layout, robot: str | None = None,
+                   chain: Any = None) -> Publisher:
     """Open the publisher a URL names (see the module docstring).
 
     Parameters
@@ -260,6 +261,9 @@ def open_publisher(url: str, layout: Layout, robot: str | None = None) -> Publis
         The skin.
     robot : str, optional
         The robot's name; the URL's ``robot=``, else the layout's name, else ``"skin"``.
+    chain : skin.world.kinematics.Chain, optional
+        The arm's links and joints (a URDF's), for the views that draw it; the default arm's
+        when the layout's links are its.
 
     Raises
     ------
@@ -285,5 +289,5 @@ def open_publisher(url: str, layout: Layout, robot: str | None = None) -> Publis
 
         port = parts.port if parts.port is not None else 8765
         return FoxglovePublisher(layout, host=parts.hostname or "127.0.0.1", port=port,
-                                 robot=name, url=url)
+                                 robot=name, url=url, chain=chain)
     raise AssertionError(parts.scheme)  # check_publisher_url knows every scheme

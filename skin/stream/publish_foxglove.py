@@ -13,9 +13,10 @@ topic           schema              what
 ``/contacts``   JSON schema         each contact result (`skin.stream.publish.contact_payload`:
                 ``thermoskin.       material, family, probabilities, centroid and normal in
                 contact``           its link's frame, device and host times)
-``/tf``         foxglove.           the layout as frames: world -> each link (the default arm's
-                FrameTransforms     pose, when the layout's links are its links; else at the
-                                    origin) -> ``taxel_<ID>`` (z along the outward normal)
+``/tf``         foxglove.           the layout as frames: world -> each link (the arm's pose:
+                FrameTransforms     a URDF's chain, or the default arm's, at default angles;
+                                    else at the origin) -> ``taxel_<ID>`` (z along the
+                                    outward normal)
 ``/arm``        foxglove.           the arm in 3-D: the chain's links as a stick figure, each
                 SceneUpdate         taxel a disc coloured by the material of its last contact
 ``/health``     JSON schema         `skin.stream.publish.health_payload`, once a second
@@ -90,11 +91,14 @@ class FoxglovePublisher(Publisher):
         Material -> RGB 0-1 for the scene; the materials table's by default.
     url : str
         The URL it was opened with, for messages.
+    chain : skin.world.kinematics.Chain, optional
+        The arm (a URDF's, `skin.world.urdf`), posed at its default angles for the frames and
+        the stick figure; the default arm's when the layout's links are its.
     """
 
     def __init__(self, layout: Layout, host: str = "127.0.0.1", port: int = 8765,
                  robot: str = "skin", colours: dict[str, tuple[float, float, float]] | None
-                 = None, url: str = "") -> None:
+                 = None, url: str = "", chain: Any = None) -> None:
         super().__init__(layout, robot)
         fg = require("foxglove", "the Foxglove server")
         self._fg = fg
@@ -127,7 +131,7 @@ class FoxglovePublisher(Publisher):
         self._arm = channels.SceneUpdateChannel("/arm", context=ctx)
         self._taxels = packed_ids(layout.ids)
         self._labels: dict[int, str] = {}  # taxel index -> material of its last contact
-        self._poses = self._link_poses()
+        self._poses = self._link_poses(chain)
         self._tf_msg = self._transforms()
         m = self._msg
         self._disc_poses = []
@@ -144,13 +148,14 @@ class FoxglovePublisher(Publisher):
 
     # -- the layout and the arm --
 
-    def _link_poses(self) -> dict[str, np.ndarray]:
+    def _link_poses(self, chain: Any) -> dict[str, np.ndarray]:
         from skin.world.kinematics import default_chain
 
-        chain = default_chain()
+        chain = chain or default_chain()
         links = set(self.layout.links)
         poses = chain.poses() if links <= set(chain.links) else {}
-        return {link: poses.get(link, np.eye(4)) for link in sorted(links | set(poses))}
+        order = list(poses) + sorted(links - set(poses))  # parents before children
+        return {link: poses.get(link, np.eye(4)) for link in order}
 
     def _transforms(self) -> Any:
         """Return the layout's frames (built once: taxels do not move on their links)."""
