@@ -336,6 +336,7 @@ class Skin:
                 self._events_path = path
             else:
                 path = Path(name)
+                path.parent.mkdir(parents=True, exist_ok=True)
             sink = JsonLinesSink(path)  # a killed run keeps every contact already given
             self._closers.append(sink)
             self.pipeline.sinks.append(sink)

@@ -57,3 +57,127 @@ def test_checks_come_before_any_source_is_opened(tmp_path):
     with pytest.raises(SkinError, match=r"none\.json"):
         s.check()
     assert s._driver is None
+
+
+# --- skin files --------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def assets(tmp_path_factory):
+    """A folder with a recording (run.mcap), a calibration (cal.json) and a model (model.skops)."""
+    from skin.formats.calibration_file import CalibrationFile
+    from skin.models import load_materials
+    from skin.models.trials import Protocol, simulate_trials
+
+    folder = tmp_path_factory.mktemp("assets")
+    proc = skin("run", "--speed", "0", "--duration", "6", "--no-map", "--json", "--out",
+                folder / "recorded", "--record", folder / "run.mcap")
+    assert proc.returncode == 0, proc.stderr
+    # a thermistor fit for a few taxels, 1 % off the board's constants
+    CalibrationFile(taxels={t: {"thermistor": [9.5594e-4 * 1.01, 2.6181e-4, 0.0]}
+                            for t in range(8)}).save(folder / "cal.json")
+    mats = load_materials()
+    simulate_trials([mats[m] for m in ("aluminium", "pine", "glass", "neoprene", "human_skin")],
+                    Protocol(trials=30), seed=8).save(folder / "t.npz")
+    proc = skin("train", "--data", folder / "t.npz", "--method", "svm-pca", "--duration", "0.3",
+                "-o", folder / "model.skops")
+    assert proc.returncode == 0, proc.stderr
+    return folder
+
+
+def lines(path):
+    return [json.loads(line) for line in Path(path).read_text().splitlines()]
+
+
+SKIN_TOML = """\
+# a replayed recording, a calibration, a model and two sinks (paths relative to this file)
+[source]
+port = "replay://../run.mcap?speed=0"
+
+[skin]
+calibration = "../cal.json"
+
+[classifier]
+model = "../model.skops"
+expect = ["pine"]
+
+[output]
+out = "../from_file"
+sinks = ["events", "../contacts.jsonl"]
+map = false
+"""
+
+
+def test_a_skin_file_gives_the_events_of_the_same_options(assets):
+    proc = skin("run", "--port", "replay://run.mcap?speed=0", "--calibration", "cal.json",
+                "--model", "model.skops", "--expect", "pine", "--sink", "events", "--sink",
+                "options.jsonl", "--out", "from_options", "--no-map", "--json", cwd=assets)
+    assert proc.returncode == 0, proc.stderr
+    by_options = lines(assets / "from_options" / "events.jsonl")
+    assert len(by_options) >= 4 and {e["method"] for e in by_options} == {"learned:svm-pca"}
+    assert lines(assets / "options.jsonl") == by_options
+    # the skin file in another folder: its relative paths are relative to it
+    (assets / "cfg").mkdir()
+    (assets / "cfg" / "skin.toml").write_text(SKIN_TOML)
+    proc = skin("run", "--json", cwd=assets / "cfg")  # ./skin.toml, no options
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["frames"] == 1200
+    assert lines(assets / "from_file" / "events.jsonl") == by_options
+    assert lines(assets / "contacts.jsonl") == by_options
+    with Skin.from_file(assets / "cfg" / "skin.toml", out=None, sinks=[]) as s:
+        got = [(r.contact.id, r.estimate.label) for r in s.results()]
+    assert got == [(e["contact"], e["label"]) for e in by_options]
+    # an option overrides the file; config show says where each value came from
+    proc = skin("config", "show", "--json", "--window", "2", cwd=assets / "cfg")
+    shown = json.loads(proc.stdout)
+    assert shown["window"] == {"value": 2.0, "from": "command line"}
+    assert shown["model"] == {"value": str(assets / "model.skops"), "from": "skin.toml:9"}
+    assert shown["speed"]["from"] == "default"
+    assert shown["port"]["value"] == [f"replay://{assets}/run.mcap?speed=0"]
+    text = skin("config", "show", cwd=assets / "cfg").stdout
+    assert 'sinks = ["events", ' in text and "# skin.toml:14" in text
+
+
+def test_config_show_prints_a_skin_file_that_reads_back():
+    from skin.commands.config import setup_text
+    from skin.formats.skin_file import parse_skin_file
+
+    setup = Setup().updated({"port": ["sim://default"], "provisional": [0.5, 1.0],
+                             "layout": "arm", "map": False}, "command line")
+    again = parse_skin_file(setup_text(setup), "shown.toml")
+    assert again.as_dict() == setup.as_dict()
+    assert again.where("map").startswith("shown.toml:")
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("[source]\nport = 3\n", "bad.toml:2: port: must be a list of strings"),
+    ("[source]\nspeed = 1\n\n[output]\nwindow = 2\n", "bad.toml:5: unknown field 'window' in "
+     "[output]: it belongs in [classifier]"),
+    ("[sources]\nport = 'sim://default'\n", "bad.toml:1: unknown table [sources]"),
+    ("window = 2\n", "bad.toml:1: unknown table [window]"),
+    ("[classifier]\nprovisional = [\n  0.5,\n  -1,\n]\nwindow = 'x'\n",
+     "bad.toml:2: provisional: must be more than 0"),
+    ("[source\n", "bad.toml: not valid TOML"),
+])
+def test_skin_file_errors_name_the_file_and_line(tmp_path, text, message):
+    from skin.formats.skin_file import load_skin_file
+
+    (tmp_path / "bad.toml").write_text(text)
+    with pytest.raises(SetupError) as err:
+        load_skin_file(tmp_path / "bad.toml")
+    assert message in str(err.value).replace(str(tmp_path) + "/", "")
+
+
+def test_the_readme_python_example_runs(assets):
+    import re
+
+    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    example = next(block for block in re.findall(r"```python\n(.*?)```", readme, re.S)
+                   if "Skin(" in block)
+    assert len(example.strip().splitlines()) <= 10
+    proc = subprocess.run([sys.executable, "-c", example], cwd=assets, capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    printed = proc.stdout.splitlines()
+    events = lines(assets / "out" / "py" / "events.jsonl")
+    assert len(printed) == len(events) >= 4
+    assert lines(assets / "contacts.jsonl") == events
