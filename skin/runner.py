@@ -133,7 +133,9 @@ class Skin:
         except ValueError as exc:
             raise SkinError(f"--window / --provisional: {exc}") from None
         if s.out is not None and not s.force:
-            used = [name for name in OUTPUTS if (Path(s.out) / name).exists()]
+            # an empty events.jsonl is a run that received nothing (a dead port): no loss
+            used = [name for name in OUTPUTS if (Path(s.out) / name).exists()
+                    and (Path(s.out) / name).stat().st_size > 0]
             if used:
                 raise SkinError(f"--out {s.out}: holds an earlier run ({used[0]}); use --force "
                                 "to overwrite it, or another folder")
@@ -271,13 +273,13 @@ class Skin:
         if s.out is not None:
             Path(s.out).mkdir(parents=True, exist_ok=True)
         self._make_source()
+        from skin import drivers
+
+        self._driver = drivers.open(self.source_url)  # before the sinks: a bad port makes none
+        self._closers.append(self._driver)
         self._make_sinks()
         if s.view or s.video:
             self._live = self._live_view()
-        from skin import drivers
-
-        self._driver = drivers.open(self.source_url)
-        self._closers.append(self._driver)
         # a device given by the user reconnects; the simulated ones end by going away
         for one, port_url in zip(getattr(self._driver, "drivers", [self._driver]), s.port,
                                  strict=False):
@@ -450,7 +452,7 @@ class Skin:
 
     def close_sources(self) -> None:
         """Close the sources, the sinks, the live view and a simulation (idempotent)."""
-        for thing in reversed(self._closers):
+        for thing in self._closers:  # the sources first, then the sinks
             thing.close()
         self._closers = []
         if self._live is not None:

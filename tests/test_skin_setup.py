@@ -181,3 +181,69 @@ def test_the_readme_python_example_runs(assets):
     events = lines(assets / "out" / "py" / "events.jsonl")
     assert len(printed) == len(events) >= 4
     assert lines(assets / "contacts.jsonl") == events
+
+
+# --- every input is checked before the first frame ---------------------------------------------
+
+def failed_early(tmp_path, *args, message, timeout=60):
+    """Run ``skin run`` on the simulated skin: it must fail with ``message`` before any frame."""
+    out = tmp_path / "run"
+    proc = skin("run", "--speed", "0", "--duration", "2", "--out", out, *args, timeout=timeout)
+    assert proc.returncode == 2, proc.stderr
+    assert message in proc.stderr, proc.stderr
+    assert "frames" not in proc.stderr  # no status line: no frame was read
+    assert not out.exists()  # nothing made, nothing overwritten
+    return proc.stderr
+
+
+def test_a_missing_arm_file_fails_before_the_first_frame(tmp_path):
+    failed_early(tmp_path, "--arm", tmp_path / "arm.toml", "--no-map", "--video",
+                 tmp_path / "v.gif", message="arm.toml: no such arm file")
+    failed_early(tmp_path, "--arm", tmp_path / "arm.toml", message="no such arm file")
+
+
+def test_a_layout_link_without_a_mesh_fails_before_the_first_frame(tmp_path):
+    from skin.formats.datafiles import read_data_file
+
+    text, _, _ = read_data_file("arm", "layouts", "layout", SkinError)
+    (tmp_path / "tail.toml").write_text(text.replace('link = "upper_arm"', 'link = "tail"', 1))
+    failed_early(tmp_path, "--layout", tmp_path / "tail.toml",
+                 message="link 'tail' has no geometry")
+    # without a view or a map, no arm is needed
+    proc = skin("run", "--speed", "0", "--duration", "1", "--out", tmp_path / "ok", "--no-map",
+                "--layout", tmp_path / "tail.toml", "--json")
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_a_model_missing_a_class_fails_before_the_first_frame(assets, tmp_path):
+    scene = tmp_path / "steel.toml"
+    scene.write_text('layout = "arm"\nduration = 3.0\n[[objects]]\nname = "vice"\n'
+                     'material = "steel"\n[[touches]]\nobject = "vice"\ntaxels = [0, 1]\n'
+                     'start = 1.0\nduration = 1.0\n')
+    err = failed_early(tmp_path, "--scene", scene, "--model", assets / "model.skops",
+                       message="has no class 'steel', which the scene needs")
+    assert "model.skops" in err and "aluminium" in err
+    failed_early(tmp_path, "--model", assets / "model.skops", "--expect", "water",
+                 message="has no class 'water', which the setup's 'expect' needs")
+
+
+def test_a_port_that_sends_nothing_fails_and_says_so(tmp_path):
+    # issue 20.14: it ran 20 s and exited 0 with "0 frames"
+    proc = skin("run", "--port", "serial+loop://", "--out", tmp_path / "run", "--no-map",
+                timeout=60)
+    assert proc.returncode == 2
+    assert "no frame arrived from serial+loop:// in 5 s" in proc.stderr
+    assert not (tmp_path / "run" / "summary.json").exists()
+    proc = skin("run", "--port", "serial+loop://", "--out", tmp_path / "run", "--no-map",
+                "--first-frame-timeout", "0.5")  # an empty events.jsonl is no earlier run
+    assert proc.returncode == 2 and "no frame arrived from serial+loop:// in 0.5 s" in proc.stderr
+    proc = skin("run", "--port", "serial:///dev/no-such-port", "--out", tmp_path / "run2",
+                "--no-map", "--reconnect", "0")
+    assert proc.returncode == 2 and "/dev/no-such-port" in proc.stderr
+
+
+def test_an_unreadable_calibration_fails_before_the_first_frame(tmp_path):
+    cal = tmp_path / "cal.json"
+    failed_early(tmp_path, "--calibration", cal, "--no-map", message="no such calibration file")
+    cal.write_text('{"format": 1,\n "taxels": {\n')
+    failed_early(tmp_path, "--calibration", cal, "--no-map", message="cal.json, line 3")
