@@ -20,6 +20,7 @@ to ``skin.pipeline.sinks`` after ``check()``, or give it a name in `Skin._make_s
 from __future__ import annotations
 
 import json
+import logging
 import math
 import sys
 import time
@@ -34,6 +35,8 @@ from skin.errors import DeviceError, SkinError
 from skin.progress import Progress
 from skin.setup import SINKS, Setup, SetupError
 from skin.stream.pipeline import ContactResult, Pipeline
+
+log = logging.getLogger("skin.runner")
 
 OUTPUTS = ("events.jsonl", "summary.json", "contact_map.png")
 """Files whose presence marks an output folder as holding an earlier run."""
@@ -277,7 +280,9 @@ class Skin:
 
         self._driver = drivers.open(self.source_url)  # before the sinks: a bad port makes none
         self._closers.append(self._driver)
+        log.info("reading %s (%d taxels)", self._source_name(), len(self.layout))
         self._make_sinks()
+        log.info("sinks: %s", ", ".join(type(k).__name__ for k in self.pipeline.sinks))
         if s.view or s.video:
             self._live = self._live_view()
         # a device given by the user reconnects; the simulated ones end by going away
@@ -552,6 +557,7 @@ class Skin:
                                        default_chain() if self.scene is not None else None))
         (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n",
                                           encoding="utf-8")
+        log.info("outputs in %s", out)
         if self.setup.map:
             from skin.viz import ArmView
 
