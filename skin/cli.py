@@ -20,6 +20,7 @@ from skin.commands import (
     plot,
     record,
     run,
+    sensors,
     simulate,
     train,
     view,
@@ -27,7 +28,7 @@ from skin.commands import (
 from skin.errors import SkinError
 
 COMMANDS = (run, simulate, calibrate, train, evaluate, evaluate_onset, bench, plot, record, devices,
-            view, config, completion)
+            view, sensors, config, completion)
 
 
 def build_parser() -> argparse.ArgumentParser:
