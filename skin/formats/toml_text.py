@@ -17,7 +17,7 @@ def toml_value(value: Any, digits: int | None = None) -> str:
         The value; a numpy array is a list.
     digits : int, optional
         Significant digits of floats (12 writes 30.0 rather than 29.999999999999996);
-        default: exact (``repr``, which round-trips). Never ``-0.0``.
+        default: exact (``repr``, which round-trips). ``-0.0`` only when exact.
 
     Raises
     ------
@@ -32,10 +32,13 @@ def toml_value(value: Any, digits: int | None = None) -> str:
     if isinstance(value, int | np.integer):
         return str(int(value))
     if isinstance(value, float | np.floating):
-        number = float(value) if digits is None else float(f"{float(value):.{digits}g}")
+        if digits is None:
+            number = float(value)  # exact, -0.0 included
+        else:
+            number = float(f"{float(value):.{digits}g}") + 0.0  # + 0.0: no -0.0
         if not np.isfinite(number):
             return {np.inf: "inf", -np.inf: "-inf"}.get(number, "nan")
-        return repr(number + 0.0)  # + 0.0: no -0.0
+        return repr(number)
     if isinstance(value, list | tuple | np.ndarray):
         return "[" + ", ".join(toml_value(v, digits) for v in value) + "]"
     raise TypeError(f"no TOML form for {type(value).__name__}")
