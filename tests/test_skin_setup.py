@@ -18,8 +18,16 @@ def skin(*args, cwd=None, timeout=300):
                           cwd=cwd, timeout=timeout)
 
 
-def test_every_setup_field_has_a_check_and_values_are_checked():
-    assert set(setup_fields()) == set(_CHECKS)
+def test_every_setup_field_has_a_check_and_a_table_of_the_skin_file():
+    from skin.setup import GROUPS
+
+    assert set(setup_fields()) == set(_CHECKS), "add the field's check to skin.setup._CHECKS"
+    tabled = [name for names in GROUPS.values() for name in names]
+    assert sorted(tabled) == sorted(setup_fields()), \
+        "put each Setup field in one table of skin.setup.GROUPS ([source], [output]...)"
+
+
+def test_setup_values_are_checked():
     s = Setup().updated({"window": 1, "port": "sim://default", "provisional": "0.5,1"}, "here")
     assert s.window == 1.0 and s.port == ["sim://default"] and s.provisional == [0.5, 1.0]
     assert s.where("window") == "here" and s.where("speed") == "default"
@@ -247,3 +255,13 @@ def test_an_unreadable_calibration_fails_before_the_first_frame(tmp_path):
     failed_early(tmp_path, "--calibration", cal, "--no-map", message="no such calibration file")
     cal.write_text('{"format": 1,\n "taxels": {\n')
     failed_early(tmp_path, "--calibration", cal, "--no-map", message="cal.json, line 3")
+
+
+def test_skin_run_is_a_thin_shell_over_skin():
+    import inspect
+
+    from skin.commands import run
+
+    lines, _ = inspect.getsourcelines(run.main)
+    assert len(lines) <= 60
+    assert "Skin(" in "".join(lines)
