@@ -5,7 +5,10 @@ given), detect contacts, label their materials, and write ``events.jsonl``, ``su
 ``contact_map.png`` (and ``layout.toml``, with ``chain.toml`` for a simulation: the arm's pose,
 for ``skin view --map``). ``--record run.mcap`` also keeps the wire bytes, temperatures and events
 (`skin.drivers.recording`); ``--port replay://run.mcap`` plays such a recording again, with
-its layout and calibration unless ``--layout`` / ``--calibration`` say otherwise.
+its layout and calibration unless ``--layout`` / ``--calibration`` say otherwise. The setup is
+``./skin.toml`` (or ``--config FILE``) when there is one, each option given here overriding it
+(``skin config show`` prints it); everything is checked before the first frame (`skin.Skin`).
+An output folder holding an earlier run is kept unless ``--force``.
 """
 
 from __future__ import annotations
