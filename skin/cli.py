@@ -67,3 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     except SkinError as exc:
         print(f"skin: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # `skin ... | head`: the reader has gone; say nothing more
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0

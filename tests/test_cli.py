@@ -137,3 +137,9 @@ def test_calibrate_prints_its_fits_as_json(tmp_path):
     assert doc["contacts"] == 8 and set(doc["taxels"]) == {"0", "1"}
     assert all(t["thermal_converged"] is True and t["diffusivity"] > 0
                for t in doc["taxels"].values())
+
+
+def test_a_reader_that_leaves_early_gets_no_traceback():
+    proc = subprocess.run(f'"{SKIN}" completion bash | head -1', shell=True, capture_output=True,
+                          text=True, timeout=60)
+    assert proc.stdout.startswith("# bash completion") and proc.stderr == ""

@@ -30,11 +30,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Print the resolved setup."""
+    from skin.formats.skin_file import find_skin_file
+
     setup = run.resolve_setup(args)
+    path = getattr(args, "config", None) or find_skin_file()
     if getattr(args, "json", False):
         print(json.dumps({name: {"value": value, "from": setup.where(name)}
                           for name, value in setup.as_dict().items()}))
     else:
+        print(f"# skin file: {path}" if path else "# no skin file: defaults and options")
         print(setup_text(setup))
     return 0
 
