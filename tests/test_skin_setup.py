@@ -265,3 +265,15 @@ def test_skin_run_is_a_thin_shell_over_skin():
     lines, _ = inspect.getsourcelines(run.main)
     assert len(lines) <= 60
     assert "Skin(" in "".join(lines)
+
+
+def test_leaving_the_with_block_closes_sources_sinks_and_the_simulation(tmp_path):
+    with Skin(out=tmp_path / "run", speed=0, duration=5, map=False) as s:
+        first = next(r for r in s.results() if r.contact.final)  # leave mid-run
+        driver, device = s._driver, s._device
+        assert not driver._closed and device is not None
+    assert first.estimate.label
+    assert driver._closed and s._device is None and s._closers == []
+    # what was given before leaving is in events.jsonl
+    assert [e["contact"] for e in lines(tmp_path / "run" / "events.jsonl")
+            ][:1] == [first.contact.id]
