@@ -274,7 +274,12 @@ class Skin:
         s = self.setup
         self._opened = True
         if s.out is not None:
-            Path(s.out).mkdir(parents=True, exist_ok=True)
+            out = Path(s.out)
+            out.mkdir(parents=True, exist_ok=True)
+            from skin.world.map import CHAIN_FILE, LAYOUT_FILE
+
+            for name in (*OUTPUTS, LAYOUT_FILE, CHAIN_FILE):  # none of an earlier run stays
+                (out / name).unlink(missing_ok=True)
         self._make_source()
         from skin import drivers
 

@@ -54,9 +54,11 @@ def test_an_output_folder_is_not_overwritten_without_force(tmp_path):
     assert first.returncode == 0, first.stderr
     again = skin("run", "--speed", "0", "--duration", "1", "--no-map", "--out", out)
     assert again.returncode == 2 and "--force" in again.stderr and "earlier run" in again.stderr
+    (out / "contact_map.png").write_bytes(b"an earlier map")
     forced = skin("run", "--speed", "0", "--duration", "1", "--no-map", "--out", out, "--force",
                   "--json")
     assert forced.returncode == 0, forced.stderr
+    assert not (out / "contact_map.png").exists()  # no stale output of the earlier run
 
 
 def test_checks_come_before_any_source_is_opened(tmp_path):
