@@ -2,9 +2,11 @@
 
 Two estimators, taking many trials at once (the fit is vectorised over them):
 
-- `paper_effusivity`: the paper's pointwise estimate (eqs. 9-11) at every sample, undefined
-  samples dropped, summarised by the median; "unknown" (NaN with ``valid`` False) when fewer
-  than ``min_samples`` remain. It assumes perfect contact and an object at ambient.
+- `paper_effusivity`: the paper's pointwise estimate (eqs. 9-11) at every sample, summarised
+  by the median; "unknown" (NaN with ``valid`` False) when fewer than ``min_samples`` remain,
+  "out of range" (0 or inf with ``valid`` False) when the median lies within the resolution
+  of the sensor's or the object's temperature. It assumes perfect contact and an object at
+  ambient.
 - `fit_contact`: non-linear least squares of log10 effusivity, object temperature and
   log10 contact conductance (optionally the sensor's initial temperature) over the whole window,
   with the finite-conductance closed form (`skin.models.physics.contact_trace`). A batched
@@ -20,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from skin.models.physics import SensorConstants, contact_trace, effusivity_estimates
+from skin.models.physics import SensorConstants, contact_trace, depth_response
 
 _LOG_E_BOUNDS = (0.5, 5.5)  # 3 .. 3e5 W s^0.5/(m^2 K): aerogel to diamond
 _LOG_H_BOUNDS = (1.0, 7.0)
@@ -95,8 +97,19 @@ def paper_effusivity(
     t_object: np.ndarray | float,
     sensor: SensorConstants | None = None,
     min_samples: int = 5,
+    min_response: float = 0.02,
+    min_difference: float = 0.05,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Paper's pointwise effusivity estimate (eqs. 10-11), median over a trial's samples.
+
+    Each sample (whose depth response erfc(...) is at least ``min_response``) gives the share
+    ``f = (T_sens(0) - T_surf) / (T_sens(0) - T_obj)`` of the step its surface took, and
+    ``e = e_s f / (1 - f)`` grows monotonically with it, so the median of ``e`` is ``e`` of
+    the median of ``f``. The median is taken over every such sample: one whose surface lies
+    within ``min_difference`` of the sensor's or the object's temperature is not dropped (which
+    biased the median towards the cut: any e below about 10 read log e ~ 1, anything above
+    about 1e5 saturated) but counts as below or above the resolvable range. When the median
+    itself falls there, the trial is out of range.
 
     Parameters
     ----------
@@ -109,26 +122,48 @@ def paper_effusivity(
     sensor : SensorConstants, optional
         Sensor constants (default: the paper's).
     min_samples : int
-        Fewest valid samples for an estimate.
+        Fewest usable samples for an estimate.
+    min_response : float
+        Samples whose depth response is below this are not used (t -> 0).
+    min_difference : float
+        The resolution, K: a surface temperature closer than this to the sensor's (the object
+        is too insulating to tell from nothing) or to the object's (too conductive to tell from
+        a perfect conductor) is out of range; so is a sensor within it of the object.
 
     Returns
     -------
     effusivity : numpy.ndarray
-        Median estimate per trial (NaN where unknown).
+        Median estimate per trial; 0 where it is below the resolvable range
+        (``e_s d / (|T_sens(0) - T_obj| - d)``, d = ``min_difference``: about 2.4 for the
+        paper's sensor 14 K above the object), ``inf`` where it is above it (about 1.8e5), NaN
+        where unknown (too few samples, or the sensor at the object's temperature).
     valid : numpy.ndarray
-        Whether the trial has an estimate.
+        Whether the trial has an estimate inside the range.
     """
     s = SensorConstants() if sensor is None else sensor
+    t = np.asarray(t, dtype=float)
     y = np.atleast_2d(np.asarray(temperature, dtype=float))
     n = y.shape[0]
     t0 = np.broadcast_to(np.asarray(t_sensor, dtype=float), (n,))
     tobj = np.broadcast_to(np.asarray(t_object, dtype=float), (n,))
     out = np.full(n, np.nan)
-    for i in range(n):  # the estimate drops a different set of samples in every trial
-        _, e = effusivity_estimates(t, y[i], float(t0[i]), float(tobj[i]), s)
-        if e.size >= min_samples:
-            out[i] = float(np.exp(np.median(np.log(e))))
-    return out, np.isfinite(out)
+    resp = depth_response(t, s)
+    usable = resp >= min_response
+    step = t0 - tobj
+    for i in range(n):  # each trial keeps its own samples
+        keep = usable & np.isfinite(y[i])
+        if keep.sum() < min_samples or abs(step[i]) < 2 * min_difference:
+            continue  # no signal: unknown
+        surf = t0[i] + (y[i, keep] - t0[i]) / resp[keep]  # eq. 11
+        share = float(np.median((t0[i] - surf) / step[i]))
+        cut = min_difference / abs(step[i])
+        if share <= cut:
+            out[i] = 0.0
+        elif share >= 1.0 - cut:
+            out[i] = np.inf
+        else:
+            out[i] = s.effusivity * share / (1.0 - share)  # eq. 10
+    return out, np.isfinite(out) & (out > 0)
 
 
 def fit_contact(
