@@ -18,6 +18,7 @@ from skin.commands import (
     plot,
     record,
     run,
+    sensors,
     simulate,
     train,
     view,
@@ -25,7 +26,7 @@ from skin.commands import (
 from skin.errors import SkinError
 
 COMMANDS = (run, simulate, calibrate, train, evaluate, evaluate_onset, bench, plot, record, devices,
-            view)
+            view, sensors)
 
 
 def build_parser() -> argparse.ArgumentParser:

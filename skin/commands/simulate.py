@@ -59,6 +59,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                              "per recording run (default 0,0; e.g. -8,8 for cold and warm "
                              "objects)")
     trials.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    trials.add_argument("--sensor", default=None, metavar="PRESET|FILE",
+                        help="sensor description: a preset (`skin sensors`) or a sensor file "
+                             "(default: the paper's)")
     trials.add_argument("--json", action="store_true", help="print one JSON summary")
     trials.set_defaults(func=main_trials)
 
@@ -120,10 +123,18 @@ def main_trials(args: argparse.Namespace) -> int:
         raise SkinError("--object-offset needs --model contact or semi-infinite")
     protocol = Protocol(trials=args.trials, ambient=args.ambient, duration=args.duration,
                         object_offset=offset)
+    sensor = None
+    if args.sensor is not None:
+        from skin.models.sensors import load_sensor
+
+        sensor = load_sensor(args.sensor)  # a bad file fails before the work starts
+        if args.model == "multilayer" and sensor.heater != "constant":
+            raise SkinError(f"--model multilayer runs a constant-power heater; sensor "
+                            f"{sensor.name!r} has heater {sensor.heater!r}")
     progress = Progress()
     started = time.monotonic()
     ds = simulate_trials([materials[m] for m in names], protocol, model=args.model,
-                         seed=args.seed,
+                         seed=args.seed, sensor=sensor,
                          progress=lambda d, n: progress.bar(d, n, "trials", started))
     progress.done()
     wall = time.monotonic() - started
@@ -131,6 +142,7 @@ def main_trials(args: argparse.Namespace) -> int:
     t0 = ds.extra["true_sensor_temperature"]
     summary = {"out": str(path), "trials": len(ds), "classes": names, "model": args.model,
                "samples": ds.temperature.shape[1], "fs": ds.fs, "seed": args.seed,
+               "sensor": "paper" if sensor is None else sensor.name,
                "wall_time": round(wall, 3), "trials_per_second": round(len(ds) / wall, 1),
                "initial_temperature": {"min": round(float(t0.min()), 2),
                                        "mean": round(float(t0.mean()), 2),
