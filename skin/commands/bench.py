@@ -103,6 +103,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     cal.add_argument("--seed", type=int, default=0, help="seed")
     cal.add_argument("--json", action="store_true", help="print one JSON document")
     cal.set_defaults(func=main_calibration)
+    spread = kinds.add_parser("spread", help="per-taxel spread of the simulated skin against "
+                                             "a calibration file of its true constants")
+    spread.add_argument("--touches", type=int, default=120, help="touches in the scene (120)")
+    spread.add_argument("--spread", type=float, default=0.10,
+                        help="relative spread of each taxel's constants (0.10)")
+    spread.add_argument("--sensor", default="", help="sensor preset (default: the paper's)")
+    spread.add_argument("--seed", type=int, default=0, help="seed")
+    spread.add_argument("--json", action="store_true", help="print one JSON document")
+    spread.set_defaults(func=main_spread)
     bench_drivers.add_parsers(kinds)
     bench_view.add_parsers(kinds)
 
@@ -263,6 +272,35 @@ def main_calibration(args: argparse.Namespace) -> int:
           f"over 25-45 C, median {th['nominal_max_error_k']['median']} K nominal -> "
           f"{th['fitted_max_error_k']['median']} K fitted (p95 "
           f"{th['nominal_max_error_k']['p95']} -> {th['fitted_max_error_k']['p95']} K)")
+    return 0
+
+
+def main_spread(args: argparse.Namespace) -> int:
+    """``skin bench spread``: what calibration wins back on a skin whose taxels differ."""
+    from skin import bench
+    from skin.bench.spread import run
+    from skin.errors import SkinError
+
+    if args.touches < 1 or not 0 <= args.spread < 1:
+        raise SkinError("--touches must be at least 1 and --spread within [0, 1)")
+    progress = Progress()
+    started = time.monotonic()
+    doc = {"machine": bench.machine(),
+           **run(args.touches, args.spread, args.seed, args.sensor,
+                 progress=lambda d, n: progress.bar(d, n, "runs", started))}
+    progress.done()
+    if args.json:
+        print(json.dumps(doc))
+        return 0
+    print(f"{args.touches} touches on the arm, taxel constants spread +-{args.spread:.0%} "
+          f"(seed {args.seed}, sensor {doc['sensor']}, {doc['machine']['cpus']} cores)")
+    print(f"{'run':<12} {'accuracy':>8} {'detected':>8} {'false':>6} {'wall s':>7}")
+    for key in ("nominal", "spread", "calibrated"):
+        r = doc[key]
+        print(f"{key:<12} {r['accuracy']:>8.3f} {r['detected']:>8} {r['false_contacts']:>6} "
+              f"{r['wall_time']:>7}")
+    print(f"calibration gain {doc['calibration_gain']:+.3f}, spread loss "
+          f"{doc['spread_loss']:+.3f} (accuracy)")
     return 0
 
 
