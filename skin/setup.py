@@ -30,13 +30,14 @@ GROUPS: dict[str, tuple[str, ...]] = {
                "speed", "contact"),
     "skin": ("layout", "calibration"),
     "classifier": ("model", "classifier", "expect", "window", "provisional"),
-    "output": ("out", "force", "sinks", "record", "map", "arm", "view", "video", "view_mode"),
+    "output": ("out", "force", "sinks", "publish", "record", "map", "arm", "view", "video",
+               "view_mode"),
 }
 """The tables of a skin file and the fields each holds (every field is in one table)."""
 
 PATHS: dict[str, str] = {
     "layout": "name", "scene": "name", "calibration": "path", "model": "path", "record": "path",
-    "out": "path", "arm": "path", "video": "path", "sinks": "jsonl", "port": "url",
+    "out": "path", "arm": "name", "video": "path", "sinks": "jsonl", "port": "url",
 }
 """Fields that hold files: ``path`` always a path; ``name`` a shipped name unless it has a
 folder or a suffix; ``jsonl`` paths ending in ``.jsonl``; ``url`` the file of ``replay://``.

@@ -65,15 +65,22 @@ GREY = (0.6, 0.6, 0.6)
 DISC = (0.012, 0.002)
 
 
-def _z_to(normal: np.ndarray) -> np.ndarray:
-    """Return the quaternion (w, x, y, z) that turns +z onto ``normal``."""
-    from skin.world.kinematics import matrix_to_quaternion
-
-    z = normal / np.linalg.norm(normal)
+def _z_frame(normal: np.ndarray) -> np.ndarray:
+    """Return a rotation matrix whose z axis is the unit ``normal``."""
+    z = np.asarray(normal, dtype=float)
+    z = z / np.linalg.norm(z)
     helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
     x = np.cross(helper, z)
     x /= np.linalg.norm(x)
-    return matrix_to_quaternion(np.column_stack([x, np.cross(z, x), z]))
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+def _quaternion(rotation: np.ndarray) -> tuple[float, float, float, float]:
+    """Return the quaternion (w, x, y, z) of a rotation matrix."""
+    from scipy.spatial.transform import Rotation
+
+    x, y, z, w = Rotation.from_matrix(rotation).as_quat()
+    return float(w), float(x), float(y), float(z)
 
 
 class FoxglovePublisher(Publisher):
@@ -136,7 +143,7 @@ class FoxglovePublisher(Publisher):
         m = self._msg
         self._disc_poses = []
         for k in range(len(layout)):
-            w, x, y, z = _z_to(layout.normals[k])
+            w, x, y, z = _quaternion(_z_frame(layout.normals[k]))
             p = layout.positions[k]
             self._disc_poses.append(m.Pose(
                 position=m.Vector3(x=float(p[0]), y=float(p[1]), z=float(p[2])),
@@ -159,12 +166,10 @@ class FoxglovePublisher(Publisher):
 
     def _transforms(self) -> Any:
         """Return the layout's frames (built once: taxels do not move on their links)."""
-        from skin.world.kinematics import matrix_to_quaternion
-
         m = self._msg
 
         def tf(parent: str, child: str, pose: np.ndarray) -> Any:
-            w, x, y, z = matrix_to_quaternion(pose[:3, :3])
+            w, x, y, z = _quaternion(pose[:3, :3])
             t = pose[:3, 3]
             return m.FrameTransform(
                 parent_frame_id=parent, child_frame_id=child,
@@ -175,7 +180,7 @@ class FoxglovePublisher(Publisher):
         for k, taxel in enumerate(self.layout.taxels):
             pose = np.eye(4)
             pose[:3, 3] = self.layout.positions[k]
-            pose[:3, :3] = _rotation(self.layout.normals[k])
+            pose[:3, :3] = _z_frame(self.layout.normals[k])
             out.append(tf(taxel.link, f"taxel_{taxel.id}", pose))
         return m.FrameTransforms(transforms=out)
 
@@ -261,10 +266,3 @@ class FoxglovePublisher(Publisher):
         if not self._closed:
             self._closed = True
             self._server.stop()
-
-
-def _rotation(normal: np.ndarray) -> np.ndarray:
-    from skin.world.kinematics import quaternion_to_matrix
-
-    return quaternion_to_matrix(_z_to(np.asarray(normal, dtype=float)))
-
