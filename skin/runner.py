@@ -369,15 +369,20 @@ class Skin:
         if s.publish:
             from skin.stream.publish import open_publisher
 
-            chain = None
-            if s.arm is not None and (s.arm == "xarm7" or s.arm.lower().endswith(".urdf")):
-                from skin.world.urdf import example_urdf, load_urdf
-
-                chain = load_urdf(example_urdf() if s.arm == "xarm7" else s.arm).chain
+            chain = self._urdf_chain()
             for url in s.publish:
                 pub = open_publisher(url, self.layout, chain=chain).attach(self.pipeline)
                 self._closers.append(pub)
                 self.publishers.append(pub)
+
+    def _urdf_chain(self) -> Any:
+        """Return the chain of a URDF arm (``arm`` a ``.urdf`` file or ``xarm7``), else None."""
+        arm = self.setup.arm
+        if arm is None or not (arm == "xarm7" or arm.lower().endswith(".urdf")):
+            return None
+        from skin.world.urdf import example_urdf, load_urdf
+
+        return load_urdf(example_urdf() if arm == "xarm7" else arm).chain
 
     def _live_view(self) -> Any:
         """Open the window (``view``) and/or the movie (``video``) of the run."""
@@ -577,8 +582,12 @@ class Skin:
         out.mkdir(parents=True, exist_ok=True)
         # what `skin view --map` needs: the layout, and for a simulation the arm's pose
         # (standing at the default chain's default angles); a device's poses are unknown here
-        summary.update(write_run_setup(out, self.layout,
-                                       default_chain() if self.scene is not None else None))
+        chain = None
+        if self.scene is not None:  # a simulation: the arm stands at its default angles
+            chain = self._urdf_chain() or default_chain()
+            if not set(self.layout.links) <= set(chain.links):
+                chain = None  # not this layout's arm
+        summary.update(write_run_setup(out, self.layout, chain))
         (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n",
                                           encoding="utf-8")
         log.info("outputs in %s", out)

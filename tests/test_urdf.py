@@ -114,6 +114,10 @@ def test_poses_from_joint_states_in_a_ros2_bag(tmp_path, two):
                     velocity=np.zeros(2), effort=np.zeros(2))
                 writer.write(conn, int(t * 1e9), ts.serialize_cdr(msg, JointState.__msgtype__))
         track = load_poses(bag, chain)
+        if storage == StoragePlugin.MCAP:  # the .mcap file alone reads the same
+            (file,) = bag.glob("*.mcap")
+            alone = load_poses(file, chain)
+            assert np.array_equal(alone.time, track.time) and np.array_equal(alone.q, track.q)
         assert track.joints == ["shoulder"]
         assert track.angles_at(t0 + 0.5)["shoulder"] == pytest.approx(0.25, abs=1e-6)
         assert np.allclose(track.poses_at(t0)["tip"], chain.poses({"shoulder": 0.0})["tip"])

@@ -1,4 +1,4 @@
-"""Poses from a robot's recorded joint states: ROS 2 bags (SQLite or MCAP storage), ROS 1 bags.
+"""Poses from a robot's recorded joint states: ROS 2 bags (SQLite, MCAP), MCAP files, ROS 1 bags.
 
 `load_joint_states` reads every ``sensor_msgs/msg/JointState`` message of a bag with rosbags
 (``pip install 'thermoskin[urdf]'``) into a `skin.world.kinematics.JointTrack` over a chain
@@ -27,7 +27,7 @@ def load_joint_states(path: str | Path, chain: Chain, topic: str | None = None,
     Parameters
     ----------
     path : str or Path
-        A ROS 2 bag (its folder) or a ROS 1 ``.bag`` file.
+        A ROS 2 bag (its folder), an MCAP file of ROS 2 messages, or a ROS 1 ``.bag`` file.
     chain : Chain
         The chain the angles move; joints of the messages it does not have are ignored.
     topic : str, optional
