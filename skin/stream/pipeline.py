@@ -196,7 +196,7 @@ class Pipeline:
         self.classifier = classifier
         self.assembler = FrameAssembler(layout, max_skew=max_skew)
         self.calibration = calibration or Calibration.from_layout(layout)
-        self.detector = detector or OnsetDetector(len(layout))
+        self.detector = detector or _detector_for(layout)
         self.tracker = ContactTracker(layout, rates.pop(), window=window,
                                       provisional=provisional)
         if sensors is not None:
@@ -313,3 +313,14 @@ class Pipeline:
             self.stats.results += 1
             results.append(result)
         return results
+
+
+def _detector_for(layout: Layout) -> OnsetDetector:
+    """Return an onset detector set by the boards' sensors (each taxel's noise: its board's)."""
+    from skin.models.sensors import SensorDescription
+
+    sensors = {b.id: SensorDescription.from_board(b) for b in layout.boards.values()}
+    first = sensors[layout.taxels[0].board] if layout.taxels else SensorDescription()
+    sigma = [sensors[t.board].noise_kelvin(25.0 + sensors[t.board].heated_rise)
+             * sensors[t.board].smoothing_noise_factor() for t in layout.taxels]
+    return OnsetDetector(len(layout), sensor=first, sigma=sigma)
