@@ -130,3 +130,41 @@ def test_the_pipeline_sets_its_detector_by_the_boards_sensor():
     assert pipe.detector.sigma[0] == pytest.approx(
         s.noise_kelvin(25.0 + s.heated_rise) * s.smoothing_noise_factor())
     assert pipe.detector.slow_tau > 3.0  # a slower sensor than the paper's: longer windows
+
+
+def test_streams_of_a_sensor_scale_their_truth_to_it():
+    from skin.bench.streams import simulate_stream
+    from skin.models import load_materials
+
+    mats = [load_materials()[m] for m in ("aluminium", "pine")]
+    plain = simulate_stream(mats, n_taxels=2, duration=60.0, seed=1)
+    again = simulate_stream(mats, n_taxels=2, duration=60.0, seed=1)
+    assert np.array_equal(plain.temperature, again.temperature)
+    slow = simulate_stream(mats, n_taxels=6, duration=120.0, seed=1, sensor="pid-logger",
+                           contacts_per_minute=3.0)
+    assert slow.fs == 50.0 and slow.temperature.shape == (6000, 6)
+    fast = simulate_stream(mats, n_taxels=6, duration=120.0, seed=1, sensor="fast-film",
+                           contacts_per_minute=3.0)
+    assert fast.fs == 1000.0
+    floor = {}
+    for name, st in (("slow", slow), ("fast", fast)):
+        seen = [c.visible_after for c in st.contacts if np.isfinite(c.visible_after)]
+        assert len(seen) >= 3
+        floor[name] = np.median(seen)
+    assert floor["slow"] > 2 * floor["fast"]  # the slower thermistor shows a touch later
+
+
+def test_evaluate_onset_per_sensor_reports_the_issue_figures(capsys):
+    import json
+
+    from skin.cli import main
+
+    assert main(["evaluate-onset", "--sensor", "fast-film", "--taxels", "4", "--minutes", "2",
+                 "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    for key in ("detected_5sigma", "false_alarms_per_taxel_hour", "delay_floor_ratio_median",
+                "refined_onset_error_ms_median", "contacts_5sigma"):
+        assert key in doc
+    assert doc["sensor"] == "fast-film" and 0 <= doc["detected_5sigma"] <= 1
+    assert "delay_s" not in doc and "detected_flags" not in doc
+    assert main(["evaluate-onset", "--sensor", "nonesuch", "--minutes", "1"]) == 2

@@ -28,6 +28,14 @@ temperature is the taxel's at contact plus a margin drawn uniformly from ``warm_
 flows into the sensor and the reading rises, then falls back after release. With ``warm`` = 0
 (the default) no draw is made for it: the same seed gives the same stream as before warm
 objects existed.
+
+With a ``sensor`` description (`skin.models.sensors`) the stream is that sensor's: its sample
+rate; disturbances scaled by its heated rise over the paper's (a gust and a heater step move
+a taxel in proportion to how far its heater holds it above ambient) and its slowest mode by
+its l^2 / alpha; its heater mode in contact; its PID loop and lag over the whole stream; its
+noise, ADC and smoothing. ``visible_after`` and ``peak_change`` are then measured on the
+noise-free reading after the loop and the lag, with "visible" at 3 of the sensor's per-sample
+noise. Without one (None), the stream is exactly the paper's as before.
 """
 
 from __future__ import annotations
@@ -137,7 +145,8 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
                     contacts_per_minute: float = 1.0, object_offset: tuple[float, float] = (0, 0),
                     ambient: float = 25.0, fs: float = 200.0, seed: int = 0,
                     disturbances: bool = True, tau: float = 62.5, warm: float = 0.0,
-                    warm_margin: tuple[float, float] = (2.0, 25.0)) -> Stream:
+                    warm_margin: tuple[float, float] = (2.0, 25.0),
+                    sensor: object | None = None) -> Stream:
     """Simulate ``n_taxels`` taxels for ``duration`` s; see the module docstring.
 
     Parameters
@@ -167,6 +176,8 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
         an object hotter than the taxel, in [0, 1].
     warm_margin : tuple of float
         Range of a warm object's temperature above the taxel's at contact, K.
+    sensor : skin.models.sensors.SensorDescription or str, optional
+        The sensor (see the module docstring); its sample rate replaces ``fs``.
 
     Returns
     -------
@@ -179,10 +190,24 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
     if not 0.0 <= warm <= 1.0 or warm_margin[0] < 0 or warm_margin[1] < warm_margin[0]:
         raise ValueError("warm must lie in [0, 1] and warm_margin be a range of margins >= 0")
     rng = np.random.default_rng(seed)
-    sensor = SensorConstants()
+    described = sensor is not None
+    scale, visible = 1.0, VISIBLE
+    if described:
+        from skin.models.sensors import load_sensor
+
+        sensor = load_sensor(sensor)
+        paper = load_sensor("paper")
+        fs = sensor.sample_rate
+        scale = sensor.heated_rise / paper.heated_rise
+        tau = tau * sensor.reheat_time_constant / paper.reheat_time_constant
+        visible = 3.0 * sensor.noise_kelvin(ambient + sensor.heated_rise) \
+            * sensor.smoothing_noise_factor()
+    else:
+        sensor = SensorConstants()
     n = round(duration * fs)
     times = np.arange(n) / fs
-    full_excess = float(heated_temperature(ambient, sensor)) - ambient
+    full_excess = (sensor.heated_rise if described else
+                   float(heated_temperature(ambient, sensor)) - ambient)
     amb = np.full(n, ambient)
     duty = np.ones((n, n_taxels))
     gust = np.zeros((n, n_taxels))
@@ -202,14 +227,21 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
                 s = np.maximum(times - start, 0.0)
                 shape = np.where(s < hold, 1.0 - np.exp(-s / rise),
                                  (1.0 - np.exp(-hold / rise)) * np.exp(-(s - hold) / rise))
-                gust[:, j] -= depth * shape
-        flutter = rng.normal(0.0, 0.01, (n, n_taxels))
+                gust[:, j] -= depth * scale * shape
+        flutter = rng.normal(0.0, 0.01 * scale, (n, n_taxels))
         flutter = _lag(flutter, 0.5, fs, np.zeros(n_taxels)) * np.sqrt(2 * 0.5 * fs)
         gust += flutter
     excess = _lag(full_excess * duty, tau, fs, np.full(n_taxels, full_excess))
     free = amb[:, None] + excess + gust
     reading = free.copy()
     truth: list[StreamContact] = []
+    spans: list[tuple[int, int]] = []  # sample range of each contact, for a described sensor
+    trace = contact_trace
+    if described:
+        from skin.models.sensors import contact_reading
+
+        def trace(since, t0, t_obj, e, s, h):  # the sensor's heater mode in contact too
+            return contact_reading(since, t0, t_obj, e, s, h, ambient)
     for j in range(n_taxels):
         t = 5.0 + rng.exponential(60.0 / max(contacts_per_minute, 1e-9))
         while t < duration - 10.0:
@@ -224,9 +256,9 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
             if warm > 0 and mat.temperature is None and rng.random() < warm:
                 t_obj = t0 + rng.uniform(*warm_margin)
             since = times[k0:k1] - t
-            reading[k0:k1, j] = contact_trace(since, t0, t_obj, mat.effusivity, sensor, h)
+            reading[k0:k1, j] = trace(since, t0, t_obj, mat.effusivity, sensor, h)
             # after release: back to the free reading, fast at first, then slowly
-            end = float(contact_trace(length, t0, t_obj, mat.effusivity, sensor, h))
+            end = float(trace(length, t0, t_obj, mat.effusivity, sensor, h))
             after = times[k1:] - (t + length)
             gap = end - free[k1:, j][0] if k1 < n else 0.0
             recovery = gap * (0.5 * np.exp(-after / 2.0) + 0.5 * np.exp(-after / tau))
@@ -236,7 +268,27 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
             peak = float(np.max(np.abs(reading[k0:k1, j] - t0))) if k1 > k0 else 0.0
             truth.append(StreamContact(j, float(t), float(t + length), mat.name, float(t_obj),
                                        t0, seen, peak))
+            spans.append((k0, k1))
             t += length + 10.0 + rng.exponential(60.0 / max(contacts_per_minute, 1e-9))
-    temperature = adc_readings(reading, rng, 0.5)
+    if described:
+        from dataclasses import replace
+
+        from skin.models.sensors import apply_dynamics, smooth
+
+        reading = apply_dynamics(reading, sensor, fs, axis=0)
+        for i, ((k0, k1), c) in enumerate(zip(spans, truth, strict=True)):
+            t0 = float(reading[k0 - 1, c.taxel])
+            # measured after the loop and the lag: what the taxel's reading can show
+            moved = np.abs(reading[k0:k1, c.taxel] - t0)
+            change = moved >= visible
+            seen = float(times[k0:k1][np.argmax(change)] - c.onset) if change.any() else np.inf
+            truth[i] = replace(c, sensor_temperature=t0, visible_after=seen,
+                               peak_change=float(moved.max()) if moved.size else 0.0)
+        if sensor.noise > 0:
+            reading = reading + rng.normal(0.0, sensor.noise, reading.shape)
+        temperature = smooth(adc_readings(reading, rng, sensor.adc_noise, sensor.adc_bits),
+                             sensor, axis=0, fs=fs)
+    else:
+        temperature = adc_readings(reading, rng, 0.5)
     truth.sort(key=lambda c: (c.onset, c.taxel))
     return Stream(times, temperature, amb, truth, fs)
