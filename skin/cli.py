@@ -12,6 +12,7 @@ import sys
 from skin.commands import (
     bench,
     calibrate,
+    commission,
     devices,
     evaluate,
     evaluate_onset,
@@ -26,7 +27,7 @@ from skin.commands import (
 from skin.errors import SkinError
 
 COMMANDS = (run, simulate, calibrate, train, evaluate, evaluate_onset, bench, plot, record, devices,
-            view, sensors)
+            view, sensors, commission)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -52,6 +52,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--sensor", default=None, metavar="PRESET|FILE",
                     help="simulate this sensor's stream and set the detector by it (`skin "
                          "sensors`); adds detected_5sigma and delay_floor_ratio_median")
+    ev.add_argument("--calibration", default=None, metavar="FILE",
+                    help="a calibration file from `skin commission`: each taxel's measured "
+                         "noise sets the detector (taxel ids = stream columns)")
     ev.add_argument("--json", action="store_true", help="print one JSON document")
     ev.set_defaults(func=main)
 
@@ -65,6 +68,18 @@ def _from_trials(path: str) -> tuple[np.ndarray, np.ndarray, list, float, str]:
     times = np.arange(data.temperature.shape[1]) / data.fs
     truth = [(i, float(times[o]), float(times[-1])) for i, o in enumerate(data.onset)]
     return times, data.temperature.T.copy(), truth, data.fs, data.source
+
+
+def _commissioned_noise(path: str, n_taxels: int) -> np.ndarray:
+    """Each stream column's ``noise_sigma`` from a calibration file (column k: taxel id k)."""
+    from skin.formats.calibration_file import load_calibration
+
+    cal = load_calibration(path)
+    missing = [k for k in range(n_taxels) if "noise_sigma" not in cal.taxels.get(k, {})]
+    if missing:
+        raise SkinError(f"{path}: taxels {missing[:10]} have no commissioned noise_sigma; run "
+                        f"`skin commission` on a quiet stretch of this skin first")
+    return np.array([cal.taxels[k]["noise_sigma"] for k in range(n_taxels)], dtype=float)
 
 
 def _sensor_figures(contacts: list, flags: list, delays: list, errors: list, detector: object,
@@ -96,6 +111,11 @@ def main(args: argparse.Namespace) -> int:
     progress = Progress()
     started = time.monotonic()
     by_material = None
+    sensor = None
+    if args.sensor is not None:
+        from skin.models.sensors import load_sensor
+
+        sensor = load_sensor(args.sensor)  # a bad file fails before the work starts
     if args.data:
         times, temperature, truth, fs, source = _from_trials(args.data)
         contacts = None
@@ -113,11 +133,6 @@ def main(args: argparse.Namespace) -> int:
         if not 0.0 <= args.warm <= 1.0:
             raise SkinError("--warm must lie between 0 and 1")
         progress.message(f"simulating {args.taxels} taxels x {args.minutes:g} min")
-        sensor = None
-        if args.sensor is not None:
-            from skin.models.sensors import load_sensor
-
-            sensor = load_sensor(args.sensor)
         stream = simulate_stream([table[n] for n in names], n_taxels=args.taxels,
                                  duration=60.0 * args.minutes, contacts_per_minute=args.rate,
                                  object_offset=(-args.object_offset, args.object_offset),
@@ -131,13 +146,15 @@ def main(args: argparse.Namespace) -> int:
                   f"{'quiet' if args.quiet else 'with disturbances'}, "
                   + (f"{args.warm:g} warm, " if args.warm else "") + f"seed {args.seed})")
     detector = None
-    if args.sensor is not None:
+    sigma = None
+    if args.calibration is not None:
+        sigma = _commissioned_noise(args.calibration, temperature.shape[1])
+        source += f", noise from {args.calibration}"
+    if args.sensor is not None or sigma is not None:
         from skin.stream.onset import OnsetDetector
 
-        detector = OnsetDetector(temperature.shape[1], sensor=sensor)
-        source += f", sensor {sensor.name}"
-    elif args.data is None:
-        sensor = None
+        detector = OnsetDetector(temperature.shape[1], sensor=sensor, sigma=sigma)
+        source += "" if sensor is None else f", sensor {sensor.name}"
     result = evaluate_onsets(times, temperature, truth, fs, min_duration=args.min_duration,
                              progress=lambda d, n: progress.bar(d, n, "samples", started),
                              directions=None if args.data else directions, detector=detector,
@@ -146,7 +163,7 @@ def main(args: argparse.Namespace) -> int:
     progress.done()
     flags = result.pop("detected_flags")
     delays, errors = result.pop("delay_s"), result.pop("onset_error_s")
-    if args.sensor is not None:
+    if detector is not None and contacts is not None:
         result.update(_sensor_figures(contacts, flags, delays, errors, detector,
                                       args.min_duration))
     if contacts is not None:

@@ -101,6 +101,7 @@ def main(args: argparse.Namespace) -> int:
     if args.duration is None and args.port is not None and not replay:
         args.duration = 20.0
     from skin import drivers
+    from skin.formats.calibration_file import noise_sigma
     from skin.formats.layout import load_layout
     from skin.formats.scene import load_scene, match_touches
     from skin.models import HistogramClassifier, JointClassifier, load_materials
@@ -203,7 +204,7 @@ def main(args: argparse.Namespace) -> int:
         pipeline = Pipeline(layout, classifier, calibration=calibration, sensors=sensors,
                             ambient_offset=0.0 if cal_file is None else
                             cal_file.ambient_offset, window=args.window,
-                            provisional=provisional)
+                            provisional=provisional, noise=noise_sigma(cal_file, layout))
     except ValueError as exc:
         raise SkinError(f"--window / --provisional: {exc}") from None
     events = JsonLinesSink(events_path)  # a killed run keeps every contact already given
