@@ -93,7 +93,8 @@ class SkinSimulator:
         for touch in scene.touches:
             obj = scene.objects[touch.object]
             if obj.material not in materials:
-                raise SceneError(f"{scene.source}: object {obj.name!r}: unknown material "
+                where = f"{scene.source}:{obj.line}" if obj.line else str(scene.source)
+                raise SceneError(f"{where}: object {obj.name!r}: unknown material "
                                  f"{obj.material!r} (known: {', '.join(sorted(materials))})")
             mat = materials[obj.material]
             t_obj = (mat.resting_temperature(scene.ambient) if obj.temperature is None

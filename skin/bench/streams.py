@@ -35,12 +35,13 @@ a taxel in proportion to how far its heater holds it above ambient) and its slow
 its l^2 / alpha; its heater mode in contact; its PID loop and lag over the whole stream; its
 noise, ADC and smoothing. ``visible_after`` and ``peak_change`` are then measured on the
 noise-free reading after the loop and the lag, with "visible" at 3 of the sensor's per-sample
-noise. Without one (None), the stream is exactly the paper's as before.
+noise. Such a stream comes whole (`simulate_stream`: the loop, the lag and a non-causal
+smoothing span any chunk). Without one (None), the stream is exactly the paper's as before.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -149,6 +150,8 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
                     sensor: object | None = None) -> Stream:
     """Simulate ``n_taxels`` taxels for ``duration`` s; see the module docstring.
 
+    The whole run at once: `stream_chunks` joined (the same arrays, bit for bit).
+
     Parameters
     ----------
     materials : sequence of Material
@@ -183,112 +186,286 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
     -------
     Stream
     """
+    if sensor is not None:
+        return _sensor_stream(materials, n_taxels, duration, contacts_per_minute,
+                              object_offset, ambient, seed, disturbances, tau, warm,
+                              warm_margin, sensor)
+    parts = list(stream_chunks(materials, n_taxels, duration, contacts_per_minute,
+                               object_offset, ambient, fs, seed, disturbances, tau, warm,
+                               warm_margin, chunk=max(1, round(duration * fs))))
+    if not parts:  # shorter than one sample
+        return Stream(np.zeros(0), np.zeros((0, n_taxels)), np.zeros(0), [], fs)
+    truth = [c for p in parts for c in p.contacts]
+    truth.sort(key=lambda c: (c.onset, c.taxel))
+    return Stream(np.concatenate([p.times for p in parts]),
+                  np.concatenate([p.temperature for p in parts]),
+                  np.concatenate([p.ambient for p in parts]), truth, fs)
+
+
+def _sensor_stream(materials: Sequence[Material], n_taxels: int, duration: float,
+                   contacts_per_minute: float, object_offset: tuple[float, float],
+                   ambient: float, seed: int, disturbances: bool, tau: float, warm: float,
+                   warm_margin: tuple[float, float], sensor: object) -> Stream:
+    """Return the whole stream of a described sensor (see the module docstring)."""
+    from dataclasses import replace
+
+    from skin.models.sensors import apply_dynamics, load_sensor, smooth
+
+    sensor = load_sensor(sensor)
+    fs = sensor.sample_rate
+    rng = np.random.default_rng(seed)
+    parts = list(stream_chunks(materials, n_taxels, duration, contacts_per_minute,
+                               object_offset, ambient, fs, seed, disturbances, tau, warm,
+                               warm_margin, chunk=max(1, round(duration * fs)),
+                               sensor=sensor, _rng=rng))
+    if not parts:
+        return Stream(np.zeros(0), np.zeros((0, n_taxels)), np.zeros(0), [], fs)
+    (part,) = parts
+    reading = apply_dynamics(part.temperature, sensor, fs, axis=0)  # noise-free still
+    visible = 3.0 * sensor.noise_kelvin(ambient + sensor.heated_rise) \
+        * sensor.smoothing_noise_factor()
+    truth = []
+    for c in part.contacts:
+        k0, k1 = int(np.ceil(c.onset * fs)), min(int(np.ceil(c.release * fs)), len(reading))
+        t0 = float(reading[k0 - 1, c.taxel])
+        moved = np.abs(reading[k0:k1, c.taxel] - t0)  # after the loop and the lag
+        change = moved >= visible
+        seen = float(part.times[k0:k1][np.argmax(change)] - c.onset) if change.any() \
+            else float("inf")
+        truth.append(replace(c, sensor_temperature=t0, visible_after=seen,
+                             peak_change=float(moved.max()) if moved.size else 0.0))
+    if sensor.noise > 0:
+        reading = reading + rng.normal(0.0, sensor.noise, reading.shape)
+    temperature = smooth(adc_readings(reading, rng, sensor.adc_noise, sensor.adc_bits),
+                         sensor, axis=0, fs=fs)
+    truth.sort(key=lambda c: (c.onset, c.taxel))
+    return Stream(part.times, temperature, part.ambient, truth, fs)
+
+
+@dataclass
+class StreamChunk:
+    """Consecutive samples of a simulated stream (`stream_chunks`).
+
+    Attributes
+    ----------
+    start : int
+        Index of the chunk's first sample in the whole stream.
+    times, temperature, ambient : numpy.ndarray
+        As in `Stream`, for the chunk's samples.
+    contacts : list of StreamContact
+        The contacts whose first touching sample lies in the chunk, in time order.
+    """
+
+    start: int
+    times: np.ndarray
+    temperature: np.ndarray
+    ambient: np.ndarray
+    contacts: list[StreamContact]
+
+
+def _skip_normals(rng: np.random.Generator, count: int, block: int = 1 << 20) -> None:
+    """Advance ``rng`` past ``count`` normal draws without holding them."""
+    while count > 0:
+        rng.standard_normal(min(count, block))
+        count -= block
+
+
+def _fork(rng: np.random.Generator) -> np.random.Generator:
+    """Return a generator that goes on from ``rng``'s current state, independently of it."""
+    out = np.random.Generator(type(rng.bit_generator)())
+    out.bit_generator.state = rng.bit_generator.state
+    return out
+
+
+def stream_chunks(materials: Sequence[Material], n_taxels: int = 16, duration: float = 600.0,
+                  contacts_per_minute: float = 1.0,
+                  object_offset: tuple[float, float] = (0, 0), ambient: float = 25.0,
+                  fs: float = 200.0, seed: int = 0, disturbances: bool = True,
+                  tau: float = 62.5, warm: float = 0.0,
+                  warm_margin: tuple[float, float] = (2.0, 25.0),
+                  chunk: int = 2000, sensor: object | None = None,
+                  _rng: np.random.Generator | None = None) -> Iterator[StreamChunk]:
+    """Yield the stream of `simulate_stream` in chunks of ``chunk`` samples.
+
+    Memory is bounded by the chunk (times the taxels) and the schedule of events (heater
+    switches, gusts, contacts), not by the duration. The chunks joined are the arrays of
+    `simulate_stream` bit for bit, whatever ``chunk``: the random draws are made in the order
+    of the whole-run form, each kind of draw from its own copy of the generator moved past
+    the draws before it (the schedules are drawn up front; the noise row by row).
+
+    Parameters
+    ----------
+    materials, n_taxels, duration, contacts_per_minute, object_offset, ambient, fs, seed, \
+disturbances, tau, warm, warm_margin
+        As for `simulate_stream`.
+    chunk : int
+        Samples per chunk (the last one may be shorter).
+    sensor : skin.models.sensors.SensorDescription, optional
+        Used by `simulate_stream` only: the chunk's readings are then noise-free and
+        before the sensor's loop and lag (it finishes them).
+
+    Yields
+    ------
+    StreamChunk
+    """
+    from scipy.signal import lfilter
+
     if n_taxels < 1 or duration <= 0 or fs <= 0 or contacts_per_minute < 0:
         raise ValueError("n_taxels, duration and fs must be positive, the contact rate >= 0")
     if not materials:
         raise ValueError("simulate_stream needs at least one material")
     if not 0.0 <= warm <= 1.0 or warm_margin[0] < 0 or warm_margin[1] < warm_margin[0]:
         raise ValueError("warm must lie in [0, 1] and warm_margin be a range of margins >= 0")
-    rng = np.random.default_rng(seed)
+    if chunk < 1:
+        raise ValueError(f"chunk must be at least 1 sample, got {chunk}")
+    rng = np.random.default_rng(seed) if _rng is None else _rng
     described = sensor is not None
-    scale, visible = 1.0, VISIBLE
+    scale = 1.0
+    trace_of = contact_trace
     if described:
-        from skin.models.sensors import load_sensor
+        from skin.models.sensors import contact_reading, load_sensor
 
-        sensor = load_sensor(sensor)
-        paper = load_sensor("paper")
-        fs = sensor.sample_rate
-        scale = sensor.heated_rise / paper.heated_rise
-        tau = tau * sensor.reheat_time_constant / paper.reheat_time_constant
-        visible = 3.0 * sensor.noise_kelvin(ambient + sensor.heated_rise) \
-            * sensor.smoothing_noise_factor()
+        scale = sensor.heated_rise / load_sensor("paper").heated_rise
+        tau = tau * sensor.reheat_time_constant / load_sensor("paper").reheat_time_constant
+        full_excess = sensor.heated_rise
+
+        def trace_of(since, t0, t_obj, e, s, h):  # the sensor's heater mode in contact too
+            return contact_reading(since, t0, t_obj, e, s, h, ambient)
     else:
         sensor = SensorConstants()
     n = round(duration * fs)
-    times = np.arange(n) / fs
-    full_excess = (sensor.heated_rise if described else
-                   float(heated_temperature(ambient, sensor)) - ambient)
-    amb = np.full(n, ambient)
-    duty = np.ones((n, n_taxels))
-    gust = np.zeros((n, n_taxels))
+    if described and chunk < n:
+        raise ValueError("a described sensor's stream comes whole (simulate_stream): its loop, "
+                         "lag and smoothing span chunks")
+    if not described:
+        full_excess = float(heated_temperature(ambient, sensor)) - ambient
+    switches: list[tuple[int, int, float]] = []  # (sample, taxel, duty), in time order
+    gusts: list[tuple[float, int, float, float, float]] = []  # (start, taxel, depth, rise, hold)
+    amb_rng = flutter_rng = None
     if disturbances:
-        amb = ambient + np.cumsum(rng.normal(0.0, 1.0 / np.sqrt(600.0 * fs), n))
+        amb_rng = _fork(rng)
+        _skip_normals(rng, n)
         for j in range(n_taxels):
             k = 0
             while k < n:
                 k_next = k + round(rng.uniform(20.0, 120.0) * fs)
-                duty[k:k_next, j] = rng.choice([1.0, 0.85, 0.7, 0.55])
+                switches.append((k, j, float(rng.choice([1.0, 0.85, 0.7, 0.55]))))
                 k = k_next
             for start in np.cumsum(rng.exponential(60.0, int(duration / 30.0) + 2)):
                 if start >= duration:
                     break
                 depth, rise, hold = rng.uniform(*GUST_DEPTH), rng.uniform(1.0, 4.0), \
                     rng.uniform(1.0, 8.0)
-                s = np.maximum(times - start, 0.0)
-                shape = np.where(s < hold, 1.0 - np.exp(-s / rise),
-                                 (1.0 - np.exp(-hold / rise)) * np.exp(-(s - hold) / rise))
-                gust[:, j] -= depth * scale * shape
-        flutter = rng.normal(0.0, 0.01 * scale, (n, n_taxels))
-        flutter = _lag(flutter, 0.5, fs, np.zeros(n_taxels)) * np.sqrt(2 * 0.5 * fs)
-        gust += flutter
-    excess = _lag(full_excess * duty, tau, fs, np.full(n_taxels, full_excess))
-    free = amb[:, None] + excess + gust
-    reading = free.copy()
-    truth: list[StreamContact] = []
-    spans: list[tuple[int, int]] = []  # sample range of each contact, for a described sensor
-    trace = contact_trace
-    if described:
-        from skin.models.sensors import contact_reading
-
-        def trace(since, t0, t_obj, e, s, h):  # the sensor's heater mode in contact too
-            return contact_reading(since, t0, t_obj, e, s, h, ambient)
+                gusts.append((float(start), j, depth, rise, hold))
+        switches.sort(key=lambda e: e[0])  # stable: a taxel's switches stay in order
+        gusts.sort(key=lambda g: g[0])
+        flutter_rng = _fork(rng)
+        _skip_normals(rng, n * n_taxels)
+    # the contacts: what the whole-run form draws, taxel by taxel; the readings come later
+    schedule: list[tuple] = []
     for j in range(n_taxels):
         t = 5.0 + rng.exponential(60.0 / max(contacts_per_minute, 1e-9))
         while t < duration - 10.0:
             length = float(np.exp(rng.uniform(np.log(0.1), np.log(5.0))))
             mat = materials[rng.integers(len(materials))]
-            t_obj = mat.resting_temperature(float(amb[round(t * fs)])) + (
-                rng.uniform(*object_offset) if mat.temperature is None else 0.0)
+            offset = rng.uniform(*object_offset) if mat.temperature is None else 0.0
             h = 10.0 ** rng.uniform(*np.log10(mat.conductance_range))
-            k0 = int(np.ceil(t * fs))
-            k1 = int(np.ceil((t + length) * fs))
-            t0 = float(reading[k0 - 1, j])
+            margin = None
             if warm > 0 and mat.temperature is None and rng.random() < warm:
-                t_obj = t0 + rng.uniform(*warm_margin)
-            since = times[k0:k1] - t
-            reading[k0:k1, j] = trace(since, t0, t_obj, mat.effusivity, sensor, h)
-            # after release: back to the free reading, fast at first, then slowly
-            end = float(trace(length, t0, t_obj, mat.effusivity, sensor, h))
-            after = times[k1:] - (t + length)
-            gap = end - free[k1:, j][0] if k1 < n else 0.0
-            recovery = gap * (0.5 * np.exp(-after / 2.0) + 0.5 * np.exp(-after / tau))
-            reading[k1:, j] = free[k1:, j] + recovery
-            change = np.abs(reading[k0:k1, j] - t0) >= VISIBLE
-            seen = float(since[np.argmax(change)]) if change.any() else float("inf")
-            peak = float(np.max(np.abs(reading[k0:k1, j] - t0))) if k1 > k0 else 0.0
-            truth.append(StreamContact(j, float(t), float(t + length), mat.name, float(t_obj),
-                                       t0, seen, peak))
-            spans.append((k0, k1))
+                margin = rng.uniform(*warm_margin)
+            schedule.append((int(np.ceil(t * fs)), j, t, length, mat, offset, h, margin))
             t += length + 10.0 + rng.exponential(60.0 / max(contacts_per_minute, 1e-9))
-    if described:
-        from dataclasses import replace
+    schedule.sort(key=lambda c: c[0])
+    adc_rng = rng  # the readout noise comes last
+    a_lag = np.exp(-1.0 / (tau * fs))
+    excess_z = (a_lag * np.full(n_taxels, full_excess))[None, :]
+    a_flutter = np.exp(-1.0 / (0.5 * fs))
+    flutter_z = (a_flutter * np.zeros(n_taxels))[None, :]
+    duty_now = np.ones(n_taxels)
+    amb_sum = 0.0
+    amb_last = reading_last = None  # the sample before the chunk
+    live_gusts: list[tuple[float, int, float, float, float]] = []
+    # per taxel, its latest contact: [k0, k1, trace, release time, end reading, gap]
+    latest: dict[int, list] = {}
+    i_switch = i_gust = i_contact = 0
+    for a in range(0, n, chunk):
+        b = min(a + chunk, n)
+        m = b - a
+        times = np.arange(a, b) / fs
+        if disturbances:
+            steps = amb_rng.normal(0.0, 1.0 / np.sqrt(600.0 * fs), m)
+            cum = np.cumsum(np.concatenate(([amb_sum], steps)))[1:]
+            amb_sum = cum[-1]
+            amb = ambient + cum
+        else:
+            amb = np.full(m, ambient)
+        duty = np.tile(duty_now, (m, 1))
+        while i_switch < len(switches) and switches[i_switch][0] < b:
+            k, j, value = switches[i_switch]
+            duty[k - a:, j] = value
+            duty_now[j] = value
+            i_switch += 1
+        gust = np.zeros((m, n_taxels))
+        if disturbances:
+            while i_gust < len(gusts) and gusts[i_gust][0] < times[-1]:
+                live_gusts.append(gusts[i_gust])
+                i_gust += 1
+            # a gust long gone adds exactly 0 (its exp underflows): drop it
+            live_gusts = [g for g in live_gusts if times[0] - g[0] - g[4] < 750.0 * g[3]]
+            for start, j, depth, rise, hold in sorted(live_gusts, key=lambda g: g[1]):
+                s = np.maximum(times - start, 0.0)
+                shape = np.where(s < hold, 1.0 - np.exp(-s / rise),
+                                 (1.0 - np.exp(-hold / rise)) * np.exp(-(s - hold) / rise))
+                gust[:, j] -= depth * scale * shape
+            flutter = flutter_rng.normal(0.0, 0.01 * scale, (m, n_taxels))
+            flutter, flutter_z = lfilter([1.0 - a_flutter], [1.0, -a_flutter], flutter, axis=0,
+                                         zi=flutter_z)
+            gust += flutter * np.sqrt(2 * 0.5 * fs)
+        excess, excess_z = lfilter([1.0 - a_lag], [1.0, -a_lag], full_excess * duty, axis=0,
+                                   zi=excess_z)
+        free = amb[:, None] + excess + gust
+        reading = free.copy()
+        for j, c in latest.items():  # the contacts before the chunk: their trace, recovery
+            _write_contact(reading, free, times, a, j, c, tau)
+        found = []
+        while i_contact < len(schedule) and schedule[i_contact][0] < b:
+            k0, j, t, length, mat, offset, h, margin = schedule[i_contact]
+            i_contact += 1
+            amb_at = amb[round(t * fs) - a] if round(t * fs) >= a else amb_last
+            t_obj = mat.resting_temperature(float(amb_at)) + offset
+            t0 = float(reading[k0 - 1 - a, j] if k0 > a else reading_last[j])
+            if margin is not None:
+                t_obj = t0 + margin
+            k1 = int(np.ceil((t + length) * fs))
+            since = np.arange(k0, min(k1, n)) / fs - t
+            trace = trace_of(since, t0, t_obj, mat.effusivity, sensor, h)
+            end = float(trace_of(length, t0, t_obj, mat.effusivity, sensor, h))
+            change = np.abs(trace - t0) >= VISIBLE
+            seen = float(since[np.argmax(change)]) if change.any() else float("inf")
+            peak = float(np.max(np.abs(trace - t0))) if k1 > k0 else 0.0
+            found.append(StreamContact(j, float(t), float(t + length), mat.name, float(t_obj),
+                                       t0, seen, peak))
+            latest[j] = [k0, k1, trace, t + length, end, None]
+            _write_contact(reading, free, times, a, j, latest[j], tau)
+        amb_last, reading_last = amb[-1], reading[-1].copy()
+        # a described sensor's readout follows in `simulate_stream`, over the whole stream
+        temperature = reading if described else adc_readings(reading, adc_rng, 0.5)
+        found.sort(key=lambda c: (c.onset, c.taxel))
+        yield StreamChunk(a, times, temperature, amb, found)
 
-        from skin.models.sensors import apply_dynamics, smooth
 
-        reading = apply_dynamics(reading, sensor, fs, axis=0)
-        for i, ((k0, k1), c) in enumerate(zip(spans, truth, strict=True)):
-            t0 = float(reading[k0 - 1, c.taxel])
-            # measured after the loop and the lag: what the taxel's reading can show
-            moved = np.abs(reading[k0:k1, c.taxel] - t0)
-            change = moved >= visible
-            seen = float(times[k0:k1][np.argmax(change)] - c.onset) if change.any() else np.inf
-            truth[i] = replace(c, sensor_temperature=t0, visible_after=seen,
-                               peak_change=float(moved.max()) if moved.size else 0.0)
-        if sensor.noise > 0:
-            reading = reading + rng.normal(0.0, sensor.noise, reading.shape)
-        temperature = smooth(adc_readings(reading, rng, sensor.adc_noise, sensor.adc_bits),
-                             sensor, axis=0, fs=fs)
-    else:
-        temperature = adc_readings(reading, rng, 0.5)
-    truth.sort(key=lambda c: (c.onset, c.taxel))
-    return Stream(times, temperature, amb, truth, fs)
+def _write_contact(reading: np.ndarray, free: np.ndarray, times: np.ndarray, a: int, j: int,
+                   c: list, tau: float) -> None:
+    """Write a contact's trace and the recovery after it into the chunk starting at ``a``."""
+    k0, k1, trace, release, end, gap = c
+    b = a + len(times)
+    if k0 < b and k1 > a:
+        lo, hi = max(k0, a), min(k1, b)
+        reading[lo - a:hi - a, j] = trace[lo - k0:hi - k0]
+    if k1 < b:
+        lo = max(k1, a)
+        if gap is None:  # the first free sample after release sets the gap
+            gap = c[5] = end - free[k1 - a, j]
+        after = times[lo - a:] - release
+        recovery = gap * (0.5 * np.exp(-after / 2.0) + 0.5 * np.exp(-after / tau))
+        reading[lo - a:, j] = free[lo - a:, j] + recovery

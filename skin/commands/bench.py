@@ -10,7 +10,8 @@ taxels (at one initial temperature, or staggered) and reports the accuracy and c
 contact of the joint model that shares the object's temperature between them
 (`skin.models.joint`).
 
-``skin bench pipeline`` pushes a simulated skin of each size (boards of 256 taxels) through
+``skin bench pipeline`` pushes a simulated skin of each size (boards of 256 taxels), generated
+in chunks of 1 s so that memory stays bounded, through
 decode, assemble, calibrate, onset, track, refine and classify one sample at a time and
 reports taxel-samples per second of the chain and of each stage, the real-time factor at
 200 Hz, the per-sample latency, how long results wait for their share of the budget, and the
@@ -129,13 +130,13 @@ def main_thermal(args: argparse.Namespace) -> int:
         cells=cells, dts=dts, progress=lambda d, n: progress.bar(d, n, "forward", started))
     progress.done()
     started_inv = time.monotonic()
-    inverse = thermal_bench.inverse(
+    inverse, per_material = thermal_bench.inverse(
         durations=(0.25, 2.5) if args.quick else (0.25, 0.5, 1.0, 2.5),
         trials=3 if args.quick else args.trials,
         progress=lambda d, n: progress.bar(d, n, "inverse", started_inv))
     progress.done()
     doc = {"machine": bench.machine(), "wall_time": round(time.monotonic() - started, 2),
-           "forward": forward, "inverse": inverse}
+           "forward": forward, "inverse": inverse, "inverse_per_material": per_material}
     if args.plot:
         from skin.viz.plots import plot_estimator_errors, plot_work_precision
 
@@ -160,12 +161,32 @@ def main_thermal(args: argparse.Namespace) -> int:
               f"{r['time_per_trial_ms'] / base[r['case']]:>9.0f}")
     print("\ninverse estimators on simulated trials (paper's protocol, 11 materials)")
     print(f"{'estimator':<28} {'dur s':>6} {'valid':>6} {'median |dlog10 e|':>18} "
-          f"{'p90':>6} {'ms/trial':>9}")
+          f"{'p90':>6} {'converged':>9} {'in 2 std':>8} {'ms/trial':>9}")
     for r in inverse:
         med = "-" if r["median_abs_log10_error"] is None else f"{r['median_abs_log10_error']:.3f}"
         p90 = "-" if r["p90_abs_log10_error"] is None else f"{r['p90_abs_log10_error']:.3f}"
+        conv = f"{r['converged']:.2f}" if "converged" in r else "-"
+        cover = f"{r['within_2_std']:.2f}" if "within_2_std" in r else "-"
         print(f"{r['estimator']:<28} {r['duration']:>6g} {r['valid']:>6.2f} {med:>18} "
-              f"{p90:>6} {r['time_per_trial_ms']:>9.3f}")
+              f"{p90:>6} {conv:>9} {cover:>8} {r['time_per_trial_ms']:>9.3f}")
+    last = per_material[0]["duration"] if per_material else None
+    print(f"\nbias per material at {last:g} s: median signed dlog10 e (valid trials); "
+          f"fits: share within 2 reported std")
+    ests = list(dict.fromkeys(r["estimator"] for r in per_material))
+    print(f"{'material':<12} {'e':>8} " + " ".join(f"{e[:22]:>22}" for e in ests))
+    for m in dict.fromkeys(r["material"] for r in per_material):
+        cells = []
+        for e in ests:
+            r = next(x for x in per_material if x["material"] == m and x["estimator"] == e)
+            bias = "out of range" if r["median_log10_error"] is None \
+                else f"{r['median_log10_error']:+.2f}"
+            if r["valid"] < 1:
+                bias += f" ({r['valid']:.0%} valid)"
+            if "within_2_std" in r:
+                bias += f" [{r['within_2_std']:.2f}]"
+            cells.append(f"{bias:>22}")
+        e_true = next(x["true_effusivity"] for x in per_material if x["material"] == m)
+        print(f"{m:<12} {e_true:>8.0f} " + " ".join(cells))
     if "figures" in doc:
         print("figures: " + ", ".join(doc["figures"]))
     return 0
@@ -320,12 +341,12 @@ def main_pipeline(args: argparse.Namespace) -> int:
         print(f"{r['taxels']:>7} {r['taxel_samples_per_s']:>10} "
               + " ".join(f"{r['stages'][k] or '-':>10}" for k in names))
     print(f"\n{'taxels':>7} {'x real time':>11} {'p50 ms':>7} {'p99 ms':>7} {'contacts':>8} "
-          f"{'wait p50 ms':>11} {'wait p99 ms':>11} {'memory MB':>9}")
+          f"{'wait p50 ms':>11} {'wait p99 ms':>11} {'memory MB':>9} {'peak MB':>8}")
     for r in rows:
         w = r["result_wait_ms"]
         print(f"{r['taxels']:>7} {r['realtime_factor']:>11} {r['latency_ms']['p50']:>7} "
               f"{r['latency_ms']['p99']:>7} {r['contacts']:>8} {w['p50']!s:>11} "
-              f"{w['p99']!s:>11} {r['peak_memory_mb_growth']:>9}")
+              f"{w['p99']!s:>11} {r['peak_memory_mb_growth']:>9} {r['peak_memory_mb']:>8}")
     return 0
 
 

@@ -30,11 +30,14 @@ class SceneObject:
         Key in the materials table.
     temperature : float or None
         Object temperature, deg C; None: the material's own (heat-generating) or ambient.
+    line : int
+        Line of its ``[[objects]]`` header in the scene file (0: unknown), for messages.
     """
 
     name: str
     material: str
     temperature: float | None
+    line: int = 0
 
 
 @dataclass(frozen=True)
@@ -192,7 +195,7 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
         temp = raw.get("temperature")
         if temp is not None:
             temp = _number(raw, "temperature", f"{where} ({name})")
-        objects[name] = SceneObject(name, material, temp)
+        objects[name] = SceneObject(name, material, temp, line)
     touches: list[Touch] = []
     touch_lines = header_lines(text, "touches")
     for k, raw in enumerate(_tables(data, "touches", source)):
