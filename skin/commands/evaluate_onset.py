@@ -177,10 +177,16 @@ def main(args: argparse.Namespace) -> int:
            "wall_time": round(time.monotonic() - started, 2)}
     if by_material is not None:
         doc["by_material"] = by_material
-        # contacts whose reading moved more than any gust: the ones size alone can tell
+        # contacts whose reading moved more than any gust: the ones size alone can tell (a
+        # described sensor's gusts scale with its heated rise, as the stream makes them)
+        gust = GUST_DEPTH[1]
+        if sensor is not None:
+            from skin.models.sensors import load_sensor
+
+            gust *= sensor.heated_rise / load_sensor("paper").heated_rise
         big = [k for k, c in enumerate(contacts)
-               if c.duration >= args.min_duration and c.peak_change > GUST_DEPTH[1]]
-        doc["beyond_gusts"] = {"threshold_k": GUST_DEPTH[1], "contacts": len(big),
+               if c.duration >= args.min_duration and c.peak_change > gust]
+        doc["beyond_gusts"] = {"threshold_k": round(gust, 4), "contacts": len(big),
                                "detection_rate": round(sum(flags[k] for k in big)
                                                        / max(len(big), 1), 4)}
     if args.json:
