@@ -183,6 +183,19 @@ class SensorDescription:
         lsb = self.kelvin_per_count(temperature)
         return math.sqrt(self.noise**2 + (self.adc_noise**2 + 1.0 / 12.0) * lsb**2)
 
+    def smoothing_noise_factor(self) -> float:
+        """Return how much the sensor's smoothing shrinks white noise per sample (rms ratio).
+
+        The root of the sum of squares of the smoothing filter's impulse response (1 for no
+        smoothing). Sums over many samples keep the white noise's low-frequency power.
+        """
+        if self.smoothing == "none":
+            return 1.0
+        n = 8 * max(self.smoothing_window, int(self.sample_rate / self.smoothing_cutoff)) + 1
+        impulse = np.zeros(n)
+        impulse[n // 2] = 1.0  # in the middle: a non-causal filter spreads both ways
+        return float(np.sqrt(np.sum(smooth(impulse, self) ** 2)))
+
     # -- conversions ------------------------------------------------------------------------
     def constants(self) -> Any:
         """Return the `skin.models.physics.SensorConstants` of the thermal body."""

@@ -12,6 +12,7 @@ import sys
 from skin.commands import (
     bench,
     calibrate,
+    commission,
     completion,
     config,
     devices,
@@ -28,7 +29,7 @@ from skin.commands import (
 from skin.errors import SkinError
 
 COMMANDS = (run, simulate, calibrate, train, evaluate, evaluate_onset, bench, plot, record, devices,
-            view, sensors, config, completion)
+            view, sensors, config, completion, commission)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -128,11 +128,14 @@ class Skin:
         self._check_calibration()
         self._check_classifier()
         self._check_arm()
+        from skin.formats.calibration_file import noise_sigma
+
         try:
             self.pipeline = Pipeline(
                 self.layout, self.classifier, calibration=self.calibration, sensors=self.sensors,
                 ambient_offset=0.0 if self.cal_file is None else self.cal_file.ambient_offset,
-                window=s.window, provisional=s.provisional)
+                window=s.window, provisional=s.provisional,
+                noise=noise_sigma(self.cal_file, self.layout))  # commissioned noise, if any
         except ValueError as exc:
             raise SkinError(f"--window / --provisional: {exc}") from None
         if s.out is not None and not s.force:
