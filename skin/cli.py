@@ -12,6 +12,7 @@ import sys
 from skin.commands import (
     bench,
     calibrate,
+    dataset,
     devices,
     evaluate,
     evaluate_onset,
@@ -25,7 +26,7 @@ from skin.commands import (
 from skin.errors import SkinError
 
 COMMANDS = (run, simulate, calibrate, train, evaluate, evaluate_onset, bench, plot, record, devices,
-            view)
+            view, dataset)
 
 
 def build_parser() -> argparse.ArgumentParser:

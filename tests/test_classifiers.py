@@ -57,7 +57,7 @@ def test_trial_matrix_and_features_layout(data):
     assert x.shape == (len(data), 2 + 100)
     amb, _, w = split_rows(x)
     assert np.allclose(amb, data.ambient)
-    assert np.allclose(w[:, 0], data.temperature[:, 100])
+    assert np.allclose(w[:, 0], data.primary[:, 100])
     assert trace_features(x, "both").shape == (len(data), 200)
     with pytest.raises(ValueError, match="feature kind"):
         trace_features(x, "fft")
@@ -251,8 +251,8 @@ def _contact_from_trials(ds, rows, duration):
 
     windows = []
     for k, i in enumerate(rows):
-        y = ds.temperature[i, ds.onset[i]:ds.onset[i] + round(duration * ds.fs)]
-        windows.append(TaxelWindow(k, 0.0, float(ds.temperature[i, ds.onset[i] - 10:
+        y = ds.primary[i, ds.onset[i]:ds.onset[i] + round(duration * ds.fs)]
+        windows.append(TaxelWindow(k, 0.0, float(ds.primary[i, ds.onset[i] - 10:
                                                                  ds.onset[i]].mean()),
                                    np.arange(y.size) / ds.fs, y, True))
     return Contact(0, list(range(len(rows))), 0.0, duration, float(ds.ambient[rows[0]]),

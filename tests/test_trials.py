@@ -20,7 +20,7 @@ def small(model="contact", trials=20, seed=3, **kw):
 def test_protocol_dataset_has_the_designed_shape_and_truth():
     ds = small()
     assert len(ds) == 11 * 20
-    assert ds.temperature.shape == (220, 700)  # 0.5 s before onset + 3 s at 200 Hz
+    assert ds.temperature.shape == (220, 1, 700)  # 0.5 s before onset + 3 s at 200 Hz
     assert ds.fs == 200.0 and np.all(ds.onset == 100)
     assert ds.classes == sorted(PAPER_MATERIALS)
     assert set(ds.extra) >= {"true_effusivity", "true_sensor_temperature",
@@ -30,9 +30,9 @@ def test_protocol_dataset_has_the_designed_shape_and_truth():
     # objects are at or above ambient (warmed by earlier touches, never colder)
     assert np.all(ds.extra["true_object_temperature"] >= ds.ambient - 1e-9)
     # before onset the reading sits near the initial temperature; after it, it falls
-    pre = ds.temperature[:, 90:100].mean(axis=1)
+    pre = ds.primary[:, 90:100].mean(axis=1)
     assert np.median(np.abs(pre - t0)) < 0.1
-    assert np.all(ds.temperature[:, -1] < pre)
+    assert np.all(ds.primary[:, -1] < pre)
 
 
 def test_same_seed_same_dataset_other_seed_other_dataset():
@@ -44,7 +44,7 @@ def test_same_seed_same_dataset_other_seed_other_dataset():
 def test_readings_are_quantised_by_the_paper_adc():
     ds = small(trials=10)
     # a 10-bit ADC gives few distinct readings: steps of 0.05-0.1 C near 25-40 C
-    steps = np.diff(np.unique(ds.temperature[0]))
+    steps = np.diff(np.unique(ds.primary[0]))
     assert steps.min() > 0.03
 
 
@@ -62,7 +62,7 @@ def test_warm_room_shifts_the_initial_temperatures():
 def test_multilayer_path_runs_the_protocol_with_the_heater_on():
     ds = simulate_trials([MATS["aluminium"], MATS["pine"]], Protocol(trials=12), seed=2,
                          model="multilayer")
-    assert ds.temperature.shape == (24, 700)
+    assert ds.temperature.shape == (24, 1, 700)
     assert np.all(np.isfinite(ds.temperature))
     t0 = ds.extra["true_sensor_temperature"]
     al = ds.label == "aluminium"
@@ -210,7 +210,7 @@ def test_multilayer_path_labels_the_taxel_and_ambient_it_simulated():
     assert np.array_equal(amb[0], amb[1])
     # the initial temperature is read at the contact, not 0.5 s before it
     t0 = ds.extra["true_sensor_temperature"]
-    at_onset = ds.temperature[:, 99:102].mean(axis=1)
+    at_onset = ds.primary[:, 99:102].mean(axis=1)
     assert np.max(np.abs(t0 - at_onset)) < 0.15
 
 

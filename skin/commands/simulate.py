@@ -130,7 +130,7 @@ def main_trials(args: argparse.Namespace) -> int:
     path = ds.save(args.out)
     t0 = ds.extra["true_sensor_temperature"]
     summary = {"out": str(path), "trials": len(ds), "classes": names, "model": args.model,
-               "samples": ds.temperature.shape[1], "fs": ds.fs, "seed": args.seed,
+               "samples": ds.temperature.shape[-1], "fs": ds.fs, "seed": args.seed,
                "wall_time": round(wall, 3), "trials_per_second": round(len(ds) / wall, 1),
                "initial_temperature": {"min": round(float(t0.min()), 2),
                                        "mean": round(float(t0.mean()), 2),
@@ -139,7 +139,7 @@ def main_trials(args: argparse.Namespace) -> int:
         print(json.dumps(summary))
     else:
         print(f"wrote {path}: {len(ds)} trials of {len(names)} materials, "
-              f"{ds.temperature.shape[1]} samples at {ds.fs:g} Hz ({summary['trials_per_second']}"
+              f"{ds.temperature.shape[-1]} samples at {ds.fs:g} Hz ({summary['trials_per_second']}"
               f" trials/s); initial sensor temperature {t0.min():.1f}-{t0.max():.1f} C, "
               f"mean {t0.mean():.1f} C", file=sys.stdout)
     return 0
