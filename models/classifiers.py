@@ -12,9 +12,12 @@ Every method takes rows laid out by `skin.models.features.trial_matrix`
 
 each with ``:raw`` (default), ``:slope`` or ``:both`` features, e.g. ``svm-pca:both``;
 
-- ``default``: the library's recommendation, `PhysicsFeatures` (the contact fit's effusivity,
-  object temperature and conductance, and the trace normalised by the initial conditions)
-  into gradient-boosted trees, with probabilities.
+- ``default``: the library's recommendation, `skin.models.contact.ContactClassifier`: the
+  joint physics fit of all a contact's channels (one object temperature shared) and their
+  traces into calibrated gradient-boosted trees. It alone reads every channel of a contact
+  (rows of `skin.models.features.contact_matrix`); the others read the primary channel;
+- ``fit-trees``: the previous default, `PhysicsFeatures` (one channel's contact fit and its
+  normalised trace) into gradient-boosted trees.
 """
 
 from __future__ import annotations
@@ -48,10 +51,29 @@ def parse_method(name: str) -> tuple[str, str]:
     return base, kind
 
 
-def make_method(name: str, fs: float = 200.0):
-    """Return a fresh, unfitted estimator for a method name such as ``"knn-pca:both"``."""
+def make_method(name: str, fs: float = 200.0, channels: int = 1):
+    """Return a fresh, unfitted estimator for a method name such as ``"knn-pca:both"``.
+
+    ``channels`` is the number of channel blocks of the rows of a method that reads every
+    channel (`reads_channels`); the others ignore it.
+    """
     base, kind = parse_method(name)
+    if base in CHANNEL_METHODS:
+        return METHODS[base](kind, fs, channels)
     return METHODS[base](kind, fs)
+
+
+def reads_channels(name: str) -> bool:
+    """Whether a method reads every channel of a contact (else the primary one)."""
+    return parse_method(name)[0] in CHANNEL_METHODS
+
+
+def method_matrix(data, name: str, duration: float) -> np.ndarray:
+    """Return the rows a method reads: `contact_matrix` or `trial_matrix` of ``data``."""
+    from skin.models.features import contact_matrix, trial_matrix
+
+    return contact_matrix(data, duration) if reads_channels(name) else trial_matrix(data,
+                                                                                    duration)
 
 
 def _svm_pca(kind: str, fs: float):
@@ -80,7 +102,13 @@ def _model(kind: str, fs: float):
     return ModelBasedClassifier(fs=fs)
 
 
-def _default(kind: str, fs: float):
+def _default(kind: str, fs: float, channels: int = 1):
+    from skin.models.contact import ContactClassifier
+
+    return ContactClassifier(channels=channels, fs=fs)
+
+
+def _fit_trees(kind: str, fs: float):
     from sklearn.ensemble import HistGradientBoostingClassifier
     from sklearn.pipeline import make_pipeline
 
@@ -93,7 +121,8 @@ def _default(kind: str, fs: float):
 
 
 METHODS = {"svm-pca": _svm_pca, "knn-pca": _knn_pca, "hmm": _hmm, "model": _model,
-           "default": _default}
+           "default": _default, "fit-trees": _fit_trees}
+CHANNEL_METHODS = frozenset({"default"})
 
 
 
@@ -372,6 +401,14 @@ def fuse_probabilities(probabilities: np.ndarray) -> np.ndarray:
     return out / out.sum()
 
 
+def truncate_rows(x: np.ndarray, channels: int, samples: int) -> np.ndarray:
+    """Cut rows of ``channels`` blocks ``[T0, window...]`` (after ambient) to ``samples``."""
+    x = np.asarray(x, dtype=float)
+    block = (x.shape[1] - 1) // channels
+    b = x[:, 1:].reshape(x.shape[0], channels, block)[:, :, : 1 + samples]
+    return np.column_stack([x[:, 0], b.reshape(x.shape[0], -1)])
+
+
 class AnytimeClassifier(ClassifierMixin, BaseEstimator):
     """A label and a confidence at any moment after onset, "unknown" until it is sure.
 
@@ -389,27 +426,39 @@ class AnytimeClassifier(ClassifierMixin, BaseEstimator):
         Probability needed to name a material.
     fs : float
         Sampling rate, Hz.
+    channels : int
+        Channel blocks per row (a method that reads every channel; else 1).
     """
 
     def __init__(self, method: str = "default", durations: tuple = (0.25, 0.5, 1.0, 2.5),
-                 threshold: float = 0.8, fs: float = 200.0) -> None:
+                 threshold: float = 0.8, fs: float = 200.0, channels: int = 1) -> None:
         self.method = method
         self.durations = durations
         self.threshold = threshold
         self.fs = fs
+        self.channels = channels
+
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.input_tags.allow_nan = reads_channels(self.method)
+        return tags
+
+    def _samples(self, x: np.ndarray) -> int:
+        return (x.shape[1] - 1) // self.channels - 1
 
     def fit(self, X: np.ndarray, y: np.ndarray) -> AnytimeClassifier:
         """Fit one model per duration on the rows truncated to it."""
-        x, y = validate_data(self, X, y, reset=True)
+        nan = "allow-nan" if reads_channels(self.method) else True
+        x, y = validate_data(self, X, y, reset=True, ensure_all_finite=nan)
         if not hasattr(make_method(self.method, self.fs), "predict_proba"):
             raise ValueError(f"method {self.method!r} gives no probabilities, so it cannot say "
                              f"how sure it is; anytime needs default, knn-pca or hmm")
-        n = x.shape[1] - 2
+        n = self._samples(x)
         self.samples_ = [round(d * self.fs) for d in self.durations if round(d * self.fs) <= n]
         if not self.samples_:
             raise ValueError(f"windows of {n} samples are shorter than every duration")
-        self.models_ = [make_method(self.method, self.fs).fit(x[:, : 2 + k], y)
-                        for k in self.samples_]
+        self.models_ = [make_method(self.method, self.fs, self.channels).fit(
+            truncate_rows(x, self.channels, k), y) for k in self.samples_]
         self.classes_ = self.models_[0].classes_
         return self
 
@@ -417,12 +466,12 @@ class AnytimeClassifier(ClassifierMixin, BaseEstimator):
         """Class probabilities from the model of the longest duration the rows cover."""
         check_is_fitted(self, "models_")
         x = np.asarray(X, dtype=float)
-        n = x.shape[1] - 2
+        n = self._samples(x)
         usable = [i for i, k in enumerate(self.samples_) if k <= n]
         if not usable:
             return np.full((x.shape[0], len(self.classes_)), 1.0 / len(self.classes_))
         i = usable[-1]
-        return self.models_[i].predict_proba(x[:, : 2 + self.samples_[i]])
+        return self.models_[i].predict_proba(truncate_rows(x, self.channels, self.samples_[i]))
 
     def predict(self, X: np.ndarray) -> np.ndarray:
         """Most probable class where sure enough, else ``"unknown"``."""

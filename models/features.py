@@ -66,6 +66,22 @@ def trial_matrix(data: TrialSet, duration: float) -> np.ndarray:
     return np.column_stack([amb, t0, w])
 
 
+def contact_matrix(data: TrialSet, duration: float) -> np.ndarray:
+    """Rows ``[ambient, T0_0, window_0..., T0_1, window_1..., ...]``, one block per channel.
+
+    NaN where a channel is absent; with one channel this is `trial_matrix`.
+    """
+    w = window(data, duration, channel=slice(None))  # (n, c, m)
+    first = np.maximum(data.onset - PRE, 0)
+    t0 = np.array([data.temperature[i, :, first[i]:max(data.onset[i], first[i] + 1)].mean(axis=1)
+                   for i in range(len(data))])  # (n, c)
+    amb = data.ambient if data.ambient is not None else np.full(len(data), np.nan)
+    if np.isnan(amb).any():
+        raise SkinError(f"{data.source}: the classifiers need the 'ambient' column")
+    blocks = np.concatenate([t0[:, :, None], w], axis=2)
+    return np.column_stack([amb, blocks.reshape(len(data), -1)])
+
+
 def split_rows(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Split `trial_matrix` rows into (ambient, T0, window)."""
     x = np.asarray(x, dtype=float)

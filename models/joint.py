@@ -227,6 +227,7 @@ class JointClassifier:
         from skin.models.materials import load_materials
 
         table = materials if materials is not None else load_materials()
+        self.table = table
         model_options.setdefault("onset_shifts", ONSET_SHIFTS)
         self.model = JointContactModel([m for m in table.values() if m.classify],
                                        **model_options)
@@ -239,22 +240,32 @@ class JointClassifier:
         self._sensors.update(sensors or {})
 
     def classify(self, contact):
-        """Label a contact from all its taxels at once (``"unknown"`` when unsure)."""
+        """Label a contact from all its taxels at once (its family, or ``"unknown"``, when unsure).
+
+        The effusivity reported is measured (`skin.models.contact_fit.fitted_effusivity`).
+        """
+        from skin.models.contact_fit import fitted_effusivity
+        from skin.models.materials import hierarchical_answer
+
         usable = []
         for w in contact.windows:
             ok = np.isfinite(w.temperature)
             if ok.sum() >= 2 and w.time[ok][-1] >= self.min_duration:
                 usable.append((w, ok))
         if not usable:
-            return MaterialEstimate(UNKNOWN, {}, 0.0, None, self.method)
+            return MaterialEstimate(UNKNOWN, {}, 0.0, None, self.method, UNKNOWN, 0.0)
         span = min(min(w.time[ok][-1] for w, ok in usable), self.max_duration)
         grid = np.arange(1, int(np.floor(span * self.fs + 1e-9)) + 1) / self.fs
         y = np.array([np.interp(grid, w.time[ok], w.temperature[ok]) for w, ok in usable])
         t0 = np.array([w.initial for w, _ in usable])
         sensors = [self._sensors[w.taxel] for w, _ in usable]
         p = self.model.probabilities(grid, y, t0, contact.ambient, sensors)
-        best = int(np.argmax(p))
         probs = {c: float(v) for c, v in zip(self.model.classes, p, strict=True)}
-        label = self.model.classes[best] if p[best] >= self.threshold else UNKNOWN
-        return MaterialEstimate(label, probs, float(p[best]),
-                                float(self.model.effusivity[best]), self.method)
+        label, confidence, family, family_confidence = hierarchical_answer(
+            probs, self.threshold, self.table)
+        # the effusivity the contact shows (not the chosen material's table value)
+        measured = fitted_effusivity(contact, self.fs, self.min_duration, self.max_duration,
+                                     sensors[0])
+        return MaterialEstimate(label, probs, confidence,
+                                None if measured is None else measured[0], self.method,
+                                family, family_confidence)

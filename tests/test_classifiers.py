@@ -113,7 +113,7 @@ def test_model_file_round_trip(tmp_path, data, name):
     path = save_model(tmp_path / "m.skops", est, name, 1.0, 200.0, training_summary(data, 1.0))
     doc = load_model(path)
     assert doc["method"] == name and doc["classes"] == sorted(data.classes)
-    assert doc["features"] == {"duration": 1.0, "fs": 200.0}
+    assert doc["features"] == {"duration": 1.0, "fs": 200.0, "channels": 1}
     assert doc["training"]["trials"] == len(data)
     assert np.array_equal(doc["estimator"].predict(x), est.predict(x))
 

@@ -57,6 +57,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     run.add_argument("--model", metavar="FILE",
                      help="classify with a model file from `skin train` (taxels' evidence "
                           "fused); default: see --classifier")
+    run.add_argument("--threshold", type=float, default=0.5, metavar="P",
+                     help="probability needed to name a material (else its family, else "
+                          "\"unknown\") for --model and the joint classifier (default 0.5)")
     run.add_argument("--classifier", choices=("joint", "histogram"), default="joint",
                      help="without --model: the joint model that weighs a contact's taxels "
                           "with one object (default), or the paper's effusivity histogram")
@@ -185,12 +188,21 @@ def main(args: argparse.Namespace) -> int:
     if args.model:
         from skin.models.learned import LearnedClassifier
 
-        classifier = LearnedClassifier(args.model)
+        classifier = LearnedClassifier(args.model, threshold=args.threshold)
         progress.message(f"classifier: {classifier.method} ({len(classifier.classes)} classes, "
                          f"{classifier.samples / classifier.fs:g} s window)")
+        if scene is not None:  # a model that cannot name what the scene holds says so
+            from skin.models.learned import uncovered_classes
+
+            missing = uncovered_classes(classifier,
+                                        [scene.material_of(t) for t in scene.touches])
+            if missing:
+                progress.message(f"warning: the model was not trained on {', '.join(missing)}, "
+                                 f"which the scene holds: those contacts will be called "
+                                 f"something else")
     elif args.classifier == "joint":
         classifier = JointClassifier(
-            layout, materials, sensors=None if sensors is None else
+            layout, materials, threshold=args.threshold, sensors=None if sensors is None else
             {int(t.id): s for t, s in zip(layout.taxels, sensors, strict=True)})
     else:
         classifier = HistogramClassifier(layout, materials)
@@ -322,6 +334,9 @@ def main(args: argparse.Namespace) -> int:
                                            [r.contact.onset for r in results])
         detected = [m for m in matches if m.contact_index is not None]
         correct = [m for m in detected if results[m.contact_index].estimate.label == m.material]
+        family_correct = [m for m in detected if results[m.contact_index].estimate.family
+                          == materials[m.material].family]
+        # the measured effusivity (skin.models.contact_fit) against the scene's material
         errors = [abs(np.log10(results[m.contact_index].estimate.effusivity
                                / materials[m.material].effusivity))
                   for m in detected if results[m.contact_index].estimate.effusivity]
@@ -330,6 +345,8 @@ def main(args: argparse.Namespace) -> int:
         for rec in records:
             if rec["contact"] in truth:
                 rec["truth"] = truth[rec["contact"]]
+                rec["truth_family"] = (None if rec["truth"] is None
+                                       else materials[rec["truth"]].family)
         # the truth is known only once all contacts are matched: rewrite the file with it
         with events_path.open("w", encoding="utf-8") as file:
             for rec in records:
@@ -338,6 +355,7 @@ def main(args: argparse.Namespace) -> int:
             "touches": len(matches),
             "detected": len(detected),
             "correct": len(correct),
+            "family_correct": len(family_correct),
             "false_contacts": len(unmatched),
             "accuracy": round(len(correct) / len(matches), 4) if matches else None,
             "median_onset_error": round(float(np.median(
@@ -347,7 +365,9 @@ def main(args: argparse.Namespace) -> int:
             "per_touch": [
                 {"start": m.touch.start, "taxels": list(m.touch.taxels), "truth": m.material,
                  "label": None if m.contact_index is None
-                 else results[m.contact_index].estimate.label}
+                 else results[m.contact_index].estimate.label,
+                 "family": None if m.contact_index is None
+                 else results[m.contact_index].estimate.family}
                 for m in matches
             ],
         })
@@ -400,23 +420,24 @@ def _with_touches(scene: Any, touches: list) -> Any:
 
 def _print_table(records: list[dict[str, Any]], summary: dict[str, Any], out: Path) -> None:
     print(f"\n{'id':>3} {'onset s':>8} {'dur s':>6} {'taxels':<18} {'label':<11} {'conf':>5} "
-          f"{'e':>7} {'truth':<11}")
+          f"{'family':<14} {'e fit':>7} {'truth':<11}")
     for rec in records:
         eff = "-" if rec["effusivity"] is None else f"{rec['effusivity']:.0f}"
         truth = rec.get("truth") or ("-" if "truth" not in rec else "(none)")
         dur = "open" if rec["duration"] is None else f"{rec['duration']:.2f}"
         print(f"{rec['contact']:>3} {rec['onset']:>8.2f} {dur:>6} "
               f"{','.join(map(str, rec['taxels'])):<18} {rec['label']:<11} "
-              f"{rec['confidence']:>5.2f} {eff:>7} {truth:<11}")
+              f"{rec['confidence']:>5.2f} {rec.get('family') or '-':<14} {eff:>7} {truth:<11}")
     print(f"\n{summary['frames']} frames in {summary['wall_time']:.1f} s wall time, "
           f"{summary['contacts']} contacts, {summary['crc_errors']} CRC errors")
     if "touches" in summary:
         print(f"scene truth: {summary['detected']}/{summary['touches']} touches detected, "
               f"{summary['correct']}/{summary['touches']} labelled correctly "
+              f"({summary['family_correct']}/{summary['touches']} at family level) "
               f"(accuracy {summary['accuracy']:.0%}), {summary['false_contacts']} false contacts; "
               f"median onset error {summary['median_onset_error']} s"
               + ("" if summary["median_log10_effusivity_error"] is None else
-                 f", median effusivity error {summary['median_log10_effusivity_error']} "
-                 "decades"))
+                 f", median error of the measured effusivity "
+                 f"{summary['median_log10_effusivity_error']} decades"))
     print(f"outputs: {out / 'events.jsonl'}, {out / 'summary.json'}"
           + ("" if not (out / "contact_map.png").exists() else f", {out / 'contact_map.png'}"))
