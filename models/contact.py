@@ -103,6 +103,11 @@ class ContactFeatures(TransformerMixin, BaseEstimator):
         self.diffusivity = diffusivity
         self.conductivity = conductivity
 
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.input_tags.allow_nan = True  # an absent channel is NaN
+        return tags
+
     def fit(self, X: np.ndarray, y: np.ndarray | None = None) -> ContactFeatures:
         """Check the rows and tabulate the grid's responses for their window length."""
         x = validate_data(self, X, reset=True, ensure_all_finite="allow-nan")
@@ -152,8 +157,31 @@ class ContactFeatures(TransformerMixin, BaseEstimator):
             rel[:, 0] / scale[:, None], np.nan_to_num(rel.reshape(rel.shape[0], -1))])
 
 
+def _softmax(z: np.ndarray) -> np.ndarray:
+    z = z - z.max(axis=1, keepdims=True)
+    e = np.exp(z)
+    return e / e.sum(axis=1, keepdims=True)
+
+
+def fit_temperature(logits: np.ndarray, y: np.ndarray) -> float:
+    """Return the T that minimises the log loss of ``softmax(logits / T)`` on held-out rows.
+
+    ``y`` holds class indices. Temperature scaling keeps the ranking of the classes (and so the
+    accuracy) and only makes the probabilities as sure as the held-out rows say.
+    """
+    from scipy.optimize import minimize_scalar
+
+    rows = np.arange(y.size)
+
+    def loss(log_t: float) -> float:
+        p = _softmax(logits / np.exp(log_t))
+        return float(-np.mean(np.log(np.maximum(p[rows, y], 1e-300))))
+
+    return float(np.exp(minimize_scalar(loss, bounds=(-3.0, 5.0), method="bounded").x))
+
+
 class ContactClassifier(ClassifierMixin, BaseEstimator):
-    """The default method: `ContactFeatures` into calibrated gradient-boosted trees.
+    """The default method: `ContactFeatures` into a calibrated learned model.
 
     Parameters
     ----------
@@ -169,34 +197,43 @@ class ContactClassifier(ClassifierMixin, BaseEstimator):
     learner : str
         ``"linear"`` (standardised multinomial logistic regression) or ``"trees"``
         (gradient-boosted trees).
+    C : float
+        Inverse L2 penalty of the linear learner.
     calibration : str or None
-        None (default): the logistic regression's own probabilities, which minimise the log
-        loss and are calibrated on its training data; ``"isotonic"`` or ``"sigmoid"``: wrapped
-        in `CalibratedClassifierCV` (one-vs-rest, which with many classes and few trials
-        costs accuracy: 0.67 -> 0.57 at 0.5 s on the synthetic benchmark).
+        ``"temperature"`` (default): one temperature that rescales the learner's logits,
+        fitted by the held-out log loss of a ``cv``-fold split of the (augmented) training
+        rows; ``"isotonic"`` or ``"sigmoid"``: `CalibratedClassifierCV` (one-vs-rest, which
+        with many classes and few trials costs accuracy: 0.67 -> 0.57 at 0.5 s on the
+        synthetic benchmark); None: the learner's own probabilities.
+    cv : int
+        Folds of the calibration.
     points : int
         Trace instants per channel in the features.
     excess : bool
         Whether the channels' excess over ambient before contact is a feature.
-    cv : int
-        Folds of the calibration.
+    warp : float
+        In a copy, each channel other than the primary sees the object's shift through the
+        primary's response with time rescaled by ``exp(U(-warp, warp))``: another taxel,
+        whose depth and diffusivity the training data did not pin.
     random_state : int
-        Seed of the copies and the trees.
+        Seed of the copies, the folds and the trees.
     """
 
     def __init__(self, channels: int = 1, fs: float = 200.0, object_spread: float = 10.0,
-                 copies: int = 2, learner: str = "linear", calibration: str | None = None,
-                 cv: int = 3, points: int = 4, excess: bool = True,
-                 random_state: int = 0) -> None:
-        self.points = points
-        self.excess = excess
+                 copies: int = 2, learner: str = "linear", C: float = 1.0,
+                 calibration: str | None = "temperature", cv: int = 3, points: int = 4,
+                 excess: bool = True, warp: float = 0.25, random_state: int = 0) -> None:
+        self.warp = warp
         self.channels = channels
-        self.learner = learner
         self.fs = fs
         self.object_spread = object_spread
         self.copies = copies
+        self.learner = learner
+        self.C = C
         self.calibration = calibration
         self.cv = cv
+        self.points = points
+        self.excess = excess
         self.random_state = random_state
 
     def __sklearn_tags__(self):
@@ -205,65 +242,113 @@ class ContactClassifier(ClassifierMixin, BaseEstimator):
         return tags
 
     def augment(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Add the shifted-object copies of the training rows (module docstring)."""
+        """Add the shifted-object copies of the training rows (module docstring).
+
+        The object's recorded temperature is the joint fit's where the row has a second
+        channel to pin it, else ambient.
+        """
         if self.object_spread <= 0 or self.copies < 1:
             return x, y
         amb, t0, w = split_contact_rows(x, self.channels)
-        gap = amb - t0[:, 0]  # the object at ambient minus the primary channel
+        obj = np.zeros(x.shape[0])
+        pinned = np.isfinite(t0[:, 1:]).any(axis=1) if self.channels > 1 else obj > 0
+        if pinned.any():
+            from skin.models.physics import SensorConstants
+
+            resp = grid_responses(w.shape[2], self.fs, SensorConstants())
+            obj[pinned] = grid_fit(amb[pinned], t0[pinned], w[pinned], resp)["object"]
+        gap = amb + obj - t0[:, 0]  # the object minus the primary channel
         usable = np.abs(gap) >= 2.0  # phi is read from the primary channel's excursion
         phi = (w[:, 0] - t0[:, :1]) / np.where(usable, gap, 1.0)[:, None]
         rng = np.random.default_rng(self.random_state)
         xs, ys = [x], [y]
+        m = w.shape[2]
+        k = np.arange(m, dtype=float)
         for _ in range(self.copies):
             delta = rng.uniform(-self.object_spread, self.object_spread, x.shape[0])
-            shifted = w + (delta[:, None] * phi)[:, None, :]
+            # each other channel is another taxel: its response runs faster or slower (depth
+            # and diffusivity within +-10 % rescale time by up to ~+-25 %)
+            warp = np.exp(rng.uniform(-self.warp, self.warp, (x.shape[0], self.channels)))
+            warp[:, 0] = 1.0
+            idx = np.minimum(k[None, None, :] * warp[:, :, None], m - 1)
+            lo = np.floor(idx).astype(int)
+            hi = np.minimum(lo + 1, m - 1)
+            frac = idx - lo
+            ph = phi[:, None, :]
+            ph = np.broadcast_to(ph, (x.shape[0], self.channels, m))
+            moved = (np.take_along_axis(ph, lo, axis=2) * (1 - frac)
+                     + np.take_along_axis(ph, hi, axis=2) * frac)
+            shifted = w + delta[:, None, None] * moved
             block = np.concatenate([t0[:, :, None], shifted], axis=2)
             rows = np.column_stack([amb, block.reshape(x.shape[0], -1)])
             xs.append(rows[usable])
             ys.append(y[usable])
         return np.vstack(xs), np.concatenate(ys)
 
-    def fit(self, X: np.ndarray, y: np.ndarray) -> ContactClassifier:
-        """Fit the features' grid, then the calibrated trees on the (augmented) rows."""
-        from sklearn.calibration import CalibratedClassifierCV
+    def _learner(self):
         from sklearn.ensemble import HistGradientBoostingClassifier
         from sklearn.linear_model import LogisticRegression
         from sklearn.pipeline import make_pipeline
         from sklearn.preprocessing import StandardScaler
 
-        x, y = validate_data(self, X, y, reset=True, ensure_all_finite="allow-nan")
+        if self.learner == "trees":
+            return HistGradientBoostingClassifier(max_iter=200, learning_rate=0.1,
+                                                  l2_regularization=1.0, early_stopping=False,
+                                                  random_state=self.random_state)
+        if self.learner == "linear":
+            return make_pipeline(StandardScaler(), LogisticRegression(C=self.C, max_iter=5000))
+        raise ValueError(f"unknown learner {self.learner!r}; linear or trees")
+
+    def fit(self, X: np.ndarray, y: np.ndarray) -> ContactClassifier:
+        """Fit the features' grid, then the calibrated learner on the (augmented) rows."""
+        from sklearn.calibration import CalibratedClassifierCV
+        from sklearn.model_selection import StratifiedKFold
         from sklearn.utils.multiclass import check_classification_targets
 
+        x, y = validate_data(self, X, y, reset=True, ensure_all_finite="allow-nan")
         check_classification_targets(y)
         self.classes_, counts = np.unique(y, return_counts=True)
         if self.classes_.size < 2:
             raise ValueError("ContactClassifier needs at least two classes")
+        if self.calibration not in (None, "temperature", "isotonic", "sigmoid"):
+            raise ValueError(f"unknown calibration {self.calibration!r}")
         if self.calibration is not None and counts.min() < self.cv:
-            raise ValueError(f"class {self.classes_[np.argmin(counts)]!r} has {counts.min()} "
-                             f"trial(s); calibrating by {self.cv}-fold cross-validation needs "
-                             f"at least {self.cv} per class")
+            raise ValueError(f"class {str(self.classes_[np.argmin(counts)])!r} has "
+                             f"{counts.min()} trial(s); calibrating by {self.cv}-fold "
+                             f"cross-validation needs at least {self.cv} per class")
         xa, ya = self.augment(x, y)
         self.features_ = ContactFeatures(self.channels, self.fs, points=self.points,
                                          excess=self.excess).fit(xa)
-        if self.learner == "trees":
-            base = HistGradientBoostingClassifier(max_iter=200, learning_rate=0.1,
-                                                  l2_regularization=1.0, early_stopping=False,
-                                                  random_state=self.random_state)
-        elif self.learner == "linear":  # an absent channel's features are 0, flagged absent
-            base = make_pipeline(StandardScaler(), LogisticRegression(C=100.0, max_iter=5000))
-        else:
-            raise ValueError(f"unknown learner {self.learner!r}; linear or trees")
-        self.model_ = base if self.calibration is None else CalibratedClassifierCV(
-            base, method=self.calibration, cv=self.cv)
-        self.model_.fit(self.features_.transform(xa), ya)
+        f = self.features_.transform(xa)
+        self.temperature_ = 1.0
+        if self.calibration in ("isotonic", "sigmoid"):
+            self.model_ = CalibratedClassifierCV(self._learner(), method=self.calibration,
+                                                 cv=self.cv).fit(f, ya)
+            return self
+        if self.calibration == "temperature":
+            index = np.searchsorted(self.classes_, ya)
+            logits = np.zeros((f.shape[0], self.classes_.size))
+            folds = StratifiedKFold(self.cv, shuffle=True, random_state=self.random_state)
+            for tr, te in folds.split(f, index):
+                m = self._learner().fit(f[tr], index[tr])
+                logits[np.ix_(te, m.classes_)] = np.log(np.maximum(m.predict_proba(f[te]),
+                                                                   1e-300))
+                missing = np.setdiff1d(np.arange(self.classes_.size), m.classes_)
+                logits[np.ix_(te, missing)] = np.log(1e-300)
+            self.temperature_ = fit_temperature(logits, index)
+        self.model_ = self._learner().fit(f, ya)
         return self
 
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
         """Calibrated class probabilities, (n, n_classes)."""
         check_is_fitted(self, "model_")
         x = validate_data(self, X, reset=False, ensure_all_finite="allow-nan")
-        return self.model_.predict_proba(self.features_.transform(x))
+        p = self.model_.predict_proba(self.features_.transform(x))
+        if self.temperature_ == 1.0:
+            return p
+        return _softmax(np.log(np.maximum(p, 1e-300)) / self.temperature_)
 
     def predict(self, X: np.ndarray) -> np.ndarray:
         """Most probable class."""
+        check_is_fitted(self, "model_")
         return self.classes_[np.argmax(self.predict_proba(X), axis=1)]
