@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/skin run --duration 20 --out out/demo
+	$(BIN)/skin run --duration 20 --out out/demo --force
 
 test: $(STAMP)
 	$(BIN)/python -m pytest

@@ -121,7 +121,3 @@ class LearnedClassifier:
                                 None if measured is None else measured[0], self.method,
                                 family, family_confidence)
 
-
-def uncovered_classes(classifier: LearnedClassifier, expected: list[str]) -> list[str]:
-    """Classes in ``expected`` (e.g. a scene's materials) that the model was not trained on."""
-    return sorted(set(expected) - set(classifier.classes))

@@ -30,6 +30,13 @@ contacts and resting 10 minutes every 10 trials; initial sensor temperatures spr
   specified noise), then quantisation (about 0.07 C per count at 39 C).
 - **Onset jitter**: the recorded onset sample lies within +-10 ms of the true contact (the
   paper's limit switch, read at 200 Hz).
+- **Sensor** (``sensor``, a `skin.models.sensors.SensorDescription`; default the paper's):
+  its thermal body is the centre of the taxels' spread, its heater mode shapes the contact
+  (`skin.models.sensors.contact_reading`; a PID-held sensor sits at its setpoint and reheats
+  with the loop), its PID loop and lag act on the whole trace, its sample rate and ADC noise
+  replace the protocol's, its temperature noise and ADC bits apply before rounding, and its
+  smoothing after (a logger's). The paper's sensor gives exactly the datasets made before
+  sensor descriptions existed.
 - **Channels** (``Protocol.channels``): each contact is seen by one or more taxels touching
   the same object: ``"heated"`` (the paper's constant-power heater, with the protocol's
   reheat history; further heated channels start within +-0.3 K of the first),
@@ -44,14 +51,21 @@ contacts and resting 10 minutes every 10 trials; initial sensor temperatures spr
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from skin.formats.dataset import TrialSet
 from skin.formats.layout import Board
 from skin.models.materials import Material
-from skin.models.physics import SensorConstants, contact_trace, heated_temperature
+from skin.models.physics import contact_trace, heated_temperature
+from skin.models.sensors import (
+    SensorDescription,
+    apply_dynamics,
+    contact_reading,
+    load_sensor,
+    smooth,
+)
 from skin.stream.calibration import Calibration
 
 MODELS = ("contact", "semi-infinite", "multilayer")
@@ -162,9 +176,9 @@ def _offsets(spec: tuple[float, float] | float, shape: tuple[int, int],
 
 
 def adc_readings(temperature: np.ndarray, rng: np.random.Generator,
-                 noise: float = 0.5) -> np.ndarray:
-    """Pass readings through the paper's divider and 10-bit ADC (noise, then rounding)."""
-    b = Board()
+                 noise: float = 0.5, adc_bits: int = 10) -> np.ndarray:
+    """Pass readings through the paper's divider and ADC (noise, then rounding)."""
+    b = Board(adc_bits=adc_bits)
     one = np.ones(1)
     cal = Calibration(c0=b.thermistor_c0 * one, c1=b.thermistor_c1 * one,
                       divider_resistor=b.divider_resistor * one,
@@ -175,17 +189,18 @@ def adc_readings(temperature: np.ndarray, rng: np.random.Generator,
     return cal.temperature(counts)[0]
 
 
-def spread_sensors(n: int, spread: float, rng: np.random.Generator) -> list[SensorConstants]:
-    """Return ``n`` taxels whose constants lie within +-``spread`` of the paper's.
+def spread_sensors(n: int, spread: float, rng: np.random.Generator,
+                   base: SensorDescription | None = None) -> list[SensorDescription]:
+    """Return ``n`` taxels whose constants lie within +-``spread`` of ``base``'s (the paper's).
 
     Depth, diffusivity and conductivity are drawn uniformly, in that order for each taxel.
     """
-    base = SensorConstants()
+    base = load_sensor(base)
     out = []
     for _ in range(n):
         f = 1.0 + rng.uniform(-spread, spread, 3)
-        out.append(SensorConstants(depth=base.depth * f[0], diffusivity=base.diffusivity * f[1],
-                                   conductivity=base.conductivity * f[2]))
+        out.append(replace(base, depth=base.depth * f[0], diffusivity=base.diffusivity * f[1],
+                           conductivity=base.conductivity * f[2]))
     return out
 
 
@@ -195,6 +210,7 @@ def simulate_trials(
     model: str = "contact",
     seed: int = 0,
     progress: Callable[[int, int], None] | None = None,
+    sensor: SensorDescription | str | None = None,
 ) -> TrialSet:
     """Simulate the paper's protocol for each material; return a trial dataset.
 
@@ -210,6 +226,9 @@ def simulate_trials(
         Seed: the same seed gives the same dataset.
     progress : callable, optional
         Called as ``progress(done, total)`` with trials done so far.
+    sensor : SensorDescription or str, optional
+        The sensor (a description, preset name or file; default the paper's). Its sample
+        rate and ADC noise replace the protocol's ``fs`` and ``adc_noise``.
 
     Returns
     -------
@@ -219,6 +238,15 @@ def simulate_trials(
     if model not in MODELS:
         raise ValueError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
     p = Protocol() if protocol is None else protocol
+    if sensor is not None:
+        sensor = load_sensor(sensor)
+        p = replace(p, fs=sensor.sample_rate, adc_noise=sensor.adc_noise)
+    base = load_sensor(sensor)
+    p = replace(p, reheat_time_constant=_reheat_time_constant(p, base))
+    if model == "multilayer" and base.heater != "constant":
+        raise ValueError(f"the multilayer model runs a constant-power heater; sensor "
+                         f"{base.name!r} has heater {base.heater!r} (use 'contact' or "
+                         f"'semi-infinite')")
     kinds = [parse_channel(c) for c in p.channels]
     if not kinds or not kinds[0][0]:
         raise ValueError(f"channels {p.channels}: the first (primary) channel must be heated")
@@ -233,7 +261,7 @@ def simulate_trials(
     if not materials:
         raise ValueError("simulate_trials needs at least one material")
     rng = np.random.default_rng(seed)
-    taxels = spread_sensors(p.n_taxels, p.taxel_spread, rng)
+    taxels = spread_sensors(p.n_taxels, p.taxel_spread, rng, base)
     n_mat, n = len(materials), p.trials
     total = n_mat * n
     # the protocol's schedule: per trial, the hold before release and the reheat after it
@@ -273,11 +301,16 @@ def simulate_trials(
                                   kinds, ch_rng)
             if progress is not None:
                 progress((i + 1) * n, total)
+    temp = apply_dynamics(temp, base, p.fs, axis=-1)  # the PID loop and the lag, if any
+    if base.noise > 0:
+        temp = temp + rng.normal(0.0, base.noise, temp.shape)
     if n_ch == 1:  # the stream of the one-channel datasets made before channels existed
-        readings = adc_readings(temp.reshape(total, -1), rng, p.adc_noise)[:, None, :]
+        readings = adc_readings(temp.reshape(total, -1), rng, p.adc_noise,
+                                base.adc_bits)[:, None, :]
     else:
-        readings = adc_readings(temp.reshape(total * n_ch, -1), rng,
-                                p.adc_noise).reshape(total, n_ch, -1)
+        readings = adc_readings(temp.reshape(total * n_ch, -1), rng, p.adc_noise,
+                                base.adc_bits).reshape(total, n_ch, -1)
+    readings = smooth(readings, base, axis=-1, fs=p.fs)
     label = np.repeat([m.name for m in materials], n)
     groups = (np.arange(n_mat)[:, None] * (run.max() + 1) + run[None, :]).ravel()
     if model == "multilayer":  # it may have changed the runs' taxels
@@ -305,7 +338,8 @@ def simulate_trials(
                "true_sensor_depth": constants[:, 0],
                "true_sensor_diffusivity": constants[:, 1],
                "true_sensor_conductivity": constants[:, 2], **extra_truth},
-        source=f"simulated ({model}, seed {seed})",
+        source=f"simulated ({model}, seed {seed}"
+               + ("" if sensor is None else f", sensor {base.name}") + ")",
     )
 
 
@@ -316,7 +350,7 @@ def _object_temperature(mat: Material, ambient: float, offset: float,
     return ambient + offset
 
 
-def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorConstants],
+def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorDescription],
                           run_taxel: np.ndarray, run: np.ndarray, hold: np.ndarray,
                           after: np.ndarray, h: np.ndarray | float, jitter: np.ndarray,
                           amb: np.ndarray, offset: np.ndarray, t: np.ndarray, out: np.ndarray,
@@ -335,7 +369,8 @@ def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorConstan
     heat = np.empty(hold.size)
     for j in range(hold.size):
         s = taxels[run_taxel[run[j], 0]]
-        full = float(heated_temperature(amb[j], s))
+        full = float(amb[j] + s.heated_rise if s.heater == "pid"
+                     else heated_temperature(amb[j], s))
         if j == 0 or run[j] != run[j - 1]:  # a run starts rested, with a cool object
             sensor_now, excess = full, 0.0
         t0 = sensor_now if kinds[0][1] is None else amb[j] + kinds[0][1]
@@ -347,7 +382,8 @@ def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorConstan
         since = t - jitter[j]
         pre_slope = (full - t0) / tau if kinds[0][1] is None else 0.0
         pre = t0 + pre_slope * np.minimum(since, 0.0)
-        out[j, 0] = np.where(since > 0, contact_trace(since, t0, tobj, e_o, s, h[j]), pre)
+        out[j, 0] = np.where(since > 0, contact_reading(since, t0, tobj, e_o, s, h[j], amb[j]),
+                             pre)
         for c in range(1, len(kinds)):  # the other taxels on the same object
             heated, held = kinds[c]
             if held is not None:
@@ -359,18 +395,32 @@ def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorConstan
             h_c = h[j] * 10.0 ** ch_rng.normal(0.0, 0.1)
             s_c = taxels[run_taxel[run[j], c]]
             t_sensor[j, c] = t0_c
-            out[j, c] = np.where(since > 0, contact_trace(since, t0_c, tobj, e_o, s_c, h_c),
-                                 t0_c)
+            after_contact = (contact_reading(since, t0_c, tobj, e_o, s_c, h_c, amb[j]) if heated
+                             else contact_trace(since, t0_c, tobj, e_o, s_c, h_c))
+            out[j, c] = np.where(since > 0, after_contact, t0_c)
         # release after the hold, then reheat; the object keeps some of the heat it took
-        end = float(contact_trace(hold[j], t0, tobj, e_o, s, h[j]))
+        end = float(contact_reading(hold[j], t0, tobj, e_o, s, h[j], amb[j]))
         surf = float((s.effusivity * t0 + e_o * tobj) / (s.effusivity + e_o))
         warm = (surf - base) * np.sqrt(hold[j] / (hold[j] + after[j])) * 0.5
         excess = max(warm, 0.0)
         sensor_now = full - (full - end) * np.exp(-after[j] / tau)
 
 
+def _reheat_time_constant(p: Protocol, sensor: SensorDescription) -> float:
+    """Return the protocol's reheat time constant, scaled to the sensor's l^2 / alpha.
+
+    A PID-held sensor reheats with its loop (``control_time``).
+    """
+    if sensor.heater == "pid":
+        return sensor.control_time
+    paper = SensorDescription().reheat_time_constant
+    if sensor.reheat_time_constant == paper:
+        return p.reheat_time_constant
+    return p.reheat_time_constant * sensor.reheat_time_constant / paper
+
+
 def _multilayer_protocol(materials: Sequence[Material], p: Protocol,
-                         taxels: list[SensorConstants], run_taxel: np.ndarray, run: np.ndarray,
+                         taxels: list[SensorDescription], run_taxel: np.ndarray, run: np.ndarray,
                          hold: np.ndarray, after: np.ndarray, h: np.ndarray, jitter: np.ndarray,
                          amb: np.ndarray, t: np.ndarray, out: np.ndarray, t_sensor: np.ndarray,
                          t_object: np.ndarray,
@@ -390,7 +440,7 @@ def _multilayer_protocol(materials: Sequence[Material], p: Protocol,
     k = np.array([m.nominal["k"] for m in materials], dtype=float)
     rho_c = np.array([m.nominal["rho"] * m.nominal["c"] for m in materials], dtype=float)
     own = [m.temperature for m in materials]
-    radius = np.sqrt(SensorConstants().heater_area / np.pi)
+    radius = np.sqrt(taxels[0].heater_area / np.pi)
     body = ObjectBody(k, k / rho_c, thickness=np.pi * radius / 4, cells=30, grading=20.0,
                       back="ambient")
     total, done = n_mat * n, 0

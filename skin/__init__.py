@@ -17,6 +17,8 @@ from skin.errors import (
 )
 from skin.formats.layout import Board, Layout, Taxel, load_layout, parse_layout
 from skin.frame import Frame
+from skin.runner import Skin
+from skin.setup import Setup
 from skin.stream.calibration import Calibration
 from skin.stream.onset import DetectorState, OnsetDetector, OnsetEvent
 from skin.stream.onset_refine import refine_onset
@@ -46,6 +48,8 @@ __all__ = [
     "Pipeline",
     "ProtocolError",
     "SceneError",
+    "Setup",
+    "Skin",
     "SkinError",
     "Taxel",
     "TaxelWindow",

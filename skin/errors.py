@@ -37,3 +37,7 @@ class MissingDependencyError(SkinError, ImportError):
 
 class ViewError(SkinError):
     """A view cannot be made or shown: an arm file or mesh, a pose, or no display to show it on."""
+
+
+class SensorError(SkinError):
+    """A sensor description is malformed or unknown; the message names the file and line."""

@@ -150,7 +150,8 @@ def test_run_reports_families_and_a_measured_effusivity(tmp_path, two_channel):
     assert summary["median_log10_effusivity_error"] > 0.0
 
 
-def test_run_warns_when_the_model_misses_a_class_of_the_scene(tmp_path, two_channel):
+def test_run_with_a_threshold_and_a_model_that_misses_a_class_of_the_scene(tmp_path,
+                                                                          two_channel):
     train, _ = two_channel  # no human skin, which the default scene holds
     train.channels([0]).save(tmp_path / "t.npz")
     out = skin("train", "--data", str(tmp_path / "t.npz"), "--duration", "0.5",
@@ -158,8 +159,10 @@ def test_run_warns_when_the_model_misses_a_class_of_the_scene(tmp_path, two_chan
     assert out.returncode == 0, out.stderr
     out = skin("run", "--speed", "0", "--duration", "6", "--no-map", "--model",
                str(tmp_path / "m.skops"), "--threshold", "0.9", "--out", str(tmp_path / "r"))
-    assert out.returncode == 0, out.stderr
-    assert "not trained on human_skin" in out.stderr
+    assert out.returncode == 2 and "no class 'human_skin'" in out.stderr
+    out = skin("run", "--speed", "0", "--duration", "6", "--no-map", "--threshold", "1.5",
+               "--out", str(tmp_path / "r"))
+    assert out.returncode == 2 and "threshold" in out.stderr
 
 
 def test_scikit_learn_floor_matches_what_the_code_imports():

@@ -64,8 +64,29 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                              "heated,passive or heated,heated@+10; the first must be heated "
                              "(default: heated)")
     trials.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    trials.add_argument("--sensor", default=None, metavar="PRESET|FILE",
+                        help="sensor description: a preset (`skin sensors`) or a sensor file "
+                             "(default: the paper's)")
     trials.add_argument("--json", action="store_true", help="print one JSON summary")
     trials.set_defaults(func=main_trials)
+
+    truth = kinds.add_parser("calibration", help="the simulated skin's true per-taxel constants "
+                                                 "as a calibration file")
+    truth.add_argument("--scene", default="default", help="scene (default: default)")
+    truth.add_argument("-o", "--out", required=True, help="calibration file to write (JSON)")
+    truth.set_defaults(func=main_calibration)
+
+
+def main_calibration(args: argparse.Namespace) -> int:
+    """Write the calibration file of a simulated skin's true constants."""
+    from skin.drivers.sim import SkinSimulator
+    from skin.formats.scene import load_scene
+
+    scene = load_scene(args.scene)
+    path = SkinSimulator(scene, duration=0.0).true_calibration().save(args.out)
+    print(f"wrote {path}: the true thermal constants of {len(scene.layout)} taxels "
+          f"(scene {scene.name}, taxel spread {scene.taxel_spread:g})")
+    return 0
 
 
 def main_trace(args: argparse.Namespace) -> int:
@@ -135,10 +156,18 @@ def main_trials(args: argparse.Namespace) -> int:
                         "semi-infinite")
     protocol = Protocol(trials=args.trials, ambient=args.ambient, duration=args.duration,
                         object_offset=offset, channels=channels)
+    sensor = None
+    if args.sensor is not None:
+        from skin.models.sensors import load_sensor
+
+        sensor = load_sensor(args.sensor)  # a bad file fails before the work starts
+        if args.model == "multilayer" and sensor.heater != "constant":
+            raise SkinError(f"--model multilayer runs a constant-power heater; sensor "
+                            f"{sensor.name!r} has heater {sensor.heater!r}")
     progress = Progress()
     started = time.monotonic()
     ds = simulate_trials([materials[m] for m in names], protocol, model=args.model,
-                         seed=args.seed,
+                         seed=args.seed, sensor=sensor,
                          progress=lambda d, n: progress.bar(d, n, "trials", started))
     progress.done()
     wall = time.monotonic() - started
@@ -147,6 +176,7 @@ def main_trials(args: argparse.Namespace) -> int:
     summary = {"out": str(path), "trials": len(ds), "classes": names, "model": args.model,
                "channels": list(channels),
                "samples": ds.temperature.shape[-1], "fs": ds.fs, "seed": args.seed,
+               "sensor": "paper" if sensor is None else sensor.name,
                "wall_time": round(wall, 3), "trials_per_second": round(len(ds) / wall, 1),
                "initial_temperature": {"min": round(float(t0.min()), 2),
                                        "mean": round(float(t0.mean()), 2),

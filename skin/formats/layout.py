@@ -51,6 +51,10 @@ class Board:
         Sensor body thickness, m.
     sample_rate : float
         Sampling rate, Hz.
+    sensor : str
+        The board's sensor description: a preset name or a sensor file
+        (`skin.models.sensors`); its constants fill the fields the board does not set.
+        Empty: the paper's sensor, with the board's constants.
     """
 
     id: int = 0
@@ -68,6 +72,7 @@ class Board:
     heater_area: float = 1.5625e-4
     sensor_thickness: float = 2.4e-4
     sample_rate: float = 200.0
+    sensor: str = ""
 
     @property
     def adc_max(self) -> int:
@@ -217,15 +222,19 @@ def _vector(value: Any, where: str, field: str) -> tuple[float, float, float]:
     return (float(value[0]), float(value[1]), float(value[2]))
 
 
-def _parse_board(raw: Any, where: str) -> Board:
+def _parse_board(raw: Any, where: str, base: Path | None = None) -> Board:
     if not isinstance(raw, dict):
         raise LayoutError(f"{where}: a board must be a table")
     unknown = set(raw) - set(_BOARD_FIELDS)
     if unknown:
         raise LayoutError(f"{where}: unknown field {sorted(unknown)[0]!r}")
     values: dict[str, Any] = {}
+    if "sensor" in raw:
+        values.update(_sensor_fields(raw["sensor"], where, base))
     for name, value in raw.items():
         typ = _BOARD_FIELDS[name]
+        if typ == "str":
+            continue  # the sensor, resolved above
         if typ == "int":
             if not isinstance(value, int) or isinstance(value, bool) or value < 0:
                 raise LayoutError(f"{where}: field {name!r} must be a non-negative integer, "
@@ -240,6 +249,23 @@ def _parse_board(raw: Any, where: str) -> Board:
     if not 1 <= board.adc_bits <= 24:
         raise LayoutError(f"{where}: field 'adc_bits' must be between 1 and 24")
     return board
+
+
+def _sensor_fields(ref: Any, where: str, base: Path | None) -> dict[str, Any]:
+    """Return the board fields a named sensor sets, and its name (a file: from the layout)."""
+    from skin.errors import SensorError
+    from skin.models.sensors import load_sensor
+
+    if not isinstance(ref, str) or not ref:
+        raise LayoutError(f"{where}: field 'sensor' must be a preset name or a sensor file")
+    path = Path(ref.partition("#")[0])
+    if base is not None and path.suffix and not path.is_absolute():
+        ref = str(base / ref)
+    try:
+        sensor = load_sensor(ref)
+    except SensorError as exc:
+        raise LayoutError(f"{where}: field 'sensor': {exc}") from None
+    return {**sensor.board_fields(), "sensor": ref}
 
 
 def _parse_taxel(raw: Any, where: str, boards: dict[int, Board]) -> Taxel:
@@ -270,7 +296,7 @@ def _parse_taxel(raw: Any, where: str, boards: dict[int, Board]) -> Taxel:
     return Taxel(raw["id"], raw["board"], raw["address"], raw["link"], position, normal)
 
 
-def parse_layout(text: str, source: str = "<string>") -> Layout:
+def parse_layout(text: str, source: str = "<string>", base: Path | None = None) -> Layout:
     """Parse and validate layout TOML text.
 
     Parameters
@@ -279,6 +305,8 @@ def parse_layout(text: str, source: str = "<string>") -> Layout:
         TOML text.
     source : str
         File name used in error messages.
+    base : Path, optional
+        Folder that a board's relative sensor file is resolved against.
 
     Returns
     -------
@@ -301,7 +329,7 @@ def parse_layout(text: str, source: str = "<string>") -> Layout:
     for k, raw in enumerate(raw_boards):
         line = board_lines[k] if k < len(board_lines) else 1
         where = f"{source}:{line}: board #{k}"
-        board = _parse_board(raw, where)
+        board = _parse_board(raw, where, base)
         if board.id in boards:
             raise LayoutError(f"{where}: duplicate board id {board.id}")
         boards[board.id] = board
@@ -342,5 +370,41 @@ def load_layout(path: str | Path) -> Layout:
     -------
     Layout
     """
-    text, source, _ = read_data_file(path, "layouts", "layout", LayoutError)
-    return parse_layout(text, source=source)
+    text, source, folder = read_data_file(path, "layouts", "layout", LayoutError)
+    return parse_layout(text, source=source, base=folder)
+
+
+def layout_toml(layout: Layout) -> str:
+    """Return layout TOML text that `parse_layout` reads back as ``layout``.
+
+    Every board constant and every taxel field is written out, floats exactly, so a layout
+    built in memory (a cut of a shipped one, say) round-trips too. An empty ``sensor`` (the
+    board's own constants) is left out.
+
+    Parameters
+    ----------
+    layout : Layout
+        The layout.
+
+    Returns
+    -------
+    str
+        The TOML text.
+    """
+    from dataclasses import fields
+
+    from skin.formats.toml_text import toml_value
+
+    lines = [f"# layout {layout.source}, written by thermoskin",
+             f"name = {toml_value(layout.name)}", ""]
+    for board in layout.boards.values():
+        lines.append("[[boards]]")
+        lines += [f"{f.name} = {toml_value(getattr(board, f.name))}" for f in fields(board)
+                  if not (f.name == "sensor" and not board.sensor)]
+        lines.append("")
+    for t in layout.taxels:
+        lines += ["[[taxels]]", f"id = {int(t.id)}", f"board = {int(t.board)}",
+                  f"address = {int(t.address)}", f"link = {toml_value(t.link)}",
+                  f"position = {toml_value(list(t.position))}",
+                  f"normal = {toml_value(list(t.normal))}", ""]
+    return "\n".join(lines)

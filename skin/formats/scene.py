@@ -30,11 +30,14 @@ class SceneObject:
         Key in the materials table.
     temperature : float or None
         Object temperature, deg C; None: the material's own (heat-generating) or ambient.
+    line : int
+        Line of its ``[[objects]]`` header in the scene file (0: unknown), for messages.
     """
 
     name: str
     material: str
     temperature: float | None
+    line: int = 0
 
 
 @dataclass(frozen=True)
@@ -67,18 +70,28 @@ class Touch:
 
 @dataclass(frozen=True)
 class Scene:
-    """A validated simulation scene."""
+    """A validated simulation scene.
+
+    ``noise`` is the white noise of the thermistor temperatures, K, when the scene sets it
+    (it then replaces the sensor's noise model); None: each board's sensor description says.
+    ``sensor`` is the sensor the scene puts on every board ("": the layout's own).
+    ``taxel_spread`` spreads each taxel's thermistor depth, diffusivity and conductivity
+    uniformly within +- that fraction of its board's (seeded: units differ, as real ones do;
+    what commissioning and ``skin run --calibration`` correct). 0: every taxel is nominal.
+    """
 
     name: str
     source: str
     layout: Layout
     duration: float
     ambient: float
-    noise: float
+    noise: float | None
     seed: int
     initial_temperature: tuple[float, float]
     objects: dict[str, SceneObject]
     touches: tuple[Touch, ...]
+    sensor: str = ""
+    taxel_spread: float = 0.0
 
     def material_of(self, touch: Touch) -> str:
         """Material of the object of a touch."""
@@ -101,6 +114,26 @@ def _number(raw: dict, key: str, where: str, default: Any = None, positive: bool
     if positive and not value > 0:
         raise SceneError(f"{where}: field {key!r} must be positive, got {value!r}")
     return float(value)
+
+
+def _with_sensor(layout: Layout, ref: object, source: str, base: Path | None) -> Layout:
+    """Return the layout with every board carrying the sensor ``ref`` (a preset or a file)."""
+    from dataclasses import replace
+
+    from skin.errors import SensorError
+    from skin.models.sensors import load_sensor
+
+    if not isinstance(ref, str):
+        raise SceneError(f"{source}: field 'sensor' must be a sensor preset name or file")
+    path = Path(ref.partition("#")[0])
+    if base is not None and path.suffix and not path.is_absolute():
+        ref = str(base / ref)
+    try:
+        sensor = load_sensor(ref)
+    except SensorError as exc:
+        raise SceneError(f"{source}: field 'sensor': {exc}") from None
+    boards = [replace(b, **sensor.board_fields(), sensor=ref) for b in layout.boards.values()]
+    return Layout(layout.taxels, boards, name=layout.name, source=layout.source)
 
 
 def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -> Scene:
@@ -126,10 +159,18 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
     if base is not None and ref.suffix and not ref.is_absolute():
         ref = base / ref
     layout = load_layout(ref)
+    sensor = data.get("sensor", "")
+    if sensor:
+        layout = _with_sensor(layout, sensor, source, base)
     duration = _number(data, "duration", source, 20.0, positive=True)
     ambient = _number(data, "ambient", source, 25.0)
-    noise = _number(data, "noise", source, 0.02)
+    noise = _number(data, "noise", source) if "noise" in data else None
+    if noise is not None and noise < 0:
+        raise SceneError(f"{source}: field 'noise' must be >= 0, got {noise!r}")
     seed = int(_number(data, "seed", source, 0))
+    spread = _number(data, "taxel_spread", source, 0.0)
+    if not 0 <= spread < 1:
+        raise SceneError(f"{source}: field 'taxel_spread' must be within [0, 1), got {spread!r}")
     init = data.get("initial_temperature", [ambient + 6.0, ambient + 14.0])
     if not (
         isinstance(init, list)
@@ -154,7 +195,7 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
         temp = raw.get("temperature")
         if temp is not None:
             temp = _number(raw, "temperature", f"{where} ({name})")
-        objects[name] = SceneObject(name, material, temp)
+        objects[name] = SceneObject(name, material, temp, line)
     touches: list[Touch] = []
     touch_lines = header_lines(text, "touches")
     for k, raw in enumerate(_tables(data, "touches", source)):
@@ -195,6 +236,8 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
         initial_temperature=(float(init[0]), float(init[1])),
         objects=objects,
         touches=tuple(touches),
+        sensor=sensor,
+        taxel_spread=spread,
     )
 
 

@@ -1,0 +1,596 @@
+"""`Skin`: a setup built into a running chain - sources, calibration, classifier, sinks, outputs.
+
+``Skin`` resolves a `skin.setup.Setup` into the objects of the chain and checks every input
+before the first frame is read: files exist and parse, the arm has a mesh for every link of the
+layout, the model knows every expected material, the ports open, the calibration reads. Then
+``results()`` yields each result as it comes, ``run()`` runs to the end and writes the outputs
+(``events.jsonl``, ``summary.json``, ``layout.toml``, ``chain.toml``, ``contact_map.png``), and
+``close()`` (or the ``with`` block) closes everything::
+
+    from skin import Skin
+
+    with Skin(port=["replay://run.mcap"], calibration="cal.json", out=None) as skin:
+        for result in skin.results():
+            print(result.contact.onset, result.estimate.label)
+
+A new kind of output is a sink (anything with ``write(result)``, `skin.stream.sinks`): append it
+to ``skin.pipeline.sinks`` after ``check()``, or give it a name in `Skin._make_sinks`.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import sys
+import time
+from collections.abc import Iterator
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from skin.errors import DeviceError, SkinError
+from skin.progress import Progress
+from skin.setup import SINKS, Setup, SetupError
+from skin.stream.pipeline import ContactResult, Pipeline
+
+log = logging.getLogger("skin.runner")
+
+OUTPUTS = ("events.jsonl", "summary.json", "contact_map.png")
+"""Files whose presence marks an output folder as holding an earlier run."""
+
+
+class Skin:
+    """A setup built into a chain, checked before the first frame (see the module docstring).
+
+    Parameters
+    ----------
+    setup : Setup, optional
+        The setup (default: every default).
+    progress : Progress, optional
+        Where messages and the status line go (default: stderr).
+    **values
+        Setup fields that override ``setup`` (``port=[...]``, ``calibration="cal.json"``...).
+
+    Attributes
+    ----------
+    setup : Setup
+        The resolved setup.
+    layout, calibration, classifier, pipeline, scene, materials
+        The chain's parts, set by `check`.
+    records : list of dict
+        Every result given, as the lines of ``events.jsonl`` (with ``truth`` for a scene).
+    summary : dict or None
+        What `run` (or `finish`) reported.
+    """
+
+    def __init__(self, setup: Setup | None = None, *, progress: Progress | None = None,
+                 **values: Any) -> None:
+        setup = Setup() if setup is None else setup
+        self.setup = setup.updated(values, "python") if values else setup
+        self.progress = Progress() if progress is None else progress
+        self.records: list[dict[str, Any]] = []
+        self.summary: dict[str, Any] | None = None
+        self.results_given: list[ContactResult] = []
+        self._checked = False
+        self._opened = False
+        self._closed = False
+        self._device: Any = None
+        self._driver: Any = None
+        self._closers: list[Any] = []
+        self._live: Any = None
+        self._recorder: Any = None
+        self._events_path: Path | None = None
+        self._link: Any = None
+        self._health: Any = None
+        self._now = 0.0
+        self._t_wall = 0.0
+
+    @classmethod
+    def from_file(cls, path: str | Path = "skin.toml", *, progress: Progress | None = None,
+                  **values: Any) -> Skin:
+        """Make a `Skin` of a skin file, ``values`` overriding it (`skin.formats.skin_file`)."""
+        from skin.formats.skin_file import load_skin_file
+
+        return cls(load_skin_file(path), progress=progress, **values)
+
+    # --- checks, before any frame ---------------------------------------------------------
+    def check(self) -> Skin:
+        """Resolve and check every input; nothing is read from a source yet (idempotent).
+
+        Raises
+        ------
+        SkinError
+            Naming the option, the file (and line) and the problem of the first bad input.
+        """
+        if self._checked:
+            return self
+        s = self.setup
+        if len(s.port) > 1 and any(p.startswith(("replay:", "sim:")) for p in s.port):
+            raise SkinError("--port: several URLs make one skin of several boards or buses; "
+                            "sim:// and replay:// are whole skins and come alone")
+        self.url: Any = s.port[0] if len(s.port) == 1 else list(s.port) or None
+        self.replay = isinstance(self.url, str) and self.url.startswith("replay:")
+        bad = [k for k in s.sinks if k not in SINKS and not k.endswith(".jsonl")]
+        if bad:
+            raise SetupError(f"sinks: unknown sink {bad[0]!r} (use {', '.join(SINKS)} or a "
+                             "file.jsonl)")
+        if s.view:
+            from skin.viz.arm import window_problem
+
+            why = window_problem()
+            if why is not None:
+                raise SkinError(f"--view: cannot open a window: {why}; use --video "
+                                "out/run.gif to record the view off screen")
+        self._check_source()
+        self._check_calibration()
+        self._check_classifier()
+        self._check_arm()
+        try:
+            self.pipeline = Pipeline(
+                self.layout, self.classifier, calibration=self.calibration, sensors=self.sensors,
+                ambient_offset=0.0 if self.cal_file is None else self.cal_file.ambient_offset,
+                window=s.window, provisional=s.provisional)
+        except ValueError as exc:
+            raise SkinError(f"--window / --provisional: {exc}") from None
+        if s.out is not None and not s.force:
+            # an empty events.jsonl is a run that received nothing (a dead port): no loss
+            used = [name for name in OUTPUTS if (Path(s.out) / name).exists()
+                    and (Path(s.out) / name).stat().st_size > 0]
+            if used:
+                raise SkinError(f"--out {s.out}: holds an earlier run ({used[0]}); use --force "
+                                "to overwrite it, or another folder")
+        self._checked = True
+        return self
+
+    def _check_source(self) -> None:
+        from skin.formats.layout import load_layout
+        from skin.formats.scene import load_scene
+
+        s = self.setup
+        self.scene: Any = None
+        self.duration = s.duration
+        self.recorded_cal: Any = None
+        if self.url is None:  # a simulation: the scene's layout unless one is given
+            if s.firmware_sim:
+                from skin.drivers.firmware_board import firmware_scene
+
+                self.scene = firmware_scene(load_scene(s.scene))
+                self.layout = self.scene.layout
+            else:
+                self.scene = load_scene(s.scene)
+                self.layout = self.scene.layout if s.layout is None else load_layout(s.layout)
+            from skin.drivers.sim import SkinSimulator
+
+            # checks the scene's materials, naming its file and line
+            self._sim = SkinSimulator(self.scene, duration=s.duration, contact=s.contact)
+            self.duration = self._sim.duration
+            return
+        if s.firmware_sim:
+            raise SkinError("--firmware-sim plays a scene to the emulated board: give no --port")
+        if self.duration is None and not self.replay:
+            self.duration = 20.0
+        recorded_layout = None
+        if self.replay:  # the recording's layout and calibration, unless the user gives others
+            from skin.drivers.replay import recorded_setup, replay_path
+
+            path = replay_path(self.url)
+            if not path.is_file():
+                raise SkinError(f"--port {self.url}: no recording {str(path)!r}")
+            recorded_layout, self.recorded_cal = recorded_setup(path)
+            if self.duration is None:
+                self.duration = math.inf  # to the end of the recording
+        if s.layout or recorded_layout is None:
+            self.layout = load_layout(s.layout or "arm")
+            self.recorded_cal = None  # it belongs to the recording's layout
+        else:
+            self.layout = recorded_layout
+            self.progress.message(f"replaying {self.url}: its layout ({len(self.layout)} "
+                                  "taxels)" + ("" if self.recorded_cal is None or s.calibration
+                                              else " and calibration"))
+
+    def _check_calibration(self) -> None:
+        s = self.setup
+        self.calibration: Any = None
+        self.sensors: Any = None
+        self.cal_file: Any = None
+        if not s.calibration and self.recorded_cal is not None:
+            from skin.stream.calibration import Calibration
+
+            if isinstance(self.recorded_cal, Calibration):
+                self.calibration = self.recorded_cal
+            else:
+                self.cal_file = self.recorded_cal
+                self.calibration, self.sensors = self.cal_file.apply(self.layout)
+        if s.calibration:
+            from skin.formats.calibration_file import load_calibration
+
+            self.cal_file = load_calibration(s.calibration)
+            self.calibration, self.sensors = self.cal_file.apply(self.layout)
+            for part in ("thermistor", "thermal"):
+                miss = self.cal_file.missing(self.layout, part)
+                if miss:
+                    self.progress.message(
+                        f"calibration: {len(miss)} taxels without a {part} fit keep their "
+                        f"board's constants: {miss[:10]}{' ...' if len(miss) > 10 else ''}")
+
+    def expected_materials(self) -> list[str]:
+        """Materials the classifier must know: ``expect`` and a scene's objects."""
+        want = list(self.setup.expect)
+        if self.scene is not None:
+            want += [self.scene.material_of(t) for t in self.scene.touches]
+        return sorted(set(want))
+
+    def _check_classifier(self) -> None:
+        from skin.models import HistogramClassifier, JointClassifier, load_materials
+
+        s = self.setup
+        self.materials = load_materials()
+        want = self.expected_materials()
+        if s.model:
+            from skin.models.learned import LearnedClassifier
+
+            self.classifier: Any = LearnedClassifier(s.model, threshold=s.threshold)
+            known = set(self.classifier.classes)
+            self.progress.message(
+                f"classifier: {self.classifier.method} ({len(self.classifier.classes)} classes, "
+                f"{self.classifier.samples / self.classifier.fs:g} s window)")
+        else:
+            known = set(self.materials)
+            if s.classifier == "joint":
+                self.classifier = JointClassifier(
+                    self.layout, self.materials, threshold=s.threshold,
+                    sensors=None if self.sensors is None else
+                    {int(t.id): v for t, v in zip(self.layout.taxels, self.sensors, strict=True)})
+            else:
+                self.classifier = HistogramClassifier(self.layout, self.materials)
+        missing = [m for m in want if m not in known]
+        if missing:
+            what = f"model {s.model}" if s.model else "the materials table"
+            raise SkinError(f"{what} has no class {missing[0]!r}, which the "
+                            + ("setup's 'expect'" if missing[0] in s.expect else "scene")
+                            + f" needs (it knows {', '.join(sorted(known))})")
+
+    def _check_arm(self) -> None:
+        """Load the arm once and check it covers the layout, if a view or the map needs it."""
+        s = self.setup
+        self.arm: Any = s.arm
+        if s.arm is not None and not Path(s.arm).is_file():
+            raise SkinError(f"--arm {s.arm}: no such arm file")
+        if not (s.view or s.video or (s.map and s.out is not None)):
+            return
+        from skin.viz.arm_mesh import ArmSurface, resolve_arm
+
+        self.arm = resolve_arm(s.arm)
+        ArmSurface(self.layout, self.arm)  # every link has a mesh, every taxel sits on it
+
+    # --- running -----------------------------------------------------------------------------
+    def open(self) -> Skin:
+        """Check, make the output folder and sinks, start a simulation, open the sources."""
+        if self._opened:
+            return self
+        self.check()
+        s = self.setup
+        self._opened = True
+        if s.out is not None:
+            out = Path(s.out)
+            out.mkdir(parents=True, exist_ok=True)
+            from skin.world.map import CHAIN_FILE, LAYOUT_FILE
+
+            for name in (*OUTPUTS, LAYOUT_FILE, CHAIN_FILE):  # none of an earlier run stays
+                (out / name).unlink(missing_ok=True)
+        self._make_source()
+        from skin import drivers
+
+        self._driver = drivers.open(self.source_url)  # before the sinks: a bad port makes none
+        self._closers.append(self._driver)
+        log.info("reading %s (%d taxels)", self._source_name(), len(self.layout))
+        self._make_sinks()
+        log.info("sinks: %s", ", ".join(type(k).__name__ for k in self.pipeline.sinks))
+        if s.view or s.video:
+            self._live = self._live_view()
+        # a device given by the user reconnects; the simulated ones end by going away
+        for one, port_url in zip(getattr(self._driver, "drivers", [self._driver]), s.port,
+                                 strict=False):
+            if port_url.startswith(("serial", "can:")) and "reconnect=" not in port_url:
+                one.reconnect = s.reconnect
+        if self._recorder is not None:
+            self._recorder.add_driver(self._driver)
+        if s.firmware_sim:
+            from skin.drivers.protocol import ALL_TAXELS, Command, MsgType
+
+            # the scene was simulated with every heater on; the firmware boots with them off
+            self._driver.request(Command(MsgType.SET_DUTY, taxel=ALL_TAXELS, duty=255),
+                                 timeout=5.0)
+        elif self._device is not None:
+            self._device.start()  # after the port is open: opening it empties its buffer
+        return self
+
+    def _make_source(self) -> None:
+        s = self.setup
+        self.source_url = self.url
+        if self.scene is None:
+            return
+        sim = self._sim
+        if s.firmware_sim:
+            from skin.drivers.firmware_board import emulated_board
+
+            self._device = emulated_board(sim, folder=s.out,
+                                          realtime=s.speed if s.speed > 0 else None)
+            self.source_url = f"serial://{self._device.start()}"
+            self.progress.message(
+                f"scene '{self.scene.name}' ({len(self.layout)} taxels, "
+                f"{len(self.scene.touches)} touches) played to the firmware in simavr on "
+                f"{self._device.port}")
+        else:
+            from skin.drivers.sim import PtySerialDevice
+
+            self._device = PtySerialDevice(sim, speed=s.speed)
+            self.source_url = f"serial://{self._device.port}"
+            self.progress.message(
+                f"simulated skin '{self.scene.name}' ({len(self.layout)} taxels, "
+                f"{len(self.scene.touches)} touches) served on {self._device.port}")
+
+    def _make_sinks(self) -> None:
+        """Each named sink, the recorder, in that order, onto the pipeline."""
+        from skin.stream.sinks import JsonLinesSink, TerminalSink
+
+        s = self.setup
+        for name in s.sinks:
+            if name == "terminal":
+                self.pipeline.sinks.append(TerminalSink(self.progress))
+                continue
+            if name == "events":
+                if s.out is None:
+                    continue
+                path = Path(s.out) / "events.jsonl"
+                self._events_path = path
+            else:
+                path = Path(name)
+                path.parent.mkdir(parents=True, exist_ok=True)
+            sink = JsonLinesSink(path)  # a killed run keeps every contact already given
+            self._closers.append(sink)
+            self.pipeline.sinks.append(sink)
+        if s.record:
+            from skin.drivers.recording import Recorder
+
+            self._recorder = Recorder(
+                s.record, self.layout, calibration=s.calibration or self.cal_file
+                or self.calibration, metadata={"command": " ".join(["skin", *sys.argv[1:]])})
+            self._closers.append(self._recorder)
+            self.pipeline.sinks.append(self._recorder)
+            self.pipeline.observers.append(self._recorder.temperature)
+
+    def _live_view(self) -> Any:
+        """Open the window (``view``) and/or the movie (``video``) of the run."""
+        from skin.viz import ArmView
+        from skin.viz.arm_live import LiveArm
+
+        s = self.setup
+        view = ArmView(self.layout, {m.name: m.colour for m in self.materials.values()},
+                       arm=self.arm, off_screen=not s.view,
+                       window_size=(1200, 560) if s.view else (960, 440))
+        view.mode = s.view_mode
+        try:
+            return LiveArm(view, window=s.view, movie=s.video)
+        except BaseException:
+            view.close()
+            raise
+
+    def results(self) -> Iterator[ContactResult]:
+        """Read the sources to the end, yielding every result (provisional ones too) as it comes.
+
+        Raises
+        ------
+        SkinError
+            If no frame arrives within ``first_frame_timeout`` seconds, or none at all.
+        """
+        self.open()
+        s, driver, device, pipeline = self.setup, self._driver, self._device, self.pipeline
+        duration = self.duration
+        self._t_wall = time.monotonic()
+        first_time: float | None = None
+        chunk: list = []
+        received = 0
+        idle_since = time.monotonic()
+        while True:
+            try:
+                frame = driver.recv(timeout=0.2)
+            except DeviceError:
+                if not s.firmware_sim or device.running:
+                    raise
+                frame = None  # the emulated board played its whole scene and stopped
+                self._now = duration
+            if frame is not None:
+                if first_time is None:
+                    first_time = frame.device_time
+                chunk.append(frame)
+                received += 1
+                self._now = frame.device_time - first_time
+                idle_since = time.monotonic()
+            elif received == 0 and device is None and (
+                    time.monotonic() - self._t_wall > s.first_frame_timeout):
+                raise SkinError(f"no frame arrived from {self._source_name()} in "
+                                f"{s.first_frame_timeout:g} s: is the device powered and "
+                                "sending, the port and its settings right?")
+            idle = frame is None
+            # a simulated board is done once all it sent is in (or after 2 s of silence)
+            end_of_sim = device is not None and not s.firmware_sim and (
+                device.done.is_set() and (received >= device.frames_sent
+                                          or time.monotonic() - idle_since > 2.0))
+            finished = self._now >= duration - 1e-9 or end_of_sim or (
+                idle and driver.finished) or (
+                device is None and idle and time.monotonic() - self._t_wall > duration + 5)
+            if chunk and (len(chunk) >= 20 or idle or finished):
+                new = pipeline.process(chunk)
+                chunk = []
+                yield from self._given(new)
+                self.progress.status(
+                    f"[{self._now:6.1f}{'' if math.isinf(duration) else f'/{duration:.1f}'} "
+                    f"s] frames {pipeline.stats.frames}  "
+                    f"in contact {int(pipeline.in_contact().sum()):2d}  "
+                    f"contacts {pipeline.stats.contacts}  "
+                    f"crc errors {driver.stats.crc_errors}", self._now)
+            if finished:
+                break
+        if received == 0:
+            raise SkinError(f"no frame arrived from {self._source_name()} during the run")
+        yield from self._given(pipeline.flush())
+        self._link, self._health = driver.stats, driver.health
+
+    def _source_name(self) -> str:
+        return self.source_url if isinstance(self.source_url, str) else ", ".join(self.source_url)
+
+    def _given(self, new: list[ContactResult]) -> Iterator[ContactResult]:
+        self.results_given.extend(new)
+        if self._live is not None:
+            self._live.step(self._now, new, self.pipeline.in_contact(),
+                            self.pipeline.last_temperature)
+        yield from new
+
+    def run(self) -> dict[str, Any]:
+        """Run to the end (Ctrl-C stops early, keeping what was received), then `finish`."""
+        try:
+            for _ in self.results():
+                pass
+        except KeyboardInterrupt:
+            self.progress.message("interrupted: writing what was received")
+        finally:
+            self.close_sources()
+        return self.finish()
+
+    def close_sources(self) -> None:
+        """Close the sources, the sinks, the live view and a simulation (idempotent)."""
+        for thing in self._closers:  # the sources first, then the sinks
+            thing.close()
+        self._closers = []
+        if self._live is not None:
+            self._live.close()
+            if self._live.movie is not None:
+                self.progress.message(f"video: {self._live.movie} ({self._live.frames} frames)")
+            self._live = None
+        self.progress.done()
+        if self._device is not None:
+            self._device.close()
+            self._device = None
+
+    def finish(self) -> dict[str, Any]:
+        """Summarise the run; with an output folder, write its files. Returns the summary."""
+        from skin.formats.scene import match_touches
+        from skin.stream.sinks import event_record
+
+        s, pipeline, layout = self.setup, self.pipeline, self.layout
+        duration = self.duration
+        if math.isinf(duration):  # a replay to its end: the time it held
+            duration = pipeline.stats.samples / next(iter(layout.boards.values())).sample_rate
+        wall = time.monotonic() - self._t_wall
+        results = [r for r in self.results_given if r.contact.final]
+        records = [event_record(r) for r in self.results_given]
+        link, health = self._link, self._health
+        summary: dict[str, Any] = {
+            "source": "simulation" if self.scene is not None else self.url,
+            "scene": None if self.scene is None else self.scene.source,
+            "duration": duration,
+            "wall_time": round(wall, 3),
+            "frames": pipeline.stats.frames,
+            "gaps": pipeline.stats.gaps,
+            "crc_errors": None if link is None else link.crc_errors,
+            "malformed": None if link is None else link.malformed,
+            "faults": None if health is None else health.faults,
+            "reconnects": None if health is None else health.reconnects,
+            "flagged_taxels": [int(layout.ids[k])
+                               for k in np.flatnonzero(pipeline.stats.flagged)],
+            "contacts": len(results),
+        }
+        if self.scene is not None:
+            scene = self.scene
+            in_time = [t for t in scene.touches if t.start < duration]
+            trimmed = scene if len(in_time) == len(scene.touches) else replace(
+                scene, touches=tuple(in_time))
+            matches, unmatched = match_touches(trimmed, [r.contact.taxels for r in results],
+                                               [r.contact.onset for r in results])
+            detected = [m for m in matches if m.contact_index is not None]
+            correct = [m for m in detected
+                       if results[m.contact_index].estimate.label == m.material]
+            family_correct = [m for m in detected if results[m.contact_index].estimate.family
+                              == self.materials[m.material].family]
+            # the measured effusivity (skin.models.contact_fit) against the scene's material
+            errors = [abs(np.log10(results[m.contact_index].estimate.effusivity
+                                   / self.materials[m.material].effusivity))
+                      for m in detected if results[m.contact_index].estimate.effusivity]
+            truth: dict[int, str | None] = {results[i].contact.id: None for i in unmatched}
+            truth.update({results[m.contact_index].contact.id: m.material for m in detected})
+            for rec in records:
+                if rec["contact"] in truth:
+                    rec["truth"] = truth[rec["contact"]]
+                    rec["truth_family"] = (None if rec["truth"] is None
+                                           else self.materials[rec["truth"]].family)
+            if self._events_path is not None:
+                # the truth is known once all contacts are matched: rewrite the file with it
+                with self._events_path.open("w", encoding="utf-8") as file:
+                    for rec in records:
+                        file.write(json.dumps(rec) + "\n")
+            summary.update({
+                "touches": len(matches),
+                "detected": len(detected),
+                "correct": len(correct),
+                "family_correct": len(family_correct),
+                "false_contacts": len(unmatched),
+                "accuracy": round(len(correct) / len(matches), 4) if matches else None,
+                "median_onset_error": round(float(np.median(
+                    [abs(results[m.contact_index].contact.onset - m.touch.start)
+                     for m in detected])), 4) if detected else None,
+                "median_log10_effusivity_error":
+                    round(float(np.median(errors)), 4) if errors else None,
+                "per_touch": [
+                    {"start": m.touch.start, "taxels": list(m.touch.taxels), "truth": m.material,
+                     "label": None if m.contact_index is None
+                     else results[m.contact_index].estimate.label,
+                     "family": None if m.contact_index is None
+                     else results[m.contact_index].estimate.family}
+                    for m in matches
+                ],
+            })
+        self.records = records
+        self.summary = summary
+        if s.out is not None:
+            self._write_outputs(Path(s.out), summary, results, duration)
+        return summary
+
+    def _write_outputs(self, out: Path, summary: dict[str, Any], results: list[ContactResult],
+                       duration: float) -> None:
+        from skin.world.kinematics import default_chain
+        from skin.world.map import write_run_setup
+
+        out.mkdir(parents=True, exist_ok=True)
+        # what `skin view --map` needs: the layout, and for a simulation the arm's pose
+        # (standing at the default chain's default angles); a device's poses are unknown here
+        summary.update(write_run_setup(out, self.layout,
+                                       default_chain() if self.scene is not None else None))
+        (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n",
+                                          encoding="utf-8")
+        log.info("outputs in %s", out)
+        if self.setup.map:
+            from skin.viz import ArmView
+
+            # every contact of the run, at its confidence, none faded
+            view = ArmView(self.layout, {m.name: m.colour for m in self.materials.values()},
+                           arm=self.arm, memory=None)
+            view.update(duration, results=results)
+            view.screenshot(out / "contact_map.png",
+                            title=f"contact map: {len(results)} contacts in {duration:g} s")
+            view.close()
+
+    def close(self) -> None:
+        """Close everything (idempotent)."""
+        if not self._closed:
+            self._closed = True
+            self.close_sources()
+
+    def __enter__(self) -> Skin:
+        return self.check()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
