@@ -215,6 +215,10 @@ class ContactClassifier(ClassifierMixin, BaseEstimator):
         In a copy, each channel other than the primary sees the object's shift through the
         primary's response with time rescaled by ``exp(U(-warp, warp))``: another taxel,
         whose depth and diffusivity the training data did not pin.
+    sensor_spread : float
+        In a copy, the primary taxel starts up to this fraction of its excess over ambient
+        (less 1 K) cooler, as after touches of cold or conductive objects; its reading moves
+        by ``eps (1 - phi)``. 0: the training data's sensor temperatures are the world's.
     random_state : int
         Seed of the copies, the folds and the trees.
     """
@@ -222,8 +226,10 @@ class ContactClassifier(ClassifierMixin, BaseEstimator):
     def __init__(self, channels: int = 1, fs: float = 200.0, object_spread: float = 10.0,
                  copies: int = 2, learner: str = "linear", C: float = 1.0,
                  calibration: str | None = "temperature", cv: int = 3, points: int = 4,
-                 excess: bool = True, warp: float = 0.25, random_state: int = 0) -> None:
+                 excess: bool = True, warp: float = 0.25, sensor_spread: float = 1.0,
+                 random_state: int = 0) -> None:
         self.warp = warp
+        self.sensor_spread = sensor_spread
         self.channels = channels
         self.fs = fs
         self.object_spread = object_spread
@@ -262,6 +268,7 @@ class ContactClassifier(ClassifierMixin, BaseEstimator):
         phi = (w[:, 0] - t0[:, :1]) / np.where(usable, gap, 1.0)[:, None]
         rng = np.random.default_rng(self.random_state)
         xs, ys = [x], [y]
+        t0_recorded = t0
         m = w.shape[2]
         k = np.arange(m, dtype=float)
         for _ in range(self.copies):
@@ -279,7 +286,16 @@ class ContactClassifier(ClassifierMixin, BaseEstimator):
             moved = (np.take_along_axis(ph, lo, axis=2) * (1 - frac)
                      + np.take_along_axis(ph, hi, axis=2) * frac)
             shifted = w + delta[:, None, None] * moved
+            if self.sensor_spread:
+                # the primary taxel starts at another temperature (a history of other
+                # touches): T0 + eps, and its reading moves by eps (1 - phi)
+                room = np.maximum(t0[:, 0] - amb - 1.0, 0.0)
+                eps = -rng.uniform(0.0, 1.0, x.shape[0]) * room * self.sensor_spread
+                shifted[:, 0] += eps[:, None] * (1.0 - phi)
+                t0 = t0.copy()
+                t0[:, 0] += eps
             block = np.concatenate([t0[:, :, None], shifted], axis=2)
+            t0 = t0_recorded
             rows = np.column_stack([amb, block.reshape(x.shape[0], -1)])
             xs.append(rows[usable])
             ys.append(y[usable])
