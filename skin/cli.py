@@ -15,6 +15,7 @@ from skin.commands import (
     commission,
     completion,
     config,
+    dataset,
     devices,
     evaluate,
     evaluate_onset,
@@ -29,7 +30,7 @@ from skin.commands import (
 from skin.errors import SkinError
 
 COMMANDS = (run, simulate, calibrate, train, evaluate, evaluate_onset, bench, plot, record, devices,
-            view, sensors, config, completion, commission)
+            view, sensors, config, completion, commission, dataset)
 
 
 def build_parser() -> argparse.ArgumentParser:
