@@ -41,9 +41,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``skin`` command."""
+    from skin.threads import limited_threads
+
     args = build_parser().parse_args(argv)
     try:
-        return args.func(args)
+        with limited_threads():  # BLAS/OpenMP oversubscribe busy cores (SKIN_THREADS)
+            return args.func(args)
     except SkinError as exc:
         print(f"skin: error: {exc}", file=sys.stderr)
         return 2
