@@ -9,7 +9,9 @@ joint classifier and a per-sample ``budget`` for refining and classifying (the w
 contacts decided together is spread over the samples that follow). It reports taxel-samples
 per second of the whole chain and of each stage (timed inside the pipeline), the real-time
 factor at the boards' rate, the latency of each sample (p50, p99), how long results wait for
-their share of the budget, and the growth of the process's peak memory.
+their share of the budget, and the process's peak memory and its growth. The stream is
+simulated, encoded and decoded in chunks of ``chunk`` samples, so memory does not grow with
+the run's length or hold the whole stream.
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ def cylinder_layout(n: int, radius: float = 0.05, pitch: float = 0.02) -> Layout
 
 
 def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minute: float = 6.0,
-        budget: float | None = 0.001) -> dict:
+        budget: float | None = 0.001, chunk: int = 200) -> dict:
     """Push ``duration`` s of a simulated ``n_taxels`` skin through the chain; see the module.
 
     Parameters
@@ -58,6 +60,9 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
         in the last 10 s).
     budget : float or None
         The pipeline's per-sample budget for refining and classifying, s (None: none).
+    chunk : int
+        Samples simulated, encoded and decoded at a time: the memory is that of one chunk,
+        whatever ``duration``.
 
     Returns
     -------
@@ -65,9 +70,10 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
         ``taxel_samples_per_s`` (whole chain), ``stages`` (taxel-samples per second of each
         stage), ``realtime_factor``, ``latency_ms`` (p50, p99 per sample after decoding),
         ``result_wait_ms`` (p50, p99 of device time from a contact's decision to its result),
-        ``contacts`` decided and ``peak_memory_mb_growth``.
+        ``contacts`` decided, ``peak_memory_mb_growth`` and ``peak_memory_mb`` (the process's
+        peak resident set, MB).
     """
-    from skin.bench.streams import simulate_stream
+    from skin.bench.streams import stream_chunks
     from skin.drivers.protocol import StreamDecoder, encode_sample
     from skin.models import JointClassifier, load_materials
     from skin.stream.calibration import Calibration
@@ -76,36 +82,40 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
     peak0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     layout = cylinder_layout(n_taxels)
     table = load_materials()
-    stream = simulate_stream([table[m] for m in ("aluminium", "pine", "glass", "neoprene")],
-                             n_taxels=n_taxels, duration=duration,
-                             contacts_per_minute=contacts_per_minute, seed=seed)
     cal = Calibration.from_layout(layout)
-    counts = np.clip(np.rint(cal.counts(stream.temperature)), 1, 1022).astype(np.int64)
-    n = len(stream.times)
-    samples = n * n_taxels
     boards = sorted(layout.boards)
     wires = {b: layout.channel_map(b)[0] for b in boards}
     duty = np.full(BOARD_CHANNELS, 255)
-    packets = [[encode_sample(k, int(t * 1e6), counts[k, wires[b]], float(stream.ambient[k]),
-                              duty[: wires[b].size]) for b in boards]
-               for k, t in enumerate(stream.times)]
-
     decoders = [StreamDecoder(board=b) for b in boards]
-    started = time.perf_counter()
-    frames = [[f for dec, p in zip(decoders, per_board, strict=True) for f in dec.feed(p)]
-              for per_board in packets]
-    t_decode = time.perf_counter() - started
-
     pipe = Pipeline(layout, JointClassifier(layout), budget=budget)
+    fs = float(layout.boards[boards[0]].sample_rate)  # the boards sample in step
+    n = round(duration * fs)
+    samples = n * n_taxels
     latency = np.empty(n)
     results = []
+    t_decode = t_chain = 0.0
+    # bounded memory: one chunk of the stream, its packets and frames at a time
+    for part in stream_chunks([table[m] for m in ("aluminium", "pine", "glass", "neoprene")],
+                              n_taxels=n_taxels, duration=duration,
+                              contacts_per_minute=contacts_per_minute, fs=fs, seed=seed,
+                              chunk=chunk):
+        counts = np.clip(np.rint(cal.counts(part.temperature)), 1, 1022).astype(np.int64)
+        for i, t in enumerate(part.times):
+            k = part.start + i
+            packets = [encode_sample(k, int(t * 1e6), counts[i, wires[b]],
+                                     float(part.ambient[i]), duty[: wires[b].size])
+                       for b in boards]
+            t0 = time.perf_counter()
+            sample = [f for dec, p in zip(decoders, packets, strict=True) for f in dec.feed(p)]
+            t1 = time.perf_counter()
+            results += pipe.process(sample)
+            t2 = time.perf_counter()
+            latency[k] = t2 - t1
+            t_decode += t1 - t0
+            t_chain += t2 - t1
     started = time.perf_counter()
-    for k, sample in enumerate(frames):
-        t0 = time.perf_counter()
-        results += pipe.process(sample)
-        latency[k] = time.perf_counter() - t0
     results += pipe.flush()  # the contacts still open or waiting at the end
-    t_chain = time.perf_counter() - started
+    t_chain += time.perf_counter() - started
     total = t_decode + t_chain
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     waits = np.array([r.reported_at - r.contact.decided_at for r in results]) * 1e3
@@ -124,4 +134,5 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
                                "p99": round(float(np.percentile(waits, 99)), 1) if waits.size
                                else None},
             "contacts": len(results),
-            "peak_memory_mb_growth": round((peak - peak0) / 1024.0, 1)}
+            "peak_memory_mb_growth": round((peak - peak0) / 1024.0, 1),
+            "peak_memory_mb": round(peak / 1024.0, 1)}

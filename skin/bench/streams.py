@@ -32,7 +32,7 @@ objects existed.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -140,6 +140,8 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
                     warm_margin: tuple[float, float] = (2.0, 25.0)) -> Stream:
     """Simulate ``n_taxels`` taxels for ``duration`` s; see the module docstring.
 
+    The whole run at once: `stream_chunks` joined (the same arrays, bit for bit).
+
     Parameters
     ----------
     materials : sequence of Material
@@ -172,71 +174,220 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
     -------
     Stream
     """
+    parts = list(stream_chunks(materials, n_taxels, duration, contacts_per_minute,
+                               object_offset, ambient, fs, seed, disturbances, tau, warm,
+                               warm_margin, chunk=max(1, round(duration * fs))))
+    if not parts:  # shorter than one sample
+        return Stream(np.zeros(0), np.zeros((0, n_taxels)), np.zeros(0), [], fs)
+    truth = [c for p in parts for c in p.contacts]
+    truth.sort(key=lambda c: (c.onset, c.taxel))
+    return Stream(np.concatenate([p.times for p in parts]),
+                  np.concatenate([p.temperature for p in parts]),
+                  np.concatenate([p.ambient for p in parts]), truth, fs)
+
+
+@dataclass
+class StreamChunk:
+    """Consecutive samples of a simulated stream (`stream_chunks`).
+
+    Attributes
+    ----------
+    start : int
+        Index of the chunk's first sample in the whole stream.
+    times, temperature, ambient : numpy.ndarray
+        As in `Stream`, for the chunk's samples.
+    contacts : list of StreamContact
+        The contacts whose first touching sample lies in the chunk, in time order.
+    """
+
+    start: int
+    times: np.ndarray
+    temperature: np.ndarray
+    ambient: np.ndarray
+    contacts: list[StreamContact]
+
+
+def _skip_normals(rng: np.random.Generator, count: int, block: int = 1 << 20) -> None:
+    """Advance ``rng`` past ``count`` normal draws without holding them."""
+    while count > 0:
+        rng.standard_normal(min(count, block))
+        count -= block
+
+
+def _fork(rng: np.random.Generator) -> np.random.Generator:
+    """Return a generator that goes on from ``rng``'s current state, independently of it."""
+    out = np.random.Generator(type(rng.bit_generator)())
+    out.bit_generator.state = rng.bit_generator.state
+    return out
+
+
+def stream_chunks(materials: Sequence[Material], n_taxels: int = 16, duration: float = 600.0,
+                  contacts_per_minute: float = 1.0,
+                  object_offset: tuple[float, float] = (0, 0), ambient: float = 25.0,
+                  fs: float = 200.0, seed: int = 0, disturbances: bool = True,
+                  tau: float = 62.5, warm: float = 0.0,
+                  warm_margin: tuple[float, float] = (2.0, 25.0),
+                  chunk: int = 2000) -> Iterator[StreamChunk]:
+    """Yield the stream of `simulate_stream` in chunks of ``chunk`` samples.
+
+    Memory is bounded by the chunk (times the taxels) and the schedule of events (heater
+    switches, gusts, contacts), not by the duration. The chunks joined are the arrays of
+    `simulate_stream` bit for bit, whatever ``chunk``: the random draws are made in the order
+    of the whole-run form, each kind of draw from its own copy of the generator moved past
+    the draws before it (the schedules are drawn up front; the noise row by row).
+
+    Parameters
+    ----------
+    materials, n_taxels, duration, contacts_per_minute, object_offset, ambient, fs, seed, \
+disturbances, tau, warm, warm_margin
+        As for `simulate_stream`.
+    chunk : int
+        Samples per chunk (the last one may be shorter).
+
+    Yields
+    ------
+    StreamChunk
+    """
+    from scipy.signal import lfilter
+
     if n_taxels < 1 or duration <= 0 or fs <= 0 or contacts_per_minute < 0:
         raise ValueError("n_taxels, duration and fs must be positive, the contact rate >= 0")
     if not materials:
         raise ValueError("simulate_stream needs at least one material")
     if not 0.0 <= warm <= 1.0 or warm_margin[0] < 0 or warm_margin[1] < warm_margin[0]:
         raise ValueError("warm must lie in [0, 1] and warm_margin be a range of margins >= 0")
+    if chunk < 1:
+        raise ValueError(f"chunk must be at least 1 sample, got {chunk}")
     rng = np.random.default_rng(seed)
     sensor = SensorConstants()
     n = round(duration * fs)
-    times = np.arange(n) / fs
     full_excess = float(heated_temperature(ambient, sensor)) - ambient
-    amb = np.full(n, ambient)
-    duty = np.ones((n, n_taxels))
-    gust = np.zeros((n, n_taxels))
+    switches: list[tuple[int, int, float]] = []  # (sample, taxel, duty), in time order
+    gusts: list[tuple[float, int, float, float, float]] = []  # (start, taxel, depth, rise, hold)
+    amb_rng = flutter_rng = None
     if disturbances:
-        amb = ambient + np.cumsum(rng.normal(0.0, 1.0 / np.sqrt(600.0 * fs), n))
+        amb_rng = _fork(rng)
+        _skip_normals(rng, n)
         for j in range(n_taxels):
             k = 0
             while k < n:
                 k_next = k + round(rng.uniform(20.0, 120.0) * fs)
-                duty[k:k_next, j] = rng.choice([1.0, 0.85, 0.7, 0.55])
+                switches.append((k, j, float(rng.choice([1.0, 0.85, 0.7, 0.55]))))
                 k = k_next
             for start in np.cumsum(rng.exponential(60.0, int(duration / 30.0) + 2)):
                 if start >= duration:
                     break
                 depth, rise, hold = rng.uniform(*GUST_DEPTH), rng.uniform(1.0, 4.0), \
                     rng.uniform(1.0, 8.0)
-                s = np.maximum(times - start, 0.0)
-                shape = np.where(s < hold, 1.0 - np.exp(-s / rise),
-                                 (1.0 - np.exp(-hold / rise)) * np.exp(-(s - hold) / rise))
-                gust[:, j] -= depth * shape
-        flutter = rng.normal(0.0, 0.01, (n, n_taxels))
-        flutter = _lag(flutter, 0.5, fs, np.zeros(n_taxels)) * np.sqrt(2 * 0.5 * fs)
-        gust += flutter
-    excess = _lag(full_excess * duty, tau, fs, np.full(n_taxels, full_excess))
-    free = amb[:, None] + excess + gust
-    reading = free.copy()
-    truth: list[StreamContact] = []
+                gusts.append((float(start), j, depth, rise, hold))
+        switches.sort(key=lambda e: e[0])  # stable: a taxel's switches stay in order
+        gusts.sort(key=lambda g: g[0])
+        flutter_rng = _fork(rng)
+        _skip_normals(rng, n * n_taxels)
+    # the contacts: what the whole-run form draws, taxel by taxel; the readings come later
+    schedule: list[tuple] = []
     for j in range(n_taxels):
         t = 5.0 + rng.exponential(60.0 / max(contacts_per_minute, 1e-9))
         while t < duration - 10.0:
             length = float(np.exp(rng.uniform(np.log(0.1), np.log(5.0))))
             mat = materials[rng.integers(len(materials))]
-            t_obj = mat.resting_temperature(float(amb[round(t * fs)])) + (
-                rng.uniform(*object_offset) if mat.temperature is None else 0.0)
+            offset = rng.uniform(*object_offset) if mat.temperature is None else 0.0
             h = 10.0 ** rng.uniform(*np.log10(mat.conductance_range))
-            k0 = int(np.ceil(t * fs))
-            k1 = int(np.ceil((t + length) * fs))
-            t0 = float(reading[k0 - 1, j])
+            margin = None
             if warm > 0 and mat.temperature is None and rng.random() < warm:
-                t_obj = t0 + rng.uniform(*warm_margin)
-            since = times[k0:k1] - t
-            reading[k0:k1, j] = contact_trace(since, t0, t_obj, mat.effusivity, sensor, h)
-            # after release: back to the free reading, fast at first, then slowly
-            end = float(contact_trace(length, t0, t_obj, mat.effusivity, sensor, h))
-            after = times[k1:] - (t + length)
-            gap = end - free[k1:, j][0] if k1 < n else 0.0
-            recovery = gap * (0.5 * np.exp(-after / 2.0) + 0.5 * np.exp(-after / tau))
-            reading[k1:, j] = free[k1:, j] + recovery
-            change = np.abs(reading[k0:k1, j] - t0) >= VISIBLE
-            seen = float(since[np.argmax(change)]) if change.any() else float("inf")
-            peak = float(np.max(np.abs(reading[k0:k1, j] - t0))) if k1 > k0 else 0.0
-            truth.append(StreamContact(j, float(t), float(t + length), mat.name, float(t_obj),
-                                       t0, seen, peak))
+                margin = rng.uniform(*warm_margin)
+            schedule.append((int(np.ceil(t * fs)), j, t, length, mat, offset, h, margin))
             t += length + 10.0 + rng.exponential(60.0 / max(contacts_per_minute, 1e-9))
-    temperature = adc_readings(reading, rng, 0.5)
-    truth.sort(key=lambda c: (c.onset, c.taxel))
-    return Stream(times, temperature, amb, truth, fs)
+    schedule.sort(key=lambda c: c[0])
+    adc_rng = rng  # the readout noise comes last
+    a_lag = np.exp(-1.0 / (tau * fs))
+    excess_z = (a_lag * np.full(n_taxels, full_excess))[None, :]
+    a_flutter = np.exp(-1.0 / (0.5 * fs))
+    flutter_z = (a_flutter * np.zeros(n_taxels))[None, :]
+    duty_now = np.ones(n_taxels)
+    amb_sum = 0.0
+    amb_last = reading_last = None  # the sample before the chunk
+    live_gusts: list[tuple[float, int, float, float, float]] = []
+    # per taxel, its latest contact: [k0, k1, trace, release time, end reading, gap]
+    latest: dict[int, list] = {}
+    i_switch = i_gust = i_contact = 0
+    for a in range(0, n, chunk):
+        b = min(a + chunk, n)
+        m = b - a
+        times = np.arange(a, b) / fs
+        if disturbances:
+            steps = amb_rng.normal(0.0, 1.0 / np.sqrt(600.0 * fs), m)
+            cum = np.cumsum(np.concatenate(([amb_sum], steps)))[1:]
+            amb_sum = cum[-1]
+            amb = ambient + cum
+        else:
+            amb = np.full(m, ambient)
+        duty = np.tile(duty_now, (m, 1))
+        while i_switch < len(switches) and switches[i_switch][0] < b:
+            k, j, value = switches[i_switch]
+            duty[k - a:, j] = value
+            duty_now[j] = value
+            i_switch += 1
+        gust = np.zeros((m, n_taxels))
+        if disturbances:
+            while i_gust < len(gusts) and gusts[i_gust][0] < times[-1]:
+                live_gusts.append(gusts[i_gust])
+                i_gust += 1
+            # a gust long gone adds exactly 0 (its exp underflows): drop it
+            live_gusts = [g for g in live_gusts if times[0] - g[0] - g[4] < 750.0 * g[3]]
+            for start, j, depth, rise, hold in sorted(live_gusts, key=lambda g: g[1]):
+                s = np.maximum(times - start, 0.0)
+                shape = np.where(s < hold, 1.0 - np.exp(-s / rise),
+                                 (1.0 - np.exp(-hold / rise)) * np.exp(-(s - hold) / rise))
+                gust[:, j] -= depth * shape
+            flutter = flutter_rng.normal(0.0, 0.01, (m, n_taxels))
+            flutter, flutter_z = lfilter([1.0 - a_flutter], [1.0, -a_flutter], flutter, axis=0,
+                                         zi=flutter_z)
+            gust += flutter * np.sqrt(2 * 0.5 * fs)
+        excess, excess_z = lfilter([1.0 - a_lag], [1.0, -a_lag], full_excess * duty, axis=0,
+                                   zi=excess_z)
+        free = amb[:, None] + excess + gust
+        reading = free.copy()
+        for j, c in latest.items():  # the contacts before the chunk: their trace, recovery
+            _write_contact(reading, free, times, a, j, c, tau)
+        found = []
+        while i_contact < len(schedule) and schedule[i_contact][0] < b:
+            k0, j, t, length, mat, offset, h, margin = schedule[i_contact]
+            i_contact += 1
+            amb_at = amb[round(t * fs) - a] if round(t * fs) >= a else amb_last
+            t_obj = mat.resting_temperature(float(amb_at)) + offset
+            t0 = float(reading[k0 - 1 - a, j] if k0 > a else reading_last[j])
+            if margin is not None:
+                t_obj = t0 + margin
+            k1 = int(np.ceil((t + length) * fs))
+            since = np.arange(k0, min(k1, n)) / fs - t
+            trace = contact_trace(since, t0, t_obj, mat.effusivity, sensor, h)
+            end = float(contact_trace(length, t0, t_obj, mat.effusivity, sensor, h))
+            change = np.abs(trace - t0) >= VISIBLE
+            seen = float(since[np.argmax(change)]) if change.any() else float("inf")
+            peak = float(np.max(np.abs(trace - t0))) if k1 > k0 else 0.0
+            found.append(StreamContact(j, float(t), float(t + length), mat.name, float(t_obj),
+                                       t0, seen, peak))
+            latest[j] = [k0, k1, trace, t + length, end, None]
+            _write_contact(reading, free, times, a, j, latest[j], tau)
+        amb_last, reading_last = amb[-1], reading[-1].copy()
+        temperature = adc_readings(reading, adc_rng, 0.5)
+        found.sort(key=lambda c: (c.onset, c.taxel))
+        yield StreamChunk(a, times, temperature, amb, found)
+
+
+def _write_contact(reading: np.ndarray, free: np.ndarray, times: np.ndarray, a: int, j: int,
+                   c: list, tau: float) -> None:
+    """Write a contact's trace and the recovery after it into the chunk starting at ``a``."""
+    k0, k1, trace, release, end, gap = c
+    b = a + len(times)
+    if k0 < b and k1 > a:
+        lo, hi = max(k0, a), min(k1, b)
+        reading[lo - a:hi - a, j] = trace[lo - k0:hi - k0]
+    if k1 < b:
+        lo = max(k1, a)
+        if gap is None:  # the first free sample after release sets the gap
+            gap = c[5] = end - free[k1 - a, j]
+        after = times[lo - a:] - release
+        recovery = gap * (0.5 * np.exp(-after / 2.0) + 0.5 * np.exp(-after / tau))
+        reading[lo - a:, j] = free[lo - a:, j] + recovery

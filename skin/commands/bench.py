@@ -10,7 +10,8 @@ taxels (at one initial temperature, or staggered) and reports the accuracy and c
 contact of the joint model that shares the object's temperature between them
 (`skin.models.joint`).
 
-``skin bench pipeline`` pushes a simulated skin of each size (boards of 256 taxels) through
+``skin bench pipeline`` pushes a simulated skin of each size (boards of 256 taxels), generated
+in chunks of 1 s so that memory stays bounded, through
 decode, assemble, calibrate, onset, track, refine and classify one sample at a time and
 reports taxel-samples per second of the chain and of each stage, the real-time factor at
 200 Hz, the per-sample latency, how long results wait for their share of the budget, and the
@@ -103,6 +104,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     cal.add_argument("--seed", type=int, default=0, help="seed")
     cal.add_argument("--json", action="store_true", help="print one JSON document")
     cal.set_defaults(func=main_calibration)
+    spread = kinds.add_parser("spread", help="per-taxel spread of the simulated skin against "
+                                             "a calibration file of its true constants")
+    spread.add_argument("--touches", type=int, default=120, help="touches in the scene (120)")
+    spread.add_argument("--spread", type=float, default=0.10,
+                        help="relative spread of each taxel's constants (0.10)")
+    spread.add_argument("--sensor", default="", help="sensor preset (default: the paper's)")
+    spread.add_argument("--seed", type=int, default=0, help="seed")
+    spread.add_argument("--json", action="store_true", help="print one JSON document")
+    spread.set_defaults(func=main_spread)
     bench_drivers.add_parsers(kinds)
     bench_view.add_parsers(kinds)
 
@@ -266,6 +276,35 @@ def main_calibration(args: argparse.Namespace) -> int:
     return 0
 
 
+def main_spread(args: argparse.Namespace) -> int:
+    """``skin bench spread``: what calibration wins back on a skin whose taxels differ."""
+    from skin import bench
+    from skin.bench.spread import run
+    from skin.errors import SkinError
+
+    if args.touches < 1 or not 0 <= args.spread < 1:
+        raise SkinError("--touches must be at least 1 and --spread within [0, 1)")
+    progress = Progress()
+    started = time.monotonic()
+    doc = {"machine": bench.machine(),
+           **run(args.touches, args.spread, args.seed, args.sensor,
+                 progress=lambda d, n: progress.bar(d, n, "runs", started))}
+    progress.done()
+    if args.json:
+        print(json.dumps(doc))
+        return 0
+    print(f"{args.touches} touches on the arm, taxel constants spread +-{args.spread:.0%} "
+          f"(seed {args.seed}, sensor {doc['sensor']}, {doc['machine']['cpus']} cores)")
+    print(f"{'run':<12} {'accuracy':>8} {'detected':>8} {'false':>6} {'wall s':>7}")
+    for key in ("nominal", "spread", "calibrated"):
+        r = doc[key]
+        print(f"{key:<12} {r['accuracy']:>8.3f} {r['detected']:>8} {r['false_contacts']:>6} "
+              f"{r['wall_time']:>7}")
+    print(f"calibration gain {doc['calibration_gain']:+.3f}, spread loss "
+          f"{doc['spread_loss']:+.3f} (accuracy)")
+    return 0
+
+
 def main_pipeline(args: argparse.Namespace) -> int:
     """Run the pipeline throughput benchmark."""
     from skin import bench
@@ -302,12 +341,12 @@ def main_pipeline(args: argparse.Namespace) -> int:
         print(f"{r['taxels']:>7} {r['taxel_samples_per_s']:>10} "
               + " ".join(f"{r['stages'][k] or '-':>10}" for k in names))
     print(f"\n{'taxels':>7} {'x real time':>11} {'p50 ms':>7} {'p99 ms':>7} {'contacts':>8} "
-          f"{'wait p50 ms':>11} {'wait p99 ms':>11} {'memory MB':>9}")
+          f"{'wait p50 ms':>11} {'wait p99 ms':>11} {'memory MB':>9} {'peak MB':>8}")
     for r in rows:
         w = r["result_wait_ms"]
         print(f"{r['taxels']:>7} {r['realtime_factor']:>11} {r['latency_ms']['p50']:>7} "
               f"{r['latency_ms']['p99']:>7} {r['contacts']:>8} {w['p50']!s:>11} "
-              f"{w['p99']!s:>11} {r['peak_memory_mb_growth']:>9}")
+              f"{w['p99']!s:>11} {r['peak_memory_mb_growth']:>9} {r['peak_memory_mb']:>8}")
     return 0
 
 

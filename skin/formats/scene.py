@@ -75,6 +75,9 @@ class Scene:
     ``noise`` is the white noise of the thermistor temperatures, K, when the scene sets it
     (it then replaces the sensor's noise model); None: each board's sensor description says.
     ``sensor`` is the sensor the scene puts on every board ("": the layout's own).
+    ``taxel_spread`` spreads each taxel's thermistor depth, diffusivity and conductivity
+    uniformly within +- that fraction of its board's (seeded: units differ, as real ones do;
+    what commissioning and ``skin run --calibration`` correct). 0: every taxel is nominal.
     """
 
     name: str
@@ -88,6 +91,7 @@ class Scene:
     objects: dict[str, SceneObject]
     touches: tuple[Touch, ...]
     sensor: str = ""
+    taxel_spread: float = 0.0
 
     def material_of(self, touch: Touch) -> str:
         """Material of the object of a touch."""
@@ -164,6 +168,9 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
     if noise is not None and noise < 0:
         raise SceneError(f"{source}: field 'noise' must be >= 0, got {noise!r}")
     seed = int(_number(data, "seed", source, 0))
+    spread = _number(data, "taxel_spread", source, 0.0)
+    if not 0 <= spread < 1:
+        raise SceneError(f"{source}: field 'taxel_spread' must be within [0, 1), got {spread!r}")
     init = data.get("initial_temperature", [ambient + 6.0, ambient + 14.0])
     if not (
         isinstance(init, list)
@@ -230,6 +237,7 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
         objects=objects,
         touches=tuple(touches),
         sensor=sensor,
+        taxel_spread=spread,
     )
 
 
