@@ -97,9 +97,12 @@ class LearnedClassifier:
         return np.concatenate([[contact.ambient], row.ravel()])[None, :]
 
     def _predict(self, x: np.ndarray) -> np.ndarray:
-        if hasattr(self.estimator, "predict_proba"):
-            return self.estimator.predict_proba(x)
-        pred = self.estimator.predict(x)  # no probabilities: each taxel votes with certainty
+        from skin.threads import limited_threads
+
+        with limited_threads():
+            if hasattr(self.estimator, "predict_proba"):
+                return self.estimator.predict_proba(x)
+            pred = self.estimator.predict(x)  # no probabilities: each taxel votes with certainty
         return np.array([[0.999 if c == lab else 0.001 / max(len(self.classes) - 1, 1)
                           for c in self.classes] for lab in pred])
 

@@ -61,11 +61,13 @@ def _add_logging_options(parser: argparse.ArgumentParser, default: object) -> No
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``skin`` command."""
     from skin.logs import configure_logging
+    from skin.threads import limited_threads
 
     args = build_parser().parse_args(argv)
     try:
         configure_logging(args.verbose, args.log_file)
-        return args.func(args)
+        with limited_threads():  # BLAS/OpenMP oversubscribe busy cores (SKIN_THREADS)
+            return args.func(args)
     except SkinError as exc:
         print(f"skin: error: {exc}", file=sys.stderr)
         return 2
