@@ -24,13 +24,14 @@ from skin.commands import (
     run,
     sensors,
     simulate,
+    subscribe,
     train,
     view,
 )
 from skin.errors import SkinError
 
 COMMANDS = (run, simulate, calibrate, train, evaluate, evaluate_onset, bench, plot, record, devices,
-            view, sensors, config, completion, commission, dataset)
+            view, sensors, config, completion, commission, dataset, subscribe)
 
 
 def build_parser() -> argparse.ArgumentParser:

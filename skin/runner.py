@@ -82,6 +82,7 @@ class Skin:
         self._closers: list[Any] = []
         self._live: Any = None
         self._recorder: Any = None
+        self.publishers: list[Any] = []
         self._events_path: Path | None = None
         self._link: Any = None
         self._health: Any = None
@@ -117,6 +118,10 @@ class Skin:
         if bad:
             raise SetupError(f"sinks: unknown sink {bad[0]!r} (use {', '.join(SINKS)} or a "
                              "file.jsonl)")
+        from skin.stream.publish import check_publisher_url
+
+        for url in s.publish:  # the scheme, its options and its package, before any frame
+            check_publisher_url(url)
         if s.view:
             from skin.viz.arm import window_problem
 
@@ -260,8 +265,8 @@ class Skin:
         """Load the arm once and check it covers the layout, if a view or the map needs it."""
         s = self.setup
         self.arm: Any = s.arm
-        if s.arm is not None and not Path(s.arm).is_file():
-            raise SkinError(f"--arm {s.arm}: no such arm file")
+        if s.arm is not None and not Path(s.arm).is_file() and s.arm != "xarm7":
+            raise SkinError(f"--arm {s.arm}: no such arm file (or the shipped 'xarm7')")
         if not (s.view or s.video or (s.map and s.out is not None)):
             return
         from skin.viz.arm_mesh import ArmSurface, resolve_arm
@@ -365,6 +370,23 @@ class Skin:
             self._closers.append(self._recorder)
             self.pipeline.sinks.append(self._recorder)
             self.pipeline.observers.append(self._recorder.temperature)
+        if s.publish:
+            from skin.stream.publish import open_publisher
+
+            chain = self._urdf_chain()
+            for url in s.publish:
+                pub = open_publisher(url, self.layout, chain=chain).attach(self.pipeline)
+                self._closers.append(pub)
+                self.publishers.append(pub)
+
+    def _urdf_chain(self) -> Any:
+        """Return the chain of a URDF arm (``arm`` a ``.urdf`` file or ``xarm7``), else None."""
+        arm = self.setup.arm
+        if arm is None or not (arm == "xarm7" or arm.lower().endswith(".urdf")):
+            return None
+        from skin.world.urdf import example_urdf, load_urdf
+
+        return load_urdf(example_urdf() if arm == "xarm7" else arm).chain
 
     def _live_view(self) -> Any:
         """Open the window (``view``) and/or the movie (``video``) of the run."""
@@ -507,6 +529,8 @@ class Skin:
                                for k in np.flatnonzero(pipeline.stats.flagged)],
             "contacts": len(results),
         }
+        if self.publishers:
+            summary["published"] = {p.url: dict(p.sent) for p in self.publishers}
         if self.scene is not None:
             scene = self.scene
             in_time = [t for t in scene.touches if t.start < duration]
@@ -570,8 +594,12 @@ class Skin:
         out.mkdir(parents=True, exist_ok=True)
         # what `skin view --map` needs: the layout, and for a simulation the arm's pose
         # (standing at the default chain's default angles); a device's poses are unknown here
-        summary.update(write_run_setup(out, self.layout,
-                                       default_chain() if self.scene is not None else None))
+        chain = None
+        if self.scene is not None:  # a simulation: the arm stands at its default angles
+            chain = self._urdf_chain() or default_chain()
+            if not set(self.layout.links) <= set(chain.links):
+                chain = None  # not this layout's arm
+        summary.update(write_run_setup(out, self.layout, chain))
         (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n",
                                           encoding="utf-8")
         log.info("outputs in %s", out)

@@ -30,13 +30,14 @@ GROUPS: dict[str, tuple[str, ...]] = {
                "speed", "contact"),
     "skin": ("layout", "calibration"),
     "classifier": ("model", "classifier", "threshold", "expect", "window", "provisional"),
-    "output": ("out", "force", "sinks", "record", "map", "arm", "view", "video", "view_mode"),
+    "output": ("out", "force", "sinks", "publish", "record", "map", "arm", "view", "video",
+               "view_mode"),
 }
 """The tables of a skin file and the fields each holds (every field is in one table)."""
 
 PATHS: dict[str, str] = {
     "layout": "name", "scene": "name", "calibration": "path", "model": "path", "record": "path",
-    "out": "path", "arm": "path", "video": "path", "sinks": "jsonl", "port": "url",
+    "out": "path", "arm": "name", "video": "path", "sinks": "jsonl", "port": "url",
 }
 """Fields that hold files: ``path`` always a path; ``name`` a shipped name unless it has a
 folder or a suffix; ``jsonl`` paths ending in ``.jsonl``; ``url`` the file of ``replay://``.
@@ -89,6 +90,9 @@ class Setup:
         Anytime points: also classify open contacts at these seconds after onset.
     sinks : list of str
         Where results go (`SINKS`, or ``*.jsonl`` files).
+    publish : list of str
+        Live publishers by URL (``foxglove://HOST:PORT``, ``zenoh://PREFIX``;
+        `skin.stream.publish`).
     record : str or None
         MCAP file to record to.
     out : str or None
@@ -98,7 +102,8 @@ class Setup:
     map : bool
         Render ``contact_map.png``.
     arm : str or None
-        Arm file (meshes per link) for the views and the map; default the procedural arm.
+        Arm file (TOML of meshes per link, or a URDF), or ``xarm7`` (the shipped example
+        arm); default the procedural arm.
     view : bool
         Show the arm in a window.
     video : str or None
@@ -126,6 +131,7 @@ class Setup:
     window: float = 2.5
     provisional: list[float] = field(default_factory=list)
     sinks: list[str] = field(default_factory=lambda: list(SINKS))
+    publish: list[str] = field(default_factory=list)
     record: str | None = None
     out: str | None = "out/run"
     force: bool = False
@@ -275,6 +281,7 @@ _CHECKS: dict[str, Callable[[Any], Any]] = {
     "window": _positive,
     "provisional": _numbers,
     "sinks": _texts,
+    "publish": _texts,
     "record": _optional_text,
     "out": _optional_text,
     "force": _flag,

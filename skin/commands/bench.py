@@ -35,6 +35,10 @@ frame (`skin.bench.clock`).
 written into the mesh's colour array) beside one render, for skins of 72-1000 taxels on
 meshes of 14k and 100k vertices, with a baseline of the same run (`skin.bench.view`).
 
+``skin bench publish`` measures what publishing costs: the pipeline's throughput with a
+Zenoh or Foxglove publisher attached against without, and the latency from a sample to a
+subscriber in another process at the skin's real rate (`skin.bench.publish`).
+
 ``skin bench calibration`` runs simulated calibrations (each taxel's constants drawn within
 +-10 % of the paper's, a few contacts with a reference material) and reports how well
 `skin.models.sensor_fit.fit_sensor_constants` recovers them, against the nominal constants,
@@ -104,6 +108,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     cal.add_argument("--seed", type=int, default=0, help="seed")
     cal.add_argument("--json", action="store_true", help="print one JSON document")
     cal.set_defaults(func=main_calibration)
+    pub = kinds.add_parser("publish", help="what publishing (Zenoh, Foxglove) costs, latency")
+    pub.add_argument("--taxels", type=int, default=1000, help="skin size (1000)")
+    pub.add_argument("--seconds", type=float, default=10.0, help="simulated seconds (10)")
+    pub.add_argument("--chunk", type=int, default=1,
+                     help="samples the pipeline takes at once (1: each as it comes)")
+    pub.add_argument("--publishers", default="zenoh,foxglove", help="zenoh,foxglove")
+    pub.add_argument("--json", action="store_true", help="print one JSON document")
+    pub.set_defaults(func=main_publish)
     spread = kinds.add_parser("spread", help="per-taxel spread of the simulated skin against "
                                              "a calibration file of its true constants")
     spread.add_argument("--touches", type=int, default=120, help="touches in the scene (120)")
@@ -347,6 +359,43 @@ def main_pipeline(args: argparse.Namespace) -> int:
         print(f"{r['taxels']:>7} {r['realtime_factor']:>11} {r['latency_ms']['p50']:>7} "
               f"{r['latency_ms']['p99']:>7} {r['contacts']:>8} {w['p50']!s:>11} "
               f"{w['p99']!s:>11} {r['peak_memory_mb_growth']:>9} {r['peak_memory_mb']:>8}")
+    return 0
+
+
+def main_publish(args: argparse.Namespace) -> int:
+    """Run the publishing benchmark (`skin.bench.publish`)."""
+    from skin import bench
+    from skin.bench.publish import run
+    from skin.errors import SkinError
+
+    kinds = tuple(k.strip() for k in args.publishers.split(",") if k.strip())
+    if not kinds or set(kinds) - {"zenoh", "foxglove"}:
+        raise SkinError(f"--publishers: zenoh and/or foxglove, got {args.publishers!r}")
+    if args.taxels < 1 or args.seconds <= 0 or args.chunk < 1:
+        raise SkinError("--taxels, --seconds and --chunk must be positive")
+    progress = Progress()
+    doc = run(args.taxels, args.seconds, chunk=args.chunk, publishers=kinds,
+              progress=progress.message)
+    progress.done()
+    doc["machine"] = bench.machine()
+    if args.json:
+        print(json.dumps(doc))
+        return 0
+    print(f"publishing {doc['taxels']} taxels x {doc['rate_hz']:g} Hz, {doc['samples']} samples "
+          f"in blocks of {doc['chunk']} ({doc['machine']['cpus']} cores); without publishing "
+          f"the pipeline takes {doc['baseline_samples_per_s']:g} samples/s")
+    print("throughput ratio: CPU seconds of the skin's process per sample without publishing / "
+          "with (publisher threads included); wall: the same by the wall time of the "
+          "pipeline's calls (on a loaded machine the scheduler's favours blur it)")
+    print(f"{'publisher':<10} {'throughput (CPU)':>16} {'wall':>6} {'p50 ms':>7} "
+          f"{'p99 ms':>7} {'received (paced)':>16} {'received (flat out)':>19}")
+    for kind in kinds:
+        rows = {r["mode"]: r for r in doc["rows"] if r["publisher"] == kind}
+        t, lat = rows["throughput"], rows["latency"]
+        print(f"{kind:<10} {t['cpu_ratio']:>16} {t['throughput_ratio']:>6} "
+              f"{lat['p50_latency_ms']!s:>7} "
+              f"{lat['p99_latency_ms']!s:>7} {lat['received_share']:>16.2%} "
+              f"{t['received_share']:>19.2%}")
     return 0
 
 

@@ -95,7 +95,8 @@ def add_setup_options(run: argparse.ArgumentParser) -> None:
                      help="what --view and --video show first: material labels (default) or "
                           "each taxel's temperature")
     run.add_argument("--arm", metavar="FILE",
-                     help="arm file (TOML: a mesh file and pose per link) for the views and "
+                     help="arm file (TOML: a mesh file and pose per link; or a URDF; or xarm7, "
+                          "the example arm) for the views and "
                           "contact_map.png; default: the procedural arm of the default layout")
     run.add_argument("--first-frame-timeout", type=float, metavar="SECONDS",
                      help="fail when a device sends no frame within this time (default 5)")
@@ -105,6 +106,10 @@ def add_setup_options(run: argparse.ArgumentParser) -> None:
     run.add_argument("--sink", dest="sinks", action="append", metavar="NAME|FILE.jsonl",
                      help="where results go: events (events.jsonl in --out), terminal, or a "
                           "JSON-lines file; repeatable (default: events and terminal)")
+    run.add_argument("--publish", action="append", metavar="URL",
+                     help="publish live: foxglove://HOST:PORT (a Foxglove WebSocket server) or "
+                          "zenoh://[PREFIX] (keys PREFIX/ROBOT/temperature, contacts, health); "
+                          "repeatable (skin.stream.publish)")
     run.add_argument("--force", action="store_true",
                      help="overwrite the outputs of an earlier run in --out")
 

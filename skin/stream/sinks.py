@@ -17,9 +17,18 @@ from skin.stream.pipeline import ContactResult
 
 
 def event_record(result: ContactResult) -> dict[str, Any]:
-    """Return the JSON-ready record of one result (one line of ``events.jsonl``)."""
-    c, e = result.contact, result.estimate
-    return {
+    """Return the JSON-ready record of one result (one line of ``events.jsonl``).
+
+    Times without a prefix are the board's device time, s; ``host_onset``, ``host_release``,
+    ``host_decided_at`` and ``host_reported_at`` are the same instants on the host's wall
+    clock (Unix time, s, mapped through each board's clock map: `skin.drivers.clock`), the
+    time base of a robot's own logs; None when the source gave no host time. ``family`` and
+    ``probabilities`` come from the classifier when it gives them.
+    """
+    from skin.drivers.clock import wall_time
+
+    c, e, h = result.contact, result.estimate, result.host
+    rec: dict[str, Any] = {
         "contact": c.id,
         "taxels": c.taxels,
         "onset": round(c.onset, 4),
@@ -38,7 +47,18 @@ def event_record(result: ContactResult) -> dict[str, Any]:
         "method": e.method,
         "initial_temperature": {str(w.taxel): round(w.initial, 3) for w in c.windows},
         "ambient": round(c.ambient, 3),
+        "host_onset": None if h is None else round(wall_time(h.onset), 6),
+        "host_release": None if h is None or h.release is None
+        else round(wall_time(h.release), 6),
+        "host_decided_at": None if h is None else round(wall_time(h.decided_at), 6),
+        "host_reported_at": None if h is None else round(wall_time(h.reported_at), 6),
     }
+    family = getattr(e, "family", None)
+    if family is not None:
+        rec["family"] = family
+    if e.probabilities:
+        rec["probabilities"] = {k: round(float(v), 4) for k, v in e.probabilities.items()}
+    return rec
 
 
 def contact_line(rec: dict[str, Any]) -> str:
