@@ -40,3 +40,50 @@ def test_pipeline_bench_gives_the_same_contacts_whatever_its_chunk():
     b = run(64, 18.0, contacts_per_minute=12.0, chunk=3600)
     assert a["contacts"] == b["contacts"] > 0 and a["frames"] == b["frames"] == 3600
     assert a["peak_memory_mb"] > 0
+
+
+def _scene(preset, seconds):
+    from dataclasses import replace
+
+    from skin.formats.scene import _with_sensor, load_scene
+
+    scene = load_scene("default")
+    return replace(scene, sensor=preset, duration=seconds,
+                   layout=_with_sensor(scene.layout, preset, "<test>", None))
+
+
+@pytest.mark.parametrize("preset", ["paper", "pid-logger", "fast-film"])
+def test_simulator_in_chunks_gives_the_same_frames_whatever_the_chunk(preset):
+    from skin.drivers.sim import SkinSimulator
+
+    sim = SkinSimulator(_scene(preset, 12.0), contact="finite")
+    whole = sim.temperatures()
+    frames = list(sim.frames(chunk=sim.n_samples))
+    assert len(frames) == sim.n_samples == whole.shape[0]
+    for chunk in (1, 7, 333):
+        assert np.array_equal(np.concatenate(list(sim.temperature_chunks(chunk))), whole)
+        again = list(sim.frames(chunk=chunk))
+        assert [f.seq for f in again] == list(range(sim.n_samples))
+        for name in ("counts", "status"):
+            assert np.array_equal(np.array([getattr(f, name) for f in again]),
+                                  np.array([getattr(f, name) for f in frames]))
+        assert [f.ambient for f in again] == [f.ambient for f in frames]
+        assert [f.device_time for f in again] == [f.device_time for f in frames]
+    assert np.ptp(np.array([f.counts for f in frames])) > 10  # the scene's contacts are there
+
+
+def test_simulated_skin_memory_does_not_grow_with_the_duration():
+    import tracemalloc
+
+    from skin import drivers
+
+    peaks = []
+    for seconds in (30, 3000):
+        tracemalloc.start()
+        with drivers.open(f"sim://default?speed=0&duration={seconds}") as driver:
+            for _ in range(2500):  # two chunks and a half
+                assert driver.recv(timeout=1.0) is not None
+            peaks.append(tracemalloc.get_traced_memory()[1])
+        tracemalloc.stop()
+    # the whole run of 3000 s would hold 600,000 x 72 readings (346 MB) several times over
+    assert peaks[1] < 1.3 * peaks[0] + 1e6 and peaks[1] < 30e6
