@@ -87,3 +87,17 @@ def test_simulated_skin_memory_does_not_grow_with_the_duration():
         tracemalloc.stop()
     # the whole run of 3000 s would hold 600,000 x 72 readings (346 MB) several times over
     assert peaks[1] < 1.3 * peaks[0] + 1e6 and peaks[1] < 30e6
+
+
+def test_soak_of_two_boards_loses_nothing_and_keeps_memory_flat(tmp_path):
+    from skin.bench.soak import PERIOD, TOUCHES, run
+
+    r = run(3 * PERIOD / 3600, 300, every=10.0, folder=tmp_path)
+    assert r["boards"] == 2 and r["frames_sent"] == r["frames_received"] == 2 * 3 * 12000
+    assert r["lost_frames"] == 0 and r["crc_errors"] == 0
+    # every touch of the repeated pattern is one contact, the same number every minute
+    assert r["contacts_per_bin"] == [2 * TOUCHES] * 3 and r["contacts"] == r["touches"]
+    assert abs(r["rss_growth"]) < 0.1, r["rss_mb"]
+    assert r["open_fds"]["end"] == r["open_fds"]["start"]
+    assert (tmp_path / "soak.mcap").stat().st_size > 1e6
+    assert len((tmp_path / "events.jsonl").read_text().splitlines()) == r["results"]
