@@ -622,6 +622,11 @@ def _follow(stats: LinkStats, last: int | None, seq: int, dropped: int = 0) -> b
     return True
 
 
+def _continues(last: int | None, seq: int) -> bool:
+    """Whether ``seq`` follows ``last`` within `DUPLICATE_WINDOW` samples (CAN's gap check)."""
+    return last is not None and 0 < (seq - last) % (1 << 32) <= DUPLICATE_WINDOW
+
+
 #: Longest packet on the serial wire, delimiter included.
 MAX_PACKET = MAX_BODY + 2 + -(-(MAX_BODY + 2) // 254) + 1
 
@@ -831,6 +836,9 @@ class _Node:
     duty: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.uint8))
     last_seq: int | None = None  # seq of the last complete sample
     dropped: int = 0  # samples dropped incomplete since then
+    # a gap waiting for the next sample to confirm it: (seq before it, dropped then, gap)
+    pending: tuple[int, int, int] | None = None
+    trusted: bool = False  # last_seq continued from the sample before it
     reply: bytearray | None = None
     reply_len: int = 0
     reply_next: int = 0
@@ -842,9 +850,11 @@ class CanReassembler:
     Per node: SYNC opens a sample, DATA fills its groups, STATUS closes it; an incomplete
     sample is dropped (``stats.missing``, ``stats.lost_groups``), DATA or STATUS with no sample
     open is ignored (``stats.orphans``), seq gaps count the samples lost whole
-    (``stats.lost_samples``) and repeats ``stats.duplicates``. Duties are the last received
-    per taxel. REPLY segments are concatenated per node into ``replies``, as (node, reply).
-    COMMAND frames (the host's own) are ignored.
+    (``stats.lost_samples``; a gap longer than `DUPLICATE_WINDOW` once the next sample
+    confirms it, and a sample whose successor continues from before it had a damaged seq) and
+    repeats ``stats.duplicates``. Duties are the last received per taxel. REPLY segments are
+    concatenated per node into ``replies``, as (node, reply). COMMAND frames (the host's own)
+    are ignored.
 
     Parameters
     ----------
@@ -919,7 +929,34 @@ class CanReassembler:
             return None
         seq = node.seq
         node.seq = None
+        # A SYNC's seq has no check of its own beyond the bus CRC (STATUS repeats its low 8
+        # bits): a damaged one would count up to 2^31 samples lost. So a gap longer than
+        # DUPLICATE_WINDOW is counted only once the next sample continues from it (never from
+        # a sample nothing led up to: the first, or one after a jump, whose own seq may be the
+        # damaged one), and a shorter gap is taken back when the next sample continues from
+        # before it (the sample that jumped had a damaged seq).
+        if node.pending is not None:
+            before, dropped, gap = node.pending
+            node.pending = None
+            if _continues(node.last_seq, seq):  # confirmed
+                if gap > DUPLICATE_WINDOW:
+                    self.stats.lost_samples += gap
+            elif _continues(before, seq):  # the jump was a damaged seq: take it back
+                if gap <= DUPLICATE_WINDOW:
+                    self.stats.lost_samples -= gap
+                # and it took one sample's place: not a gap
+                node.last_seq, node.dropped = before, dropped + node.dropped + 1
+        counted = self.stats.lost_samples
+        last, dropped = node.last_seq, node.dropped
         if _follow(self.stats, node.last_seq, seq, node.dropped):
+            gap = self.stats.lost_samples - counted
+            follows = _continues(last, seq)
+            if gap > DUPLICATE_WINDOW:  # held until the next sample confirms it
+                self.stats.lost_samples = counted
+                gap = gap if node.trusted else 0
+            if last is not None and (gap or not follows):  # the next sample may take it back
+                node.pending = (last, dropped, gap)
+            node.trusted = follows
             node.last_seq, node.dropped = seq, 0
         words = np.frombuffer(b"".join(groups), dtype="<u2")  # type: ignore[arg-type]
         n = words.size

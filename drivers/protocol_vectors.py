@@ -419,8 +419,18 @@ def write(directory: str | Path = DEFAULT_DIR) -> list[Path]:
 
 def main(argv: list[str] | None = None) -> int:
     """Write the vectors (into the directory given, or `DEFAULT_DIR`)."""
-    argv = sys.argv[1:] if argv is None else argv
-    for path in write(argv[0] if argv else DEFAULT_DIR):
+    import argparse
+
+    parser = argparse.ArgumentParser(
+        prog="python -m skin.drivers.protocol_vectors",
+        description="Write the test vectors of wire protocol v1 (serial.txt and can.txt).")
+    parser.add_argument("directory", nargs="?", default=str(DEFAULT_DIR),
+                        help=f"an existing folder to write into (default: {DEFAULT_DIR})")
+    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    directory = Path(args.directory)
+    if not directory.is_dir():
+        parser.error(f"{directory} is not an existing folder")
+    for path in write(directory):
         print(f"wrote {path}")
     return 0
 

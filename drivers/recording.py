@@ -13,7 +13,7 @@ metadata ``thermoskin``  ``format`` ("1"), ``library`` (thermoskin's version), `
                        date, UTC), ``clock_offset`` (s: wall-clock time minus
                        ``time.monotonic()`` at the start; log times are wall-clock ns)
 attachment             ``layout.toml`` (``application/toml``): the layout used, as layout TOML
-                       (`layout_toml`; `skin.formats.layout.parse_layout` reads it back)
+                       (`skin.formats.layout.layout_toml`; `parse_layout` reads it back)
 attachment             ``calibration.json`` (``application/json``), if one was used: either a
                        calibration file (`skin.formats.calibration_file`, format 1, verbatim)
                        or, for a bare `skin.stream.calibration.Calibration`,
@@ -65,6 +65,7 @@ import numpy as np
 
 from skin._optional import require
 from skin.errors import SkinError
+from skin.formats.layout import layout_toml
 
 #: Version of the recording layout described in the module docstring.
 FORMAT = 1
@@ -114,59 +115,7 @@ class RecordingError(SkinError):
     """A recording cannot be written or read; the message names the file (and byte offset)."""
 
 
-# ---- layout and calibration as text ----
-
-def _toml_string(text: str) -> str:
-    # a JSON string is a TOML basic string, once control characters are escaped (json does)
-    return json.dumps(text, ensure_ascii=False)
-
-
-def _toml_value(value: Any) -> str:
-    if isinstance(value, str):
-        return _toml_string(value)
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int | np.integer):
-        return str(int(value))
-    if isinstance(value, float | np.floating):
-        return repr(float(value))  # repr round-trips exactly
-    if isinstance(value, list | tuple):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    raise TypeError(f"no TOML form for {type(value).__name__}")
-
-
-def layout_toml(layout: Any) -> str:
-    """Return layout TOML text that `skin.formats.layout.parse_layout` reads back as ``layout``.
-
-    Every board constant and every taxel field is written out, floats exactly, so a layout
-    built in memory (a cut of a shipped one, say) round-trips too.
-
-    Parameters
-    ----------
-    layout : skin.formats.layout.Layout
-        The layout.
-
-    Returns
-    -------
-    str
-        The TOML text.
-    """
-    import dataclasses
-
-    lines = [f"# layout {layout.source}, written by thermoskin's recorder",
-             f"name = {_toml_string(layout.name)}", ""]
-    for board in layout.boards.values():
-        lines.append("[[boards]]")
-        lines += [f"{f.name} = {_toml_value(getattr(board, f.name))}"
-                  for f in dataclasses.fields(board)]
-        lines.append("")
-    for t in layout.taxels:
-        lines += ["[[taxels]]", f"id = {int(t.id)}", f"board = {int(t.board)}",
-                  f"address = {int(t.address)}", f"link = {_toml_string(t.link)}",
-                  f"position = {_toml_value(list(t.position))}",
-                  f"normal = {_toml_value(list(t.normal))}", ""]
-    return "\n".join(lines)
-
+# ---- calibration as text ----
 
 def _calibration_bytes(calibration: Any) -> bytes | None:
     """Return the ``calibration.json`` attachment of what `Recorder` was given (None: none)."""

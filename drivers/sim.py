@@ -40,6 +40,7 @@ from skin.drivers.protocol import (
     parse_command_packet,
 )
 from skin.errors import SceneError
+from skin.formats.calibration_file import CalibrationFile
 from skin.formats.scene import Scene
 from skin.frame import FLAG_ADC_SATURATED, FLAG_STREAMING, Frame
 from skin.stream.calibration import Calibration
@@ -86,11 +87,17 @@ class SkinSimulator:
             self.heated = scene.ambient + self.sensor.heated_rise
         else:
             self.heated = float(heated_temperature(scene.ambient, self.sensor))
+        self.taxel_sensor = self._spread(len(self.layout))
+        if self.taxel_sensor is self.sensor or self.sensor.heater == "pid":
+            self._heated_each: np.ndarray | float = self.heated
+        else:
+            self._heated_each = heated_temperature(scene.ambient, self.taxel_sensor)
         self._touches = []
         for touch in scene.touches:
             obj = scene.objects[touch.object]
             if obj.material not in materials:
-                raise SceneError(f"{scene.source}: object {obj.name!r}: unknown material "
+                where = f"{scene.source}:{obj.line}" if obj.line else str(scene.source)
+                raise SceneError(f"{where}: object {obj.name!r}: unknown material "
                                  f"{obj.material!r} (known: {', '.join(sorted(materials))})")
             mat = materials[obj.material]
             t_obj = (mat.resting_temperature(scene.ambient) if obj.temperature is None
@@ -102,6 +109,50 @@ class SkinSimulator:
                                   np.log10(mat.conductance_range)))
         self._idx, self._addr = self.layout.channel_map(self.board.id)
         self._channels = int(self._addr.max()) + 1
+
+    def _spread(self, n: int):
+        """Each taxel's sensor: the board's, its body constants spread by the scene.
+
+        Depth, diffusivity and conductivity are drawn uniformly within +-``taxel_spread`` of
+        the board's (in that order per taxel, as the trial generator does), from their own
+        stream of the scene's seed. No spread: the board's sensor itself.
+        """
+        from dataclasses import replace
+
+        spread = self.scene.taxel_spread
+        if spread == 0:
+            return self.sensor
+        f = 1.0 + np.random.default_rng([self.scene.seed, 11]).uniform(-spread, spread, (n, 3))
+        s = self.sensor
+        return replace(s, depth=s.depth * f[:, 0], diffusivity=s.diffusivity * f[:, 1],
+                       conductivity=s.conductivity * f[:, 2])
+
+    def _sensor_of(self, select: np.ndarray):
+        """Return the sensor of the selected taxels (arrays of constants when they differ)."""
+        from dataclasses import replace
+
+        s = self.taxel_sensor
+        if s is self.sensor:
+            return s
+        return replace(s, depth=s.depth[select], diffusivity=s.diffusivity[select],
+                       conductivity=s.conductivity[select])
+
+    def true_calibration(self) -> CalibrationFile:
+        """Return a calibration file of each taxel's true thermal constants (the simulation's).
+
+        What a perfect commissioning would fit: the ceiling of what calibration can give.
+        """
+        from skin.formats.calibration_file import CalibrationFile
+
+        s = self.taxel_sensor
+        n = len(self.layout)
+        depth, alpha, k = (np.broadcast_to(np.asarray(v, dtype=float), n)
+                           for v in (s.depth, s.diffusivity, s.conductivity))
+        taxels = {int(t): {"depth": float(depth[i]), "diffusivity": float(alpha[i]),
+                           "conductivity": float(k[i])}
+                  for i, t in enumerate(self.layout.ids)}
+        return CalibrationFile(taxels=taxels, references={
+            "thermal": f"simulation truth ({self.scene.source}, seed {self.scene.seed})"})
 
     @property
     def noise(self) -> float:
@@ -130,10 +181,13 @@ class SkinSimulator:
         n = len(self.layout)
         rng = np.random.default_rng(self.scene.seed)
         lo, hi = self.scene.initial_temperature
-        free = np.minimum(rng.uniform(lo, hi, n), self.heated)
+        heated = self._heated_each
+        free = np.minimum(rng.uniform(lo, hi, n), heated)
         h_rng = np.random.default_rng([self.scene.seed, 7])  # the free start stays as it was
         sensor = self.sensor
-        relax = sensor.control_time if sensor.heater == "pid" else sensor.reheat_time_constant
+        each = self.taxel_sensor
+        e_s = np.broadcast_to(np.asarray(each.effusivity, dtype=float), n)
+        relax = sensor.control_time if sensor.heater == "pid" else each.reheat_time_constant
         decay = np.exp(-1.0 / (self.sample_rate * relax))
         e_obj_now = np.zeros(n)
         touching = np.zeros(n, dtype=bool)
@@ -158,21 +212,21 @@ class SkinSimulator:
                 for _, _, idx, t_obj, e_obj, log_h in starts.get(k, ()):
                     touching[idx] = True
                     t0[idx] = free[idx]
-                    ts[idx] = contact_temperature(free[idx], t_obj, self.sensor.effusivity,
-                                                  e_obj)
+                    ts[idx] = contact_temperature(free[idx], t_obj, e_s[idx], e_obj)
                     start[idx] = t
                     e_obj_now[idx] = e_obj
                     if self.contact == "finite":
                         h = 10.0 ** h_rng.uniform(log_h[0], log_h[1], idx.size)
-                        rate[idx] = conductance_rate(h, self.sensor.effusivity, e_obj)
-                free = np.where(touching, free, self.heated + (free - self.heated) * decay)
+                        rate[idx] = conductance_rate(h, e_s[idx], e_obj)
+                free = np.where(touching, free, heated + (free - heated) * decay)
                 if touching.any():
-                    resp = contact_response(t - start[touching], rate[touching], self.sensor)
+                    here = self._sensor_of(touching)
+                    resp = contact_response(t - start[touching], rate[touching], here)
                     reading = free.copy()
                     reading[touching] = t0[touching] + (ts[touching] - t0[touching]) * resp
                     if sensor.heater in ("off-at-contact", "on-during-contact"):
                         reading[touching] += heater_term(t - start[touching], t0[touching],
-                                                         e_obj_now[touching], sensor,
+                                                         e_obj_now[touching], here,
                                                          self.scene.ambient)
                 else:
                     reading = free

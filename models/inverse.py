@@ -2,9 +2,11 @@
 
 Two estimators, taking many trials at once (the fit is vectorised over them):
 
-- `paper_effusivity`: the paper's pointwise estimate (eqs. 9-11) at every sample, undefined
-  samples dropped, summarised by the median; "unknown" (NaN with ``valid`` False) when fewer
-  than ``min_samples`` remain. It assumes perfect contact and an object at ambient.
+- `paper_effusivity`: the paper's pointwise estimate (eqs. 9-11) at every sample, summarised
+  by the median; "unknown" (NaN with ``valid`` False) when fewer than ``min_samples`` remain,
+  "out of range" (0 or inf with ``valid`` False) when the median lies within the resolution
+  of the sensor's or the object's temperature. It assumes perfect contact and an object at
+  ambient.
 - `fit_contact`: non-linear least squares of log10 effusivity, object temperature and
   log10 contact conductance (optionally the sensor's initial temperature) over the whole window,
   with the finite-conductance closed form (`skin.models.physics.contact_trace`). A batched
@@ -20,11 +22,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from skin.models.physics import SensorConstants, contact_trace, effusivity_estimates
+from skin.models.physics import SensorConstants, contact_response, depth_response
 
 _LOG_E_BOUNDS = (0.5, 5.5)  # 3 .. 3e5 W s^0.5/(m^2 K): aerogel to diamond
 _LOG_H_BOUNDS = (1.0, 7.0)
 _T_BOUNDS = (-40.0, 150.0)
+_CONVERGED_CHI2 = 0.01  # chi^2 a Gauss-Newton step may still promise at a converged fit
 
 
 @dataclass(frozen=True)
@@ -44,6 +47,12 @@ class Priors:
         Std of the sensor's initial temperature around the pre-contact reading, K.
     onset_std : float
         Std of the true contact instant around the given onset, s (two samples at 200 Hz).
+    centre_on_paper_estimate : bool
+        Centre the log10 e prior on each trial's paper estimate (`paper_effusivity`; the
+        bound it is beyond when out of range) where that is above ``log10_effusivity[0]``,
+        keeping its std (imperfect contact only lowers the paper's estimate). Where the trace
+        cannot separate e from the object's temperature (metals), the fit then stays near the
+        estimate that assumes the object at ambient instead of being pulled towards 1e3.
     """
 
     log10_effusivity: tuple[float, float] = (3.0, 1.5)
@@ -51,6 +60,7 @@ class Priors:
     log10_conductance: tuple[float, float] = (3.5, 0.75)
     sensor_temperature_std: float = 0.05
     onset_std: float = 0.01
+    centre_on_paper_estimate: bool = True
 
 
 @dataclass
@@ -95,8 +105,19 @@ def paper_effusivity(
     t_object: np.ndarray | float,
     sensor: SensorConstants | None = None,
     min_samples: int = 5,
+    min_response: float = 0.02,
+    min_difference: float = 0.05,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Paper's pointwise effusivity estimate (eqs. 10-11), median over a trial's samples.
+
+    Each sample (whose depth response erfc(...) is at least ``min_response``) gives the share
+    ``f = (T_sens(0) - T_surf) / (T_sens(0) - T_obj)`` of the step its surface took, and
+    ``e = e_s f / (1 - f)`` grows monotonically with it, so the median of ``e`` is ``e`` of
+    the median of ``f``. The median is taken over every such sample: one whose surface lies
+    within ``min_difference`` of the sensor's or the object's temperature is not dropped (which
+    biased the median towards the cut: any e below about 10 read log e ~ 1, anything above
+    about 1e5 saturated) but counts as below or above the resolvable range. When the median
+    itself falls there, the trial is out of range.
 
     Parameters
     ----------
@@ -109,26 +130,48 @@ def paper_effusivity(
     sensor : SensorConstants, optional
         Sensor constants (default: the paper's).
     min_samples : int
-        Fewest valid samples for an estimate.
+        Fewest usable samples for an estimate.
+    min_response : float
+        Samples whose depth response is below this are not used (t -> 0).
+    min_difference : float
+        The resolution, K: a surface temperature closer than this to the sensor's (the object
+        is too insulating to tell from nothing) or to the object's (too conductive to tell from
+        a perfect conductor) is out of range; so is a sensor within it of the object.
 
     Returns
     -------
     effusivity : numpy.ndarray
-        Median estimate per trial (NaN where unknown).
+        Median estimate per trial; 0 where it is below the resolvable range
+        (``e_s d / (|T_sens(0) - T_obj| - d)``, d = ``min_difference``: about 2.4 for the
+        paper's sensor 14 K above the object), ``inf`` where it is above it (about 1.8e5), NaN
+        where unknown (too few samples, or the sensor at the object's temperature).
     valid : numpy.ndarray
-        Whether the trial has an estimate.
+        Whether the trial has an estimate inside the range.
     """
     s = SensorConstants() if sensor is None else sensor
+    t = np.asarray(t, dtype=float)
     y = np.atleast_2d(np.asarray(temperature, dtype=float))
     n = y.shape[0]
     t0 = np.broadcast_to(np.asarray(t_sensor, dtype=float), (n,))
     tobj = np.broadcast_to(np.asarray(t_object, dtype=float), (n,))
     out = np.full(n, np.nan)
-    for i in range(n):  # the estimate drops a different set of samples in every trial
-        _, e = effusivity_estimates(t, y[i], float(t0[i]), float(tobj[i]), s)
-        if e.size >= min_samples:
-            out[i] = float(np.exp(np.median(np.log(e))))
-    return out, np.isfinite(out)
+    resp = depth_response(t, s)
+    usable = resp >= min_response
+    step = t0 - tobj
+    for i in range(n):  # each trial keeps its own samples
+        keep = usable & np.isfinite(y[i])
+        if keep.sum() < min_samples or abs(step[i]) < 2 * min_difference:
+            continue  # no signal: unknown
+        surf = t0[i] + (y[i, keep] - t0[i]) / resp[keep]  # eq. 11
+        share = float(np.median((t0[i] - surf) / step[i]))
+        cut = min_difference / abs(step[i])
+        if share <= cut:
+            out[i] = 0.0
+        elif share >= 1.0 - cut:
+            out[i] = np.inf
+        else:
+            out[i] = s.effusivity * share / (1.0 - share)  # eq. 10
+    return out, np.isfinite(out) & (out > 0)
 
 
 def fit_contact(
@@ -203,12 +246,40 @@ def fit_contact(
     hi = np.array([prior[k][2][1] for k in names])
     step_size = np.array([{"t_object": 1e-3, "t_sensor": 1e-3, "onset": 1e-4}.get(k, 1e-4)
                           for k in names])
+    # The solver works in the coordinates the trace sees: the contact temperature T_surf
+    # (eq. 3) and the rate H = h (1/e_s + 1/e) in place of the object's temperature and log h.
+    # The trace depends on (T_surf, H) alone, so the valley the data leave flat (metals: any
+    # e >> e_s with T_obj just below T_surf) is a straight line along log e there, which
+    # Levenberg-Marquardt follows in a few steps; in (log e, T_obj, log h) it was a curved
+    # valley it crawled along (28-49 % of trials stopped at max_iter, flagged not converged).
+    # The priors and the result stay in the natural coordinates: same objective, same MAP.
+    e_s = s.effusivity
+    lo[1:3] = _T_BOUNDS[0], _LOG_H_BOUNDS[0] + np.log10(1 / e_s + 10.0 ** -_LOG_E_BOUNDS[1])
+    hi[1:3] = _T_BOUNDS[1], _LOG_H_BOUNDS[1] + np.log10(1 / e_s + 10.0 ** -_LOG_E_BOUNDS[0])
 
-    def model(p: np.ndarray) -> np.ndarray:
-        ts = p[:, 3:4] if fit_sensor_temperature else t0[:, None]
-        shift = p[:, -1:] if fit_onset else 0.0
-        return contact_trace(t - shift, ts, p[:, 1:2], 10.0 ** p[:, 0:1], s,
-                             10.0 ** p[:, 2:3])
+    def sensor_start(q: np.ndarray) -> np.ndarray:
+        return q[:, 3] if fit_sensor_temperature else t0
+
+    def natural(q: np.ndarray) -> np.ndarray:
+        """(log e, T_surf, log H, ...) -> (log e, T_obj, log h, ...)."""
+        p = q.copy()
+        inv_e = 10.0 ** -q[:, 0]
+        p[:, 1] = q[:, 1] + (q[:, 1] - sensor_start(q)) * e_s * inv_e
+        p[:, 2] = q[:, 2] - np.log10(1 / e_s + inv_e)
+        return p
+
+    def fitting(p: np.ndarray) -> np.ndarray:
+        """(log e, T_obj, log h, ...) -> (log e, T_surf, log H, ...)."""
+        q = p.copy()
+        e = 10.0 ** p[:, 0]
+        q[:, 1] = p[:, 1] + (sensor_start(p) - p[:, 1]) * e_s / (e_s + e)
+        q[:, 2] = p[:, 2] + np.log10(1 / e_s + 1 / e)
+        return q
+
+    def model(q: np.ndarray) -> np.ndarray:
+        ts = sensor_start(q)[:, None]
+        shift = q[:, -1:] if fit_onset else 0.0
+        return ts + (q[:, 1:2] - ts) * contact_response(t - shift, 10.0 ** q[:, 2:3], s)
 
     if noise is not None and not (np.isfinite(noise) and noise > 0):
         raise ValueError(f"noise must be a positive standard deviation, got {noise!r}")
@@ -217,14 +288,16 @@ def fit_contact(
 
     def residuals(p: np.ndarray, sig: np.ndarray | float) -> np.ndarray:
         data = (y - model(p)) / np.reshape(sig, (-1, 1))
-        return np.concatenate([data, (p - mean) / std], axis=1)
+        return np.concatenate([data, (natural(p) - mean) / std], axis=1)
 
     def jacobian(p: np.ndarray, r: np.ndarray, sig: np.ndarray | float) -> np.ndarray:
         jac = np.empty((n_trials, r.shape[1], n_par))
         for j in range(n_par):
             step = np.zeros(n_par)
             step[j] = step_size[j]
-            jac[:, :, j] = (residuals(p + step, sig) - r) / step[j]
+            # central differences: forward ones left the fit short of the optimum where the
+            # noise is small (a noise-free trace stalled at 6e-5 K RMS with noise = 1e-3)
+            jac[:, :, j] = (residuals(p + step, sig) - residuals(p - step, sig)) / (2 * step[j])
         return jac
 
     def solve(p: np.ndarray, sig: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
@@ -240,6 +313,10 @@ def fit_contact(
             jac = jacobian(p, r, sig)
             jtj = np.einsum("bki,bkj->bij", jac, jac)
             grad = np.einsum("bki,bk->bi", jac, r)
+            done |= active & (left_to_gain(p, jtj, grad) < _CONVERGED_CHI2)
+            active &= ~done
+            if not active.any():
+                break
             damp = lam[:, None, None] * (jtj * np.eye(n_par) + 1e-9 * np.eye(n_par))
             delta = -np.linalg.solve(jtj + damp, grad[:, :, None])[:, :, 0]
             trial = np.clip(p + delta, lo, hi)
@@ -254,13 +331,38 @@ def fit_contact(
             active &= ~done & (lam < 1e10)
             if not active.any():
                 break
-        return p, done, it
+        jac = jacobian(p, r, sig)
+        grad = np.einsum("bki,bk->bi", jac, r)
+        left = left_to_gain(p, np.einsum("bki,bkj->bij", jac, jac), grad)
+        return p, left < _CONVERGED_CHI2, it
 
-    # start: the prior mean, with the effusivity from the last samples' paper estimate
-    start = mean.copy()
-    e_paper, ok = paper_effusivity(t[-min(20, n_samples):], y[:, -min(20, n_samples):], t0,
-                                   amb, s, min_samples=1)
-    start[ok, 0] = np.clip(np.log10(e_paper[ok]), *_LOG_E_BOUNDS)
+    def left_to_gain(p: np.ndarray, jtj: np.ndarray, grad: np.ndarray) -> np.ndarray:
+        """Decrease of the cost (chi^2) a full Gauss-Newton step predicts, per trial.
+
+        Parameters held at a bound by the gradient are left out. The residuals are whitened,
+        so this is in chi^2 units whatever the noise: a trial is converged when less than
+        `_CONVERGED_CHI2` is left, however flat the valley it sits in.
+        """
+        held = ((p <= lo) & (grad > 0)) | ((p >= hi) & (grad < 0))
+        grad = np.where(held, 0.0, grad)
+        free = ~held
+        jtj = jtj * (free[:, :, None] & free[:, None, :]) + held[:, :, None] * np.eye(n_par)
+        step = np.linalg.solve(jtj, grad[:, :, None])[:, :, 0]
+        return np.einsum("bi,bi->b", grad, step)
+
+    # the effusivity prior is centred no lower than the paper's pointwise estimate (eqs.
+    # 10-11; an object at ambient, perfect contact), which an imperfect contact can only
+    # lower: where the data cannot tell effusivity from the object's temperature (metals: the
+    # surface sits within a K of the object's temperature for any e >> e_s), a prior centred
+    # on 1e3 pulled the MAP down (-0.5 decades for aluminium, -1.1 for diamond); the start
+    # is the prior mean
+    if pr.centre_on_paper_estimate:
+        e_paper, ok = paper_effusivity(t, y, t0, amb, s, min_samples=1)
+        centre = np.where(e_paper == 0, _LOG_E_BOUNDS[0], _LOG_E_BOUNDS[1])
+        centre = np.where(ok, np.log10(np.where(ok, e_paper, 1.0)), centre)
+        known = ok | (e_paper == 0) | np.isinf(e_paper)
+        mean[known, 0] = np.clip(np.maximum(centre[known], mean[known, 0]), *_LOG_E_BOUNDS)
+    start = fitting(mean)
     if noise is None:
         # fit with a nominal noise, estimate each trial's noise from its residuals, refit
         p, _, it1 = solve(start, np.full(n_trials, 0.05))
@@ -275,7 +377,15 @@ def fit_contact(
     r = residuals(p, sig)
     jac = jacobian(p, r, sig)
     cov = np.linalg.inv(np.einsum("bki,bkj->bij", jac, jac))
+    # to the natural coordinates: cov_p = G cov_q G^T, G = d natural / d q
+    grad = np.empty((n_trials, n_par, n_par))
+    for j in range(n_par):
+        step = np.zeros(n_par)
+        step[j] = step_size[j]
+        grad[:, :, j] = (natural(p + step) - natural(p - step)) / (2 * step[j])
+    cov = grad @ cov @ np.swapaxes(grad, 1, 2)
     sd = np.sqrt(np.maximum(np.diagonal(cov, axis1=1, axis2=2), 0.0))
+    p = natural(p)
     return ContactFit(
         effusivity=10.0 ** p[:, 0],
         log10_effusivity_std=sd[:, 0],

@@ -15,7 +15,10 @@ Time stepping is implicit, so stiff columns (copper against the sensor, diffusiv
 dt up to 0.1 s) stay stable:
 
 - ``"tr-bdf2"`` (default): trapezoidal stage then BDF2, second order and L-stable: stiff modes
-  are damped rather than left ringing. Both stages share one matrix.
+  are damped rather than left ringing. Both stages share one matrix. Its amplification is
+  negative (down to -0.2) for lambda dt < -2.41, so each phase starts with four backward
+  Euler half steps, as Crank-Nicolson does: otherwise long steps (dt >= 0.2 s) undershoot
+  after a contact (0.25 K, diamond against the paper's stack, dt = 0.5 s).
 - ``"crank-nicolson"``: second order but only A-stable; each phase starts with four backward
   Euler half steps (Rannacher's damped start) to kill the ringing of the jump at contact.
 - ``"euler"``: backward Euler, first order; its matrix is an M-matrix, so it never over- or
@@ -107,9 +110,9 @@ class SensorStack:
     heater_power : float
         Heater power per area at full duty, W/m^2.
     front_loss : float
-        Loss coefficient of the free contact surface to ambient, W/(m^2 K).
+        Loss coefficient of the free contact surface to ambient, W/(m^2 K) (0 = insulated).
     back_loss : float
-        Loss coefficient of the back face to ambient, W/(m^2 K).
+        Loss coefficient of the back face to ambient, W/(m^2 K) (0 = insulated).
     edge_loss : float
         Loss through the taxel's edges and leads, W/(m^2 K) of face area, spread over the
         layers in front of the foam (by thickness); unlike ``front_loss`` it stays in contact.
@@ -199,7 +202,7 @@ class ObjectBody:
     grading : float
         Ratio of the deepest cell to the surface cell.
     surface_loss : float
-        Loss coefficient of its free surface to ambient, W/(m^2 K).
+        Loss coefficient of its free surface to ambient, W/(m^2 K) (0 = insulated).
     back : str
         ``"insulated"`` (lying on a table) or ``"ambient"`` (its back held at ambient).
     """
@@ -218,6 +221,9 @@ class ObjectBody:
             if v.ndim > 1 or not np.all(np.isfinite(v) & (v > 0)):
                 raise ModelError(f"object {key} must be positive and finite (a scalar or one "
                                  f"per trial), got {getattr(self, key)!r}")
+        if not (np.isfinite(self.surface_loss) and self.surface_loss >= 0):
+            raise ModelError(f"object surface_loss must be >= 0 and finite (0 = insulated), "
+                             f"got {self.surface_loss!r}")
         if self.back not in ("insulated", "ambient"):
             raise ModelError(f"object back must be 'insulated' or 'ambient', got {self.back!r}")
         Layer("object", self.thickness, 1.0, 1.0, self.cells, self.grading)  # validates the grid
@@ -395,7 +401,10 @@ class MultilayerModel:
 
         The object sits at ``obj`` (default: ambient) and is not part of the solve.
         """
-        lower, diag, upper, b, _, _ = self._system(0.0, 1.0, False, heater, np.inf)
+        lower, diag, upper, b, _, loss = self._system(0.0, 1.0, False, heater, np.inf)
+        if np.any(loss[self.surface:].sum(axis=0) <= 0):
+            raise ModelError("the free taxel loses no heat to ambient (front, back and edge "
+                             "losses all 0): it has no steady state")
         u = _solve(_factor(lower, diag, upper), b)  # -A u = b
         amb = np.broadcast_to(self.ambient, (self.batch,))
         u[: self.surface] = amb if obj is None else np.asarray(obj, dtype=float)
@@ -441,9 +450,9 @@ class MultilayerModel:
             link[s - 1] = 1.0 / (self._half[s - 1] + self._half[s] + 1.0 / h_c)
         else:
             link[s - 1] = 0.0
-            loss[s - 1] = 1.0 / (self._half[s - 1] + 1.0 / self.body.surface_loss)
-            loss[s] = 1.0 / (self._half[s] + 1.0 / self.stack.front_loss)
-        loss[-1] = 1.0 / (self._half[-1] + 1.0 / self.stack.back_loss)
+            loss[s - 1] = _in_series(self._half[s - 1], self.body.surface_loss)
+            loss[s] = _in_series(self._half[s], self.stack.front_loss)
+        loss[-1] = _in_series(self._half[-1], self.stack.back_loss)
         loss += self.edge_share[:, None] * self.stack.edge_loss
         if self.body.back == "ambient":  # added: a one-cell object also has its free surface
             loss[0] += 1.0 / self._half[0]
@@ -587,7 +596,19 @@ class MultilayerModel:
         def step(u: np.ndarray) -> np.ndarray:
             mid = _solve(lu, c(cap, u) * u + g * dt * apply(u) + source(u, _GAMMA * dt))
             return _solve(lu, c(cap, u) * (w1 * mid - w0 * u) + source(u, g * dt))
-        return step, None
+
+        # TR-BDF2's amplification R(z) is negative for z = lambda dt < -2.41 (down to about
+        # -0.2): with long steps the modes a jump excites (the contact, the heater switching)
+        # fall there and the object's temperature undershoots (0.25 K, diamond, dt = 0.5 s).
+        # A damped start as for Crank-Nicolson: backward Euler half steps (an M-matrix, no
+        # under- or overshoot) smooth the jump; they cost one more factorisation per phase.
+        lower, diag, upper, _, _, _ = self._system(1.0, dt / 2, contact, heater, h)
+        lu_half = _factor(lower, diag, upper)
+
+        def first(u: np.ndarray) -> np.ndarray:
+            u = _solve(lu_half, c(cap, u) * u + source(u, dt / 2))
+            return _solve(lu_half, c(cap, u) * u + source(u, dt / 2))
+        return step, first
 
 
 def _power_apply(p: np.ndarray, q: np.ndarray, v: np.ndarray, m: int) -> np.ndarray:
@@ -600,6 +621,14 @@ def _power_apply(p: np.ndarray, q: np.ndarray, v: np.ndarray, m: int) -> np.ndar
             q = p @ q + q
             p = p @ p
     return v
+
+
+def _in_series(half: np.ndarray, coefficient: float) -> np.ndarray:
+    """Conductance of a half cell in series with a surface loss ``coefficient`` (0 = insulated).
+
+    ``1 / (half + 1 / h)`` written as ``h / (1 + h half)``, which is exactly 0 for ``h = 0``.
+    """
+    return coefficient / (1.0 + coefficient * half)
 
 
 def _per_trial(value: object, batch: int, what: str) -> np.ndarray:

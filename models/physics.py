@@ -94,10 +94,15 @@ def contact_temperature(
     e_sensor: np.ndarray | float,
     e_object: np.ndarray | float,
 ) -> np.ndarray:
-    """Interface temperature of two semi-infinite solids brought into contact (eq. 3)."""
+    """Interface temperature of two semi-infinite solids brought into contact (eq. 3).
+
+    Written as ``T_obj + (T_sens - T_obj) e_s / (e_s + e_o)``, which keeps the limits: an
+    object of infinite effusivity holds the surface at its own temperature (no inf / inf).
+    """
     e_s = np.asarray(e_sensor, dtype=float)
     e_o = np.asarray(e_object, dtype=float)
-    return (e_s * t_sensor + e_o * t_object) / (e_s + e_o)
+    t_o = np.asarray(t_object, dtype=float)
+    return t_o + (np.asarray(t_sensor, dtype=float) - t_o) * (e_s / (e_s + e_o))
 
 
 def depth_response(t: np.ndarray | float, sensor: SensorConstants) -> np.ndarray:

@@ -8,6 +8,18 @@ from typing import TextIO
 
 import numpy as np
 
+_SHOWN: list[Progress] = []  # the progress whose status line is on screen (at most one)
+
+
+def clear_status() -> None:
+    """Clear the status line on screen, if any, so a message can take the whole line.
+
+    Log records go through this (`skin.logs`): a driver's warning is never glued onto the
+    status line; the next status redraws it.
+    """
+    for progress in _SHOWN:
+        progress.clear()
+
 
 class Progress:
     """One status line on stderr (redrawn in place on a terminal) plus printed messages.
@@ -27,9 +39,13 @@ class Progress:
         """Show ``text`` as the status line; ``now`` (s) paces it off a terminal."""
         now = time.monotonic() if now is None else now
         if self.tty:
+            for other in [p for p in _SHOWN if p is not self]:
+                other.clear()  # one status line at a time
             self.stream.write("\r\x1b[2K" + text)
             self.stream.flush()
             self._shown = True
+            if self not in _SHOWN:
+                _SHOWN.append(self)
         elif now - self._last >= self.every:
             self.stream.write(text + "\n")
             self.stream.flush()
@@ -45,11 +61,16 @@ class Progress:
         self.status(f"{label} [{'#' * filled}{'-' * (20 - filled)}] {done}/{total} "
                     f"({rate:.0f}/s, {left:.0f} s left)")
 
-    def message(self, text: str) -> None:
-        """Print ``text`` on its own line, clearing the status line first."""
+    def clear(self) -> None:
+        """Clear this status line if it is on screen (the next `status` redraws it)."""
         if self._shown:
             self.stream.write("\r\x1b[2K")
-            self._shown = False
+            self.stream.flush()
+            self._forget()
+
+    def message(self, text: str) -> None:
+        """Print ``text`` on its own line, clearing the status line first."""
+        self.clear()
         self.stream.write(text + "\n")
         self.stream.flush()
 
@@ -57,4 +78,9 @@ class Progress:
         """End the status line."""
         if self._shown:
             self.stream.write("\n")
-            self._shown = False
+            self._forget()
+
+    def _forget(self) -> None:
+        self._shown = False
+        if self in _SHOWN:
+            _SHOWN.remove(self)

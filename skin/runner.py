@@ -20,6 +20,7 @@ to ``skin.pipeline.sinks`` after ``check()``, or give it a name in `Skin._make_s
 from __future__ import annotations
 
 import json
+import logging
 import math
 import sys
 import time
@@ -34,6 +35,8 @@ from skin.errors import DeviceError, SkinError
 from skin.progress import Progress
 from skin.setup import SINKS, Setup, SetupError
 from skin.stream.pipeline import ContactResult, Pipeline
+
+log = logging.getLogger("skin.runner")
 
 OUTPUTS = ("events.jsonl", "summary.json", "contact_map.png")
 """Files whose presence marks an output folder as holding an earlier run."""
@@ -133,7 +136,9 @@ class Skin:
         except ValueError as exc:
             raise SkinError(f"--window / --provisional: {exc}") from None
         if s.out is not None and not s.force:
-            used = [name for name in OUTPUTS if (Path(s.out) / name).exists()]
+            # an empty events.jsonl is a run that received nothing (a dead port): no loss
+            used = [name for name in OUTPUTS if (Path(s.out) / name).exists()
+                    and (Path(s.out) / name).stat().st_size > 0]
             if used:
                 raise SkinError(f"--out {s.out}: holds an earlier run ({used[0]}); use --force "
                                 "to overwrite it, or another folder")
@@ -269,15 +274,22 @@ class Skin:
         s = self.setup
         self._opened = True
         if s.out is not None:
-            Path(s.out).mkdir(parents=True, exist_ok=True)
+            out = Path(s.out)
+            out.mkdir(parents=True, exist_ok=True)
+            from skin.world.map import CHAIN_FILE, LAYOUT_FILE
+
+            for name in (*OUTPUTS, LAYOUT_FILE, CHAIN_FILE):  # none of an earlier run stays
+                (out / name).unlink(missing_ok=True)
         self._make_source()
-        self._make_sinks()
-        if s.view or s.video:
-            self._live = self._live_view()
         from skin import drivers
 
-        self._driver = drivers.open(self.source_url)
+        self._driver = drivers.open(self.source_url)  # before the sinks: a bad port makes none
         self._closers.append(self._driver)
+        log.info("reading %s (%d taxels)", self._source_name(), len(self.layout))
+        self._make_sinks()
+        log.info("sinks: %s", ", ".join(type(k).__name__ for k in self.pipeline.sinks))
+        if s.view or s.video:
+            self._live = self._live_view()
         # a device given by the user reconnects; the simulated ones end by going away
         for one, port_url in zip(getattr(self._driver, "drivers", [self._driver]), s.port,
                                  strict=False):
@@ -336,6 +348,7 @@ class Skin:
                 self._events_path = path
             else:
                 path = Path(name)
+                path.parent.mkdir(parents=True, exist_ok=True)
             sink = JsonLinesSink(path)  # a killed run keeps every contact already given
             self._closers.append(sink)
             self.pipeline.sinks.append(sink)
@@ -449,7 +462,7 @@ class Skin:
 
     def close_sources(self) -> None:
         """Close the sources, the sinks, the live view and a simulation (idempotent)."""
-        for thing in reversed(self._closers):
+        for thing in self._closers:  # the sources first, then the sinks
             thing.close()
         self._closers = []
         if self._live is not None:
@@ -549,6 +562,7 @@ class Skin:
                                        default_chain() if self.scene is not None else None))
         (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n",
                                           encoding="utf-8")
+        log.info("outputs in %s", out)
         if self.setup.map:
             from skin.viz import ArmView
 

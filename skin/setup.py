@@ -25,6 +25,24 @@ SINKS = ("events", "terminal")
 contact on stderr); any other entry ending in ``.jsonl`` is a JSON-lines file of that path."""
 
 
+GROUPS: dict[str, tuple[str, ...]] = {
+    "source": ("port", "reconnect", "first_frame_timeout", "firmware_sim", "scene", "duration",
+               "speed", "contact"),
+    "skin": ("layout", "calibration"),
+    "classifier": ("model", "classifier", "expect", "window", "provisional"),
+    "output": ("out", "force", "sinks", "record", "map", "arm", "view", "video", "view_mode"),
+}
+"""The tables of a skin file and the fields each holds (every field is in one table)."""
+
+PATHS: dict[str, str] = {
+    "layout": "name", "scene": "name", "calibration": "path", "model": "path", "record": "path",
+    "out": "path", "arm": "path", "video": "path", "sinks": "jsonl", "port": "url",
+}
+"""Fields that hold files: ``path`` always a path; ``name`` a shipped name unless it has a
+folder or a suffix; ``jsonl`` paths ending in ``.jsonl``; ``url`` the file of ``replay://``.
+A skin file's relative paths are relative to its folder."""
+
+
 class SetupError(SkinError):
     """A setup value of the wrong kind, or a skin file that cannot be read."""
 

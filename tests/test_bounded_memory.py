@@ -42,21 +42,22 @@ def test_pipeline_bench_gives_the_same_contacts_whatever_its_chunk():
     assert a["peak_memory_mb"] > 0
 
 
-def _scene(preset, seconds):
+def _scene(preset, seconds, spread=0.0):
     from dataclasses import replace
 
     from skin.formats.scene import _with_sensor, load_scene
 
     scene = load_scene("default")
-    return replace(scene, sensor=preset, duration=seconds,
+    return replace(scene, sensor=preset, duration=seconds, taxel_spread=spread,
                    layout=_with_sensor(scene.layout, preset, "<test>", None))
 
 
-@pytest.mark.parametrize("preset", ["paper", "pid-logger", "fast-film"])
-def test_simulator_in_chunks_gives_the_same_frames_whatever_the_chunk(preset):
+@pytest.mark.parametrize(("preset", "spread"), [("paper", 0.0), ("paper", 0.1),
+                                                ("pid-logger", 0.0), ("fast-film", 0.1)])
+def test_simulator_in_chunks_gives_the_same_frames_whatever_the_chunk(preset, spread):
     from skin.drivers.sim import SkinSimulator
 
-    sim = SkinSimulator(_scene(preset, 12.0), contact="finite")
+    sim = SkinSimulator(_scene(preset, 12.0, spread), contact="finite")
     whole = sim.temperatures()
     frames = list(sim.frames(chunk=sim.n_samples))
     assert len(frames) == sim.n_samples == whole.shape[0]

@@ -88,3 +88,17 @@ def test_every_node_on_a_can_bus_answers_a_broadcast_identify(request):
     assert [f.node for f in found] == [5]
     assert found[0].identity.taxels == 72 and found[0].identity.transport == 1
     assert check(found[0], load_layout("arm")) == []
+
+
+def test_a_port_asked_for_that_cannot_be_opened_fails_and_names_its_url_once(capsys):
+    # issue 20 item 13: "can://socketcan/can0: can://socketcan/can0: cannot open the bus"
+    # and exit 0; an unknown CAN interface fails to open the same way on every machine
+    url = "can://nosuchinterface/can0"
+    assert main(["devices", "--no-scan", "--port", url, "--timeout", "0.1"]) == 1
+    out = capsys.readouterr().out
+    assert out.count(url) == 1
+    assert f"{url}: {url}" not in out
+    assert f"error: {url}:" in out
+    assert main(["devices", "--no-scan", "--port", url, "--timeout", "0.1", "--json"]) == 1
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["silent"][0]["url"] == url and not doc["silent"][0]["error"].startswith(url)

@@ -5,6 +5,7 @@ from skin.formats.layout import Board
 from skin.models.physics import (
     SensorConstants,
     contact_temperature,
+    contact_trace,
     depth_response,
     effusivity,
     effusivity_estimates,
@@ -55,6 +56,24 @@ def test_contact_temperature_lies_between():
         assert AMBIENT < surface < t_sensor
     equal = contact_temperature(t_sensor, AMBIENT, SENSOR.effusivity, SENSOR.effusivity)
     assert equal == pytest.approx((t_sensor + AMBIENT) / 2)
+
+
+@pytest.mark.filterwarnings("error")
+@pytest.mark.parametrize("h", [np.inf, 3000.0, 0.0])
+def test_an_object_of_infinite_effusivity_takes_the_limit(h):
+    # issue 20 item 8: eq. 3 was inf / inf = NaN; the limit holds the surface at T_obj
+    t_sensor = float(heated_temperature(AMBIENT, SENSOR))
+    assert contact_temperature(t_sensor, AMBIENT, SENSOR.effusivity, np.inf) == AMBIENT
+    assert contact_temperature(t_sensor, AMBIENT, SENSOR.effusivity, 0.0) == t_sensor
+    t = np.array([0.0, 1e-3, 0.1, 1.0, 10.0])
+    limit = contact_trace(t, t_sensor, AMBIENT, np.inf, SENSOR, h)
+    assert np.all(np.isfinite(limit))
+    near = contact_trace(t, t_sensor, AMBIENT, 1e15, SENSOR, h)
+    np.testing.assert_allclose(limit, near, atol=1e-9)
+    # and per trial, an infinite effusivity beside finite ones
+    batch = contact_trace(t, t_sensor, AMBIENT, np.array([[E_PINE], [np.inf]]), SENSOR, h)
+    np.testing.assert_allclose(batch[1], limit, atol=0)
+    np.testing.assert_allclose(batch[0], contact_trace(t, t_sensor, AMBIENT, E_PINE, SENSOR, h))
 
 
 def test_depth_response_before_contact_is_zero():

@@ -190,3 +190,20 @@ def test_can_reply(v):
 def test_regenerating_the_vector_files_reproduces_them(tmp_path):
     for path in write(tmp_path):
         assert path.read_bytes() == (VECTORS / path.name).read_bytes(), path.name
+
+
+def test_the_writer_prints_help_and_refuses_a_missing_folder(tmp_path):
+    # issue 20 item 16: --help was taken for the output folder and crashed
+    import subprocess
+    import sys
+
+    run = [sys.executable, "-m", "skin.drivers.protocol_vectors"]
+    out = subprocess.run([*run, "--help"], capture_output=True, text=True, cwd=tmp_path)
+    assert out.returncode == 0
+    assert "usage:" in out.stdout and "serial.txt" in out.stdout
+    assert not (tmp_path / "--help").exists()
+    out = subprocess.run([*run, str(tmp_path / "nowhere")], capture_output=True, text=True)
+    assert out.returncode == 2 and "is not an existing folder" in out.stderr
+    out = subprocess.run([*run, str(tmp_path)], capture_output=True, text=True)
+    assert out.returncode == 0
+    assert (tmp_path / "serial.txt").is_file() and (tmp_path / "can.txt").is_file()

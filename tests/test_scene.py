@@ -170,3 +170,18 @@ def test_match_touches_uses_each_contact_once():
     matches, unmatched = match_touches(scene, [[0]], [1.5], tolerance=0.6)
     assert [m.contact_index for m in matches] == [0, None]
     assert unmatched == []
+
+
+def test_an_unknown_material_names_the_line_of_its_object(tmp_path):
+    # issue 20 item 17: the simulator's check named the file and the object, not the line
+    from skin.drivers.sim import SkinSimulator
+
+    text = HEAD.replace('material = "pine"', 'material = "unobtainium"') + touch("board")
+    path = tmp_path / "s.toml"
+    path.write_text(text)
+    line = [i + 1 for i, row in enumerate(text.splitlines()) if row == "[[objects]]"][1]
+    scene = load_scene(path)
+    assert scene.objects["board"].line == line
+    with pytest.raises(SceneError, match=rf"s\.toml:{line}: object 'board': unknown material "
+                                         r"'unobtainium'"):
+        SkinSimulator(scene)

@@ -285,3 +285,61 @@ def test_skin_simulate_trials_takes_a_sensor(tmp_path, capsys):
                       "--sensor", str(bad)]) == 2
     assert "bad.toml:1" in capsys.readouterr().err
     assert not (tmp_path / "u.npz").exists()
+
+
+# -- issue 20 item 19: each simulated taxel has its own constants --------------------------
+def test_scene_taxel_spread_is_checked():
+    assert parse_scene('layout = "arm"\n', "s.toml").taxel_spread == 0.0
+    assert parse_scene('taxel_spread = 0.1\n', "s.toml").taxel_spread == 0.1
+    with pytest.raises(SceneError, match=r"s\.toml: field 'taxel_spread' must be within"):
+        parse_scene('taxel_spread = 1.5\n', "s.toml")
+
+
+def test_simulated_taxels_spread_around_their_board_seeded():
+    scene = load_scene("spread")
+    sim = SkinSimulator(scene, duration=1.0)
+    s, nominal = sim.taxel_sensor, sim.sensor
+    for field in ("depth", "diffusivity", "conductivity"):
+        ratio = np.asarray(getattr(s, field)) / getattr(nominal, field)
+        assert ratio.shape == (len(scene.layout),)
+        assert np.all(np.abs(ratio - 1) <= 0.10) and ratio.std() > 0.03  # uniform +-10 %
+    again = SkinSimulator(scene, duration=1.0).taxel_sensor
+    assert np.array_equal(again.depth, s.depth)  # seeded
+    other = SkinSimulator(dataclasses.replace(scene, seed=8), duration=1.0).taxel_sensor
+    assert not np.array_equal(other.depth, s.depth)
+    flat = SkinSimulator(load_scene("default"), duration=1.0)
+    assert flat.taxel_sensor is flat.sensor  # no spread: the board's sensor, as before
+    # the truth as a calibration file: what `skin run --calibration` applies
+    _, sensors = sim.true_calibration().apply(scene.layout)
+    assert [x.depth for x in sensors] == pytest.approx(list(s.depth), rel=1e-12)
+
+
+def test_spread_taxels_read_the_same_touch_differently():
+    src = ('layout = "arm"\nduration = 8.0\nnoise = 0.0\ntaxel_spread = 0.1\nseed = 2\n'
+           'initial_temperature = [60.0, 60.0]\n'
+           '[[objects]]\nname = "bar"\nmaterial = "aluminium"\n'
+           '[[touches]]\nobject = "bar"\ntaxels = [0, 1]\nstart = 2.0\nduration = 5.0\n')
+    spread = SkinSimulator(parse_scene(src, "s.toml")).temperatures()
+    flat = SkinSimulator(parse_scene(src.replace("0.1", "0.0"), "s.toml")).temperatures()
+    assert np.array_equal(flat[:, 0], flat[:, 1])
+    assert np.abs(spread[:, 0] - spread[:, 1]).max() > 0.1
+    assert np.all(np.isfinite(spread))
+
+
+def test_calibration_measurably_helps_the_spread_demo():
+    """The shipped `spread` scene: the true per-taxel constants win back labels."""
+    from skin.bench.spread import play
+
+    scene = load_scene("spread")
+    plain, calibrated = play(scene, calibrated=False), play(scene, calibrated=True)
+    assert plain["detected"] == calibrated["detected"] == len(scene.touches)
+    assert calibrated["correct"] >= plain["correct"] + 2, (plain, calibrated)
+
+
+def test_skin_simulate_calibration_writes_the_truth(tmp_path, capsys):
+    from skin.formats.calibration_file import load_calibration
+
+    out = tmp_path / "truth.json"
+    assert skin_main(["simulate", "calibration", "--scene", "spread", "-o", str(out)]) == 0
+    cal = load_calibration(out)
+    assert len(cal.taxels) == 72 and "simulation truth" in cal.references["thermal"]

@@ -78,24 +78,15 @@ class LinkGeometry:
 
 def rotation_pose(angle_deg: float, origin: tuple[float, float, float]) -> np.ndarray:
     """Rotation about world y by ``angle_deg`` (link z -> (sin, 0, cos)), then translation."""
-    a = np.radians(angle_deg)
-    m = np.eye(4)
-    m[:3, :3] = [[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]]
-    m[:3, 3] = origin
-    return m
+    return euler_pose(origin, (0.0, angle_deg, 0.0))
 
 
 def euler_pose(origin: Any, rotation_deg: Any) -> np.ndarray:
     """Rotations about the fixed x, y and z axes (degrees, in that order), then translation."""
-    rx, ry, rz = np.radians(np.asarray(rotation_deg, dtype=float))
-    cx, sx, cy, sy, cz, sz = np.cos(rx), np.sin(rx), np.cos(ry), np.sin(ry), np.cos(rz), np.sin(rz)
-    x = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-    y = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-    z = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-    m = np.eye(4)
-    m[:3, :3] = z @ y @ x
-    m[:3, 3] = origin
-    return m
+    from skin.world.kinematics import transform
+
+    return transform(np.asarray(origin, dtype=float),
+                     np.radians(np.asarray(rotation_deg, dtype=float)))
 
 
 def _translate(pose: np.ndarray, offset: tuple[float, float, float]) -> np.ndarray:

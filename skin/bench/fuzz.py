@@ -603,13 +603,23 @@ def check_can(case: CanCase, frames: list[CanFrame], origin: list[int] | None,
     if s.frames + s.missing + still_open != syncs:
         bad.append(f"frames {s.frames} + missing {s.missing} + open {still_open} "
                    f"!= {syncs} SYNCs")
-    lost = dups = 0
+    lost = dups = genuine_lost = 0
+    genuine = [f for f in out if (f.board, f.seq) in sent]  # seqs that were really sent
     for node in {f.board for f in out}:
         lo, du = sequence_stats([f.seq for f in out if f.board == node])
         lost, dups = lost + lo, dups + du
-    if s.duplicates != dups or not lost - s.missing <= s.lost_samples <= lost:
+        genuine_lost += sequence_stats([f.seq for f in genuine if f.board == node])[0]
+    # a gap counts once the next sample confirms it (a damaged SYNC seq would count up to
+    # 2^31): at most the gaps between all the samples out, at least those between the
+    # genuine ones less the samples dropped incomplete, those that came out damaged (a gap
+    # between genuine ones, not lost) and the gaps still waiting
+    waiting = sum(n.pending[2] for n in can._nodes.values() if n.pending is not None)
+    floor = genuine_lost - s.missing - v.corrupt - waiting
+    # a damaged seq that is taken back also moves what counts as a repeat: by one at most
+    if abs(s.duplicates - dups) > v.corrupt or not floor <= s.lost_samples <= lost:
         bad.append(f"lost/duplicates {s.lost_samples}/{s.duplicates}: gaps {lost} "
-                   f"(missing {s.missing}), {dups} repeats")
+                   f"(between genuine samples {genuine_lost}, missing {s.missing}, waiting "
+                   f"{waiting}), {dups} repeats")
     return v
 
 

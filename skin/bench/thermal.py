@@ -114,24 +114,38 @@ def forward(cells: tuple[int, ...] = (12, 24, 48),
 
 
 def inverse(durations: tuple[float, ...] = (0.25, 0.5, 1.0, 2.5), trials: int = 60,
-            seed: int = 0, progress: Callable[[int, int], None] | None = None) -> list[dict]:
+            seed: int = 0, progress: Callable[[int, int], None] | None = None
+            ) -> tuple[list[dict], list[dict]]:
     """Effusivity error against contact duration and run time, per estimator.
 
     Trials follow the paper's protocol (`skin.models.trials`: contact model, per-trial
     conductance, objects not fully cooled, ADC quantisation, onset jitter) for the paper's 11
-    materials. The estimators take the sensor temperature from the 10 samples before onset
-    and assume the object at ambient (the paper's assumption; the fit's prior).
+    materials, plus copper and diamond (beyond the paper's range; only in the per-material
+    rows). The estimators take the sensor temperature from the 10 samples before onset and
+    assume the object at ambient (the paper's assumption; the fit's prior).
+
+    Returns
+    -------
+    rows : list of dict
+        One per estimator and duration over the 11 materials: share valid (the paper's
+        estimator says "out of range" or "unknown" otherwise), median and 90th percentile
+        absolute log10 error, cost; for the fits also the share flagged converged, the median
+        reported std and the share of trials whose error is within 2 reported std.
+    materials : list of dict
+        One per estimator and material at the longest duration: the signed median log10
+        error (the bias) and, for the fits, the 2-std coverage.
     """
     from skin.models.inverse import fit_contact, paper_effusivity
     from skin.models.materials import load_materials
     from skin.models.trials import PAPER_MATERIALS, Protocol, simulate_trials
 
     mats = load_materials()
-    data = simulate_trials([mats[m] for m in PAPER_MATERIALS], Protocol(trials=trials),
-                           seed=seed)
+    names = [*PAPER_MATERIALS, "copper", "diamond"]
+    data = simulate_trials([mats[m] for m in names], Protocol(trials=trials), seed=seed)
     truth = data.extra["true_effusivity"]
+    paper_set = np.isin(data.label, PAPER_MATERIALS)
     pre = data.temperature[:, data.onset[0] - 10: data.onset[0]].mean(axis=1)
-    rows = []
+    rows, per_material = [], []
     estimators = ("paper (eqs. 10-11, median)", "least squares (MAP)",
                   "least squares + onset (MAP)")
     total, done = len(estimators) * len(durations), 0
@@ -150,9 +164,11 @@ def inverse(durations: tuple[float, ...] = (0.25, 0.5, 1.0, 2.5), trials: int = 
                 est, ok = fit.effusivity, np.ones(len(data), dtype=bool)
                 std = fit.log10_effusivity_std
             wall = time.perf_counter() - t0
-            err = np.abs(np.log10(est[ok] / truth[ok]))
-            row = {"estimator": name, "duration": d, "trials": len(data),
-                   "valid": round(float(ok.mean()), 4),
+            signed = np.log10(np.where(ok, est, 1.0) / truth)
+            sel = ok & paper_set
+            err = np.abs(signed[sel])
+            row = {"estimator": name, "duration": d, "trials": int(paper_set.sum()),
+                   "valid": round(float(ok[paper_set].mean()), 4),
                    "median_abs_log10_error": round(float(np.median(err)), 4) if err.size else None,
                    "p90_abs_log10_error": round(float(np.percentile(err, 90)), 4)
                    if err.size else None,
@@ -160,11 +176,24 @@ def inverse(durations: tuple[float, ...] = (0.25, 0.5, 1.0, 2.5), trials: int = 
                    if err.size else None,
                    "time_per_trial_ms": round(1e3 * wall / len(data), 4)}
             if std is not None:
-                row["converged"] = round(float(fit.converged.mean()), 4)
-                row["median_reported_std"] = round(float(np.median(std)), 4)
-                row["within_2_std"] = round(float(np.mean(err <= 2 * std[ok])), 4)
+                row["converged"] = round(float(fit.converged[paper_set].mean()), 4)
+                row["median_reported_std"] = round(float(np.median(std[paper_set])), 4)
+                row["within_2_std"] = round(float(np.mean(err <= 2 * std[sel])), 4)
             rows.append(row)
+            if d == max(durations):
+                for m in names:
+                    of = data.label == m
+                    good = of & ok
+                    item = {"estimator": name, "duration": d, "material": m,
+                            "true_effusivity": round(float(np.median(truth[of])), 1),
+                            "valid": round(float(ok[of].mean()), 4),
+                            "median_log10_error": round(float(np.median(signed[good])), 4)
+                            if good.any() else None}
+                    if std is not None:
+                        item["within_2_std"] = round(float(np.mean(
+                            np.abs(signed[of]) <= 2 * std[of])), 4)
+                    per_material.append(item)
             done += 1
             if progress is not None:
                 progress(done, total)
-    return rows
+    return rows, per_material

@@ -123,6 +123,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     cal.add_argument("--seed", type=int, default=0, help="seed")
     cal.add_argument("--json", action="store_true", help="print one JSON document")
     cal.set_defaults(func=main_calibration)
+    spread = kinds.add_parser("spread", help="per-taxel spread of the simulated skin against "
+                                             "a calibration file of its true constants")
+    spread.add_argument("--touches", type=int, default=120, help="touches in the scene (120)")
+    spread.add_argument("--spread", type=float, default=0.10,
+                        help="relative spread of each taxel's constants (0.10)")
+    spread.add_argument("--sensor", default="", help="sensor preset (default: the paper's)")
+    spread.add_argument("--seed", type=int, default=0, help="seed")
+    spread.add_argument("--json", action="store_true", help="print one JSON document")
+    spread.set_defaults(func=main_spread)
     bench_drivers.add_parsers(kinds)
     bench_view.add_parsers(kinds)
 
@@ -140,13 +149,13 @@ def main_thermal(args: argparse.Namespace) -> int:
         cells=cells, dts=dts, progress=lambda d, n: progress.bar(d, n, "forward", started))
     progress.done()
     started_inv = time.monotonic()
-    inverse = thermal_bench.inverse(
+    inverse, per_material = thermal_bench.inverse(
         durations=(0.25, 2.5) if args.quick else (0.25, 0.5, 1.0, 2.5),
         trials=3 if args.quick else args.trials,
         progress=lambda d, n: progress.bar(d, n, "inverse", started_inv))
     progress.done()
     doc = {"machine": bench.machine(), "wall_time": round(time.monotonic() - started, 2),
-           "forward": forward, "inverse": inverse}
+           "forward": forward, "inverse": inverse, "inverse_per_material": per_material}
     if args.plot:
         from skin.viz.plots import plot_estimator_errors, plot_work_precision
 
@@ -171,12 +180,32 @@ def main_thermal(args: argparse.Namespace) -> int:
               f"{r['time_per_trial_ms'] / base[r['case']]:>9.0f}")
     print("\ninverse estimators on simulated trials (paper's protocol, 11 materials)")
     print(f"{'estimator':<28} {'dur s':>6} {'valid':>6} {'median |dlog10 e|':>18} "
-          f"{'p90':>6} {'ms/trial':>9}")
+          f"{'p90':>6} {'converged':>9} {'in 2 std':>8} {'ms/trial':>9}")
     for r in inverse:
         med = "-" if r["median_abs_log10_error"] is None else f"{r['median_abs_log10_error']:.3f}"
         p90 = "-" if r["p90_abs_log10_error"] is None else f"{r['p90_abs_log10_error']:.3f}"
+        conv = f"{r['converged']:.2f}" if "converged" in r else "-"
+        cover = f"{r['within_2_std']:.2f}" if "within_2_std" in r else "-"
         print(f"{r['estimator']:<28} {r['duration']:>6g} {r['valid']:>6.2f} {med:>18} "
-              f"{p90:>6} {r['time_per_trial_ms']:>9.3f}")
+              f"{p90:>6} {conv:>9} {cover:>8} {r['time_per_trial_ms']:>9.3f}")
+    last = per_material[0]["duration"] if per_material else None
+    print(f"\nbias per material at {last:g} s: median signed dlog10 e (valid trials); "
+          f"fits: share within 2 reported std")
+    ests = list(dict.fromkeys(r["estimator"] for r in per_material))
+    print(f"{'material':<12} {'e':>8} " + " ".join(f"{e[:22]:>22}" for e in ests))
+    for m in dict.fromkeys(r["material"] for r in per_material):
+        cells = []
+        for e in ests:
+            r = next(x for x in per_material if x["material"] == m and x["estimator"] == e)
+            bias = "out of range" if r["median_log10_error"] is None \
+                else f"{r['median_log10_error']:+.2f}"
+            if r["valid"] < 1:
+                bias += f" ({r['valid']:.0%} valid)"
+            if "within_2_std" in r:
+                bias += f" [{r['within_2_std']:.2f}]"
+            cells.append(f"{bias:>22}")
+        e_true = next(x["true_effusivity"] for x in per_material if x["material"] == m)
+        print(f"{m:<12} {e_true:>8.0f} " + " ".join(cells))
     if "figures" in doc:
         print("figures: " + ", ".join(doc["figures"]))
     return 0
@@ -263,6 +292,35 @@ def main_calibration(args: argparse.Namespace) -> int:
           f"over 25-45 C, median {th['nominal_max_error_k']['median']} K nominal -> "
           f"{th['fitted_max_error_k']['median']} K fitted (p95 "
           f"{th['nominal_max_error_k']['p95']} -> {th['fitted_max_error_k']['p95']} K)")
+    return 0
+
+
+def main_spread(args: argparse.Namespace) -> int:
+    """``skin bench spread``: what calibration wins back on a skin whose taxels differ."""
+    from skin import bench
+    from skin.bench.spread import run
+    from skin.errors import SkinError
+
+    if args.touches < 1 or not 0 <= args.spread < 1:
+        raise SkinError("--touches must be at least 1 and --spread within [0, 1)")
+    progress = Progress()
+    started = time.monotonic()
+    doc = {"machine": bench.machine(),
+           **run(args.touches, args.spread, args.seed, args.sensor,
+                 progress=lambda d, n: progress.bar(d, n, "runs", started))}
+    progress.done()
+    if args.json:
+        print(json.dumps(doc))
+        return 0
+    print(f"{args.touches} touches on the arm, taxel constants spread +-{args.spread:.0%} "
+          f"(seed {args.seed}, sensor {doc['sensor']}, {doc['machine']['cpus']} cores)")
+    print(f"{'run':<12} {'accuracy':>8} {'detected':>8} {'false':>6} {'wall s':>7}")
+    for key in ("nominal", "spread", "calibrated"):
+        r = doc[key]
+        print(f"{key:<12} {r['accuracy']:>8.3f} {r['detected']:>8} {r['false_contacts']:>6} "
+              f"{r['wall_time']:>7}")
+    print(f"calibration gain {doc['calibration_gain']:+.3f}, spread loss "
+          f"{doc['spread_loss']:+.3f} (accuracy)")
     return 0
 
 

@@ -29,6 +29,8 @@ import numpy as np
 
 from skin.errors import SkinError
 
+JSON_HELP = "print one JSON document (what was fitted, with its figures) and nothing else"
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register ``skin calibrate``."""
@@ -41,12 +43,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     th.add_argument("--terms", type=int, choices=(2, 3), default=2,
                     help="2: the paper's form (default); 3: the full form (3+ references)")
     th.add_argument("-o", "--out", required=True, help="calibration file to write or update")
+    th.add_argument("--json", action="store_true", help=JSON_HELP)
     th.set_defaults(func=main_thermistors)
     tm = kinds.add_parser("thermal", help="sensor diffusivity and conductivity per taxel")
     tm.add_argument("--data", required=True, help="trial dataset (.npz) of reference contacts")
     tm.add_argument("--reference", default="water", help="the reference material (water)")
     tm.add_argument("--duration", type=float, default=1.5, help="seconds of contact used")
     tm.add_argument("-o", "--out", required=True, help="calibration file to write or update")
+    tm.add_argument("--json", action="store_true", help=JSON_HELP)
     tm.set_defaults(func=main_thermal)
     bd = kinds.add_parser("board", help="a board's measured divider constants and heaters")
     bd.add_argument("--board", type=int, required=True, help="board id")
@@ -57,6 +61,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                        ("heater-resistance", "heaters' resistance, ohm")):
         bd.add_argument(f"--{name}", type=float, help=f"measured {what}")
     bd.add_argument("-o", "--out", required=True, help="calibration file to write or update")
+    bd.add_argument("--json", action="store_true", help=JSON_HELP)
     bd.set_defaults(func=main_board)
     show = kinds.add_parser("show", help="what a calibration file holds")
     show.add_argument("file", help="calibration file")
@@ -152,6 +157,14 @@ def main_thermistors(args: argparse.Namespace) -> int:
         out.references["ambient"] = f"{args.data} ({len(ambient_errors)} readings)"
     path = out.save(args.out)
     missing = out.missing(layout, "thermistor")
+    if args.json:
+        rms = {str(t): out.taxels[int(t)]["thermistor_rms"] for t in sorted(refs)
+               if t not in flagged}
+        print(json.dumps({"file": str(path), "terms": args.terms, "fitted": len(rms),
+                          "thermistor_rms": rms, "rms_unit": "K", "flagged": flagged,
+                          "missing": missing, "ambient_offset":
+                          out.ambient_offset if ambient_errors else None}))
+        return 0
     print(f"wrote {path}: thermistors of {len(refs) - len(flagged)} taxels "
           f"({args.terms}-term); {len(missing)} of the layout's {len(layout)} taxels without "
           f"a thermistor fit" + (f"; open or saturated at a reference: {flagged}"
@@ -199,6 +212,15 @@ def main_thermal(args: argparse.Namespace) -> int:
             thermal_contacts=int(rows.size), thermal_converged=fit.converged)
     out.references["thermal"] = f"{args.reference} ({args.data})"
     path = out.save(args.out)
+    if args.json:
+        keys = ("diffusivity", "conductivity", "depth", "thermal_rms", "thermal_contacts",
+                "thermal_converged")
+        print(json.dumps({"file": str(path), "reference": args.reference,
+                          "contacts": len(data), "taxels": {
+                              str(int(t)): {k: np.asarray(out.taxels[int(t)][k]).item()
+                                            for k in keys}
+                              for t in np.unique(data.taxel)}}))
+        return 0
     print(f"wrote {path}: thermal constants of {len(np.unique(data.taxel))} taxels from "
           f"{len(data)} contacts with {args.reference}")
     return 0
@@ -223,6 +245,10 @@ def main_board(args: argparse.Namespace) -> int:
     out = _existing(args.out)
     out.boards.setdefault(args.board, {}).update(given)
     path = out.save(args.out)
+    if args.json:
+        print(json.dumps({"file": str(path), "board": args.board,
+                          "constants": out.boards[args.board]}))
+        return 0
     print(f"wrote {path}: board {args.board}: "
           + ", ".join(f"{k} {v:g}" for k, v in out.boards[args.board].items()))
     return 0

@@ -6,7 +6,8 @@ plus any device URL given with ``--port`` (a pseudo-terminal, ``can://virtual/..
 version, MCU, taxel count, sample rate and layout hash, then what disagrees with the layout:
 a taxel count that does not match the channels the layout wires to that board, or a layout
 hash the firmware was built with that is not the layout's. Exits with status 1 when something
-disagrees, 0 otherwise (also when no board answers).
+disagrees or a URL given with ``--port`` cannot be opened, 0 otherwise (also when no board
+answers).
 """
 
 from __future__ import annotations
@@ -44,13 +45,17 @@ def main(args: argparse.Namespace) -> int:
     urls = list(args.port)
     if not args.no_scan:
         urls += [f"serial://{p}" for p in serial_ports()] + can_channels()
-    boards, silent, problems = [], [], []
+    boards, silent, problems, dead = [], [], [], []
     for k, url in enumerate(urls):
         progress.status(f"probing {url} ({k + 1}/{len(urls)})")
         try:
             found = identify(url, timeout=args.timeout)
         except DeviceError as exc:
-            silent.append({"url": url, "error": str(exc)})
+            message = str(exc)  # it names the URL already
+            message = message[len(url) + 2:] if message.startswith(f"{url}: ") else message
+            silent.append({"url": url, "error": message})
+            if k < len(args.port):  # the user asked for this one: a dead port is a failure
+                dead.append(f"{url}: {message}")
             continue
         if not found:
             silent.append({"url": url, "error": "no answer to IDENTIFY"})
@@ -70,7 +75,10 @@ def main(args: argparse.Namespace) -> int:
                   f"({b['transport']}), {b['taxels']} taxels, {b['rate_hz']} Hz "
                   f"(max {b['max_rate_hz']}), layout hash {b['layout_hash']}")
         for s in silent:
-            print(f"{s['url']}: {s['error']}")
+            if f"{s['url']}: {s['error']}" not in dead:  # else printed as an error below
+                print(f"{s['url']}: {s['error']}")
         for p in problems:
             print(f"warning: {p}")
-    return 1 if problems else 0
+        for d in dead:
+            print(f"error: {d}")
+    return 1 if problems or dead else 0

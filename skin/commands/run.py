@@ -5,7 +5,10 @@ given), detect contacts, label their materials, and write ``events.jsonl``, ``su
 ``contact_map.png`` (and ``layout.toml``, with ``chain.toml`` for a simulation: the arm's pose,
 for ``skin view --map``). ``--record run.mcap`` also keeps the wire bytes, temperatures and events
 (`skin.drivers.recording`); ``--port replay://run.mcap`` plays such a recording again, with
-its layout and calibration unless ``--layout`` / ``--calibration`` say otherwise.
+its layout and calibration unless ``--layout`` / ``--calibration`` say otherwise. The setup is
+``./skin.toml`` (or ``--config FILE``) when there is one, each option given here overriding it
+(``skin config show`` prints it); everything is checked before the first frame (`skin.Skin`).
+An output folder holding an earlier run is kept unless ``--force``.
 """
 
 from __future__ import annotations
@@ -24,6 +27,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     # file) stays; an option's dest is its `skin.setup.Setup` field
     run = sub.add_parser("run", help="read a skin, detect contacts, label materials (main job)",
                          description=__doc__, argument_default=argparse.SUPPRESS)
+    add_setup_options(run)
+    run.add_argument("--json", action="store_true",
+                     help="print one JSON summary on stdout and nothing else")
+    run.set_defaults(func=main)
+
+
+def add_setup_options(run: argparse.ArgumentParser) -> None:
+    """Add the options of a setup (``skin run``, ``skin config show``); no defaults."""
+    run.add_argument("--config", metavar="FILE",
+                     help="skin file (TOML) declaring the setup; options given here override "
+                          "it (default: ./skin.toml when there is one)")
     run.add_argument("--port", metavar="URL", action="append",
                      help="device URL (serial:///dev/ttyACM0, can://socketcan/can0, "
                           "sim://default, replay://run.mcap ...); repeat it for a skin of "
@@ -90,9 +104,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                           "JSON-lines file; repeatable (default: events and terminal)")
     run.add_argument("--force", action="store_true",
                      help="overwrite the outputs of an earlier run in --out")
-    run.add_argument("--json", action="store_true",
-                     help="print one JSON summary on stdout and nothing else")
-    run.set_defaults(func=main)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -109,9 +120,13 @@ def main(args: argparse.Namespace) -> int:
 
 
 def resolve_setup(args: argparse.Namespace) -> Setup:
-    """Return the setup of ``skin run``: its defaults, overridden by the options given."""
+    """Return the setup of ``skin run``: defaults < skin file (--config, ./skin.toml) < options."""
+    from skin.formats.skin_file import find_skin_file, load_skin_file
+
+    path = getattr(args, "config", None) or find_skin_file()
+    setup = Setup() if path is None else load_skin_file(path)
     given = {k: v for k, v in vars(args).items() if k in setup_fields()}
-    return Setup().updated(given, "command line")
+    return setup.updated(given, "command line")
 
 
 def _print_table(records: list[dict[str, Any]], summary: dict[str, Any], out: str | None) -> None:

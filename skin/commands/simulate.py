@@ -65,6 +65,24 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     trials.add_argument("--json", action="store_true", help="print one JSON summary")
     trials.set_defaults(func=main_trials)
 
+    truth = kinds.add_parser("calibration", help="the simulated skin's true per-taxel constants "
+                                                 "as a calibration file")
+    truth.add_argument("--scene", default="default", help="scene (default: default)")
+    truth.add_argument("-o", "--out", required=True, help="calibration file to write (JSON)")
+    truth.set_defaults(func=main_calibration)
+
+
+def main_calibration(args: argparse.Namespace) -> int:
+    """Write the calibration file of a simulated skin's true constants."""
+    from skin.drivers.sim import SkinSimulator
+    from skin.formats.scene import load_scene
+
+    scene = load_scene(args.scene)
+    path = SkinSimulator(scene, duration=0.0).true_calibration().save(args.out)
+    print(f"wrote {path}: the true thermal constants of {len(scene.layout)} taxels "
+          f"(scene {scene.name}, taxel spread {scene.taxel_spread:g})")
+    return 0
+
 
 def main_trace(args: argparse.Namespace) -> int:
     """Print one contact's trace."""

@@ -372,3 +372,39 @@ def load_layout(path: str | Path) -> Layout:
     """
     text, source, folder = read_data_file(path, "layouts", "layout", LayoutError)
     return parse_layout(text, source=source, base=folder)
+
+
+def layout_toml(layout: Layout) -> str:
+    """Return layout TOML text that `parse_layout` reads back as ``layout``.
+
+    Every board constant and every taxel field is written out, floats exactly, so a layout
+    built in memory (a cut of a shipped one, say) round-trips too. An empty ``sensor`` (the
+    board's own constants) is left out.
+
+    Parameters
+    ----------
+    layout : Layout
+        The layout.
+
+    Returns
+    -------
+    str
+        The TOML text.
+    """
+    from dataclasses import fields
+
+    from skin.formats.toml_text import toml_value
+
+    lines = [f"# layout {layout.source}, written by thermoskin",
+             f"name = {toml_value(layout.name)}", ""]
+    for board in layout.boards.values():
+        lines.append("[[boards]]")
+        lines += [f"{f.name} = {toml_value(getattr(board, f.name))}" for f in fields(board)
+                  if not (f.name == "sensor" and not board.sensor)]
+        lines.append("")
+    for t in layout.taxels:
+        lines += ["[[taxels]]", f"id = {int(t.id)}", f"board = {int(t.board)}",
+                  f"address = {int(t.address)}", f"link = {toml_value(t.link)}",
+                  f"position = {toml_value(list(t.position))}",
+                  f"normal = {toml_value(list(t.normal))}", ""]
+    return "\n".join(lines)

@@ -30,11 +30,14 @@ class SceneObject:
         Key in the materials table.
     temperature : float or None
         Object temperature, deg C; None: the material's own (heat-generating) or ambient.
+    line : int
+        Line of its ``[[objects]]`` header in the scene file (0: unknown), for messages.
     """
 
     name: str
     material: str
     temperature: float | None
+    line: int = 0
 
 
 @dataclass(frozen=True)
@@ -72,6 +75,9 @@ class Scene:
     ``noise`` is the white noise of the thermistor temperatures, K, when the scene sets it
     (it then replaces the sensor's noise model); None: each board's sensor description says.
     ``sensor`` is the sensor the scene puts on every board ("": the layout's own).
+    ``taxel_spread`` spreads each taxel's thermistor depth, diffusivity and conductivity
+    uniformly within +- that fraction of its board's (seeded: units differ, as real ones do;
+    what commissioning and ``skin run --calibration`` correct). 0: every taxel is nominal.
     """
 
     name: str
@@ -85,6 +91,7 @@ class Scene:
     objects: dict[str, SceneObject]
     touches: tuple[Touch, ...]
     sensor: str = ""
+    taxel_spread: float = 0.0
 
     def material_of(self, touch: Touch) -> str:
         """Material of the object of a touch."""
@@ -161,6 +168,9 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
     if noise is not None and noise < 0:
         raise SceneError(f"{source}: field 'noise' must be >= 0, got {noise!r}")
     seed = int(_number(data, "seed", source, 0))
+    spread = _number(data, "taxel_spread", source, 0.0)
+    if not 0 <= spread < 1:
+        raise SceneError(f"{source}: field 'taxel_spread' must be within [0, 1), got {spread!r}")
     init = data.get("initial_temperature", [ambient + 6.0, ambient + 14.0])
     if not (
         isinstance(init, list)
@@ -185,7 +195,7 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
         temp = raw.get("temperature")
         if temp is not None:
             temp = _number(raw, "temperature", f"{where} ({name})")
-        objects[name] = SceneObject(name, material, temp)
+        objects[name] = SceneObject(name, material, temp, line)
     touches: list[Touch] = []
     touch_lines = header_lines(text, "touches")
     for k, raw in enumerate(_tables(data, "touches", source)):
@@ -227,6 +237,7 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
         objects=objects,
         touches=tuple(touches),
         sensor=sensor,
+        taxel_spread=spread,
     )
 
 

@@ -539,7 +539,7 @@ def write_run_setup(folder: str | Path, layout: Layout, chain: Chain | None = No
         Entries for ``summary.json``: ``layout`` and, with a chain, ``chain`` (file names in
         the folder).
     """
-    from skin.drivers.recording import layout_toml
+    from skin.formats.layout import layout_toml
 
     folder = Path(folder)
     (folder / LAYOUT_FILE).write_text(layout_toml(layout), encoding="utf-8")
