@@ -115,11 +115,13 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
     -------
     dict
         ``samples`` (per sample: simulated s, wall s, ``rss_mb``, ``open_fds``, frames,
-        results, contacts), ``rss_growth`` (relative, after the first simulated hour, or the
-        first tenth of a shorter run), ``contacts_per_hour`` and ``results_per_hour`` (per
-        whole simulated hour; per PERIOD for a run shorter than two hours, in
-        ``contacts_per_period``), ``lost_frames``, ``crc_errors``, ``speed`` (simulated
-        seconds per wall second), ``written_mb``.
+        results, contacts; the last is taken after the boards ended); ``rss_growth`` and
+        ``rss_growth_max`` (relative, from the first simulated hour, or the first tenth of a
+        shorter run, to the run's last sample and to its largest); ``contacts_per_bin``
+        (final contacts by onset, per whole simulated hour, or per `PERIOD` for a run
+        shorter than two hours, as ``per`` says); ``lost_frames`` (``gaps``, ``late`` and
+        frames sent but not read), ``crc_errors``, ``speed`` (simulated seconds per wall
+        second), ``written_mb``.
     """
     import shutil
 
@@ -239,10 +241,12 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
             c.close()
         if temporary:
             shutil.rmtree(out, ignore_errors=True)
-    rss = np.array([s["rss_mb"] for s in samples])
-    sim_t = np.array([s["simulated_s"] for s in samples])
+    during = samples[:-1] if len(samples) > 2 else samples  # the last: after the boards ended
+    rss = np.array([s["rss_mb"] for s in during])
+    sim_t = np.array([s["simulated_s"] for s in during])
     base_t = 3600.0 if seconds >= 2 * 3600.0 else seconds / 10
-    base = rss[np.searchsorted(sim_t, base_t)]
+    i_base = min(int(np.searchsorted(sim_t, base_t)), rss.size - 1)
+    base = rss[i_base]
     bin_s = 3600.0 if seconds >= 2 * 3600.0 else PERIOD
     bins = int(seconds // bin_s)
     per_bin = np.bincount(np.minimum((np.array(onsets) // bin_s).astype(int), bins),
@@ -260,8 +264,10 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
             "per": "hour" if bin_s == 3600.0 else f"{PERIOD:g} s",
             "contacts_per_bin": per_bin,
             "rss_mb": {"start": float(rss[0]), "baseline": float(base),
-                       "end": float(rss[-1]), "max": float(rss.max())},
+                       "end": float(rss[-1]), "max": float(rss.max()),
+                       "after_run": samples[-1]["rss_mb"]},
             "rss_growth": round(float(rss[-1] / base - 1.0), 4),
+            "rss_growth_max": round(float(rss[i_base:].max() / base - 1.0), 4),
             "rss_growth_baseline_at_s": base_t,
             "open_fds": {"start": samples[0]["open_fds"], "end": samples[-1]["open_fds"],
                          "max": max(s["open_fds"] for s in samples)},

@@ -394,8 +394,9 @@ def main_soak(args: argparse.Namespace) -> int:
               f"{s['open_fds']:4d} {s['frames']:9d} {s['contacts']:8d}")
     m = r["rss_mb"]
     print(f"RSS {m['start']} MB at start, {m['baseline']} MB at "
-          f"{r['rss_growth_baseline_at_s'] / 3600:.3g} h, {m['end']} MB at the end: growth "
-          f"{100 * r['rss_growth']:+.1f} %; open fds {r['open_fds']['start']} -> "
+          f"{r['rss_growth_baseline_at_s'] / 3600:.3g} h, {m['end']} MB at the end of the run "
+          f"(at most {m['max']} MB): growth {100 * r['rss_growth']:+.1f} % (at most "
+          f"{100 * r['rss_growth_max']:+.1f} %); open fds {r['open_fds']['start']} -> "
           f"{r['open_fds']['end']}")
     print(f"frames sent {r['frames_sent']}, received {r['frames_received']}, lost "
           f"{r['lost_frames']} (gaps {r['gaps']}, late {r['late']}), CRC errors {r['crc_errors']}")
