@@ -22,6 +22,7 @@ from __future__ import annotations
 import os
 import tempfile
 import time
+from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -119,7 +120,8 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
         ``rss_growth_max`` (relative, from the first simulated hour, or the first tenth of a
         shorter run, to the run's last sample and to its largest); ``contacts_per_bin``
         (final contacts by onset, per whole simulated hour, or per `PERIOD` for a run
-        shorter than two hours, as ``per`` says); ``lost_frames`` (``gaps``, ``late`` and
+        shorter than two hours, as ``per`` says) and ``labels_per_bin`` (their labels,
+        counted; ``same_labels_every_bin``); ``lost_frames`` (``gaps``, ``late`` and
         frames sent but not read), ``crc_errors``, ``speed`` (simulated seconds per wall
         second), ``written_mb``.
     """
@@ -167,6 +169,7 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
             d.start()  # after the ports are open: opening one empties its buffer
         samples = []
         onsets: list[float] = []  # onset of every final contact, simulated s
+        labels: list[str] = []  # and its label
         results = 0
         received = 0
         batch: list = []
@@ -216,6 +219,7 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
                     results += 1
                     if r.contact.final:
                         onsets.append(r.contact.onset)
+                        labels.append(r.estimate.label)
                 batch = []
             if now >= next_sample:
                 note()
@@ -226,6 +230,7 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
             results += 1
             if r.contact.final:
                 onsets.append(r.contact.onset)
+                labels.append(r.estimate.label)
         now = min(latest.values(), default=0.0)
         note()
         wall = time.monotonic() - started
@@ -249,8 +254,11 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
     base = rss[i_base]
     bin_s = 3600.0 if seconds >= 2 * 3600.0 else PERIOD
     bins = int(seconds // bin_s)
-    per_bin = np.bincount(np.minimum((np.array(onsets) // bin_s).astype(int), bins),
-                          minlength=bins + 1)[:bins].tolist() if onsets else [0] * bins
+    which = (np.array(onsets) // bin_s).astype(int)
+    per_bin = [int(np.sum(which == b)) for b in range(bins)]
+    # the same touches every bin: the labels given should not drift either
+    labels_per_bin = [dict(sorted(Counter(lab for lab, w in zip(labels, which, strict=True)
+                                          if w == b).items())) for b in range(bins)]
     return {"hours": hours, "taxels": n_taxels, "boards": len(devices),
             "seconds_simulated": round(now, 1), "wall_s": round(wall, 1),
             "speed": round(now / wall, 2) if wall > 0 else None,
@@ -262,7 +270,8 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
             "crc_errors": int(crc), "results": results, "contacts": len(onsets),
             "touches": sum(len(s.touches) for s in scenes),
             "per": "hour" if bin_s == 3600.0 else f"{PERIOD:g} s",
-            "contacts_per_bin": per_bin,
+            "contacts_per_bin": per_bin, "labels_per_bin": labels_per_bin,
+            "same_labels_every_bin": all(x == labels_per_bin[0] for x in labels_per_bin),
             "rss_mb": {"start": float(rss[0]), "baseline": float(base),
                        "end": float(rss[-1]), "max": float(rss.max()),
                        "after_run": samples[-1]["rss_mb"]},
