@@ -69,6 +69,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                                                  "as a calibration file")
     truth.add_argument("--scene", default="default", help="scene (default: default)")
     truth.add_argument("-o", "--out", required=True, help="calibration file to write (JSON)")
+    truth.add_argument("--json", action="store_true", help="print one JSON summary")
     truth.set_defaults(func=main_calibration)
 
 
@@ -79,6 +80,10 @@ def main_calibration(args: argparse.Namespace) -> int:
 
     scene = load_scene(args.scene)
     path = SkinSimulator(scene, duration=0.0).true_calibration().save(args.out)
+    if args.json:
+        print(json.dumps({"file": str(path), "taxels": len(scene.layout), "scene": scene.name,
+                          "taxel_spread": scene.taxel_spread}))
+        return 0
     print(f"wrote {path}: the true thermal constants of {len(scene.layout)} taxels "
           f"(scene {scene.name}, taxel spread {scene.taxel_spread:g})")
     return 0
