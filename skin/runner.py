@@ -133,11 +133,14 @@ class Skin:
         self._check_calibration()
         self._check_classifier()
         self._check_arm()
+        from skin.formats.calibration_file import noise_sigma
+
         try:
             self.pipeline = Pipeline(
                 self.layout, self.classifier, calibration=self.calibration, sensors=self.sensors,
                 ambient_offset=0.0 if self.cal_file is None else self.cal_file.ambient_offset,
-                window=s.window, provisional=s.provisional)
+                window=s.window, provisional=s.provisional,
+                noise=noise_sigma(self.cal_file, self.layout))  # commissioned noise, if any
         except ValueError as exc:
             raise SkinError(f"--window / --provisional: {exc}") from None
         if s.out is not None and not s.force:
@@ -237,7 +240,7 @@ class Skin:
         if s.model:
             from skin.models.learned import LearnedClassifier
 
-            self.classifier: Any = LearnedClassifier(s.model)
+            self.classifier: Any = LearnedClassifier(s.model, threshold=s.threshold)
             known = set(self.classifier.classes)
             self.progress.message(
                 f"classifier: {self.classifier.method} ({len(self.classifier.classes)} classes, "
@@ -246,7 +249,8 @@ class Skin:
             known = set(self.materials)
             if s.classifier == "joint":
                 self.classifier = JointClassifier(
-                    self.layout, self.materials, sensors=None if self.sensors is None else
+                    self.layout, self.materials, threshold=s.threshold,
+                    sensors=None if self.sensors is None else
                     {int(t.id): v for t, v in zip(self.layout.taxels, self.sensors, strict=True)})
             else:
                 self.classifier = HistogramClassifier(self.layout, self.materials)
@@ -537,6 +541,9 @@ class Skin:
             detected = [m for m in matches if m.contact_index is not None]
             correct = [m for m in detected
                        if results[m.contact_index].estimate.label == m.material]
+            family_correct = [m for m in detected if results[m.contact_index].estimate.family
+                              == self.materials[m.material].family]
+            # the measured effusivity (skin.models.contact_fit) against the scene's material
             errors = [abs(np.log10(results[m.contact_index].estimate.effusivity
                                    / self.materials[m.material].effusivity))
                       for m in detected if results[m.contact_index].estimate.effusivity]
@@ -545,6 +552,8 @@ class Skin:
             for rec in records:
                 if rec["contact"] in truth:
                     rec["truth"] = truth[rec["contact"]]
+                    rec["truth_family"] = (None if rec["truth"] is None
+                                           else self.materials[rec["truth"]].family)
             if self._events_path is not None:
                 # the truth is known once all contacts are matched: rewrite the file with it
                 with self._events_path.open("w", encoding="utf-8") as file:
@@ -554,6 +563,7 @@ class Skin:
                 "touches": len(matches),
                 "detected": len(detected),
                 "correct": len(correct),
+                "family_correct": len(family_correct),
                 "false_contacts": len(unmatched),
                 "accuracy": round(len(correct) / len(matches), 4) if matches else None,
                 "median_onset_error": round(float(np.median(
@@ -564,7 +574,9 @@ class Skin:
                 "per_touch": [
                     {"start": m.touch.start, "taxels": list(m.touch.taxels), "truth": m.material,
                      "label": None if m.contact_index is None
-                     else results[m.contact_index].estimate.label}
+                     else results[m.contact_index].estimate.label,
+                     "family": None if m.contact_index is None
+                     else results[m.contact_index].estimate.family}
                     for m in matches
                 ],
             })

@@ -29,7 +29,7 @@ GROUPS: dict[str, tuple[str, ...]] = {
     "source": ("port", "reconnect", "first_frame_timeout", "firmware_sim", "scene", "duration",
                "speed", "contact"),
     "skin": ("layout", "calibration"),
-    "classifier": ("model", "classifier", "expect", "window", "provisional"),
+    "classifier": ("model", "classifier", "threshold", "expect", "window", "provisional"),
     "output": ("out", "force", "sinks", "publish", "record", "map", "arm", "view", "video",
                "view_mode"),
 }
@@ -80,6 +80,8 @@ class Setup:
         Model file from ``skin train``; without it, ``classifier``.
     classifier : str
         ``joint`` or ``histogram`` (without ``model``).
+    threshold : float
+        Probability needed to name a material (else its family, else "unknown").
     expect : list of str
         Materials the classifier must know (a simulation's scene adds its own).
     window : float
@@ -124,6 +126,7 @@ class Setup:
     calibration: str | None = None
     model: str | None = None
     classifier: str = "joint"
+    threshold: float = 0.5
     expect: list[str] = field(default_factory=list)
     window: float = 2.5
     provisional: list[float] = field(default_factory=list)
@@ -221,6 +224,13 @@ def _positive(value: Any) -> float:
     return out
 
 
+def _probability(value: Any) -> float:
+    out = _number(value)
+    if not 0.0 <= out <= 1.0:
+        raise ValueError(f"must be a probability in 0-1, got {value!r}")
+    return out
+
+
 def _optional_positive(value: Any) -> float | None:
     return None if value is None else _positive(value)
 
@@ -266,6 +276,7 @@ _CHECKS: dict[str, Callable[[Any], Any]] = {
     "calibration": _optional_text,
     "model": _optional_text,
     "classifier": _choice("joint", "histogram"),
+    "threshold": _probability,
     "expect": _texts,
     "window": _positive,
     "provisional": _numbers,

@@ -208,7 +208,7 @@ class Pipeline:
     calibration : Calibration, optional
         Counts to deg C; the layout's nominal board constants by default.
     detector : OnsetDetector, optional
-        Onset detector; the default settings by default.
+        Onset detector; by default one set by the boards' sensor descriptions and ``noise``.
     window : float
         Longest contact window handed to the classifier, s.
     sensors : list of SensorConstants, optional
@@ -216,6 +216,9 @@ class Pipeline:
         onsets; the boards' by default.
     ambient_offset : float
         Added to the ambient sensor's reading, K (a calibration file's).
+    noise : numpy.ndarray, optional
+        Each taxel's commissioned noise per sample, K, in layout order
+        (`skin.formats.calibration_file.noise_sigma`); the boards' sensors' by default.
     sinks : iterable of Sink
         Each result is written to every sink, in order, as it is given.
     budget : float, optional
@@ -257,6 +260,7 @@ class Pipeline:
         max_wait: float = 0.5,
         max_skew: int = 20,
         provisional: Sequence[float] = (),
+        noise: np.ndarray | None = None,
     ) -> None:
         rates = {b.sample_rate for b in layout.boards.values()}
         if len(rates) != 1:
@@ -268,7 +272,7 @@ class Pipeline:
         self.classifier = classifier
         self.assembler = FrameAssembler(layout, max_skew=max_skew)
         self.calibration = calibration or Calibration.from_layout(layout)
-        self.detector = detector or OnsetDetector(len(layout))
+        self.detector = detector or _detector_for(layout, noise)
         self.tracker = ContactTracker(layout, rates.pop(), window=window,
                                       provisional=provisional)
         if sensors is not None:
@@ -396,3 +400,14 @@ class Pipeline:
             self.stats.results += 1
             results.append(result)
         return results
+
+
+def _detector_for(layout: Layout, noise: np.ndarray | None = None) -> OnsetDetector:
+    """Return an onset detector set by the boards' sensors (each taxel's noise: its board's)."""
+    from skin.models.sensors import SensorDescription
+
+    sensors = {b.id: SensorDescription.from_board(b) for b in layout.boards.values()}
+    first = sensors[layout.taxels[0].board] if layout.taxels else SensorDescription()
+    sigma = [sensors[t.board].noise_kelvin(25.0 + sensors[t.board].heated_rise)
+             * sensors[t.board].smoothing_noise_factor() for t in layout.taxels]
+    return OnsetDetector(len(layout), sensor=first, sigma=sigma if noise is None else noise)

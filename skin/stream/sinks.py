@@ -39,6 +39,10 @@ def event_record(result: ContactResult) -> dict[str, Any]:
         "reported_at": round(result.reported_at, 4),
         "label": e.label,
         "confidence": round(e.confidence, 3),
+        "family": e.family,
+        "family_confidence": round(e.family_confidence, 3),
+        "probabilities": {k: round(v, 4) for k, v in sorted(e.probabilities.items(),
+                                                            key=lambda kv: -kv[1])},
         "effusivity": None if e.effusivity is None else round(e.effusivity, 1),
         "method": e.method,
         "initial_temperature": {str(w.taxel): round(w.initial, 3) for w in c.windows},
@@ -61,7 +65,8 @@ def contact_line(rec: dict[str, Any]) -> str:
     """Return a line of text for a record of `event_record` (with its ``truth``, if any)."""
     eff = "-" if rec["effusivity"] is None else f"{rec['effusivity']:.0f}"
     line = (f"contact {rec['contact']:3d}{' ' if rec['final'] else '~'} t={rec['onset']:7.2f} s  "
-            f"taxels {','.join(map(str, rec['taxels'])):<16s} {rec['label']:<11s} e={eff:>6s}")
+            f"taxels {','.join(map(str, rec['taxels'])):<16s} {rec['label']:<11s} "
+            f"{rec.get('family') or '-':<14s} e={eff:>6s}")
     if "truth" in rec:
         line += f"  truth {rec['truth']:<11s} {'ok' if rec['truth'] == rec['label'] else 'x'}"
     return line
