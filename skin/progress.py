@@ -55,28 +55,15 @@ class Progress:
             self.stream.flush()
             self._last = now
 
-    def bar(self, done: int, total: int, label: str, started: float,
-            work: tuple[float, float] | None = None) -> None:
+    def bar(self, done: int, total: int, label: str, started: float) -> None:
         """Show ``label [####----] done/total`` with the rate and the time left.
 
-        Parameters
-        ----------
-        done, total : int
-            Items done and in all.
-        label : str
-            What is being done.
-        started : float
-            `time.monotonic` at the start.
-        work : tuple of float, optional
-            ``(work done, work in all)`` when items differ in cost (a 2.5 s window costs ten
-            times a 0.25 s one): the fill and the time left follow the work, not the count.
-            The last state (``done == total``) is always printed.
+        The last state (``done == total``) is always printed, also off a terminal.
         """
-        w_done, w_total = (float(done), float(total)) if work is None else work
-        frac = w_done / w_total if w_total else 1.0
+        frac = done / total if total else 1.0
         elapsed = max(time.monotonic() - started, 1e-9)
         rate = done / elapsed
-        left = elapsed * (w_total - w_done) / w_done if w_done > 0 else float("inf")
+        left = (total - done) / rate if rate > 0 else float("inf")
         filled = round(20 * frac)
         eta = "?" if not np.isfinite(left) else f"{left:.0f}"
         self.status(f"{label} [{'#' * filled}{'-' * (20 - filled)}] {done}/{total} "
