@@ -12,8 +12,10 @@ import sys
 from skin.commands import (
     bench,
     calibrate,
+    commission,
     completion,
     config,
+    dataset,
     devices,
     evaluate,
     evaluate_onset,
@@ -22,13 +24,14 @@ from skin.commands import (
     run,
     sensors,
     simulate,
+    subscribe,
     train,
     view,
 )
 from skin.errors import SkinError
 
 COMMANDS = (run, simulate, calibrate, train, evaluate, evaluate_onset, bench, plot, record, devices,
-            view, sensors, config, completion)
+            view, sensors, config, completion, commission, dataset, subscribe)
 
 
 def build_parser() -> argparse.ArgumentParser:

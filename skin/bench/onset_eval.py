@@ -30,7 +30,8 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
                     min_duration: float = 0.3, chunk: int = 20,
                     depth: float = 8e-5, diffusivity: float = 2.796e-9,
                     progress: Callable[[int, int], None] | None = None,
-                    directions: Sequence[int] | None = None) -> dict:
+                    directions: Sequence[int] | None = None,
+                    detector: OnsetDetector | None = None) -> dict:
     """Measure the detector's detection rate, false alarms, delay, onset error and cost.
 
     Parameters
@@ -57,6 +58,8 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
     directions : sequence of int, optional
         For each contact of ``truth``, -1 if the object was cooler than the taxel (its reading
         falls) or +1 if warmer (it rises); adds ``by_direction``.
+    detector : OnsetDetector, optional
+        The detector judged (default: the paper sensor's).
 
     Returns
     -------
@@ -77,7 +80,7 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
         raise ValueError("directions needs one entry per contact of truth")
     y = np.asarray(temperature, dtype=float)
     n, n_taxels = y.shape
-    detector = OnsetDetector(n_taxels)
+    detector = OnsetDetector(n_taxels) if detector is None else detector
     state = detector.initial_state()
     events = []
     started = time.perf_counter()
@@ -143,6 +146,8 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
         "detector_us_per_taxel_sample": round(1e6 * detect_s / (n * n_taxels), 4),
         "refine_ms_per_onset": round(1e3 * refine_s / max(len(found), 1), 3),
         "detected_flags": [k in found for k in keys],
+        "delay_s": [delay.get(k) for k in keys],
+        "onset_error_s": [error.get(k) for k in keys],
     }
     if directions is not None:
         result["by_direction"] = {}

@@ -28,6 +28,15 @@ temperature is the taxel's at contact plus a margin drawn uniformly from ``warm_
 flows into the sensor and the reading rises, then falls back after release. With ``warm`` = 0
 (the default) no draw is made for it: the same seed gives the same stream as before warm
 objects existed.
+
+With a ``sensor`` description (`skin.models.sensors`) the stream is that sensor's: its sample
+rate; disturbances scaled by its heated rise over the paper's (a gust and a heater step move
+a taxel in proportion to how far its heater holds it above ambient) and its slowest mode by
+its l^2 / alpha; its heater mode in contact; its PID loop and lag over the whole stream; its
+noise, ADC and smoothing. ``visible_after`` and ``peak_change`` are then measured on the
+noise-free reading after the loop and the lag, with "visible" at 3 of the sensor's per-sample
+noise. Such a stream comes whole (`simulate_stream`: the loop, the lag and a non-causal
+smoothing span any chunk). Without one (None), the stream is exactly the paper's as before.
 """
 
 from __future__ import annotations
@@ -137,7 +146,8 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
                     contacts_per_minute: float = 1.0, object_offset: tuple[float, float] = (0, 0),
                     ambient: float = 25.0, fs: float = 200.0, seed: int = 0,
                     disturbances: bool = True, tau: float = 62.5, warm: float = 0.0,
-                    warm_margin: tuple[float, float] = (2.0, 25.0)) -> Stream:
+                    warm_margin: tuple[float, float] = (2.0, 25.0),
+                    sensor: object | None = None) -> Stream:
     """Simulate ``n_taxels`` taxels for ``duration`` s; see the module docstring.
 
     The whole run at once: `stream_chunks` joined (the same arrays, bit for bit).
@@ -169,11 +179,17 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
         an object hotter than the taxel, in [0, 1].
     warm_margin : tuple of float
         Range of a warm object's temperature above the taxel's at contact, K.
+    sensor : skin.models.sensors.SensorDescription or str, optional
+        The sensor (see the module docstring); its sample rate replaces ``fs``.
 
     Returns
     -------
     Stream
     """
+    if sensor is not None:
+        return _sensor_stream(materials, n_taxels, duration, contacts_per_minute,
+                              object_offset, ambient, seed, disturbances, tau, warm,
+                              warm_margin, sensor)
     parts = list(stream_chunks(materials, n_taxels, duration, contacts_per_minute,
                                object_offset, ambient, fs, seed, disturbances, tau, warm,
                                warm_margin, chunk=max(1, round(duration * fs))))
@@ -184,6 +200,46 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
     return Stream(np.concatenate([p.times for p in parts]),
                   np.concatenate([p.temperature for p in parts]),
                   np.concatenate([p.ambient for p in parts]), truth, fs)
+
+
+def _sensor_stream(materials: Sequence[Material], n_taxels: int, duration: float,
+                   contacts_per_minute: float, object_offset: tuple[float, float],
+                   ambient: float, seed: int, disturbances: bool, tau: float, warm: float,
+                   warm_margin: tuple[float, float], sensor: object) -> Stream:
+    """Return the whole stream of a described sensor (see the module docstring)."""
+    from dataclasses import replace
+
+    from skin.models.sensors import apply_dynamics, load_sensor, smooth
+
+    sensor = load_sensor(sensor)
+    fs = sensor.sample_rate
+    rng = np.random.default_rng(seed)
+    parts = list(stream_chunks(materials, n_taxels, duration, contacts_per_minute,
+                               object_offset, ambient, fs, seed, disturbances, tau, warm,
+                               warm_margin, chunk=max(1, round(duration * fs)),
+                               sensor=sensor, _rng=rng))
+    if not parts:
+        return Stream(np.zeros(0), np.zeros((0, n_taxels)), np.zeros(0), [], fs)
+    (part,) = parts
+    reading = apply_dynamics(part.temperature, sensor, fs, axis=0)  # noise-free still
+    visible = 3.0 * sensor.noise_kelvin(ambient + sensor.heated_rise) \
+        * sensor.smoothing_noise_factor()
+    truth = []
+    for c in part.contacts:
+        k0, k1 = int(np.ceil(c.onset * fs)), min(int(np.ceil(c.release * fs)), len(reading))
+        t0 = float(reading[k0 - 1, c.taxel])
+        moved = np.abs(reading[k0:k1, c.taxel] - t0)  # after the loop and the lag
+        change = moved >= visible
+        seen = float(part.times[k0:k1][np.argmax(change)] - c.onset) if change.any() \
+            else float("inf")
+        truth.append(replace(c, sensor_temperature=t0, visible_after=seen,
+                             peak_change=float(moved.max()) if moved.size else 0.0))
+    if sensor.noise > 0:
+        reading = reading + rng.normal(0.0, sensor.noise, reading.shape)
+    temperature = smooth(adc_readings(reading, rng, sensor.adc_noise, sensor.adc_bits),
+                         sensor, axis=0, fs=fs)
+    truth.sort(key=lambda c: (c.onset, c.taxel))
+    return Stream(part.times, temperature, part.ambient, truth, fs)
 
 
 @dataclass
@@ -227,7 +283,8 @@ def stream_chunks(materials: Sequence[Material], n_taxels: int = 16, duration: f
                   fs: float = 200.0, seed: int = 0, disturbances: bool = True,
                   tau: float = 62.5, warm: float = 0.0,
                   warm_margin: tuple[float, float] = (2.0, 25.0),
-                  chunk: int = 2000) -> Iterator[StreamChunk]:
+                  chunk: int = 2000, sensor: object | None = None,
+                  _rng: np.random.Generator | None = None) -> Iterator[StreamChunk]:
     """Yield the stream of `simulate_stream` in chunks of ``chunk`` samples.
 
     Memory is bounded by the chunk (times the taxels) and the schedule of events (heater
@@ -243,6 +300,9 @@ disturbances, tau, warm, warm_margin
         As for `simulate_stream`.
     chunk : int
         Samples per chunk (the last one may be shorter).
+    sensor : skin.models.sensors.SensorDescription, optional
+        Used by `simulate_stream` only: the chunk's readings are then noise-free and
+        before the sensor's loop and lag (it finishes them).
 
     Yields
     ------
@@ -258,10 +318,27 @@ disturbances, tau, warm, warm_margin
         raise ValueError("warm must lie in [0, 1] and warm_margin be a range of margins >= 0")
     if chunk < 1:
         raise ValueError(f"chunk must be at least 1 sample, got {chunk}")
-    rng = np.random.default_rng(seed)
-    sensor = SensorConstants()
+    rng = np.random.default_rng(seed) if _rng is None else _rng
+    described = sensor is not None
+    scale = 1.0
+    trace_of = contact_trace
+    if described:
+        from skin.models.sensors import contact_reading, load_sensor
+
+        scale = sensor.heated_rise / load_sensor("paper").heated_rise
+        tau = tau * sensor.reheat_time_constant / load_sensor("paper").reheat_time_constant
+        full_excess = sensor.heated_rise
+
+        def trace_of(since, t0, t_obj, e, s, h):  # the sensor's heater mode in contact too
+            return contact_reading(since, t0, t_obj, e, s, h, ambient)
+    else:
+        sensor = SensorConstants()
     n = round(duration * fs)
-    full_excess = float(heated_temperature(ambient, sensor)) - ambient
+    if described and chunk < n:
+        raise ValueError("a described sensor's stream comes whole (simulate_stream): its loop, "
+                         "lag and smoothing span chunks")
+    if not described:
+        full_excess = float(heated_temperature(ambient, sensor)) - ambient
     switches: list[tuple[int, int, float]] = []  # (sample, taxel, duty), in time order
     gusts: list[tuple[float, int, float, float, float]] = []  # (start, taxel, depth, rise, hold)
     amb_rng = flutter_rng = None
@@ -339,8 +416,8 @@ disturbances, tau, warm, warm_margin
                 s = np.maximum(times - start, 0.0)
                 shape = np.where(s < hold, 1.0 - np.exp(-s / rise),
                                  (1.0 - np.exp(-hold / rise)) * np.exp(-(s - hold) / rise))
-                gust[:, j] -= depth * shape
-            flutter = flutter_rng.normal(0.0, 0.01, (m, n_taxels))
+                gust[:, j] -= depth * scale * shape
+            flutter = flutter_rng.normal(0.0, 0.01 * scale, (m, n_taxels))
             flutter, flutter_z = lfilter([1.0 - a_flutter], [1.0, -a_flutter], flutter, axis=0,
                                          zi=flutter_z)
             gust += flutter * np.sqrt(2 * 0.5 * fs)
@@ -361,8 +438,8 @@ disturbances, tau, warm, warm_margin
                 t_obj = t0 + margin
             k1 = int(np.ceil((t + length) * fs))
             since = np.arange(k0, min(k1, n)) / fs - t
-            trace = contact_trace(since, t0, t_obj, mat.effusivity, sensor, h)
-            end = float(contact_trace(length, t0, t_obj, mat.effusivity, sensor, h))
+            trace = trace_of(since, t0, t_obj, mat.effusivity, sensor, h)
+            end = float(trace_of(length, t0, t_obj, mat.effusivity, sensor, h))
             change = np.abs(trace - t0) >= VISIBLE
             seen = float(since[np.argmax(change)]) if change.any() else float("inf")
             peak = float(np.max(np.abs(trace - t0))) if k1 > k0 else 0.0
@@ -371,7 +448,8 @@ disturbances, tau, warm, warm_margin
             latest[j] = [k0, k1, trace, t + length, end, None]
             _write_contact(reading, free, times, a, j, latest[j], tau)
         amb_last, reading_last = amb[-1], reading[-1].copy()
-        temperature = adc_readings(reading, adc_rng, 0.5)
+        # a described sensor's readout follows in `simulate_stream`, over the whole stream
+        temperature = reading if described else adc_readings(reading, adc_rng, 0.5)
         found.sort(key=lambda c: (c.onset, c.taxel))
         yield StreamChunk(a, times, temperature, amb, found)
 

@@ -49,6 +49,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--min-duration", type=float, default=0.3,
                     help="contacts at least this long count for the detection rate (0.3 s)")
     ev.add_argument("--seed", type=int, default=0, help="seed of the simulated stream")
+    ev.add_argument("--sensor", default=None, metavar="PRESET|FILE",
+                    help="simulate this sensor's stream and set the detector by it (`skin "
+                         "sensors`); adds detected_5sigma and delay_floor_ratio_median")
+    ev.add_argument("--calibration", default=None, metavar="FILE",
+                    help="a calibration file from `skin commission`: each taxel's measured "
+                         "noise sets the detector (taxel ids = stream columns)")
     ev.add_argument("--json", action="store_true", help="print one JSON document")
     ev.set_defaults(func=main)
 
@@ -59,9 +65,41 @@ def _from_trials(path: str) -> tuple[np.ndarray, np.ndarray, list, float, str]:
     data = load_trials(path)
     if np.any(data.onset < 0):
         raise SkinError(f"{path}: every trial needs its onset (the truth) to be judged")
-    times = np.arange(data.temperature.shape[1]) / data.fs
+    times = np.arange(data.temperature.shape[-1]) / data.fs
     truth = [(i, float(times[o]), float(times[-1])) for i, o in enumerate(data.onset)]
-    return times, data.temperature.T.copy(), truth, data.fs, data.source
+    return times, data.primary.T.copy(), truth, data.fs, data.source
+
+
+def _commissioned_noise(path: str, n_taxels: int) -> np.ndarray:
+    """Each stream column's ``noise_sigma`` from a calibration file (column k: taxel id k)."""
+    from skin.formats.calibration_file import load_calibration
+
+    cal = load_calibration(path)
+    missing = [k for k in range(n_taxels) if "noise_sigma" not in cal.taxels.get(k, {})]
+    if missing:
+        raise SkinError(f"{path}: taxels {missing[:10]} have no commissioned noise_sigma; run "
+                        f"`skin commission` on a quiet stretch of this skin first")
+    return np.array([cal.taxels[k]["noise_sigma"] for k in range(n_taxels)], dtype=float)
+
+
+def _sensor_figures(contacts: list, flags: list, delays: list, errors: list, detector: object,
+                    min_duration: float) -> dict:
+    """Return issue 16's figures: 5-sigma detection, delay against the floor, onset error."""
+    sigma = float(np.median(detector.sigma))
+    big = [k for k, c in enumerate(contacts)
+           if c.duration >= min_duration and c.peak_change > 5 * sigma]
+    ratio = [delays[k] / contacts[k].visible_after for k in range(len(contacts))
+             if flags[k] and np.isfinite(contacts[k].visible_after)
+             and contacts[k].visible_after > 0]
+    err = np.abs([errors[k] for k in range(len(contacts)) if flags[k]])
+    floor = np.array([c.visible_after for c in contacts if np.isfinite(c.visible_after)])
+    return {"sensor": detector.sensor.name, "noise_sigma_k": round(sigma, 5),
+            "contacts_5sigma": len(big),
+            "detected_5sigma": round(sum(flags[k] for k in big) / max(len(big), 1), 4),
+            "delay_floor_ratio_median": round(float(np.median(ratio)), 3) if ratio else None,
+            "floor_ms_median": round(1e3 * float(np.median(floor)), 1) if floor.size else None,
+            "refined_onset_error_ms_median": (round(1e3 * float(np.median(err)), 1)
+                                              if err.size else None)}
 
 
 def main(args: argparse.Namespace) -> int:
@@ -73,6 +111,11 @@ def main(args: argparse.Namespace) -> int:
     progress = Progress()
     started = time.monotonic()
     by_material = None
+    sensor = None
+    if args.sensor is not None:
+        from skin.models.sensors import load_sensor
+
+        sensor = load_sensor(args.sensor)  # a bad file fails before the work starts
     if args.data:
         times, temperature, truth, fs, source = _from_trials(args.data)
         contacts = None
@@ -93,7 +136,8 @@ def main(args: argparse.Namespace) -> int:
         stream = simulate_stream([table[n] for n in names], n_taxels=args.taxels,
                                  duration=60.0 * args.minutes, contacts_per_minute=args.rate,
                                  object_offset=(-args.object_offset, args.object_offset),
-                                 disturbances=not args.quiet, seed=args.seed, warm=args.warm)
+                                 disturbances=not args.quiet, seed=args.seed, warm=args.warm,
+                                 sensor=sensor)
         times, temperature, fs = stream.times, stream.temperature, stream.fs
         contacts = stream.contacts
         truth = [(c.taxel, c.onset, c.release, c.visible_after) for c in contacts]
@@ -101,11 +145,27 @@ def main(args: argparse.Namespace) -> int:
         source = (f"simulated stream ({args.taxels} taxels, {args.minutes:g} min, "
                   f"{'quiet' if args.quiet else 'with disturbances'}, "
                   + (f"{args.warm:g} warm, " if args.warm else "") + f"seed {args.seed})")
+    detector = None
+    sigma = None
+    if args.calibration is not None:
+        sigma = _commissioned_noise(args.calibration, temperature.shape[1])
+        source += f", noise from {args.calibration}"
+    if args.sensor is not None or sigma is not None:
+        from skin.stream.onset import OnsetDetector
+
+        detector = OnsetDetector(temperature.shape[1], sensor=sensor, sigma=sigma)
+        source += "" if sensor is None else f", sensor {sensor.name}"
     result = evaluate_onsets(times, temperature, truth, fs, min_duration=args.min_duration,
                              progress=lambda d, n: progress.bar(d, n, "samples", started),
-                             directions=None if args.data else directions)
+                             directions=None if args.data else directions, detector=detector,
+                             **({} if sensor is None else
+                                {"depth": sensor.depth, "diffusivity": sensor.diffusivity}))
     progress.done()
     flags = result.pop("detected_flags")
+    delays, errors = result.pop("delay_s"), result.pop("onset_error_s")
+    if detector is not None and contacts is not None:
+        result.update(_sensor_figures(contacts, flags, delays, errors, detector,
+                                      args.min_duration))
     if contacts is not None:
         by_material = {}
         for name in sorted({c.material for c in contacts}):
@@ -117,10 +177,16 @@ def main(args: argparse.Namespace) -> int:
            "wall_time": round(time.monotonic() - started, 2)}
     if by_material is not None:
         doc["by_material"] = by_material
-        # contacts whose reading moved more than any gust: the ones size alone can tell
+        # contacts whose reading moved more than any gust: the ones size alone can tell (a
+        # described sensor's gusts scale with its heated rise, as the stream makes them)
+        gust = GUST_DEPTH[1]
+        if sensor is not None:
+            from skin.models.sensors import load_sensor
+
+            gust *= sensor.heated_rise / load_sensor("paper").heated_rise
         big = [k for k, c in enumerate(contacts)
-               if c.duration >= args.min_duration and c.peak_change > GUST_DEPTH[1]]
-        doc["beyond_gusts"] = {"threshold_k": GUST_DEPTH[1], "contacts": len(big),
+               if c.duration >= args.min_duration and c.peak_change > gust]
+        doc["beyond_gusts"] = {"threshold_k": round(gust, 4), "contacts": len(big),
                                "detection_rate": round(sum(flags[k] for k in big)
                                                        / max(len(big), 1), 4)}
     if args.json:
@@ -134,6 +200,12 @@ def main(args: argparse.Namespace) -> int:
           f"({doc['detection_rate_all']:.2%} of all); false alarms "
           f"{doc['false_alarms_per_taxel_hour']:g} per taxel-hour ({doc['false_alarms']}: "
           f"{fa['fall']} falls, {fa['rise']} rises)")
+    if "detected_5sigma" in doc:
+        print(f"sensor {doc['sensor']} (noise {doc['noise_sigma_k']:g} K): detected "
+              f"{doc['detected_5sigma']:.2%} of the {doc['contacts_5sigma']} contacts that move "
+              f"the reading > 5 sigma; delay / floor median {doc['delay_floor_ratio_median']} "
+              f"(floor median {doc['floor_ms_median']} ms); refined onset error median "
+              f"{doc['refined_onset_error_ms_median']} ms")
     if "beyond_gusts" in doc:
         b = doc["beyond_gusts"]
         print(f"of the {b['contacts']} contacts >= {args.min_duration:g} s that move the reading "

@@ -34,6 +34,8 @@ from skin.stream.calibration import Calibration
 
 FORMAT = 1
 THERMAL = ("diffusivity", "conductivity", "depth")
+#: What commissioning measures per taxel from a quiet stretch (`skin commission`).
+NOISE = ("noise_sigma", "noise_lowfreq")
 #: Measured board constants a calibration file may hold (`skin calibrate board`).
 BOARD = ("divider_resistor", "supply_voltage", "adc_reference", "heater_resistance")
 
@@ -118,6 +120,26 @@ class CalibrationFile:
         return cal, sensors
 
 
+def noise_sigma(cal: CalibrationFile | None, layout: Layout) -> np.ndarray | None:
+    """Each taxel's commissioned noise per sample, K, in layout order; None if none has one.
+
+    Taxels without one get their board's sensor's noise (`skin.models.sensors`).
+    """
+    if cal is None or not any("noise_sigma" in e for e in cal.taxels.values()):
+        return None
+    from skin.models.sensors import SensorDescription
+
+    out = []
+    for t in layout.taxels:
+        entry = cal.taxels.get(int(t.id), {})
+        if "noise_sigma" in entry:
+            out.append(float(entry["noise_sigma"]))
+        else:
+            s = SensorDescription.from_board(layout.boards[t.board])
+            out.append(s.noise_kelvin(25.0 + s.heated_rise) * s.smoothing_noise_factor())
+    return np.array(out)
+
+
 def load_calibration(path: str | Path) -> CalibrationFile:
     """Read and check a calibration file; errors name the file, the key and the taxel."""
     path = Path(path)
@@ -150,7 +172,11 @@ def parse_calibration(text: str, source: str = "<string>") -> CalibrationFile:
                     or not all(isinstance(v, int | float) for v in coef) or coef[1] <= 0):
                 raise CalibrationFileError(f"{path}: taxel {tid}: 'thermistor' must be three "
                                            f"numbers [c0, c1, c2] with c1 > 0, got {coef!r}")
-        for k in (*THERMAL, "heater_resistance"):
+        if "drift" in entry and not (isinstance(entry["drift"], int | float)
+                                     and np.isfinite(entry["drift"])):
+            raise CalibrationFileError(f"{path}: taxel {tid}: 'drift' must be a number (K/s), "
+                                       f"got {entry['drift']!r}")
+        for k in (*THERMAL, "heater_resistance", *NOISE):
             if k in entry and not _positive(entry[k]):
                 raise CalibrationFileError(f"{path}: taxel {tid}: {k!r} must be a positive "
                                            f"number, got {entry[k]!r}")

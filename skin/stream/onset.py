@@ -25,13 +25,64 @@ precisely by fitting the heated sensor's contact response to the window.
 
 The detector is vectorised over taxels and keeps all its state in `DetectorState`: processing
 a stream in chunks of any size gives the same events as processing it whole.
+
+**Set by the sensor and its measured noise.** No threshold is an absolute temperature: each
+follows from the taxel's noise and the sensor description (`skin.models.sensors`), unless given.
+
+- ``sigma`` is each taxel's reading noise per sample, K, as the library receives it
+  (commissioning measures it from a quiet stretch; default: the sensor description's
+  ``noise_kelvin`` times its smoothing's noise factor). The detector's smoothed reading has
+  sigma sqrt(g / (2 - g)) for its smoothing gain g; the CUSUM's least allowance (``drift``)
+  is 3 of those and its noise floor 0.3 of those. Summed over samples, the residual keeps
+  the unsmoothed noise's low-frequency power (sigma over the smoothing factor), so the
+  CUSUM's threshold against noise is ``arl_threshold`` (Siegmund's approximation of the
+  average run length of a one-sided CUSUM) for one false alarm per ``1 / false_alarm_rate``
+  taxel-hours, in units of that noise: an upper bound on the false alarms (measured far
+  fewer: the allowance is in units of the smoothed, not the summed, noise).
+- Disturbances (air currents, heater duty steps, the room drifting) move a heated taxel in
+  proportion to how far its heater holds it above ambient (the sensor's ``heated_rise``):
+  the thresholds are at least fixed fractions of that rise (`DISTURBANCE`), per second of
+  CUSUM (so they scale with the sample rate).
+- Time constants of the baseline and the slow channel stretch with the sensor's response
+  time when it is slower than the paper's (a slow sensor's contact departs slowly).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
+
+#: Thresholds as fractions of the sensor's heated rise above ambient (per 200 Hz sample for the
+#: CUSUM thresholds): what air currents, heater steps and drift move a heated taxel by. With
+#: the paper's sensor (13.96 K) they are the detector's former constants (0.4, 0.6 K x samples;
+#: 0.12, 0.6, 0.1 K).
+_PAPER_RISE = 2.5**2 / 19.7 * 2.4e-4 / (1.5625e-4 * 0.0349)  # K, eq. 2 with the paper's constants
+DISTURBANCE = {"threshold": 0.4 / _PAPER_RISE, "rise_threshold": 0.6 / _PAPER_RISE,
+               "release_rise": 0.12 / _PAPER_RISE, "slow_threshold": 0.6 / _PAPER_RISE,
+               "slow_begin": 0.1 / _PAPER_RISE}
+_PAPER_RESPONSE = 2.516  # s, the paper sensor's half-response time (SensorDescription)
+
+
+def arl_threshold(arl: float | np.ndarray, k: float | np.ndarray) -> np.ndarray:
+    """Threshold h (in sigma) of a one-sided CUSUM with allowance k (in sigma) for a given ARL.
+
+    Siegmund's approximation of the in-control average run length of a CUSUM of N(0, 1)
+    increments, ARL = (exp(2 k b) - 2 k b - 1) / (2 k^2) with b = h + 1.166, solved for h by
+    bisection (monotone in b). ``arl`` is in samples.
+    """
+    arl = np.asarray(arl, dtype=float)
+    k = np.maximum(np.asarray(k, dtype=float), 1e-6)
+    lo = np.zeros(np.broadcast(arl, k).shape)
+    hi = np.full_like(lo, 1e3)
+    for _ in range(80):
+        b = 0.5 * (lo + hi)
+        x = np.minimum(2 * k * b, 700.0)
+        run = (np.exp(x) - x - 1) / (2 * k**2)
+        lo = np.where(run < arl, b, lo)
+        hi = np.where(run < arl, hi, b)
+    return np.maximum(0.5 * (lo + hi) - 1.166, 0.0)
 
 
 @dataclass(frozen=True)
@@ -192,6 +243,17 @@ class OnsetDetector:
         A rise that begins within this long after the reading fell (the falling CUSUM above a
         tenth of its threshold) is the taxel reheating, after a gust or a touch too brief to be
         reported, and raises no onset, s.
+    sensor : skin.models.sensors.SensorDescription, optional
+        The taxels' sensor (default: the paper's): sets every threshold left as None and the
+        noise (see the module docstring).
+    sigma : float or array_like, optional
+        Each taxel's reading noise per sample, K, as delivered (after any smoothing of the
+        sensor's; commissioned from a quiet stretch); default: the sensor's.
+    false_alarm_rate : float
+        Target of noise-driven false alarms per taxel-hour (sets the CUSUM thresholds' floor).
+
+    Every kelvin threshold left as None follows from ``sigma`` and the sensor; the figures in
+    the descriptions above are the paper sensor's.
     """
 
     def __init__(
@@ -199,43 +261,75 @@ class OnsetDetector:
         n_taxels: int,
         *,
         level_tau: float = 0.1,
-        slope_tau: float = 0.5,
-        drift: float = 0.03,
-        threshold: float = 0.4,
-        rise_threshold: float = 0.6,
-        noise_floor: float = 0.003,
+        slope_tau: float | None = None,
+        drift: float | np.ndarray | None = None,
+        threshold: float | np.ndarray | None = None,
+        rise_threshold: float | np.ndarray | None = None,
+        noise_floor: float | np.ndarray | None = None,
         noise_tau: float = 5.0,
         warmup: float = 0.5,
-        release_rise: float = 0.12,
-        smooth_tau: float = 0.03,
-        stale: float = 1.0,
-        slow_tau: float = 3.0,
-        slow_threshold: float = 0.6,
-        slow_begin: float = 0.1,
+        release_rise: float | np.ndarray | None = None,
+        smooth_tau: float | None = None,
+        stale: float | None = None,
+        slow_tau: float | None = None,
+        slow_threshold: float | np.ndarray | None = None,
+        slow_begin: float | np.ndarray | None = None,
         recovery: float = 10.0,
         release_slack: float = 0.05,
-        contact_slope_tau: float = 0.2,
-        rebound: float = 1.0,
+        contact_slope_tau: float | None = None,
+        rebound: float | None = None,
+        sensor: object | None = None,
+        sigma: float | np.ndarray | None = None,
+        false_alarm_rate: float = 0.1,
     ) -> None:
+        from skin.models.sensors import load_sensor
+
         self.n_taxels = n_taxels
+        self.sensor = sensor = load_sensor(sensor)
+        self.false_alarm_rate = false_alarm_rate
+        fs = sensor.sample_rate
+        rise = sensor.heated_rise
+        shrink = sensor.smoothing_noise_factor()  # what the sensor's own smoothing removed
+        if sigma is None:
+            sigma = sensor.noise_kelvin(25.0 + rise) * shrink
+        self.sigma = np.broadcast_to(np.asarray(sigma, dtype=float), (n_taxels,)).copy()
+        if not np.all(np.isfinite(self.sigma) & (self.sigma > 0)):
+            raise ValueError("sigma must be positive and finite for every taxel")
+        stretch = max(1.0, sensor.response_time / _PAPER_RESPONSE)  # a slower sensor
+        self.smooth_tau = max(0.03, 1.0 / fs) if smooth_tau is None else smooth_tau
+        g = 1.0 - math.exp(-1.0 / (fs * self.smooth_tau))
+        smoothed = self.sigma * math.sqrt(g / (2.0 - g))  # the smoothed reading's noise
+        white = self.sigma / shrink  # the noise of sums over many samples
+        per_sample = fs / 200.0  # CUSUM thresholds add up per sample
         self.level_tau = level_tau
-        self.slope_tau = slope_tau
-        self.drift = drift
-        self.threshold = threshold
-        self.rise_threshold = rise_threshold
-        self.noise_floor = noise_floor
+        self.slope_tau = 0.5 * stretch if slope_tau is None else slope_tau
+        self.drift = 3.0 * smoothed if drift is None else drift
+        self.noise_floor = 0.3 * smoothed if noise_floor is None else noise_floor
+        # against noise: the ARL threshold for the target rate, with the allowance at 4 sigma of
+        # the smoothed reading (what the CUSUM subtracts), in units of the raw sigma
+        arl = fs * 3600.0 / max(false_alarm_rate, 1e-12)
+        self.noise_threshold = white * arl_threshold(arl, 4.0 * smoothed / white)
+
+        def scaled(value: object, key: str, cusum: bool) -> np.ndarray | float:
+            if value is not None:
+                return value
+            floor = DISTURBANCE[key] * rise * (per_sample if cusum else 1.0)
+            # levels compared within the smoothed reading stay 8 of its sigmas clear of noise
+            return np.maximum(floor, self.noise_threshold if cusum else 8.0 * smoothed)
+
+        self.threshold = scaled(threshold, "threshold", True)
+        self.rise_threshold = scaled(rise_threshold, "rise_threshold", True)
+        self.release_rise = scaled(release_rise, "release_rise", False)
+        self.slow_threshold = scaled(slow_threshold, "slow_threshold", False)
+        self.slow_begin = scaled(slow_begin, "slow_begin", False)
         self.noise_tau = noise_tau
         self.warmup = warmup
-        self.release_rise = release_rise
-        self.smooth_tau = smooth_tau
-        self.stale = stale
-        self.slow_tau = slow_tau
-        self.slow_threshold = slow_threshold
-        self.slow_begin = slow_begin
+        self.stale = 1.0 * stretch if stale is None else stale
+        self.slow_tau = 3.0 * stretch if slow_tau is None else slow_tau
         self.recovery = recovery
         self.release_slack = release_slack
-        self.contact_slope_tau = contact_slope_tau
-        self.rebound = rebound
+        self.contact_slope_tau = 0.2 * stretch if contact_slope_tau is None else contact_slope_tau
+        self.rebound = 1.0 * stretch if rebound is None else rebound
 
     def initial_state(self) -> DetectorState:
         """Return the state before the first sample."""
@@ -245,7 +339,7 @@ class OnsetDetector:
             level=nan.copy(),
             slope=np.zeros(n),
             t_level=nan.copy(),
-            var=np.full(n, self.noise_floor**2),
+            var=np.broadcast_to(np.asarray(self.noise_floor, dtype=float) ** 2, (n,)).copy(),
             cusum=np.zeros(n),
             t_start=nan.copy(),
             rise_cusum=np.zeros(n),

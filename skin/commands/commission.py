@@ -1,0 +1,142 @@
+"""``skin commission``: measure a skin's own noise from a quiet stretch, into the calibration file.
+
+Record up to a minute with nothing touching the skin (heaters on, as in use), for example
+``skin record serial:///dev/ttyACM0 quiet.mcap --duration 60``, then::
+
+    skin commission --port replay://quiet.mcap?speed=0 -o cal.json
+
+Per taxel it writes ``noise_sigma`` (noise per sample, K), ``noise_lowfreq`` (white-equivalent
+noise of sums over many samples: larger when the readings were smoothed) and ``drift`` (K/s)
+into the calibration file (updated if it exists; `skin.models.commission`), and prints the
+sample jitter and a spectrum summary. `skin run --calibration` and `skin evaluate-onset
+--calibration` then set the onset detector's thresholds from each taxel's own noise. A stretch
+that is too short or not quiet is refused with what to record instead.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+from skin.errors import SkinError
+from skin.progress import Progress
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register ``skin commission``."""
+    cmd = sub.add_parser("commission", help="each taxel's noise from a quiet stretch, into the "
+                                            "calibration file", description=__doc__)
+    cmd.add_argument("--port", required=True, metavar="URL",
+                     help="where the quiet stretch comes from: replay://quiet.mcap?speed=0, a "
+                          "device URL, or sim://SCENE?speed=0")
+    cmd.add_argument("--seconds", type=float, default=60.0,
+                     help="seconds of the stretch to use (default 60, at least 10)")
+    cmd.add_argument("--layout", default=None,
+                     help="layout (default: the recording's, else arm)")
+    cmd.add_argument("-o", "--out", required=True, help="calibration file to write or update")
+    cmd.add_argument("--json", action="store_true",
+                     help="print one JSON document on stdout and nothing else")
+    cmd.set_defaults(func=main)
+
+
+def read_stretch(url: str, layout: object, seconds: float,
+                 calibration: object = None) -> tuple[np.ndarray, np.ndarray]:
+    """Read ``seconds`` of a source as (times, temperatures in layout order)."""
+    from skin import drivers
+    from skin.stream.assembly import FrameAssembler
+    from skin.stream.calibration import Calibration
+
+    cal = calibration or Calibration.from_layout(layout)
+    assembler = FrameAssembler(layout)
+    times, temps = [], []
+    first = None
+    with drivers.open(url) as driver:
+        while True:
+            frame = driver.recv(timeout=2.0)
+            if frame is None:
+                break
+            first = frame.device_time if first is None else first
+            block = assembler.push([frame])
+            if len(block):
+                times.append(block.times)
+                temps.append(cal.temperature(block.counts)[0])
+            if frame.device_time - first >= seconds:
+                break
+    block = assembler.flush()
+    if len(block):
+        times.append(block.times)
+        temps.append(cal.temperature(block.counts)[0])
+    if not times:
+        raise SkinError(f"{url}: no frame arrived: check the port, then record again")
+    return np.concatenate(times), np.concatenate(temps)
+
+
+def main(args: argparse.Namespace) -> int:
+    """Commission from a quiet stretch (see the module docstring)."""
+    from pathlib import Path
+
+    from skin.formats.calibration_file import CalibrationFile, load_calibration
+    from skin.formats.layout import load_layout
+    from skin.models.commission import QUIET_SECONDS, quiet_figures
+
+    if not QUIET_SECONDS[0] <= args.seconds <= QUIET_SECONDS[1]:
+        raise SkinError(f"--seconds must lie within {QUIET_SECONDS[0]:g}-{QUIET_SECONDS[1]:g}")
+    layout = _layout(args.port, args.layout, load_layout)
+    out = Path(args.out)
+    cal_file = load_calibration(out) if out.exists() else CalibrationFile()
+    progress = Progress()
+    started = time.monotonic()
+    progress.message(f"reading {args.seconds:g} s of {args.port}")
+    calibration, _ = cal_file.apply(layout)
+    times, temps = read_stretch(args.port, layout, args.seconds, calibration)
+    q = quiet_figures(times, temps, layout.ids)
+    for i, t in enumerate(layout.ids):
+        entry = cal_file.taxels.setdefault(int(t), {})
+        entry.update(noise_sigma=float(q.noise_sigma[i]), noise_lowfreq=float(q.noise_lowfreq[i]),
+                     drift=float(q.drift[i]))
+    cal_file.references["noise"] = (f"quiet stretch of {args.port} ({q.seconds:.1f} s at "
+                                    f"{q.fs:.4g} Hz, sample jitter {1e3 * q.jitter:.3g} ms rms)")
+    cal_file.save(out)
+    progress.done()
+    factor = q.noise_sigma / q.noise_lowfreq
+    doc = {"out": str(out), "taxels": len(layout), "seconds": round(q.seconds, 2),
+           "fs": round(q.fs, 3), "jitter_ms": round(1e3 * q.jitter, 4),
+           "noise_sigma_k": _stats(q.noise_sigma), "noise_lowfreq_k": _stats(q.noise_lowfreq),
+           "smoothing_factor": _stats(factor), "drift_k_per_min": _stats(60.0 * q.drift),
+           "wall_time": round(time.monotonic() - started, 2)}
+    if args.json:
+        print(json.dumps(doc))
+        return 0
+    print(f"wrote {out}: noise of {len(layout)} taxels from {q.seconds:.1f} s at {q.fs:.4g} Hz "
+          f"(jitter {doc['jitter_ms']} ms rms)")
+    for key, unit in (("noise_sigma_k", "K"), ("noise_lowfreq_k", "K"),
+                      ("smoothing_factor", ""), ("drift_k_per_min", "K/min")):
+        s = doc[key]
+        print(f"  {key:<18} median {s['median']:.4g} {unit} (min {s['min']:.4g}, "
+              f"max {s['max']:.4g})")
+    return 0
+
+
+def _stats(values: np.ndarray) -> dict:
+    return {"median": float(np.median(values)), "min": float(np.min(values)),
+            "max": float(np.max(values))}
+
+
+def _layout(port: str, given: str | None, load_layout: object) -> object:
+    if given:
+        return load_layout(given)
+    if port.startswith("replay://"):
+        from skin.drivers.recording import RecordingReader
+
+        path = port[len("replay://"):].partition("?")[0]
+        recorded = RecordingReader(path).layout()
+        if recorded is not None:
+            return recorded
+    if port.startswith("sim://"):
+        from skin.formats.scene import load_scene
+
+        return load_scene(port[len("sim://"):].partition("?")[0] or "default").layout
+    return load_layout("arm")

@@ -1,0 +1,111 @@
+"""Commissioning from a quiet stretch: noise, spectrum, drift, jitter, into the calibration file."""
+
+import json
+
+import numpy as np
+import pytest
+
+from skin.cli import main as skin_main
+from skin.formats.calibration_file import CalibrationFile, load_calibration, noise_sigma
+from skin.formats.layout import load_layout
+from skin.models.commission import CommissioningError, quiet_figures
+from skin.stream.pipeline import Pipeline
+
+
+def _quiet(sigma=0.03, drift=0.001, secs=40.0, fs=200.0, n=4, seed=0):
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(secs * fs)) / fs
+    return t, 38.0 + drift * t[:, None] + rng.normal(0, sigma, (t.size, n))
+
+
+def test_white_noise_and_drift_are_measured():
+    t, y = _quiet()
+    q = quiet_figures(t, y)
+    assert q.noise_sigma == pytest.approx(0.03, rel=0.05)
+    assert q.noise_lowfreq == pytest.approx(0.03, rel=0.25)
+    assert q.drift == pytest.approx(0.001, abs=2e-4)
+    assert q.fs == pytest.approx(200.0) and q.jitter < 1e-9
+
+
+def test_smoothed_readings_show_their_smoothing_in_the_spectrum():
+    """A logger's 8-sample moving average: per-sample noise / sqrt(8), low frequencies kept."""
+    from scipy.signal import lfilter
+
+    t, y = _quiet(drift=0.0, secs=60.0)
+    y = lfilter(np.full(8, 1 / 8), 1.0, y - 38.0, axis=0) + 38.0
+    q = quiet_figures(t[50:], y[50:])
+    assert q.noise_sigma == pytest.approx(0.03 / np.sqrt(8), rel=0.1)
+    assert q.noise_lowfreq == pytest.approx(0.03, rel=0.25)
+
+
+def test_jitter_and_a_missing_sample_are_handled():
+    t, y = _quiet()
+    rng = np.random.default_rng(1)
+    t = t + rng.normal(0, 1e-4, t.size)
+    t.sort()
+    y[100, 2] = np.nan
+    before = y.copy()
+    q = quiet_figures(t, y)
+    assert 5e-5 < q.jitter < 3e-4
+    assert np.all(np.isfinite(q.noise_sigma))
+    assert np.array_equal(np.isnan(y), np.isnan(before))  # the caller's array is untouched
+
+
+def test_a_stretch_that_cannot_pin_the_noise_says_what_to_record():
+    t, y = _quiet(secs=5.0)
+    with pytest.raises(CommissioningError, match=r"record 10-60 s with nothing touching"):
+        quiet_figures(t, y)
+    t, y = _quiet()
+    y[4000:4400, 1] -= 1.5  # a touch filling a block exactly
+    with pytest.raises(CommissioningError, match=r"not quiet: taxel 11 jumped"):
+        quiet_figures(t, y, ids=np.array([10, 11, 12, 13]))
+    t, y = _quiet()
+    since = np.clip(t - 13.3, 0, None)
+    y[:, 0] -= np.where((t > 13.3) & (t < 15.0), 2.0 * (1 - np.exp(-since / 0.5)), 0.0)
+    with pytest.raises(CommissioningError, match=r"not quiet: taxel 0"):
+        quiet_figures(t, y)
+    t, y = _quiet()
+    y[:, 3] = np.nan
+    with pytest.raises(CommissioningError, match="taxel 3 has no reading"):
+        quiet_figures(t, y)
+
+
+def test_skin_commission_writes_each_taxels_noise_and_the_pipeline_uses_it(tmp_path, capsys):
+    scene = tmp_path / "quiet.toml"
+    scene.write_text('layout = "arm"\nduration = 20.0\nnoise = 0.05\nseed = 4\n'
+                     'initial_temperature = [60.0, 60.0]\n')
+    out = tmp_path / "cal.json"
+    CalibrationFile(taxels={0: {"depth": 9e-5}}).save(out)  # an existing file is updated
+    assert skin_main(["commission", "--port", f"sim://{scene}?speed=0", "--seconds", "15",
+                      "-o", str(out), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["taxels"] == 72 and doc["seconds"] >= 14.9
+    cal = load_calibration(out)
+    assert cal.taxels[0]["depth"] == 9e-5
+    sigma = noise_sigma(cal, load_layout("arm"))
+    # 0.05 K of noise and 10-bit rounding (about 0.07 K a count at 39 C)
+    assert np.median(sigma) == pytest.approx(np.hypot(0.05, 0.07 / np.sqrt(12)), rel=0.15)
+    assert "quiet stretch" in cal.references["noise"]
+    pipe = Pipeline(load_layout("arm"), classifier=None, noise=sigma)
+    assert np.array_equal(pipe.detector.sigma, sigma)
+    assert noise_sigma(CalibrationFile(), load_layout("arm")) is None
+
+
+def test_skin_commission_refuses_a_stretch_with_a_touch(tmp_path, capsys):
+    assert skin_main(["commission", "--port", "sim://default?speed=0", "--seconds", "15",
+                      "-o", str(tmp_path / "c.json")]) == 2
+    err = capsys.readouterr().err
+    assert "nothing touching" in err and not (tmp_path / "c.json").exists()
+
+
+def test_evaluate_onset_reads_the_commissioned_noise(tmp_path, capsys):
+    cal = tmp_path / "cal.json"
+    CalibrationFile(taxels={k: {"noise_sigma": 0.04} for k in range(3)}).save(cal)
+    assert skin_main(["evaluate-onset", "--taxels", "3", "--minutes", "1", "--calibration",
+                      str(cal), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["noise_sigma_k"] == pytest.approx(0.04)
+    assert "noise from" in doc["source"]
+    assert skin_main(["evaluate-onset", "--taxels", "4", "--minutes", "1", "--calibration",
+                      str(cal)]) == 2
+    assert "no commissioned noise_sigma" in capsys.readouterr().err

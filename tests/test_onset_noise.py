@@ -1,0 +1,170 @@
+"""The onset detector set by each taxel's measured noise and its sensor, not by kelvin constants."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from skin.formats.layout import parse_layout
+from skin.formats.scene import parse_scene
+from skin.models.sensors import load_sensor
+from skin.stream.onset import OnsetDetector, arl_threshold
+from skin.stream.pipeline import Pipeline
+
+
+def test_arl_threshold_inverts_siegmunds_approximation():
+    for k in (0.25, 0.5, 1.0, 2.0):
+        for arl in (1e2, 1e4, 1e7):
+            h = float(arl_threshold(arl, k))
+            b = h + 1.166
+            run = (np.exp(2 * k * b) - 2 * k * b - 1) / (2 * k**2)
+            assert run == pytest.approx(arl, rel=1e-6)
+    # a rarer false alarm needs a higher threshold; vectorised over taxels
+    h = arl_threshold(np.array([1e3, 1e5, 1e7]), 0.5)
+    assert np.all(np.diff(h) > 0)
+    assert float(arl_threshold(1.0, 1.0)) == 0.0  # never negative
+
+
+def test_the_paper_sensor_gives_the_former_thresholds():
+    d = OnsetDetector(3)
+    assert d.threshold == pytest.approx(0.4)
+    assert d.rise_threshold == pytest.approx(0.6)
+    assert d.release_rise == pytest.approx(0.12)
+    assert d.slow_threshold == pytest.approx(0.6)
+    assert d.slow_begin == pytest.approx(0.1)
+    assert d.drift == pytest.approx(0.0275, abs=0.003)  # 3 sigma of the smoothed reading
+
+
+def test_thresholds_follow_each_taxels_noise():
+    d = OnsetDetector(3, sigma=[0.01, 0.2, 1.0], false_alarm_rate=0.1)
+    assert np.all(np.diff(d.threshold) >= 0) and d.threshold[2] > d.threshold[0]
+    assert np.all(np.diff(d.drift) > 0)
+    rare = OnsetDetector(3, sigma=[0.01, 0.2, 1.0], false_alarm_rate=1e-4)
+    assert np.all(rare.noise_threshold > d.noise_threshold)
+    with pytest.raises(ValueError, match="sigma"):
+        OnsetDetector(2, sigma=[0.1, 0.0])
+    with pytest.raises(ValueError, match="sigma"):
+        OnsetDetector(2, sigma=np.nan)
+
+
+def _contact_stream(scale=1.0, n=6, seed=0):
+    """Free taxels with noise and a slow drift; two contacts (a fall, a rise) of ``scale`` K."""
+    from scipy.special import erfc
+
+    rng = np.random.default_rng(seed)
+    fs = 200.0
+    t = np.arange(int(20 * fs)) / fs
+    y = 38.0 + 0.01 * scale * t[:, None] + rng.normal(0, 0.035 * scale, (t.size, n))
+    for k, (t0, amp) in enumerate(((6.0, -3.0), (12.0, 2.0))):
+        since = np.clip(t - t0, 1e-9, None)
+        shape = np.where(t > t0, erfc(8e-5 / (2 * np.sqrt(2.796e-9 * since))), 0.0)
+        y[:, k] += scale * amp * shape
+    return t, y
+
+
+def test_no_absolute_kelvin_constant_scaling_everything_keeps_the_events():
+    """Readings, noise and heater rise scaled together give the same onsets at the same times."""
+    base = load_sensor("paper")
+    c = 5.0
+    hot = dataclasses.replace(base, heater_voltage=base.heater_voltage * np.sqrt(c))
+    assert hot.heated_rise == pytest.approx(c * base.heated_rise)
+    t, y = _contact_stream(1.0)
+    _, y5 = _contact_stream(c)
+    d1 = OnsetDetector(y.shape[1], sensor=base, sigma=0.035)
+    d5 = OnsetDetector(y.shape[1], sensor=hot, sigma=0.035 * c)
+    e1, _ = d1.process(t, y, d1.initial_state())
+    e5, _ = d5.process(t, y5, d5.initial_state())
+    assert [(e.kind, e.taxel, e.direction) for e in e1] == [
+        (e.kind, e.taxel, e.direction) for e in e5]
+    assert [e.time for e in e1] == pytest.approx([e.time for e in e5], abs=1e-9)
+    assert sum(e.kind == "onset" for e in e1) == 2
+
+
+def test_noise_alone_raises_fewer_false_alarms_than_the_target():
+    """With the heater's disturbance floor out of the way, only the ARL threshold is left."""
+    s = dataclasses.replace(load_sensor("paper"), heater_voltage=0.01)  # rise ~ 0
+    n, fs, secs = 32, 200.0, 60.0
+    rng = np.random.default_rng(3)
+    t = np.arange(int(secs * fs)) / fs
+    y = 38 + rng.normal(0, 0.035, (t.size, n))
+    target = 3600.0  # per taxel-hour: about 16 alarms expected if the bound were tight
+    d = OnsetDetector(n, sensor=s, sigma=0.035, false_alarm_rate=target)
+    assert np.all(d.threshold == d.noise_threshold)
+    events, _ = d.process(t, y, d.initial_state())
+    onsets = sum(e.kind == "onset" for e in events)
+    assert onsets / (n * secs / 3600) <= target
+
+
+def test_chunks_of_any_size_give_the_same_events_on_a_foreign_sensor():
+    from skin.drivers.sim import SkinSimulator
+
+    src = ('layout = "arm"\nsensor = "fast-film"\nduration = 6.0\nseed = 2\n'
+           '[[objects]]\nname = "o"\nmaterial = "aluminium"\n'
+           '[[touches]]\nobject = "o"\ntaxels = [0, 1]\nstart = 2.0\nduration = 2.0\n')
+    sim = SkinSimulator(parse_scene(src, "s.toml"))
+    frames = list(sim.frames())
+    temp, _ = sim.calibration.temperature(np.array([f.counts for f in frames])[:, sim._addr])
+    temp = temp[:, :8]
+    times = np.array([f.device_time for f in frames])
+    d = OnsetDetector(8, sensor=load_sensor("fast-film"),
+                      sigma=np.linspace(0.03, 0.05, 8))
+    whole, _ = d.process(times, temp, d.initial_state())
+    assert any(e.kind == "onset" and e.taxel == 0 for e in whole)
+    rng = np.random.default_rng(0)
+    state, parts, k = d.initial_state(), [], 0
+    while k < len(times):
+        m = int(rng.integers(1, 700))
+        ev, state = d.process(times[k:k + m], temp[k:k + m], state)
+        parts += ev
+        k += m
+    assert parts == whole
+
+
+def test_the_pipeline_sets_its_detector_by_the_boards_sensor():
+    text = ('[[boards]]\nid = 0\nsensor = "low-cost"\n\n[[taxels]]\nid = 0\nboard = 0\n'
+            'address = 0\nlink = "l"\nposition = [0, 0, 0]\nnormal = [0, 0, 1]\n')
+    layout = parse_layout(text, "x.toml")
+    pipe = Pipeline(layout, classifier=None)
+    s = load_sensor("low-cost")
+    assert pipe.detector.sensor == s
+    assert pipe.detector.sigma[0] == pytest.approx(
+        s.noise_kelvin(25.0 + s.heated_rise) * s.smoothing_noise_factor())
+    assert pipe.detector.slow_tau > 3.0  # a slower sensor than the paper's: longer windows
+
+
+def test_streams_of_a_sensor_scale_their_truth_to_it():
+    from skin.bench.streams import simulate_stream
+    from skin.models import load_materials
+
+    mats = [load_materials()[m] for m in ("aluminium", "pine")]
+    plain = simulate_stream(mats, n_taxels=2, duration=60.0, seed=1)
+    again = simulate_stream(mats, n_taxels=2, duration=60.0, seed=1)
+    assert np.array_equal(plain.temperature, again.temperature)
+    slow = simulate_stream(mats, n_taxels=6, duration=120.0, seed=1, sensor="pid-logger",
+                           contacts_per_minute=3.0)
+    assert slow.fs == 50.0 and slow.temperature.shape == (6000, 6)
+    fast = simulate_stream(mats, n_taxels=6, duration=120.0, seed=1, sensor="fast-film",
+                           contacts_per_minute=3.0)
+    assert fast.fs == 1000.0
+    floor = {}
+    for name, st in (("slow", slow), ("fast", fast)):
+        seen = [c.visible_after for c in st.contacts if np.isfinite(c.visible_after)]
+        assert len(seen) >= 3
+        floor[name] = np.median(seen)
+    assert floor["slow"] > 2 * floor["fast"]  # the slower thermistor shows a touch later
+
+
+def test_evaluate_onset_per_sensor_reports_the_issue_figures(capsys):
+    import json
+
+    from skin.cli import main
+
+    assert main(["evaluate-onset", "--sensor", "fast-film", "--taxels", "4", "--minutes", "2",
+                 "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    for key in ("detected_5sigma", "false_alarms_per_taxel_hour", "delay_floor_ratio_median",
+                "refined_onset_error_ms_median", "contacts_5sigma"):
+        assert key in doc
+    assert doc["sensor"] == "fast-film" and 0 <= doc["detected_5sigma"] <= 1
+    assert "delay_s" not in doc and "detected_flags" not in doc
+    assert main(["evaluate-onset", "--sensor", "nonesuch", "--minutes", "1"]) == 2
