@@ -101,3 +101,75 @@ def test_every_example_parses_and_reads_only_files_made_before_it(tmp_path):
 def test_a_users_own_file_is_explained_where_it_is_read(name):
     text = README.read_text()
     assert name in text
+
+
+#: Lines run in order by `test_the_examples_run_in_order` are shrunk to CI sizes by appending
+#: these options (a later option wins in argparse, so the README's own stay visible); the
+#: command's words are matched in order.
+CI_SIZES = [
+    (("skin", "run"), ["--speed", "0", "--duration", "6", "--force"]),
+    (("skin", "-v", "run"), ["--speed", "0", "--duration", "6", "--force"]),
+    (("skin", "simulate", "trials"), ["--trials", "12", "--duration", "2.6"]),
+    (("skin", "bench", "thermal"), ["--quick"]),
+    (("skin", "bench", "view"), ["--quick"]),
+    (("skin", "bench", "fusion"), ["--trials", "2", "--durations", "0.5"]),
+    (("skin", "bench", "pipeline"), ["--taxels", "64", "--seconds", "4"]),
+    (("skin", "bench", "calibration"), ["--taxels", "2", "--contacts", "2"]),
+    (("skin", "evaluate-onset"), ["--taxels", "2", "--minutes", "1"]),
+]
+#: Lines not run, with the reason (hardware, a window, another machine, other extras).
+SKIPPED = {
+    "serial:///dev/": "a real board",
+    "can://socketcan/": "a real CAN bus",
+    "--view": "a window",
+    "--publish": "publishers (optional extras and a listener)",
+    "skin subscribe": "another machine",
+    "skin bench publish": "publishers (optional extras)",
+    "--firmware-sim": "the compiled firmware (tests/test_firmware_emulated.py runs it)",
+    "xarm7": "the robots extra (URDF meshes)",
+    "skin devices": "probes the machine's ports (tests/test_devices.py)",
+    "skin evaluate --data trials.npz --methods svm-pca,knn-pca,hmm,model,default":
+        "every method with --ceiling: minutes even on 132 trials (each method runs below)",
+    "skin run --arm my_arm.toml": "the user's own meshes",
+    "skin run --scene my_scene.toml": "the user's own scene",
+    "skin calibrate thermistors --data refs.csv": "the user's own reference readings",
+    "skin dataset import trials.csv": "the user's own recordings",
+}
+
+
+def _shrunk(argv: list[str]) -> list[str]:
+    for words, extra in CI_SIZES:
+        if tuple(argv[: len(words)]) == words:
+            return argv + extra
+    return argv
+
+
+@pytest.mark.slow
+def test_the_examples_run_in_order(tmp_path):
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in __import__("os").environ.items()}
+    env.update(OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    skin = [sys.executable, "-m", "skin"]
+    ran, failed = [], []
+    for no, cmd in examples():
+        if any(cmd.startswith(k) for k in NOT_RUN) or any(k in cmd for k in SKIPPED):
+            continue
+        if cmd.startswith("printf"):
+            subprocess.run(cmd, shell=True, cwd=tmp_path, check=True)
+            continue
+        line, _, target = cmd.partition(" > ")
+        argv = _shrunk(shlex.split(line))
+        if "--version" in argv:
+            argv = argv[:2]
+        proc = subprocess.run(skin + argv[1:], cwd=tmp_path, env=env, capture_output=True,
+                              text=True, timeout=300)
+        if target:
+            (tmp_path / target.strip()).write_text(proc.stdout)
+        ran.append(no)
+        if proc.returncode != 0:
+            failed.append(f"README.md:{no}: {' '.join(argv)} -> {proc.returncode}: "
+                          f"{proc.stderr.strip().splitlines()[-1:]}")
+    assert len(ran) > 40
+    assert not failed, "\n".join(failed)
