@@ -110,6 +110,10 @@ def test_a_recording_holds_wire_bytes_temperatures_events_and_layout(recorded):
 
 
 def test_replay_paces_at_real_speed_or_as_fast_as_possible(tmp_path):
+    # the simulated skin imports scipy.signal at its first frame; cold (1-2 s on a loaded
+    # machine) that import would stall the paced source and the frames would then catch up
+    import scipy.signal  # noqa: F401
+
     path = tmp_path / "paced.mcap"
     source = drivers.open("sim://default?speed=1&duration=0.6")
     with source, Recorder(path, source.simulator.layout) as recorder:
