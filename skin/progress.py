@@ -17,7 +17,7 @@ def clear_status() -> None:
     Log records go through this (`skin.logs`): a driver's warning is never glued onto the
     status line; the next status redraws it.
     """
-    for progress in _SHOWN:
+    for progress in list(_SHOWN):  # clear() removes it from the list
         progress.clear()
 
 
