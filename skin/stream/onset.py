@@ -45,6 +45,10 @@ follows from the taxel's noise and the sensor description (`skin.models.sensors`
   CUSUM (so they scale with the sample rate).
 - Time constants of the baseline and the slow channel stretch with the sensor's response
   time when it is slower than the paper's (a slow sensor's contact departs slowly).
+- A sensor body whose slowest thermal mode (62.5 s for the paper's, scaled by l^2 / alpha) is
+  faster than the paper's brings heater steps and drift to the thermistor faster: the CUSUM
+  thresholds grow with the mode's speed, the slow channel's with what the mode moves within
+  its window (never below the paper's fractions; not for a PID-held heater).
 """
 
 from __future__ import annotations
@@ -63,6 +67,7 @@ DISTURBANCE = {"threshold": 0.4 / _PAPER_RISE, "rise_threshold": 0.6 / _PAPER_RI
                "release_rise": 0.12 / _PAPER_RISE, "slow_threshold": 0.6 / _PAPER_RISE,
                "slow_begin": 0.1 / _PAPER_RISE}
 _PAPER_RESPONSE = 2.516  # s, the paper sensor's half-response time (SensorDescription)
+_PAPER_MODE = 2.4e-4**2 / 2.796e-9  # s, the paper sensor's l^2 / alpha
 
 
 def arl_threshold(arl: float | np.ndarray, k: float | np.ndarray) -> np.ndarray:
@@ -310,10 +315,20 @@ class OnsetDetector:
         arl = fs * 3600.0 / max(false_alarm_rate, 1e-12)
         self.noise_threshold = white * arl_threshold(arl, 4.0 * smoothed / white)
 
+        # a sensor body faster than the paper's carries heater steps and drift to the thermistor
+        # faster: they bend the baseline's trend more within the CUSUM's and the slow channel's
+        # windows (a PID loop holds its setpoint: no heater steps)
+        mode = 62.5 * sensor.reheat_time_constant / _PAPER_MODE  # the slowest mode, s
+        quick = 1.0 if sensor.heater == "pid" else max(1.0, 62.5 / mode)
+        slow_tau_now = 3.0 * stretch if slow_tau is None else slow_tau
+        slow_quick = 1.0 if quick == 1.0 else max(
+            1.0, -math.expm1(-slow_tau_now / mode) / -math.expm1(-slow_tau_now / 62.5))
+
         def scaled(value: object, key: str, cusum: bool) -> np.ndarray | float:
             if value is not None:
                 return value
-            floor = DISTURBANCE[key] * rise * (per_sample if cusum else 1.0)
+            fast = quick if cusum else (slow_quick if key == "slow_threshold" else 1.0)
+            floor = DISTURBANCE[key] * rise * fast * (per_sample if cusum else 1.0)
             # levels compared within the smoothed reading stay 8 of its sigmas clear of noise
             return np.maximum(floor, self.noise_threshold if cusum else 8.0 * smoothed)
 
