@@ -9,7 +9,9 @@
   bus through python-can (``can://<interface>/<channel>``, any python-can interface);
   ``can://udp_multicast/239.74.163.2?port=43113`` (or an IPv6 group, such as python-can's
   default ``ff15:7079:7468:6f6e:6465:6d6f:6d63:6173``) is a bus shared by processes over UDP
-  multicast (it needs msgpack); ``port`` goes to the interfaces that take one;
+  multicast (it needs msgpack); ``port`` goes to the interfaces that take one; ``can://``
+  alone (``?context=SECTION``) is the bus of python-can's own configuration (environment
+  ``CAN_INTERFACE``/``CAN_CHANNEL``/``CAN_BITRATE``, ``~/.canrc``...: `skin.drivers.can_bus`);
 - ``sim://default?speed=1&duration=20``: a simulated skin (a shipped scene name or a scene
   file path), frames handed over directly.
 - ``replay://run.mcap?speed=0``: a recording (`skin.drivers.recording`) played through the same
@@ -47,7 +49,8 @@ def _query(query: str, url: str) -> dict[str, str]:
     out = {}
     for key, values in parse_qs(query, keep_blank_values=True).items():
         out[key] = values[-1]
-    allowed = {"baud", "bitrate", "port", "speed", "duration", "board", "reconnect", "queue"}
+    allowed = {"baud", "bitrate", "port", "speed", "duration", "board", "reconnect", "queue",
+               "context"}
     unknown = set(out) - allowed
     if unknown:
         raise DeviceError(f"{url}: unknown option {sorted(unknown)[0]!r} "
@@ -119,13 +122,19 @@ def _open_one(url: str) -> Driver:
         from skin.drivers.can_bus import CanDriver
 
         channel = parts.path.lstrip("/")
-        if not parts.netloc or not channel:
-            raise DeviceError(f"{url}: write can://<interface>/<channel>, e.g. can://virtual/ch0")
+        configured = not parts.netloc and not channel  # python-can's configuration
+        if not configured and (not parts.netloc or not channel):
+            raise DeviceError(f"{url}: write can://<interface>/<channel>, e.g. can://virtual/ch0,"
+                              " or can:// for python-can's configuration")
+        if "context" in opts and not configured:
+            raise DeviceError(f"{url}: 'context' picks a section of python-can's configuration;"
+                              " it goes with can:// alone")
         bitrate = _float(opts, "bitrate", None, url)
         port = _float(opts, "port", None, url)
-        return CanDriver(parts.netloc, channel, None if bitrate is None else int(bitrate),
+        return CanDriver(parts.netloc or None, channel or None,
+                         None if bitrate is None else int(bitrate),
                          reconnect=_float(opts, "reconnect", 0.0, url),
-                         port=None if port is None else int(port))
+                         port=None if port is None else int(port), context=opts.get("context"))
     if parts.scheme == "sim":
         from skin.drivers.sim import SimDriver, SkinSimulator
         from skin.formats.scene import load_scene

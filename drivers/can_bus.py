@@ -8,8 +8,10 @@ frames) are counted as ``malformed`` and skipped, never raised.
 
 Faults: a bus-off (an error frame with SocketCAN's ``CAN_ERR_BUSOFF`` class bit, or the
 interface raising) is a fault: with ``reconnect`` the bus is shut down and opened again with
-back-off (`skin.drivers.base`). A node that has sent samples and then stays silent for
-``silent_after`` seconds is reported (``health.silent``, a warning) until it speaks again.
+back-off (`skin.drivers.base`). Samples are stamped with python-can's message timestamp
+(kernel or hardware time) of their SYNC frame, not the time they are read. A node that has
+sent samples and then stays silent for ``silent_after`` seconds is reported
+(``health.silent``, a warning) until it speaks again.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import time
 
 from skin._optional import require
 from skin.drivers.base import Driver
+from skin.drivers.clock import WALL_OFFSET
 from skin.drivers.protocol import (
     CAN_BROADCAST,
     CanReassembler,
@@ -60,17 +63,29 @@ class CanDriver(Driver):
         The IP port, for interfaces that take one (``udp_multicast``: 43113 by default; on
         Linux a bus hears every group joined on its port, so separate buses take separate
         ports).
+    context : str, optional
+        With no ``interface``: the section of python-can's configuration to use.
+
+    With ``interface`` None the bus comes from python-can's own configuration
+    (``can.util.load_config``: the environment's ``CAN_INTERFACE``, ``CAN_CHANNEL``,
+    ``CAN_BITRATE``, ``CAN_CONFIG``, then ``~/can.conf``, ``/etc/can.conf``, ``~/.can``,
+    ``~/.canrc``), as ``can.Bus()`` would; ``bitrate`` and ``port`` given here win.
     """
 
     wire = "can"
 
-    def __init__(self, interface: str, channel: str, bitrate: int | None = None,
+    def __init__(self, interface: str | None, channel: str | None, bitrate: int | None = None,
                  boards: dict[int, int] | None = None, reconnect: float = 0.0,
-                 silent_after: float = 0.5, port: int | None = None) -> None:
+                 silent_after: float = 0.5, port: int | None = None,
+                 context: str | None = None) -> None:
         super().__init__(reconnect)
         self._can = require("can", "the CAN driver")
+        self._kwargs: dict = {}
+        if interface is None:
+            self._kwargs = self._configured(context)
+            interface, channel = self._kwargs["interface"], self._kwargs["channel"]
         self.url = f"can://{interface}/{channel}" + ("" if port is None else f"?port={port}")
-        self._kwargs = {"interface": interface, "channel": channel}
+        self._kwargs.update({"interface": interface, "channel": channel})
         if bitrate is not None:
             self._kwargs["bitrate"] = bitrate
         if port is not None:
@@ -83,6 +98,29 @@ class CanDriver(Driver):
         self.stats = self._reassembler.stats
         self._frames: collections.deque[Frame] = collections.deque()
         self._token = 0
+
+    def _configured(self, context: str | None) -> dict:
+        """Return the bus of python-can's configuration (see the class docstring)."""
+        where = "python-can's configuration" + (f" (section {context!r})" if context else "")
+        util = self._can.util
+        named = {**util.load_file_config(None, context or "default"),
+                 **util.load_environment_config(context)}
+        if named.get("interface"):
+            try:
+                config = dict(util.load_config(context=context))
+            except Exception as exc:  # python-can raises CanInterfaceNotImplementedError & co
+                raise DeviceError(f"can://: {where} cannot be used ({exc})") from None
+        else:
+            config = {}
+        if not config.get("interface"):
+            raise DeviceError(f"can://: {where} names no interface: set CAN_INTERFACE and "
+                              f"CAN_CHANNEL, or write one of "
+                              f"{', '.join(self._can.util.CONFIG_FILES)}; or give the bus as "
+                              "can://<interface>/<channel>")
+        if config.get("channel") is None:
+            raise DeviceError(f"can://: {where} names interface {config['interface']!r} but no "
+                              "channel (CAN_CHANNEL)")
+        return config
 
     @property
     def replies(self) -> collections.deque[tuple[int, Reply]]:
@@ -111,8 +149,9 @@ class CanDriver(Driver):
         if msg is None:
             return
         self.stats.bytes += len(msg.data)
+        arrival = self._arrival(msg.timestamp, time.monotonic())
         if self.tap is not None:
-            self.tap(time.monotonic(), can_record(msg.arbitration_id, bytes(msg.data),
+            self.tap(arrival, can_record(msg.arbitration_id, bytes(msg.data),
                                                   msg.is_extended_id or msg.is_remote_frame
                                                   or msg.is_error_frame))
         if msg.is_error_frame and msg.arbitration_id & CAN_ERR_BUSOFF:
@@ -121,13 +160,24 @@ class CanDriver(Driver):
         if msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
             self.stats.malformed += 1
             return
-        frame = self._reassembler.push(msg.arbitration_id, bytes(msg.data))
+        frame = self._reassembler.push(msg.arbitration_id, bytes(msg.data), arrival)
         if frame is not None:
             self._frames.append(frame)
             self._last_seen[frame.board] = now
             if frame.board in self.health.silent:
                 self.health.silent.discard(frame.board)
                 log.warning("%s: board %d is sending again", self.url, frame.board)
+
+    @staticmethod
+    def _arrival(timestamp: float, now: float) -> float:
+        """Host arrival time (``time.monotonic`` clock) of a message stamped ``timestamp``.
+
+        python-can stamps messages with Unix time, taken by the kernel or the interface's
+        hardware where it can: the better arrival time. A stamp that cannot be Unix time
+        (some interfaces count from their own start) is not used: the time of reading is.
+        """
+        arrival = timestamp - WALL_OFFSET
+        return arrival if now - 60.0 < arrival <= now + 0.01 else now
 
     def _check_silent(self, now: float) -> None:
         """Report the boards that were sending and have been silent for ``silent_after``."""

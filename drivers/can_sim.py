@@ -215,8 +215,8 @@ class CanSimNode:
     def start(self) -> None:
         """Start serving: samples (if streaming) and replies to commands.
 
-        The simulation is computed here, before the thread starts, so that the first samples
-        go out on time rather than in a burst.
+        The simulation's first chunk is computed here, before the thread starts, so that the
+        first samples go out on time rather than in a burst (`SkinSimulator.frames`).
         """
         frames = self.simulator.frames()
         first = next(frames, None)

@@ -15,6 +15,7 @@ is the host time at which the sample was taken, estimated; ``Driver.clocks`` hol
 
 from __future__ import annotations
 
+import time
 from collections import deque
 from dataclasses import dataclass
 
@@ -133,3 +134,13 @@ class ClockMap:
         """The current estimate."""
         return ClockEstimate(float(self._offset), self._drift, self._latency,
                              len(self._minima), self._resets)
+
+
+#: Unix time minus ``time.monotonic()``, taken once when this module is first imported: host
+#: times (``Frame.host_time``) plus this are wall-clock (Unix) times, s.
+WALL_OFFSET = time.time() - time.monotonic()
+
+
+def wall_time(host_time: float) -> float:
+    """Return the Unix time of a host time (``time.monotonic`` clock), s."""
+    return host_time + WALL_OFFSET

@@ -66,13 +66,26 @@ def serial_ports() -> list[str]:
 
 
 def can_channels(timeout: float = 2.0) -> list[str]:
-    """Return ``can://`` URLs of the CAN channels python-can detects (empty without it)."""
+    """Return ``can://`` URLs of the CAN channels python-can detects or is configured with.
+
+    The configured one comes from the environment and python-can's config files (empty
+    without python-can).
+    """
     try:
         can = require("can", "listing CAN channels")
     except ImportError:
         return []
     found = can.detect_available_configs(["socketcan"], timeout=timeout)
-    return sorted(f"can://{c['interface']}/{c['channel']}" for c in found)
+    urls = sorted(f"can://{c['interface']}/{c['channel']}" for c in found)
+    try:  # the bus python-can's configuration names (environment, ~/.canrc ...), if any
+        config = can.util.load_config()
+    except Exception:  # an unusable configuration: `skin devices --port can://` says why
+        config = {}
+    if config.get("interface") and config.get("channel") is not None:
+        url = f"can://{config['interface']}/{config['channel']}"
+        if url not in urls:
+            urls.append(url)
+    return urls
 
 
 def identify(url: str, timeout: float = 0.5) -> list[Found]:

@@ -831,6 +831,7 @@ class _Node:
 
     seq: int | None = None  # the open sample's seq (None: no sample open)
     time_us: int = 0
+    sync_host: float | None = None  # host arrival time of the open sample's SYNC
     groups: dict[int, bytes] = field(default_factory=dict)
     n_groups: int = 0  # G of the last STATUS seen, to count the groups of a dropped sample
     duty: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.uint8))
@@ -877,8 +878,13 @@ class CanReassembler:
                 out.append(frame)
         return out
 
-    def push(self, ident: int, data: bytes) -> Frame | None:
-        """Add one received frame; return the sample it completes, if any."""
+    def push(self, ident: int, data: bytes, host_time: float | None = None) -> Frame | None:
+        """Add one received frame; return the sample it completes, if any.
+
+        ``host_time`` is the frame's arrival on the host (``time.monotonic`` clock; python-can's
+        message timestamp, mapped); a sample's ``Frame.host_time`` is its SYNC's, or the time
+        of the push that completes it when none was given.
+        """
         data = bytes(data)
         if not 0 <= ident < 0x800 or len(data) > 8:
             self.stats.malformed += 1
@@ -891,6 +897,7 @@ class CanReassembler:
             if node.seq is not None:
                 self._drop(node, node.n_groups)
             node.seq, node.time_us = _SYNC.unpack(data)
+            node.sync_host = host_time
             node.groups = {}
         elif kind == CanType.DATA and data and len(data) % 2 == 0:
             if node.seq is None:
@@ -964,7 +971,8 @@ class CanReassembler:
         known = min(n, node.duty.size)
         duty[:known] = node.duty[:known]
         self.stats.frames += 1
-        return Frame(seq, node.time_us * 1e-6, time.monotonic(),
+        host = time.monotonic() if node.sync_host is None else node.sync_host
+        return Frame(seq, node.time_us * 1e-6, host,
                      (words & MAX_COUNT).astype(np.uint16),
                      math.nan if ambient == AMBIENT_UNKNOWN else ambient / 100.0, duty, flags,
                      self.boards.get(node_id, node_id), (words >> 12).astype(np.uint8))

@@ -4,12 +4,13 @@
 `RecordingReader` and `read_recording` read one back, and `skin.drivers.replay.ReplayDriver`
 plays its wire bytes through the same decoders again (``replay://run.mcap``).
 
-What a recording holds (MCAP profile ``thermoskin``, format 1):
+What a recording holds (MCAP profile ``thermoskin``, format 2; every channel has a schema that
+standard MCAP tools and Foxglove recognise: protobuf, `skin.formats.protobuf`, or jsonschema):
 
 =====================  ==========================================================================
 record                 content
 =====================  ==========================================================================
-metadata ``thermoskin``  ``format`` ("1"), ``library`` (thermoskin's version), ``created`` (ISO
+metadata ``thermoskin``  ``format`` ("2"), ``library`` (thermoskin's version), ``created`` (ISO
                        date, UTC), ``clock_offset`` (s: wall-clock time minus
                        ``time.monotonic()`` at the start; log times are wall-clock ns)
 attachment             ``layout.toml`` (``application/toml``): the layout used, as layout TOML
@@ -20,23 +21,32 @@ attachment             ``calibration.json`` (``application/json``), if one was u
                        ``{"format": "calibration-arrays", "c0": [...], ...}``: its per-taxel
                        arrays in layout order
 channel ``/wire/<k>``  one per source (driver): the bytes as they came off the wire, one message
-                       per chunk the driver read, log time = host arrival time. Encoding
-                       ``thermoskin.serial`` (the serial protocol's byte stream) or
-                       ``thermoskin.can`` (records of `skin.drivers.protocol.can_record`).
-                       Channel metadata: ``url``, ``wire``, ``board`` (board id of a serial
-                       source), ``boards`` (JSON node -> board of a CAN source)
-channel                deg C after calibration, one message per block of samples the pipeline
-``/temperature``       processed, encoding ``thermoskin.temperature``: u32 n, u32 taxels,
-                       f64 device times [n] (s), f32 deg C [n, taxels] in layout order (NaN:
-                       no reading), all little-endian
+                       per chunk the driver read, log time = host arrival time; protobuf
+                       ``thermoskin.Wire`` holding the serial protocol's byte stream
+                       (metadata ``wire`` = ``serial``) or records of
+                       `skin.drivers.protocol.can_record` (``wire`` = ``can``). Channel
+                       metadata: ``url``, ``wire``, ``board`` (board id of a serial source),
+                       ``boards`` (JSON node -> board of a CAN source)
+channel                deg C after calibration, one message per sample, log time = the
+``/temperature``       sample's host time (Unix ns; its clock map's); protobuf
+                       ``thermoskin.Temperature``: host and device time, deg C per taxel in
+                       layout order (NaN: no reading) and the taxel ids
 channel ``/events``    one JSON object per contact result (`skin.stream.sinks.event_record`),
-                       encoding ``json`` with a JSON schema
+                       encoding ``json`` with a JSON schema, log time = the host time the
+                       result was given
 =====================  ==========================================================================
 
-Surviving a kill: the file is unchunked and every record is handed to the operating system as
-it is written (the file is flushed after each message), so a recording process killed at any
-moment (SIGKILL included) leaves a file whose every complete record is readable: only the
-record being written and the summary and footer, which `Recorder.close` adds, are missing.
+Format 1 recordings (raw wire bytes, blocks of temperatures in ``thermoskin.temperature``)
+read and replay as before.
+
+Surviving a kill: by default the file is unchunked and every record is handed to the
+operating system as it is written (the file is flushed after each block), so a recording
+process killed at any moment (SIGKILL included) leaves a file whose every complete record is
+readable: only the record being written and the summary and footer, which `Recorder.close`
+adds, are missing. ``compression="zstd"`` (or ``"lz4"``) writes compressed chunks instead:
+smaller, and what tools such as ``mcap compress`` and ``mcap recover`` produce; a kill then
+loses the chunk being filled. The reader takes both, decompressing chunks with the mcap
+library's own chunk reader (``mcap.stream_reader.breakup_chunk``).
 (The file is not fsync'ed: a power cut may still lose what the OS had not written to disk.)
 `RecordingReader` reads such a file to its last complete record and says where and how it
 ends (``problem``); a record that cannot be what it claims (an unknown opcode, a field running
@@ -64,18 +74,22 @@ from typing import Any
 import numpy as np
 
 from skin._optional import require
+from skin.drivers.clock import WALL_OFFSET
 from skin.errors import SkinError
+from skin.formats import protobuf
 from skin.formats.layout import layout_toml
 
 #: Version of the recording layout described in the module docstring.
-FORMAT = 1
+FORMAT = 2
 PROFILE = "thermoskin"
 TEMPERATURE_TOPIC = "/temperature"
 EVENTS_TOPIC = "/events"
 WIRE_PREFIX = "/wire/"
 #: Message encodings of the wire channels, by ``Driver.wire``.
 WIRE_ENCODINGS = {"serial": "thermoskin.serial", "can": "thermoskin.can"}
-TEMPERATURE_ENCODING = "thermoskin.temperature"
+TEMPERATURE_ENCODING = "thermoskin.temperature"  # format 1's blocks
+#: Chunk compressions the recorder writes (None: unchunked, the kill-safe default).
+COMPRESSIONS = (None, "zstd", "lz4")
 LAYOUT_ATTACHMENT = "layout.toml"
 CALIBRATION_ATTACHMENT = "calibration.json"
 
@@ -107,6 +121,12 @@ _EVENT_SCHEMA = {
         "initial_temperature": {"type": "object",
                                 "additionalProperties": {"type": "number"}},
         "ambient": {"type": "number"},
+        "host_onset": {"type": ["number", "null"]},
+        "host_release": {"type": ["number", "null"]},
+        "host_decided_at": {"type": ["number", "null"]},
+        "host_reported_at": {"type": ["number", "null"]},
+        "family": {"type": ["string", "null"]},
+        "probabilities": {"type": "object", "additionalProperties": {"type": "number"}},
     },
 }
 
@@ -203,6 +223,9 @@ class Recorder:
         `skin.stream.calibration.Calibration` (its per-taxel arrays are kept).
     metadata : dict of str to str, optional
         More entries for the ``thermoskin`` metadata record (the command line, say).
+    compression : str, optional
+        ``"zstd"`` or ``"lz4"``: write compressed chunks; None (default): unchunked, every
+        message on disk as it comes (see the module docstring).
 
     Attributes
     ----------
@@ -218,8 +241,16 @@ class Recorder:
     """
 
     def __init__(self, path: str | Path, layout: Any, calibration: Any = None,
-                 metadata: dict[str, str] | None = None) -> None:
+                 metadata: dict[str, str] | None = None, compression: str | None = None
+                 ) -> None:
         mcap_writer = require("mcap.writer", "recording (MCAP)")
+        if compression not in COMPRESSIONS:
+            raise RecordingError(f"{path}: unknown compression {compression!r} (known: "
+                                 f"{', '.join(map(str, COMPRESSIONS))})")
+        if compression == "zstd":
+            require("zstandard", "zstd-compressed recordings")
+        elif compression == "lz4":
+            require("lz4", "lz4-compressed recordings")
         self.path = Path(path)
         self.layout = layout
         self.messages = 0
@@ -228,7 +259,7 @@ class Recorder:
         self._closed = False
         self._sources = 0
         self._sequence: dict[int, int] = {}
-        self._clock_offset = time.time() - time.monotonic()
+        self._clock_offset = WALL_OFFSET
         cal = _calibration_bytes(calibration)
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -236,8 +267,11 @@ class Recorder:
         except OSError as exc:
             raise RecordingError(f"{self.path}: cannot create the recording "
                                  f"({exc.strerror})") from None
+        kind = mcap_writer.CompressionType
         self._writer = mcap_writer.Writer(
-            self._file, use_chunking=False, compression=mcap_writer.CompressionType.NONE)
+            self._file, use_chunking=compression is not None, chunk_size=256 * 1024,
+            compression={None: kind.NONE, "zstd": kind.ZSTD, "lz4": kind.LZ4}[compression])
+        self._ids = protobuf.packed_ids(layout.ids)
         created = datetime.datetime.now(datetime.UTC)
         with self._guard():
             from skin import __version__
@@ -253,10 +287,14 @@ class Recorder:
             if cal is not None:
                 self._writer.add_attachment(now, now, CALIBRATION_ATTACHMENT,
                                             "application/json", cal)
+            temp_schema = self._writer.register_schema(
+                protobuf.TEMPERATURE_SCHEMA, "protobuf", protobuf.temperature_descriptor())
             self._temperature = self._writer.register_channel(
-                TEMPERATURE_TOPIC, TEMPERATURE_ENCODING, 0,
+                TEMPERATURE_TOPIC, "protobuf", temp_schema,
                 {"taxels": str(len(layout)), "unit": "degC",
                  "layout": LAYOUT_ATTACHMENT})
+            self._wire_schema = self._writer.register_schema(
+                protobuf.WIRE_SCHEMA, "protobuf", protobuf.wire_descriptor())
             schema = self._writer.register_schema(
                 "thermoskin.event", "jsonschema", json.dumps(_EVENT_SCHEMA).encode())
             self._events = self._writer.register_channel(EVENTS_TOPIC, "json", schema)
@@ -268,19 +306,28 @@ class Recorder:
     def _log_time(self, host_time: float) -> int:
         return max(0, round((host_time + self._clock_offset) * 1e9))
 
-    def _add(self, channel: int, host_time: float, data: bytes, wire: bool = False) -> None:
+    def _add(self, channel: int, host_time: float, data: bytes, wire: int = 0) -> None:
+        self._add_many(channel, [(host_time, data)], wire)
+
+    def _add_many(self, channel: int, items: list[tuple[float, bytes]], wire: int = 0
+                  ) -> None:
+        """Write messages (host time, payload) on one channel, then flush once.
+
+        ``wire`` is the count of raw wire bytes they carry.
+        """
         with self._lock:
             if self._closed:
                 return
             seq = self._sequence.get(channel, 0)
-            self._sequence[channel] = seq + 1
-            log_time = self._log_time(host_time)
+            self._sequence[channel] = seq + len(items)
+            publish = self._log_time(time.monotonic())
             with self._guard():
-                self._writer.add_message(channel, log_time, data, log_time, seq)
+                for k, (host_time, data) in enumerate(items):
+                    self._writer.add_message(channel, self._log_time(host_time), data,
+                                             publish, seq + k)
                 self._file.flush()  # to the OS now: a killed process keeps it
-            self.messages += 1
-            if wire:
-                self.bytes_recorded += len(data)
+            self.messages += len(items)
+            self.bytes_recorded += wire
 
     def add_driver(self, driver: Any, board: int | None = None) -> list[int]:
         """Record a driver's wire bytes: set its ``tap``; return the channel ids added.
@@ -317,15 +364,16 @@ class Recorder:
                                  f"(known: {', '.join(WIRE_ENCODINGS)})")
         with self._lock, self._guard():
             channel = self._writer.register_channel(f"{WIRE_PREFIX}{self._sources}",
-                                                    WIRE_ENCODINGS[wire], 0, meta)
+                                                    "protobuf", self._wire_schema, meta)
             self._sources += 1
         return channel
 
     def wire(self, channel: int, host_time: float, data: bytes) -> None:
         """Record raw bytes that arrived on a wire channel (of `add_driver`) at ``host_time``."""
-        self._add(channel, host_time, bytes(data), wire=True)
+        self._add(channel, host_time, protobuf.encode_wire(data), wire=len(data))
 
-    def temperature(self, times: np.ndarray, temperature: np.ndarray) -> None:
+    def temperature(self, times: np.ndarray, temperature: np.ndarray,
+                    host_times: np.ndarray | None = None) -> None:
         """Record a block of calibrated temperatures (a `skin.stream.pipeline.Pipeline` observer).
 
         Parameters
@@ -334,24 +382,36 @@ class Recorder:
             Device time of each sample, s, (n,).
         temperature : numpy.ndarray
             deg C in layout order, (n, taxels).
+        host_times : numpy.ndarray, optional
+            Host time of each sample (``time.monotonic`` clock), s: each message's log time;
+            the time of writing without them.
         """
-        times = np.ascontiguousarray(times, dtype="<f8")
-        temp = np.ascontiguousarray(temperature, dtype="<f4")
+        times = np.asarray(times, dtype=float)
+        temp = np.asarray(temperature, dtype="<f4")
         if temp.shape != (times.size, len(self.layout)):
             raise ValueError(f"temperature has shape {temp.shape}; expected "
                              f"({times.size}, {len(self.layout)})")
-        data = _TEMP_HEAD.pack(times.size, temp.shape[1]) + times.tobytes() + temp.tobytes()
-        self._add(self._temperature, time.monotonic(), data)
+        host = (np.full(times.size, time.monotonic()) if host_times is None
+                else np.asarray(host_times, dtype=float))
+        self._add_many(self._temperature, [
+            (h, protobuf.encode_temperature(h + self._clock_offset, t, row, self._ids))
+            for t, h, row in zip(times.tolist(), host.tolist(), temp, strict=True)])
 
     def write(self, result: Any) -> None:
         """Record a contact result as its JSON event record (a sink: `skin.stream.sinks`)."""
         from skin.stream.sinks import event_record
 
-        self.event(event_record(result))
+        host = getattr(result, "host", None)
+        self.event(event_record(result), None if host is None else host.reported_at)
 
-    def event(self, record: dict[str, Any]) -> None:
-        """Record an event record (JSON-ready dict) on the events channel."""
-        self._add(self._events, time.monotonic(), json.dumps(record).encode())
+    def event(self, record: dict[str, Any], host_time: float | None = None) -> None:
+        """Record an event record (JSON-ready dict) on the events channel.
+
+        ``host_time`` (``time.monotonic`` clock, s) is its log time; the time of writing
+        by default.
+        """
+        self._add(self._events, time.monotonic() if host_time is None else host_time,
+                  json.dumps(record).encode())
 
     def size(self) -> int:
         """Bytes written to the file so far."""
@@ -626,14 +686,7 @@ class RecordingReader:
                 if name == "MESSAGE":
                     if length < 22:  # channel, sequence and two times
                         raise self._corrupt(offset, f"a MESSAGE record of {length} bytes")
-                    m = rec.Message.read(stream, length)
-                    ch = self.channels.get(m.channel_id)
-                    if ch is None:
-                        raise self._corrupt(offset, f"a message on channel {m.channel_id}, "
-                                                    "which no channel record announced")
-                    self.count += 1
-                    yield RecordedMessage(m.channel_id, ch.topic, m.log_time, m.sequence,
-                                          m.data, offset)
+                    yield self._message(rec.Message.read(stream, length), offset)
                 elif name == "CHANNEL":
                     ch = rec.Channel.read(stream)
                     self.channels[ch.id] = ch
@@ -647,8 +700,7 @@ class RecordingReader:
                     meta = rec.Metadata.read(stream)
                     self.metadata[meta.name] = dict(meta.metadata)
                 elif name == "CHUNK":
-                    raise self._corrupt(offset, "a chunk: thermoskin recordings are unchunked "
-                                                "(this file was not written by its recorder)")
+                    yield from self._chunk(rec.Chunk.read(stream), offset)
                 elif name == "FOOTER":
                     self.complete = True
                     if f.read(len(_MAGIC)) != _MAGIC:
@@ -666,6 +718,44 @@ class RecordingReader:
                     raise
                 raise self._corrupt(offset, f"a {name} record whose fields run past its "
                                             f"{length} bytes") from None
+
+    def _message(self, m: Any, offset: int) -> RecordedMessage:
+        """Return a MESSAGE record as a `RecordedMessage` (wire bytes unwrapped)."""
+        ch = self.channels.get(m.channel_id)
+        if ch is None:
+            raise self._corrupt(offset, f"a message on channel {m.channel_id}, which no "
+                                        "channel record announced")
+        data = m.data
+        if ch.topic.startswith(WIRE_PREFIX) and ch.message_encoding == "protobuf":
+            try:
+                data = protobuf.decode_wire(data)
+            except ValueError as exc:
+                raise self._corrupt(offset, f"a {ch.topic} message: {exc}") from None
+        self.count += 1
+        return RecordedMessage(m.channel_id, ch.topic, m.log_time, m.sequence, data, offset)
+
+    def _chunk(self, chunk: Any, offset: int) -> Iterator[RecordedMessage]:
+        """Yield the messages of a CHUNK record, decompressed by the mcap library."""
+        stream_reader = require("mcap.stream_reader", "reading recordings (MCAP)")
+        if chunk.compression == "zstd":
+            require("zstandard", "reading zstd-compressed recordings")
+        elif chunk.compression == "lz4":
+            require("lz4", "reading lz4-compressed recordings")
+        elif chunk.compression:
+            raise self._corrupt(offset, f"a chunk compressed with {chunk.compression!r}, "
+                                        "which MCAP does not define")
+        try:
+            records = stream_reader.breakup_chunk(chunk, validate_crc=True)
+        except stream_reader.CRCValidationError:
+            raise self._corrupt(offset, "a chunk fails its CRC") from None
+        except Exception as exc:  # zstd/lz4 errors, a record running past the chunk
+            raise self._corrupt(offset, f"a chunk that cannot be read ({type(exc).__name__}: "
+                                        f"{exc})") from None
+        for r in records:
+            if isinstance(r, self._records.Channel):
+                self.channels[r.id] = r
+            elif isinstance(r, self._records.Message):
+                yield self._message(r, offset)
 
     def messages(self) -> Iterator[RecordedMessage]:
         """Yield every complete message, in file order; once per reader.
@@ -721,7 +811,7 @@ def merge_by_time(messages: Iterator[RecordedMessage],
 
 
 def decode_temperature(data: bytes) -> tuple[np.ndarray, np.ndarray]:
-    """Decode a ``/temperature`` message: (device times (n,), deg C (n, taxels)).
+    """Decode a format-1 ``/temperature`` block: (device times (n,), deg C (n, taxels)).
 
     Raises
     ------
@@ -768,7 +858,7 @@ class Recording:
     problem : str or None
         Where and why reading stopped early (a truncated file).
     blocks : int
-        Temperature messages (blocks of samples) read.
+        Temperature messages read (one per sample; a block of samples in format 1).
     """
 
     path: Path
@@ -807,8 +897,13 @@ def read_recording(path: str | Path) -> Recording:
     for msg in reader.messages():
         if msg.topic == TEMPERATURE_TOPIC:
             try:
-                t, x = decode_temperature(msg.data)
-            except ValueError as exc:
+                if reader.channels[msg.channel].message_encoding == "protobuf":
+                    sample = protobuf.decode_temperature(msg.data)
+                    t = np.array([sample["device_time"]])
+                    x = sample["temperature"][None, :]
+                else:  # format 1: a block of samples
+                    t, x = decode_temperature(msg.data)
+            except (ValueError, IndexError, struct.error) as exc:
                 raise RecordingError(f"{reader.path}: byte {msg.offset}: {exc}") from None
             times.append(t)
             temps.append(x)

@@ -9,9 +9,10 @@ drivers decoded, the same sequence numbers, device times and counts, so a pipeli
 replay gives the events of the recorded run.
 
 ``speed`` 1 releases each chunk of bytes at its recorded time relative to the first (real
-time), 2 twice as fast, 0 as fast as they decode. A frame's ``host_time`` is its arrival on
-the replay's time line: the recorded arrival, shifted to start when the replay starts and
-divided by the speed (by 1 at speed 0, where it may run ahead of the clock).
+time), 2 twice as fast, 0 as fast as they decode. A frame's ``host_time`` is its recorded
+arrival (the recording's wall clock, as this process's ``time.monotonic`` clock:
+`skin.drivers.clock.WALL_OFFSET`), so the clock maps, and the events' host times, are those of
+the recorded run whatever the speed: they line up with the robot's logs of that run.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from typing import Any
 from urllib.parse import unquote, urlsplit
 
 from skin.drivers.base import Driver
+from skin.drivers.clock import WALL_OFFSET
 from skin.drivers.protocol import CanReassembler, LinkStats, StreamDecoder, split_can_records
 from skin.drivers.recording import (
     WIRE_PREFIX,
@@ -196,7 +198,8 @@ class ReplayDriver(Driver):
                 frame = decoder.push(ident, data)
                 if frame is not None:
                     frames.append(frame)
-        self._frames.extend(dataclasses.replace(f, host_time=host_time) for f in frames)
+        recorded = msg.log_time * 1e-9 - WALL_OFFSET
+        self._frames.extend(dataclasses.replace(f, host_time=recorded) for f in frames)
         if len(self._decoders) > 1:
             self.stats = LinkStats(**{
                 f.name: sum(getattr(d.stats, f.name) for _, d in self._decoders.values())

@@ -45,9 +45,12 @@ from skin.formats.scene import Scene
 from skin.frame import FLAG_ADC_SATURATED, FLAG_STREAMING, Frame
 from skin.stream.calibration import Calibration
 
+#: Samples `SkinSimulator` computes at a time (5 s at 200 Hz).
+CHUNK = 1000
+
 
 class SkinSimulator:
-    """Simulate every taxel of a scene's layout.
+    """Simulate every taxel of a scene's layout, in bounded chunks as the frames are taken.
 
     Parameters
     ----------
@@ -159,11 +162,22 @@ class SkinSimulator:
     def temperatures(self) -> np.ndarray:
         """Noise-free thermistor temperatures, shape (n_samples, n_taxels), deg C.
 
+        The whole run at once: `temperature_chunks` joined.
+        """
+        parts = list(self.temperature_chunks())
+        return np.concatenate(parts) if parts else np.empty((0, len(self.layout)))
+
+    def temperature_chunks(self, chunk: int = CHUNK) -> Iterator[np.ndarray]:
+        """Yield the noise-free thermistor temperatures, ``chunk`` samples at a time.
+
         With the board's sensor description: its heater mode, PID loop and thermistor lag.
+        The chunks joined are the same whatever ``chunk``, bit for bit; memory holds one.
         """
         from skin.models.physics import conductance_rate, contact_response, contact_temperature
-        from skin.models.sensors import apply_dynamics, heater_term
+        from skin.models.sensors import StreamingDynamics, heater_term
 
+        if chunk < 1:
+            raise ValueError(f"chunk must be at least 1 sample, got {chunk}")
         n = len(self.layout)
         rng = np.random.default_rng(self.scene.seed)
         lo, hi = self.scene.initial_temperature
@@ -181,70 +195,92 @@ class SkinSimulator:
         ts = np.zeros(n)
         rate = np.full(n, np.inf)  # conductance_rate of each taxel's current contact
         start = np.zeros(n)
-        out = np.empty((self.n_samples, n))
         starts: dict[int, list] = {}
         ends: dict[int, list] = {}
         for touch in self._touches:
             starts.setdefault(touch[0], []).append(touch)
             ends.setdefault(touch[1], []).append(touch)
         reading = free.copy()
-        for k in range(self.n_samples):
-            t = k / self.sample_rate
-            for _, _, idx, *_ in ends.get(k, ()):
-                touching[idx] = False
-                free[idx] = reading[idx]
-            for _, _, idx, t_obj, e_obj, log_h in starts.get(k, ()):
-                touching[idx] = True
-                t0[idx] = free[idx]
-                ts[idx] = contact_temperature(free[idx], t_obj, e_s[idx], e_obj)
-                start[idx] = t
-                e_obj_now[idx] = e_obj
-                if self.contact == "finite":
-                    h = 10.0 ** h_rng.uniform(log_h[0], log_h[1], idx.size)
-                    rate[idx] = conductance_rate(h, e_s[idx], e_obj)
-            free = np.where(touching, free, heated + (free - heated) * decay)
-            if touching.any():
-                here = self._sensor_of(touching)
-                resp = contact_response(t - start[touching], rate[touching], here)
-                reading = free.copy()
-                reading[touching] = t0[touching] + (ts[touching] - t0[touching]) * resp
-                if sensor.heater in ("off-at-contact", "on-during-contact"):
-                    reading[touching] += heater_term(t - start[touching], t0[touching],
-                                                     e_obj_now[touching], here,
-                                                     self.scene.ambient)
-            else:
-                reading = free
-            out[k] = reading
-        return apply_dynamics(out, sensor, self.sample_rate, axis=0)
+        dynamics = StreamingDynamics(sensor, self.sample_rate)
+        for first in range(0, self.n_samples, chunk):
+            out = np.empty((min(chunk, self.n_samples - first), n))
+            for k in range(first, first + out.shape[0]):
+                t = k / self.sample_rate
+                for _, _, idx, *_ in ends.get(k, ()):
+                    touching[idx] = False
+                    free[idx] = reading[idx]
+                for _, _, idx, t_obj, e_obj, log_h in starts.get(k, ()):
+                    touching[idx] = True
+                    t0[idx] = free[idx]
+                    ts[idx] = contact_temperature(free[idx], t_obj, e_s[idx], e_obj)
+                    start[idx] = t
+                    e_obj_now[idx] = e_obj
+                    if self.contact == "finite":
+                        h = 10.0 ** h_rng.uniform(log_h[0], log_h[1], idx.size)
+                        rate[idx] = conductance_rate(h, e_s[idx], e_obj)
+                free = np.where(touching, free, heated + (free - heated) * decay)
+                if touching.any():
+                    here = self._sensor_of(touching)
+                    resp = contact_response(t - start[touching], rate[touching], here)
+                    reading = free.copy()
+                    reading[touching] = t0[touching] + (ts[touching] - t0[touching]) * resp
+                    if sensor.heater in ("off-at-contact", "on-during-contact"):
+                        reading[touching] += heater_term(t - start[touching], t0[touching],
+                                                         e_obj_now[touching], here,
+                                                         self.scene.ambient)
+                else:
+                    reading = free
+                out[k - first] = reading
+            yield dynamics.push(out)
 
-    def frames(self) -> Iterator[Frame]:
+    def frames(self, chunk: int = CHUNK) -> Iterator[Frame]:
         """Yield the frames of the whole simulation, with noise and ADC quantisation.
 
         A reading at either rail of the ADC has its taxel's ``FLAG_ADC_SATURATED`` status bit
-        set, and the frame's flag with it.
+        set, and the frame's flag with it. The simulation runs ``chunk`` samples at a time as
+        the frames are taken, so memory does not grow with the duration; the frames are the
+        same whatever ``chunk``. The temperature noise is drawn from the scene's seed + 1 as
+        it always was; the sensor's ADC noise and the ambient reading's noise come from
+        streams of their own (``[seed + 1, 1]`` and ``[seed + 1, 2]``), so that no chunk
+        needs the draws of the whole run before it.
         """
-        from skin.models.sensors import smooth
+        from skin.models.sensors import StreamingSmoother
 
         rng = np.random.default_rng(self.scene.seed + 1)
-        temps = self.temperatures()
-        noisy = temps + rng.normal(0.0, self.noise, temps.shape)
-        raw = self.calibration.counts(noisy)
-        if self.scene.noise is None and self.sensor.adc_noise > 0:  # the sensor's ADC noise
-            raw = raw + rng.normal(0.0, self.sensor.adc_noise, raw.shape)
-        raw = smooth(raw, self.sensor, axis=0, fs=self.sample_rate)  # the firmware's smoothing
+        adc_rng = np.random.default_rng([self.scene.seed + 1, 1])
+        amb_rng = np.random.default_rng([self.scene.seed + 1, 2])
+        smoother = StreamingSmoother(self.sensor, self.sample_rate)  # the firmware's smoothing
+        adc_noise = self.scene.noise is None and self.sensor.adc_noise > 0  # the sensor's
+        k = 0
+        for temps in self.temperature_chunks(chunk):
+            noisy = temps + rng.normal(0.0, self.noise, temps.shape)
+            raw = self.calibration.counts(noisy)
+            if adc_noise:
+                raw = raw + adc_rng.normal(0.0, self.sensor.adc_noise, raw.shape)
+            raw = smoother.push(raw)
+            yield from self._frames_of(raw, k, amb_rng)
+            k += raw.shape[0]
+        rest = smoother.finish()
+        if rest is not None:
+            yield from self._frames_of(rest, k, amb_rng)
+
+    def _frames_of(self, raw: np.ndarray, k0: int,
+                   amb_rng: np.random.Generator) -> Iterator[Frame]:
+        """Frames of consecutive raw readings (n, n_taxels) from sample ``k0``."""
+        m = raw.shape[0]
         counts = np.clip(np.rint(raw), 0, self.board.adc_max)
-        ambient = self.scene.ambient + rng.normal(0.0, 0.05, self.n_samples)
+        ambient = self.scene.ambient + amb_rng.normal(0.0, 0.05, m)
         duty = np.full(self._channels, 255, dtype=np.uint8)
-        channel_counts = np.zeros((self.n_samples, self._channels), dtype=np.uint16)
+        channel_counts = np.zeros((m, self._channels), dtype=np.uint16)
         channel_counts[:, self._addr] = counts[:, self._idx]
-        status = np.zeros((self.n_samples, self._channels), dtype=np.uint8)
+        status = np.zeros((m, self._channels), dtype=np.uint8)
         rails = (counts <= 0) | (counts >= self.board.adc_max)
         status[:, self._addr] = np.where(rails[:, self._idx], FLAG_ADC_SATURATED, 0)
         flags = np.where(status.any(axis=1), FLAG_ADC_SATURATED, 0)
-        for k in range(self.n_samples):
-            t = k / self.sample_rate
-            yield Frame(k, t, time.monotonic(), channel_counts[k], float(ambient[k]), duty,
-                        int(flags[k]), self.board.id, status[k])
+        for i in range(m):
+            k = k0 + i
+            yield Frame(k, k / self.sample_rate, time.monotonic(), channel_counts[i],
+                        float(ambient[i]), duty, int(flags[i]), self.board.id, status[i])
 
     def identity(self, token: int = 0) -> Identity:
         """Return the IDENTITY a board with this simulator's layout would reply.
@@ -415,7 +451,7 @@ class PtySerialDevice:
         chunk: list[bytes] = []
         try:
             frames = self.simulator.frames()
-            first = next(frames, None)  # computes the simulation: before the pacing starts
+            first = next(frames, None)  # the first chunk is computed before the pacing starts
             pacer = _Pacer(self.speed)
             for frame in itertools.chain([] if first is None else [first], frames):
                 paused = time.monotonic()

@@ -26,8 +26,11 @@ PRE = 10  # samples before onset averaged into T0
 KINDS = ("raw", "slope", "both")
 
 
-def window(data: TrialSet, duration: float) -> np.ndarray:
+def window(data: TrialSet, duration: float, channel: int | slice = 0) -> np.ndarray:
     """Return the first ``duration`` seconds after each trial's onset, (n_trials, n).
+
+    ``channel`` picks the channel (default the primary); ``slice(None)`` returns every channel,
+    (n_trials, n_channels, n).
 
     Raises `skin.errors.SkinError` naming the trial when a trial is too short or its onset
     is unknown (-1: run `skin.models.features.detect_onsets` first).
@@ -39,25 +42,44 @@ def window(data: TrialSet, duration: float) -> np.ndarray:
     if unknown.size:
         raise SkinError(f"{data.source}: trial {int(unknown[0])} has onset -1 (unknown); "
                         f"{unknown.size} trial(s) need the onset detector first")
-    short = np.flatnonzero(data.onset + n > data.temperature.shape[1])
+    m = data.temperature.shape[-1]
+    short = np.flatnonzero(data.onset + n > m)
     if short.size:
         i = int(short[0])
-        raise SkinError(f"{data.source}: trial {i} has {data.temperature.shape[1] - data.onset[i]}"
+        raise SkinError(f"{data.source}: trial {i} has {m - data.onset[i]}"
                         f" samples after onset, fewer than the {n} of a {duration} s window")
-    idx = data.onset[:, None] + np.arange(n)[None, :]
-    return np.take_along_axis(data.temperature, idx, axis=1)
+    idx = data.onset[:, None, None] + np.arange(n)[None, None, :]
+    out = np.take_along_axis(data.temperature, np.broadcast_to(
+        idx, (*data.temperature.shape[:2], n)), axis=2)
+    return out[:, 0] if channel == 0 else out[:, channel]
 
 
 def trial_matrix(data: TrialSet, duration: float) -> np.ndarray:
     """Rows ``[ambient, T0, window...]`` for every trial (see the module docstring)."""
     w = window(data, duration)
     first = np.maximum(data.onset - PRE, 0)
-    t0 = np.array([data.temperature[i, first[i]:max(data.onset[i], first[i] + 1)].mean()
+    t0 = np.array([data.primary[i, first[i]:max(data.onset[i], first[i] + 1)].mean()
                    for i in range(len(data))])
     amb = data.ambient if data.ambient is not None else np.full(len(data), np.nan)
     if np.isnan(amb).any():
         raise SkinError(f"{data.source}: the classifiers need the 'ambient' column")
     return np.column_stack([amb, t0, w])
+
+
+def contact_matrix(data: TrialSet, duration: float) -> np.ndarray:
+    """Rows ``[ambient, T0_0, window_0..., T0_1, window_1..., ...]``, one block per channel.
+
+    NaN where a channel is absent; with one channel this is `trial_matrix`.
+    """
+    w = window(data, duration, channel=slice(None))  # (n, c, m)
+    first = np.maximum(data.onset - PRE, 0)
+    t0 = np.array([data.temperature[i, :, first[i]:max(data.onset[i], first[i] + 1)].mean(axis=1)
+                   for i in range(len(data))])  # (n, c)
+    amb = data.ambient if data.ambient is not None else np.full(len(data), np.nan)
+    if np.isnan(amb).any():
+        raise SkinError(f"{data.source}: the classifiers need the 'ambient' column")
+    blocks = np.concatenate([t0[:, :, None], w], axis=2)
+    return np.column_stack([amb, blocks.reshape(len(data), -1)])
 
 
 def split_rows(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -47,6 +47,12 @@ class JointContactModel:
     onset_shifts : sequence of float
         How much earlier than the given onset the contact may have begun, s; the evidence is
         averaged over them (default: the onset is right).
+    conductance_range : (float, float), optional
+        One contact conductance range (W/(m^2 K)) for every material. By default each
+        material's own (`Material.conductance_range`, from its surface's air gap), which
+        makes the contact's sharpness evidence for the material: a touch firmer or softer
+        than the table's gaps (a pressed or a perfect contact) is then taken for another
+        material of like effusivity (pine for mdf at p = 0.98 in the default scene).
 
     Notes
     -----
@@ -57,7 +63,8 @@ class JointContactModel:
 
     def __init__(self, materials: Sequence[Material], sensor: SensorConstants | None = None,
                  noise: float = 0.1, object_std: float = 10.0, h_points: int = 7,
-                 onset_shifts: Sequence[float] = (0.0,)) -> None:
+                 onset_shifts: Sequence[float] = (0.0,),
+                 conductance_range: tuple[float, float] | None = None) -> None:
         if not materials:
             raise ValueError("JointContactModel needs at least one candidate material")
         if not (noise > 0 and object_std > 0 and h_points >= 1):
@@ -71,7 +78,8 @@ class JointContactModel:
         if self.onset_shifts.ndim != 1 or self.onset_shifts.size == 0:
             raise ValueError("onset_shifts must be a non-empty sequence of seconds")
         self.effusivity = np.array([m.effusivity for m in self.materials])
-        lo_hi = np.log10([m.conductance_range for m in self.materials])
+        lo_hi = np.log10([m.conductance_range if conductance_range is None
+                          else conductance_range for m in self.materials])
         # (n_classes, h_points): each material's contact conductances, log-spaced
         self.conductance = 10.0 ** np.linspace(lo_hi[:, 0], lo_hi[:, 1], h_points, axis=1)
 
@@ -175,17 +183,28 @@ class JointContactModel:
         pp = pp.reshape(n_c, n_h * n_s, t0.size)
         dp = dp.reshape(n_c, n_h * n_s, t0.size)
         # z_i = y_i - T0_i + T0_i phi_i = T_obj phi_i + noise (all from ambient)
-        s2, tau2 = self.noise**2, self.object_std**2
+        # the object's prior: about ambient, or a heat-generating material's own temperature
+        mu = np.array([0.0 if m.temperature is None else m.resting_temperature(ambient) - ambient
+                       for m in self.materials])[:, None]
+        tau2 = np.array([self.object_std if m.temperature is None
+                         else max(0.5 * (m.temperature[1] - m.temperature[0]), 0.5)
+                         for m in self.materials])[:, None] ** 2
+        s2 = self.noise**2
         a = pp.sum(axis=-1)
         b = dp.sum(axis=-1) + pp @ t0
         zz = np.sum(d**2) + 2.0 * dp @ t0 + pp @ t0**2
         precision = a / s2 + 1.0 / tau2
-        mean = b / s2 / precision  # the prior's mean is ambient, 0 here
-        quad = zz / s2 - (b / s2) ** 2 / precision
+        rhs = b / s2 + mu / tau2
+        mean = rhs / precision
+        quad = zz / s2 + mu**2 / tau2 - rhs**2 / precision
         return -0.5 * quad - 0.5 * np.log(tau2 * precision), mean + ambient
 
 
 
+#: The pipeline's contact conductance range for every material, W/(m^2 K): air gaps of 150 um
+#: down to 0.1 um (the materials table's extremes), so that how firmly a contact was made is
+#: not taken for evidence of the material.
+CONDUCTANCE_RANGE = (0.026 / 150e-6, 0.026 / 0.1e-6)
 #: How much earlier than the detected onset a contact may have begun, s (the pipeline's).
 ONSET_SHIFTS = tuple(np.round(np.arange(0.0, 0.081, 0.01), 3))
 
@@ -227,7 +246,10 @@ class JointClassifier:
         from skin.models.materials import load_materials
 
         table = materials if materials is not None else load_materials()
+        self.table = table
         model_options.setdefault("onset_shifts", ONSET_SHIFTS)
+        model_options.setdefault("conductance_range", CONDUCTANCE_RANGE)
+        model_options.setdefault("h_points", 9)
         self.model = JointContactModel([m for m in table.values() if m.classify],
                                        **model_options)
         self.threshold = threshold
@@ -239,22 +261,32 @@ class JointClassifier:
         self._sensors.update(sensors or {})
 
     def classify(self, contact):
-        """Label a contact from all its taxels at once (``"unknown"`` when unsure)."""
+        """Label a contact from all its taxels at once (its family, or ``"unknown"``, when unsure).
+
+        The effusivity reported is measured (`skin.models.contact_fit.fitted_effusivity`).
+        """
+        from skin.models.contact_fit import fitted_effusivity
+        from skin.models.materials import hierarchical_answer
+
         usable = []
         for w in contact.windows:
             ok = np.isfinite(w.temperature)
             if ok.sum() >= 2 and w.time[ok][-1] >= self.min_duration:
                 usable.append((w, ok))
         if not usable:
-            return MaterialEstimate(UNKNOWN, {}, 0.0, None, self.method)
+            return MaterialEstimate(UNKNOWN, {}, 0.0, None, self.method, UNKNOWN, 0.0)
         span = min(min(w.time[ok][-1] for w, ok in usable), self.max_duration)
         grid = np.arange(1, int(np.floor(span * self.fs + 1e-9)) + 1) / self.fs
         y = np.array([np.interp(grid, w.time[ok], w.temperature[ok]) for w, ok in usable])
         t0 = np.array([w.initial for w, _ in usable])
         sensors = [self._sensors[w.taxel] for w, _ in usable]
         p = self.model.probabilities(grid, y, t0, contact.ambient, sensors)
-        best = int(np.argmax(p))
         probs = {c: float(v) for c, v in zip(self.model.classes, p, strict=True)}
-        label = self.model.classes[best] if p[best] >= self.threshold else UNKNOWN
-        return MaterialEstimate(label, probs, float(p[best]),
-                                float(self.model.effusivity[best]), self.method)
+        label, confidence, family, family_confidence = hierarchical_answer(
+            probs, self.threshold, self.table)
+        # the effusivity the contact shows (not the chosen material's table value)
+        measured = fitted_effusivity(contact, self.fs, self.min_duration, self.max_duration,
+                                     sensors[0])
+        return MaterialEstimate(label, probs, confidence,
+                                None if measured is None else measured[0], self.method,
+                                family, family_confidence)

@@ -5,7 +5,12 @@
 model's duration) becomes a row ``[ambient, T0, window...]``; the taxels' class probabilities
 are fused (`skin.models.classifiers.fuse_probabilities`), and the label is the most probable
 material, or ``"unknown"`` when no taxel's window is long enough or the fused probability is
-below ``threshold``. A model trained with ``skin train --anytime`` holds one model per
+below ``threshold`` (then the material's family is named when its summed probability
+reaches it, `skin.models.materials.hierarchical_answer`). A model of several channels (``skin
+train`` on a dataset of several channels per contact) reads one row per contact: its taxels,
+warmest before contact first (heated before passive), fill the channels, NaN where it has
+fewer. The effusivity reported is measured (`skin.models.contact_fit.fitted_effusivity`).
+A model trained with ``skin train --anytime`` holds one model per
 duration: each taxel then answers from the longest of them its window covers, so a brief
 touch is named from what it gave, with the confidence that brevity allows.
 """
@@ -38,6 +43,7 @@ class LearnedClassifier:
         self.fs = float(self.doc["features"]["fs"])
         self.samples = round(float(self.doc["features"]["duration"]) * self.fs)
         self.classes = [str(c) for c in self.estimator.classes_]
+        self.channels = int(self.doc["features"].get("channels", 1))
         self.threshold = threshold
         self.method = f"learned:{self.doc['method']}"
 
@@ -76,30 +82,45 @@ class LearnedClassifier:
 
     def _rows(self, contact: Contact, windows: list, samples: int) -> np.ndarray:
         grid = np.arange(samples) / self.fs
-        rows = []
+        blocks = []
         for w in windows:
             ok = np.isfinite(w.temperature)
             y = np.interp(grid, w.time[ok], w.temperature[ok])
-            rows.append(np.concatenate([[contact.ambient, w.initial], y]))
-        return np.array(rows).reshape(len(rows), 2 + samples)
+            blocks.append(np.concatenate([[w.initial], y]))
+        if self.channels == 1:  # one row per taxel
+            return np.array([np.concatenate([[contact.ambient], b]) for b in blocks]).reshape(
+                len(blocks), 2 + samples)
+        order = np.argsort([-w.initial for w in windows])[: self.channels]
+        row = np.full((self.channels, 1 + samples), np.nan)
+        for k, i in enumerate(order):
+            row[k] = blocks[i]
+        return np.concatenate([[contact.ambient], row.ravel()])[None, :]
 
     def _predict(self, x: np.ndarray) -> np.ndarray:
-        if hasattr(self.estimator, "predict_proba"):
-            return self.estimator.predict_proba(x)
-        pred = self.estimator.predict(x)  # no probabilities: each taxel votes with certainty
+        from skin.threads import limited_threads
+
+        with limited_threads():
+            if hasattr(self.estimator, "predict_proba"):
+                return self.estimator.predict_proba(x)
+            pred = self.estimator.predict(x)  # no probabilities: each taxel votes with certainty
         return np.array([[0.999 if c == lab else 0.001 / max(len(self.classes) - 1, 1)
                           for c in self.classes] for lab in pred])
 
     def classify(self, contact: Contact) -> MaterialEstimate:
-        """Label a contact from all its taxels' evidence."""
+        """Label a contact from all its taxels' evidence (the family when that is all)."""
         from skin.models.classifiers import fuse_probabilities
+        from skin.models.contact_fit import fitted_effusivity
+        from skin.models.materials import hierarchical_answer
 
         p = self.probabilities(contact)
         if p.shape[0] == 0:
-            return MaterialEstimate(UNKNOWN, {}, 0.0, None, self.method)
+            return MaterialEstimate(UNKNOWN, {}, 0.0, None, self.method, UNKNOWN, 0.0)
         fused = fuse_probabilities(p)
-        best = int(np.argmax(fused))
         probs = {c: float(v) for c, v in zip(self.classes, fused, strict=True)}
-        confidence = float(fused[best])
-        label = self.classes[best] if confidence >= self.threshold else UNKNOWN
-        return MaterialEstimate(label, probs, confidence, None, self.method)
+        label, confidence, family, family_confidence = hierarchical_answer(probs,
+                                                                           self.threshold)
+        measured = fitted_effusivity(contact, self.fs)
+        return MaterialEstimate(label, probs, confidence,
+                                None if measured is None else measured[0], self.method,
+                                family, family_confidence)
+

@@ -40,6 +40,8 @@ class Material:
         Where the numbers come from.
     gap : tuple of float
         (min, max) effective air gap of a light touch, um; sets the contact conductance.
+    family : str
+        The family it belongs to (``"metal"``, ``"wood_paper"`` ...; ``"other"`` if not given).
     """
 
     name: str
@@ -52,6 +54,7 @@ class Material:
     temperature: tuple[float, float] | None
     source: str
     gap: tuple[float, float] = (2.0, 20.0)
+    family: str = "other"
 
     @property
     def effusivity_range(self) -> tuple[float, float]:
@@ -131,6 +134,9 @@ def parse_materials(text: str, source: str = "<string>") -> dict[str, Material]:
         colour = raw.get("colour", "#777777")
         if not (isinstance(colour, str) and re.fullmatch(r"#[0-9A-Fa-f]{6}", colour)):
             raise MaterialsError(f"{where}: field 'colour' must be '#RRGGBB'")
+        family = raw.get("family", "other")
+        if not (isinstance(family, str) and re.fullmatch(r"[a-z][a-z0-9_]*", family)):
+            raise MaterialsError(f"{where}: field 'family' must be a lower-case name")
         classify = raw.get("classify", True)
         if not isinstance(classify, bool):
             raise MaterialsError(f"{where}: field 'classify' must be true or false")
@@ -142,6 +148,7 @@ def parse_materials(text: str, source: str = "<string>") -> dict[str, Material]:
             temperature=None if temperature is None else _pair(temperature, where, "temperature"),
             source=str(raw.get("source", "")),
             gap=_pair(raw["gap"], where, "gap") if "gap" in raw else (2.0, 20.0),
+            family=family,
             **ranges,
         )
     return table
@@ -157,3 +164,39 @@ def load_materials(path: str | Path | None = None) -> dict[str, Material]:
     except OSError as exc:
         raise MaterialsError(f"{path}: cannot read materials table: {exc.strerror}") from None
     return parse_materials(text, source=str(path))
+
+
+def family_of(name: str, table: dict[str, Material] | None = None) -> str | None:
+    """Return the family of a material name (None if the table does not know it)."""
+    table = load_materials() if table is None else table
+    return table[name].family if name in table else None
+
+
+def hierarchical_answer(probabilities: dict[str, float], threshold: float,
+                        table: dict[str, Material] | None = None,
+                        ) -> tuple[str, float, str, float]:
+    """Name the material, else its family, else "unknown", from class probabilities.
+
+    The family's probability is the sum of its materials'. Classes the table does not know
+    are their own family.
+
+    Returns
+    -------
+    (label, confidence, family, family_confidence)
+        ``label`` is the most probable material if its probability reaches ``threshold``,
+        else ``"unknown"``; ``family`` is the most probable family if its probability
+        reaches ``threshold``, else ``"unknown"``; the confidences are the probabilities
+        of the most probable material and family.
+    """
+    if not probabilities:
+        return "unknown", 0.0, "unknown", 0.0
+    table = load_materials() if table is None else table
+    best = max(probabilities, key=probabilities.__getitem__)
+    fam: dict[str, float] = {}
+    for name, p in probabilities.items():
+        f = table[name].family if name in table else name
+        fam[f] = fam.get(f, 0.0) + p
+    best_f = max(fam, key=fam.__getitem__)
+    conf, conf_f = float(probabilities[best]), float(fam[best_f])
+    return (best if conf >= threshold else "unknown", conf,
+            best_f if conf_f >= threshold else "unknown", conf_f)

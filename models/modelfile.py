@@ -29,6 +29,8 @@ ALLOWED = frozenset({
     "skin.models.classifiers.HMMClassifier",
     "skin.models.classifiers.ModelBasedClassifier",
     "skin.models.classifiers.AnytimeClassifier",
+    "skin.models.contact.ContactClassifier",
+    "skin.models.contact.ContactFeatures",
     "sklearn.metrics._dist_metrics.EuclideanDistance64",  # k-NN's tree
     "sklearn.neighbors._kd_tree.KDTree",
     "sklearn.neighbors._ball_tree.BallTree",
@@ -44,8 +46,11 @@ class ModelFileError(SkinError):
 
 
 def save_model(path: str | Path, estimator: Any, method: str, duration: float, fs: float,
-               training: dict[str, Any]) -> Path:
-    """Write a trained estimator and its settings to ``path`` (``.skops``)."""
+               training: dict[str, Any], channels: int = 1) -> Path:
+    """Write a trained estimator and its settings to ``path`` (``.skops``).
+
+    ``channels``: channel blocks per row the estimator reads (1: one taxel's trace).
+    """
     require("skops", "ml")
     import skops.io as sio
 
@@ -54,7 +59,8 @@ def save_model(path: str | Path, estimator: Any, method: str, duration: float, f
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     doc = {"format": FORMAT, "library": skin.__version__, "method": method,
-           "features": {"duration": float(duration), "fs": float(fs)},
+           "features": {"duration": float(duration), "fs": float(fs),
+                                                   "channels": int(channels)},
            "classes": [str(c) for c in estimator.classes_], "training": training,
            "written": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
            "estimator": estimator}

@@ -339,6 +339,22 @@ def apply_dynamics(y: np.ndarray, sensor: SensorDescription, fs: float | None = 
     return out
 
 
+def _moving_average(x: np.ndarray, n: int, start: int) -> np.ndarray:
+    """Causal mean of ``n`` samples along axis 0 for rows ``start:`` of ``x``.
+
+    The rows before ``start`` are the samples before (as many as there are, up to n - 1);
+    the series starts at row 0 with zeros before it. Each output sums its terms in the same
+    order wherever the series is cut, so chunks give the whole series' output bit for bit.
+    """
+    w = 1.0 / n
+    out = w * x[start:]
+    for j in range(1, n):
+        lo = max(start, j)  # rows whose sample j back exists
+        if lo < x.shape[0]:
+            out[lo - start:] += w * x[lo - j:x.shape[0] - j]
+    return out
+
+
 def smooth(y: np.ndarray, sensor: SensorDescription, axis: int = -1,
            fs: float | None = None) -> np.ndarray:
     """Apply the sensor's smoothing to readings over time (``y`` itself for ``"none"``)."""
@@ -351,13 +367,127 @@ def smooth(y: np.ndarray, sensor: SensorDescription, axis: int = -1,
     y = np.asarray(y, dtype=float)
     first = np.take(y, [0], axis=axis)
     if kind == "moving-average":
-        n = sensor.smoothing_window
-        return signal.lfilter(np.full(n, 1.0 / n), [1.0], y - first, axis=axis) + first
+        x = np.moveaxis(y - first, axis, 0)
+        return np.moveaxis(_moving_average(x, sensor.smoothing_window, 0), 0, axis) + first
     if kind == "low-pass":
         sos = signal.butter(2, sensor.smoothing_cutoff, fs=fs, output="sos")
         return signal.sosfilt(sos, y - first, axis=axis) + first
     return signal.savgol_filter(y, sensor.smoothing_window, sensor.savgol_order, axis=axis,
                                 mode="interp")
+
+
+class StreamingDynamics:
+    """`apply_dynamics` over a series given in consecutive chunks along axis 0.
+
+    Each chunk's output is that of `apply_dynamics` on the whole series, bit for bit: the
+    filters keep their state between chunks and the series' first sample.
+    """
+
+    def __init__(self, sensor: SensorDescription, fs: float | None = None) -> None:
+        fs = sensor.sample_rate if fs is None else fs
+        self._pid = (math.exp(-1.0 / (fs * sensor.control_time)) if sensor.heater == "pid"
+                     else None)
+        self._lag = math.exp(-1.0 / (fs * sensor.lag)) if sensor.lag > 0 else None
+        self._state: list[Any] = [None, None]  # per filter: (first sample, lfilter state)
+
+    def _first_order(self, i: int, y: np.ndarray, a: float) -> np.ndarray:
+        from scipy.signal import lfilter
+
+        if self._state[i] is None:
+            self._state[i] = (y[:1].copy(), np.zeros((1, *y.shape[1:])))
+        first, zi = self._state[i]
+        out, zf = lfilter([1.0 - a], [1.0, -a], y - first, axis=0, zi=zi)
+        self._state[i] = (first, zf)
+        return out + first
+
+    def push(self, y: np.ndarray) -> np.ndarray:
+        """Return the dynamics' output for the next chunk ``y`` (n_samples, ...)."""
+        out = np.asarray(y, dtype=float)
+        if out.shape[0] == 0:
+            return out
+        if self._pid is not None:
+            fo = self._first_order(0, out, self._pid)
+            out = out - (fo - self._state[0][0])
+        if self._lag is not None:
+            out = self._first_order(1, out, self._lag)
+        return out
+
+
+class StreamingSmoother:
+    """`smooth` over a series given in consecutive chunks along axis 0.
+
+    `push` returns the rows that are final, `finish` the rest: the rows joined are `smooth`
+    of the whole series bit for bit. Causal smoothing returns each chunk at once; the
+    non-causal Savitzky-Golay holds back half a window (and the first window).
+    """
+
+    def __init__(self, sensor: SensorDescription, fs: float | None = None) -> None:
+        from scipy import signal
+
+        self.sensor = sensor
+        self.kind = sensor.smoothing
+        fs = sensor.sample_rate if fs is None else fs
+        self._first: np.ndarray | None = None
+        self._zi: np.ndarray | None = None
+        if self.kind == "low-pass":
+            self._sos = signal.butter(2, sensor.smoothing_cutoff, fs=fs, output="sos")
+        self._buf: np.ndarray | None = None  # savgol: rows kept, from ``_buf_start``
+        self._buf_start = 0
+        self._done = 0  # savgol: rows returned so far
+
+    def push(self, y: np.ndarray) -> np.ndarray:
+        """Smooth the next chunk ``y`` (n_samples, ...); return the rows now final."""
+        from scipy import signal
+
+        if self.kind == "none":
+            return y
+        y = np.asarray(y, dtype=float)
+        if self.kind == "savgol":
+            self._buf = y if self._buf is None else np.concatenate([self._buf, y])
+            return self._savgol(final=False)
+        if y.shape[0] == 0:
+            return y
+        if self._first is None:
+            self._first = y[:1].copy()
+        if self.kind == "moving-average":
+            x = y - self._first
+            hist = x[:0] if self._zi is None else self._zi
+            ext = np.concatenate([hist, x])
+            out = _moving_average(ext, self.sensor.smoothing_window, hist.shape[0])
+            self._zi = ext[max(0, ext.shape[0] - (self.sensor.smoothing_window - 1)):]
+        else:
+            if self._zi is None:
+                self._zi = np.zeros((self._sos.shape[0], 2, *y.shape[1:]))
+            out, self._zi = signal.sosfilt(self._sos, y - self._first, axis=0, zi=self._zi)
+        return out + self._first
+
+    def finish(self) -> np.ndarray | None:
+        """Return the rows held back (None if none are)."""
+        if self.kind != "savgol" or self._buf is None:
+            return None
+        return self._savgol(final=True)
+
+    def _savgol(self, final: bool) -> np.ndarray:
+        """Return the rows whose window lies in the buffer (all of them at the end)."""
+        from scipy import signal
+
+        w = self.sensor.smoothing_window
+        buf = self._buf
+        stop = buf.shape[0] if final else buf.shape[0] - w // 2
+        first = self._done - self._buf_start
+        if buf.shape[0] < w or stop <= first:
+            if final and buf.shape[0] - first > 0:  # shorter than a window: as `smooth` fails
+                signal.savgol_filter(buf, w, self.sensor.savgol_order, axis=0, mode="interp")
+            return buf[:0]
+        # interior rows depend on their window alone; edge rows are fitted to the first or
+        # last window of the series, which the buffer holds when they are returned
+        out = signal.savgol_filter(buf, w, self.sensor.savgol_order, axis=0,
+                                   mode="interp")[first:stop]
+        self._done += stop - first
+        keep = max(0, self._done - (w - 1) - self._buf_start)
+        self._buf = buf[keep:]
+        self._buf_start += keep
+        return out
 
 
 # -- files -----------------------------------------------------------------------------------

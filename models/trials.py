@@ -37,6 +37,15 @@ contacts and resting 10 minutes every 10 trials; initial sensor temperatures spr
   replace the protocol's, its temperature noise and ADC bits apply before rounding, and its
   smoothing after (a logger's). The paper's sensor gives exactly the datasets made before
   sensor descriptions existed.
+- **Channels** (``Protocol.channels``): each contact is seen by one or more taxels touching
+  the same object: ``"heated"`` (the paper's constant-power heater, with the protocol's
+  reheat history; further heated channels start within +-0.3 K of the first),
+  ``"heated@+D"`` (a heater held D K above ambient by its setpoint) and ``"passive"`` (an
+  unheated thermistor, 0-1 K above ambient from its heated neighbours). Every channel is a
+  different taxel of the pool, with its own contact conductance (the trial's, times a
+  log-normal factor of 0.1 decades). Channel 0 is the primary one and must be heated. The
+  extra channels draw from their own random stream, so one heated channel gives the same
+  dataset as before channels existed.
 """
 
 from __future__ import annotations
@@ -49,7 +58,7 @@ import numpy as np
 from skin.formats.dataset import TrialSet
 from skin.formats.layout import Board
 from skin.models.materials import Material
-from skin.models.physics import heated_temperature
+from skin.models.physics import contact_trace, heated_temperature
 from skin.models.sensors import (
     SensorDescription,
     apply_dynamics,
@@ -124,7 +133,46 @@ class Protocol:
     onset_jitter: float = 0.010
     fs: float = 200.0
     reheat_time_constant: float = 62.5
-    object_offset: tuple[float, float] = (0.0, 0.0)
+    object_offset: tuple[float, float] | float = (0.0, 0.0)
+    channels: tuple[str, ...] = ("heated",)
+
+
+def parse_channel(spec: str) -> tuple[bool, float | None]:
+    """Parse a channel name: ``"heated"``, ``"passive"`` or ``"heated@+D"`` (D in K).
+
+    Returns
+    -------
+    (bool, float or None)
+        Whether it is heated, and its setpoint above ambient (None: not held).
+    """
+    name = spec.strip()
+    if name == "heated":
+        return True, None
+    if name == "passive":
+        return False, None
+    if name.startswith("heated@"):
+        try:
+            offset = float(name[len("heated@"):])
+        except ValueError:
+            offset = float("nan")
+        if np.isfinite(offset) and offset > 0:
+            return True, offset
+    raise ValueError(f"unknown channel {spec!r}: use heated, passive or heated@+D (a setpoint "
+                     f"D > 0 K above ambient)")
+
+
+def _offsets(spec: tuple[float, float] | float, shape: tuple[int, int],
+             rng: np.random.Generator) -> np.ndarray:
+    """Resting objects' temperature above ambient: uniform in (low, high), or +-K exactly."""
+    if np.ndim(spec) == 0:
+        k = float(spec)  # type: ignore[arg-type]
+        if not (np.isfinite(k) and k >= 0):
+            raise ValueError(f"object_offset {spec} must be a finite K >= 0")
+        return k * rng.choice([-1.0, 1.0], shape)
+    low, high = spec  # type: ignore[misc]
+    if low > high:
+        raise ValueError(f"object_offset {spec} must be (low, high)")
+    return rng.uniform(low, high, shape)
 
 
 def adc_readings(temperature: np.ndarray, rng: np.random.Generator,
@@ -199,7 +247,13 @@ def simulate_trials(
         raise ValueError(f"the multilayer model runs a constant-power heater; sensor "
                          f"{base.name!r} has heater {base.heater!r} (use 'contact' or "
                          f"'semi-infinite')")
-    if model == "multilayer" and p.object_offset != (0.0, 0.0):
+    kinds = [parse_channel(c) for c in p.channels]
+    if not kinds or not kinds[0][0]:
+        raise ValueError(f"channels {p.channels}: the first (primary) channel must be heated")
+    if model == "multilayer" and len(kinds) > 1:
+        raise ValueError("several channels need a closed-form model ('contact' or "
+                         "'semi-infinite')")
+    if model == "multilayer" and np.any(np.asarray(p.object_offset) != 0.0):
         raise ValueError("object_offset needs a closed-form model ('contact' or "
                          "'semi-infinite'): the multilayer slab's back is held at ambient")
     if p.trials < 1 or p.run_length < 1 or p.n_taxels < 1 or p.rest_every < 1:
@@ -224,49 +278,66 @@ def simulate_trials(
     h = 10.0 ** rng.uniform(lo_hi[:, :1], lo_hi[:, 1:], (n_mat, n))
     jitter = rng.uniform(-p.onset_jitter, p.onset_jitter, (n_mat, n))
     amb = p.ambient + rng.normal(0.0, 0.1, (n_mat, n))  # the room drifts a little
-    if p.object_offset[0] > p.object_offset[1]:
-        raise ValueError(f"object_offset {p.object_offset} must be (low, high)")
-    offset = rng.uniform(*p.object_offset, (n_mat, run.max() + 1))[:, run]  # per run
+    offset = _offsets(p.object_offset, (n_mat, run.max() + 1), rng)[:, run]  # per run
+    n_ch = len(kinds)
+    ch_rng = np.random.default_rng([seed, 1])  # extra channels: their own stream
+    # channel c of a run is the c-th taxel after the primary's in the pool
+    ch_taxel = (run_taxel[:, :, None] + np.arange(n_ch)) % p.n_taxels  # (n_mat, runs, ch)
 
     n_pre = round(p.pre * p.fs)
     n_post = round(p.duration * p.fs)
     t = (np.arange(n_pre + n_post) - n_pre) / p.fs  # relative to the recorded onset
-    temp = np.empty((n_mat, n, t.size))
-    t_sensor = np.empty((n_mat, n))
+    temp = np.empty((n_mat, n, n_ch, t.size))
+    t_sensor = np.empty((n_mat, n, n_ch))
     t_object = np.empty((n_mat, n))
     if model == "multilayer":
         _multilayer_protocol(materials, p, taxels, run_taxel, run, hold, after, h, jitter, amb,
-                             t, temp, t_sensor, t_object, progress)
+                             t, temp[:, :, 0], t_sensor[:, :, 0], t_object, progress)
     else:
         for i, mat in enumerate(materials):
-            _closed_form_protocol(mat, p, taxels, run_taxel[i], run, hold[i], after[i],
+            _closed_form_protocol(mat, p, taxels, ch_taxel[i], run, hold[i], after[i],
                                   np.inf if model == "semi-infinite" else h[i], jitter[i],
-                                  amb[i], offset[i], t, temp[i], t_sensor[i], t_object[i], rng)
+                                  amb[i], offset[i], t, temp[i], t_sensor[i], t_object[i], rng,
+                                  kinds, ch_rng)
             if progress is not None:
                 progress((i + 1) * n, total)
     temp = apply_dynamics(temp, base, p.fs, axis=-1)  # the PID loop and the lag, if any
     if base.noise > 0:
         temp = temp + rng.normal(0.0, base.noise, temp.shape)
-    readings = adc_readings(temp.reshape(total, -1), rng, p.adc_noise, base.adc_bits)
+    if n_ch == 1:  # the stream of the one-channel datasets made before channels existed
+        readings = adc_readings(temp.reshape(total, -1), rng, p.adc_noise,
+                                base.adc_bits)[:, None, :]
+    else:
+        readings = adc_readings(temp.reshape(total * n_ch, -1), rng, p.adc_noise,
+                                base.adc_bits).reshape(total, n_ch, -1)
     readings = smooth(readings, base, axis=-1, fs=p.fs)
     label = np.repeat([m.name for m in materials], n)
     groups = (np.arange(n_mat)[:, None] * (run.max() + 1) + run[None, :]).ravel()
-    taxel = np.take_along_axis(run_taxel, np.broadcast_to(run, (n_mat, n)), axis=1).ravel()
+    if model == "multilayer":  # it may have changed the runs' taxels
+        ch_taxel = run_taxel[:, :, None]
+    taxels_of = ch_taxel[:, run].reshape(total, n_ch)
+    taxel = taxels_of[:, 0]
     eff = np.repeat([m.effusivity for m in materials], n)
     constants = np.array([[s.depth, s.diffusivity, s.conductivity] for s in taxels])[taxel]
+    heated = np.tile([k[0] for k in kinds], (total, 1))
+    held = np.array([np.nan if k[1] is None else k[1] for k in kinds])
+    setpoint = amb.ravel()[:, None] + held[None, :]
+    extra_truth = {} if n_ch == 1 else {
+        "true_channel_sensor_temperature": t_sensor.reshape(total, n_ch)}
     return TrialSet(
-        temperature=readings, fs=p.fs, label=label,
+        temperature=readings, fs=p.fs, label=label, heated=heated,
+        setpoint=None if np.isnan(held).all() else setpoint,
         onset=np.full(total, n_pre, dtype=np.int64), ambient=amb.ravel(), group=groups,
-        taxel=taxel.astype(np.int64),
+        taxel=taxels_of.astype(np.int64),
         extra={"true_onset_time": (p.pre + jitter).ravel(),
-               "true_sensor_temperature": t_sensor.ravel(),
+               "true_sensor_temperature": t_sensor[:, :, 0].ravel(),
                "true_object_temperature": t_object.ravel(),
                "true_effusivity": eff,
                "true_conductance": (np.full_like(h, np.inf) if model == "semi-infinite"
                                     else h).ravel(),
                "true_sensor_depth": constants[:, 0],
                "true_sensor_diffusivity": constants[:, 1],
-               "true_sensor_conductivity": constants[:, 2]},
+               "true_sensor_conductivity": constants[:, 2], **extra_truth},
         source=f"simulated ({model}, seed {seed}"
                + ("" if sensor is None else f", sensor {base.name}") + ")",
     )
@@ -284,8 +355,12 @@ def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorDescrip
                           after: np.ndarray, h: np.ndarray | float, jitter: np.ndarray,
                           amb: np.ndarray, offset: np.ndarray, t: np.ndarray, out: np.ndarray,
                           t_sensor: np.ndarray, t_object: np.ndarray,
-                          rng: np.random.Generator) -> None:
-    """Walk one material's protocol with the closed forms; fill ``out`` (n, samples)."""
+                          rng: np.random.Generator, kinds: list[tuple[bool, float | None]],
+                          ch_rng: np.random.Generator) -> None:
+    """Walk one material's protocol with the closed forms; fill ``out`` (n, channels, samples).
+
+    ``run_taxel`` is (runs, channels): each channel's taxel in each run.
+    """
     e_o = mat.effusivity
     h = np.broadcast_to(np.asarray(h, dtype=float), hold.shape)
     tau = p.reheat_time_constant
@@ -293,22 +368,36 @@ def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorDescrip
     excess = 0.0  # object surface temperature above ambient at the next contact
     heat = np.empty(hold.size)
     for j in range(hold.size):
-        s = taxels[run_taxel[run[j]]]
+        s = taxels[run_taxel[run[j], 0]]
         full = float(amb[j] + s.heated_rise if s.heater == "pid"
                      else heated_temperature(amb[j], s))
         if j == 0 or run[j] != run[j - 1]:  # a run starts rested, with a cool object
             sensor_now, excess = full, 0.0
-        t0 = sensor_now
+        t0 = sensor_now if kinds[0][1] is None else amb[j] + kinds[0][1]
         base = _object_temperature(mat, amb[j], offset[j], rng)
         tobj = base + (excess if mat.temperature is None else 0.0)
-        t_sensor[j], t_object[j] = t0, tobj
+        t_sensor[j, 0], t_object[j] = t0, tobj
         heat[j] = full
         # the trace: flat (still reheating slowly) before contact, then the contact response
         since = t - jitter[j]
-        pre_slope = (full - t0) / tau
+        pre_slope = (full - t0) / tau if kinds[0][1] is None else 0.0
         pre = t0 + pre_slope * np.minimum(since, 0.0)
-        out[j] = np.where(since > 0, contact_reading(since, t0, tobj, e_o, s, h[j], amb[j]),
-                          pre)
+        out[j, 0] = np.where(since > 0, contact_reading(since, t0, tobj, e_o, s, h[j], amb[j]),
+                             pre)
+        for c in range(1, len(kinds)):  # the other taxels on the same object
+            heated, held = kinds[c]
+            if held is not None:
+                t0_c = amb[j] + held
+            elif heated:
+                t0_c = t0 + ch_rng.uniform(-0.3, 0.3)
+            else:
+                t0_c = amb[j] + ch_rng.uniform(0.0, 1.0)
+            h_c = h[j] * 10.0 ** ch_rng.normal(0.0, 0.1)
+            s_c = taxels[run_taxel[run[j], c]]
+            t_sensor[j, c] = t0_c
+            after_contact = (contact_reading(since, t0_c, tobj, e_o, s_c, h_c, amb[j]) if heated
+                             else contact_trace(since, t0_c, tobj, e_o, s_c, h_c))
+            out[j, c] = np.where(since > 0, after_contact, t0_c)
         # release after the hold, then reheat; the object keeps some of the heat it took
         end = float(contact_reading(hold[j], t0, tobj, e_o, s, h[j], amb[j]))
         surf = float((s.effusivity * t0 + e_o * tobj) / (s.effusivity + e_o))

@@ -19,6 +19,12 @@ _HINTS: dict[str, tuple[str, str]] = {
     "matplotlib": ("matplotlib", "viz"),
     "imageio": ("imageio", "viz"),
     "mcap": ("mcap", "record"),
+    "zstandard": ("zstandard", "record"),
+    "foxglove": ("foxglove-sdk", "foxglove"),
+    "zenoh": ("eclipse-zenoh", "zenoh"),
+    "yourdfpy": ("yourdfpy", "urdf"),
+    "rosbags": ("rosbags", "urdf"),
+    "cantools": ("cantools", "dbc"),
 }
 
 

@@ -15,6 +15,7 @@ from skin.commands import (
     commission,
     completion,
     config,
+    dataset,
     devices,
     evaluate,
     evaluate_onset,
@@ -23,13 +24,14 @@ from skin.commands import (
     run,
     sensors,
     simulate,
+    subscribe,
     train,
     view,
 )
 from skin.errors import SkinError
 
 COMMANDS = (run, simulate, calibrate, train, evaluate, evaluate_onset, bench, plot, record, devices,
-            view, sensors, config, completion, commission)
+            view, sensors, config, completion, commission, dataset, subscribe)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -60,11 +62,13 @@ def _add_logging_options(parser: argparse.ArgumentParser, default: object) -> No
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``skin`` command."""
     from skin.logs import configure_logging
+    from skin.threads import limited_threads
 
     args = build_parser().parse_args(argv)
     try:
         configure_logging(args.verbose, args.log_file)
-        return args.func(args)
+        with limited_threads():  # BLAS/OpenMP oversubscribe busy cores (SKIN_THREADS)
+            return args.func(args)
     except SkinError as exc:
         print(f"skin: error: {exc}", file=sys.stderr)
         return 2

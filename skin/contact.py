@@ -93,6 +93,11 @@ class MaterialEstimate:
         Effusivity estimate, W s^0.5 / (m^2 K), where the method gives one.
     method : str
         Name of the method.
+    family : str or None
+        The material's family (``"wood_paper"``), named when the material is not
+        resolvable but its family is, ``"unknown"`` when neither is; None: not given.
+    family_confidence : float
+        Probability of the most probable family.
     """
 
     label: str
@@ -100,3 +105,5 @@ class MaterialEstimate:
     confidence: float
     effusivity: float | None
     method: str
+    family: str | None = None
+    family_confidence: float = 0.0

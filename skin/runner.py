@@ -82,6 +82,7 @@ class Skin:
         self._closers: list[Any] = []
         self._live: Any = None
         self._recorder: Any = None
+        self.publishers: list[Any] = []
         self._events_path: Path | None = None
         self._link: Any = None
         self._health: Any = None
@@ -117,6 +118,10 @@ class Skin:
         if bad:
             raise SetupError(f"sinks: unknown sink {bad[0]!r} (use {', '.join(SINKS)} or a "
                              "file.jsonl)")
+        from skin.stream.publish import check_publisher_url
+
+        for url in s.publish:  # the scheme, its options and its package, before any frame
+            check_publisher_url(url)
         if s.view:
             from skin.viz.arm import window_problem
 
@@ -235,7 +240,7 @@ class Skin:
         if s.model:
             from skin.models.learned import LearnedClassifier
 
-            self.classifier: Any = LearnedClassifier(s.model)
+            self.classifier: Any = LearnedClassifier(s.model, threshold=s.threshold)
             known = set(self.classifier.classes)
             self.progress.message(
                 f"classifier: {self.classifier.method} ({len(self.classifier.classes)} classes, "
@@ -244,7 +249,8 @@ class Skin:
             known = set(self.materials)
             if s.classifier == "joint":
                 self.classifier = JointClassifier(
-                    self.layout, self.materials, sensors=None if self.sensors is None else
+                    self.layout, self.materials, threshold=s.threshold,
+                    sensors=None if self.sensors is None else
                     {int(t.id): v for t, v in zip(self.layout.taxels, self.sensors, strict=True)})
             else:
                 self.classifier = HistogramClassifier(self.layout, self.materials)
@@ -259,8 +265,8 @@ class Skin:
         """Load the arm once and check it covers the layout, if a view or the map needs it."""
         s = self.setup
         self.arm: Any = s.arm
-        if s.arm is not None and not Path(s.arm).is_file():
-            raise SkinError(f"--arm {s.arm}: no such arm file")
+        if s.arm is not None and not Path(s.arm).is_file() and s.arm != "xarm7":
+            raise SkinError(f"--arm {s.arm}: no such arm file (or the shipped 'xarm7')")
         if not (s.view or s.video or (s.map and s.out is not None)):
             return
         from skin.viz.arm_mesh import ArmSurface, resolve_arm
@@ -364,6 +370,23 @@ class Skin:
             self._closers.append(self._recorder)
             self.pipeline.sinks.append(self._recorder)
             self.pipeline.observers.append(self._recorder.temperature)
+        if s.publish:
+            from skin.stream.publish import open_publisher
+
+            chain = self._urdf_chain()
+            for url in s.publish:
+                pub = open_publisher(url, self.layout, chain=chain).attach(self.pipeline)
+                self._closers.append(pub)
+                self.publishers.append(pub)
+
+    def _urdf_chain(self) -> Any:
+        """Return the chain of a URDF arm (``arm`` a ``.urdf`` file or ``xarm7``), else None."""
+        arm = self.setup.arm
+        if arm is None or not (arm == "xarm7" or arm.lower().endswith(".urdf")):
+            return None
+        from skin.world.urdf import example_urdf, load_urdf
+
+        return load_urdf(example_urdf() if arm == "xarm7" else arm).chain
 
     def _live_view(self) -> Any:
         """Open the window (``view``) and/or the movie (``video``) of the run."""
@@ -506,6 +529,8 @@ class Skin:
                                for k in np.flatnonzero(pipeline.stats.flagged)],
             "contacts": len(results),
         }
+        if self.publishers:
+            summary["published"] = {p.url: dict(p.sent) for p in self.publishers}
         if self.scene is not None:
             scene = self.scene
             in_time = [t for t in scene.touches if t.start < duration]
@@ -516,6 +541,9 @@ class Skin:
             detected = [m for m in matches if m.contact_index is not None]
             correct = [m for m in detected
                        if results[m.contact_index].estimate.label == m.material]
+            family_correct = [m for m in detected if results[m.contact_index].estimate.family
+                              == self.materials[m.material].family]
+            # the measured effusivity (skin.models.contact_fit) against the scene's material
             errors = [abs(np.log10(results[m.contact_index].estimate.effusivity
                                    / self.materials[m.material].effusivity))
                       for m in detected if results[m.contact_index].estimate.effusivity]
@@ -524,6 +552,8 @@ class Skin:
             for rec in records:
                 if rec["contact"] in truth:
                     rec["truth"] = truth[rec["contact"]]
+                    rec["truth_family"] = (None if rec["truth"] is None
+                                           else self.materials[rec["truth"]].family)
             if self._events_path is not None:
                 # the truth is known once all contacts are matched: rewrite the file with it
                 with self._events_path.open("w", encoding="utf-8") as file:
@@ -533,6 +563,7 @@ class Skin:
                 "touches": len(matches),
                 "detected": len(detected),
                 "correct": len(correct),
+                "family_correct": len(family_correct),
                 "false_contacts": len(unmatched),
                 "accuracy": round(len(correct) / len(matches), 4) if matches else None,
                 "median_onset_error": round(float(np.median(
@@ -543,7 +574,9 @@ class Skin:
                 "per_touch": [
                     {"start": m.touch.start, "taxels": list(m.touch.taxels), "truth": m.material,
                      "label": None if m.contact_index is None
-                     else results[m.contact_index].estimate.label}
+                     else results[m.contact_index].estimate.label,
+                     "family": None if m.contact_index is None
+                     else results[m.contact_index].estimate.family}
                     for m in matches
                 ],
             })
@@ -561,8 +594,12 @@ class Skin:
         out.mkdir(parents=True, exist_ok=True)
         # what `skin view --map` needs: the layout, and for a simulation the arm's pose
         # (standing at the default chain's default angles); a device's poses are unknown here
-        summary.update(write_run_setup(out, self.layout,
-                                       default_chain() if self.scene is not None else None))
+        chain = None
+        if self.scene is not None:  # a simulation: the arm stands at its default angles
+            chain = self._urdf_chain() or default_chain()
+            if not set(self.layout.links) <= set(chain.links):
+                chain = None  # not this layout's arm
+        summary.update(write_run_setup(out, self.layout, chain))
         (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n",
                                           encoding="utf-8")
         log.info("outputs in %s", out)

@@ -29,14 +29,15 @@ GROUPS: dict[str, tuple[str, ...]] = {
     "source": ("port", "reconnect", "first_frame_timeout", "firmware_sim", "scene", "duration",
                "speed", "contact"),
     "skin": ("layout", "calibration"),
-    "classifier": ("model", "classifier", "expect", "window", "provisional"),
-    "output": ("out", "force", "sinks", "record", "map", "arm", "view", "video", "view_mode"),
+    "classifier": ("model", "classifier", "threshold", "expect", "window", "provisional"),
+    "output": ("out", "force", "sinks", "publish", "record", "map", "arm", "view", "video",
+               "view_mode"),
 }
 """The tables of a skin file and the fields each holds (every field is in one table)."""
 
 PATHS: dict[str, str] = {
     "layout": "name", "scene": "name", "calibration": "path", "model": "path", "record": "path",
-    "out": "path", "arm": "path", "video": "path", "sinks": "jsonl", "port": "url",
+    "out": "path", "arm": "name", "video": "path", "sinks": "jsonl", "port": "url",
 }
 """Fields that hold files: ``path`` always a path; ``name`` a shipped name unless it has a
 folder or a suffix; ``jsonl`` paths ending in ``.jsonl``; ``url`` the file of ``replay://``.
@@ -79,6 +80,8 @@ class Setup:
         Model file from ``skin train``; without it, ``classifier``.
     classifier : str
         ``joint`` or ``histogram`` (without ``model``).
+    threshold : float
+        Probability needed to name a material (else its family, else "unknown").
     expect : list of str
         Materials the classifier must know (a simulation's scene adds its own).
     window : float
@@ -87,6 +90,9 @@ class Setup:
         Anytime points: also classify open contacts at these seconds after onset.
     sinks : list of str
         Where results go (`SINKS`, or ``*.jsonl`` files).
+    publish : list of str
+        Live publishers by URL (``foxglove://HOST:PORT``, ``zenoh://PREFIX``;
+        `skin.stream.publish`).
     record : str or None
         MCAP file to record to.
     out : str or None
@@ -96,7 +102,8 @@ class Setup:
     map : bool
         Render ``contact_map.png``.
     arm : str or None
-        Arm file (meshes per link) for the views and the map; default the procedural arm.
+        Arm file (TOML of meshes per link, or a URDF), or ``xarm7`` (the shipped example
+        arm); default the procedural arm.
     view : bool
         Show the arm in a window.
     video : str or None
@@ -119,10 +126,12 @@ class Setup:
     calibration: str | None = None
     model: str | None = None
     classifier: str = "joint"
+    threshold: float = 0.5
     expect: list[str] = field(default_factory=list)
     window: float = 2.5
     provisional: list[float] = field(default_factory=list)
     sinks: list[str] = field(default_factory=lambda: list(SINKS))
+    publish: list[str] = field(default_factory=list)
     record: str | None = None
     out: str | None = "out/run"
     force: bool = False
@@ -215,6 +224,13 @@ def _positive(value: Any) -> float:
     return out
 
 
+def _probability(value: Any) -> float:
+    out = _number(value)
+    if not 0.0 <= out <= 1.0:
+        raise ValueError(f"must be a probability in 0-1, got {value!r}")
+    return out
+
+
 def _optional_positive(value: Any) -> float | None:
     return None if value is None else _positive(value)
 
@@ -260,10 +276,12 @@ _CHECKS: dict[str, Callable[[Any], Any]] = {
     "calibration": _optional_text,
     "model": _optional_text,
     "classifier": _choice("joint", "histogram"),
+    "threshold": _probability,
     "expect": _texts,
     "window": _positive,
     "provisional": _numbers,
     "sinks": _texts,
+    "publish": _texts,
     "record": _optional_text,
     "out": _optional_text,
     "force": _flag,

@@ -40,3 +40,65 @@ def test_pipeline_bench_gives_the_same_contacts_whatever_its_chunk():
     b = run(64, 18.0, contacts_per_minute=12.0, chunk=3600)
     assert a["contacts"] == b["contacts"] > 0 and a["frames"] == b["frames"] == 3600
     assert a["peak_memory_mb"] > 0
+
+
+def _scene(preset, seconds, spread=0.0):
+    from dataclasses import replace
+
+    from skin.formats.scene import _with_sensor, load_scene
+
+    scene = load_scene("default")
+    return replace(scene, sensor=preset, duration=seconds, taxel_spread=spread,
+                   layout=_with_sensor(scene.layout, preset, "<test>", None))
+
+
+@pytest.mark.parametrize(("preset", "spread"), [("paper", 0.0), ("paper", 0.1),
+                                                ("pid-logger", 0.0), ("fast-film", 0.1)])
+def test_simulator_in_chunks_gives_the_same_frames_whatever_the_chunk(preset, spread):
+    from skin.drivers.sim import SkinSimulator
+
+    sim = SkinSimulator(_scene(preset, 12.0, spread), contact="finite")
+    whole = sim.temperatures()
+    frames = list(sim.frames(chunk=sim.n_samples))
+    assert len(frames) == sim.n_samples == whole.shape[0]
+    for chunk in (1, 7, 333) if sim.n_samples <= 3000 else (7, 333):  # 1 kHz: fewer
+        assert np.array_equal(np.concatenate(list(sim.temperature_chunks(chunk))), whole)
+        again = list(sim.frames(chunk=chunk))
+        assert [f.seq for f in again] == list(range(sim.n_samples))
+        for name in ("counts", "status"):
+            assert np.array_equal(np.array([getattr(f, name) for f in again]),
+                                  np.array([getattr(f, name) for f in frames]))
+        assert [f.ambient for f in again] == [f.ambient for f in frames]
+        assert [f.device_time for f in again] == [f.device_time for f in frames]
+    assert np.ptp(np.array([f.counts for f in frames])) > 10  # the scene's contacts are there
+
+
+def test_simulated_skin_memory_does_not_grow_with_the_duration():
+    import tracemalloc
+
+    from skin import drivers
+
+    peaks = []
+    for seconds in (30, 3000):
+        tracemalloc.start()
+        with drivers.open(f"sim://default?speed=0&duration={seconds}") as driver:
+            for _ in range(2500):  # two chunks and a half
+                assert driver.recv(timeout=1.0) is not None
+            peaks.append(tracemalloc.get_traced_memory()[1])
+        tracemalloc.stop()
+    # the whole run of 3000 s would hold 600,000 x 72 readings (346 MB) several times over
+    assert peaks[1] < 1.3 * peaks[0] + 1e6 and peaks[1] < 30e6
+
+
+def test_soak_of_two_boards_loses_nothing_and_keeps_memory_flat(tmp_path):
+    from skin.bench.soak import PERIOD, TOUCHES, run
+
+    r = run(3 * PERIOD / 3600, 300, every=10.0, folder=tmp_path)
+    assert r["boards"] == 2 and r["frames_sent"] == r["frames_received"] == 2 * 3 * 12000
+    assert r["lost_frames"] == 0 and r["crc_errors"] == 0
+    # every touch of the repeated pattern is one contact, the same number every minute
+    assert r["contacts_per_bin"] == [2 * TOUCHES] * 3 and r["contacts"] == r["touches"]
+    assert abs(r["rss_growth"]) < 0.1, r["rss_mb"]
+    assert r["open_fds"]["end"] == r["open_fds"]["start"]
+    assert (tmp_path / "soak.mcap").stat().st_size > 1e6
+    assert len((tmp_path / "events.jsonl").read_text().splitlines()) == r["results"]

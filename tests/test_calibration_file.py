@@ -140,7 +140,7 @@ def test_calibrate_thermal_from_water_contacts_then_run_with_it(tmp_path):
     fitted = {k: v for k, v in cal_file.taxels.items() if "diffusivity" in v}
     assert set(fitted) == set(np.unique(water.taxel).tolist())
     for tid, entry in fitted.items():
-        rows = water.taxel == tid
+        rows = water.taxel[:, 0] == tid
         want = water.extra["true_sensor_diffusivity"][rows][0]
         depth = water.extra["true_sensor_depth"][rows][0]
         # only depth^2 / alpha is seen: compare the fitted time scale with the true one

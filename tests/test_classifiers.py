@@ -57,7 +57,7 @@ def test_trial_matrix_and_features_layout(data):
     assert x.shape == (len(data), 2 + 100)
     amb, _, w = split_rows(x)
     assert np.allclose(amb, data.ambient)
-    assert np.allclose(w[:, 0], data.temperature[:, 100])
+    assert np.allclose(w[:, 0], data.primary[:, 100])
     assert trace_features(x, "both").shape == (len(data), 200)
     with pytest.raises(ValueError, match="feature kind"):
         trace_features(x, "fft")
@@ -113,7 +113,7 @@ def test_model_file_round_trip(tmp_path, data, name):
     path = save_model(tmp_path / "m.skops", est, name, 1.0, 200.0, training_summary(data, 1.0))
     doc = load_model(path)
     assert doc["method"] == name and doc["classes"] == sorted(data.classes)
-    assert doc["features"] == {"duration": 1.0, "fs": 200.0}
+    assert doc["features"] == {"duration": 1.0, "fs": 200.0, "channels": 1}
     assert doc["training"]["trials"] == len(data)
     assert np.array_equal(doc["estimator"].predict(x), est.predict(x))
 
@@ -251,8 +251,8 @@ def _contact_from_trials(ds, rows, duration):
 
     windows = []
     for k, i in enumerate(rows):
-        y = ds.temperature[i, ds.onset[i]:ds.onset[i] + round(duration * ds.fs)]
-        windows.append(TaxelWindow(k, 0.0, float(ds.temperature[i, ds.onset[i] - 10:
+        y = ds.primary[i, ds.onset[i]:ds.onset[i] + round(duration * ds.fs)]
+        windows.append(TaxelWindow(k, 0.0, float(ds.primary[i, ds.onset[i] - 10:
                                                                  ds.onset[i]].mean()),
                                    np.arange(y.size) / ds.fs, y, True))
     return Contact(0, list(range(len(rows))), 0.0, duration, float(ds.ambient[rows[0]]),

@@ -8,7 +8,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 OPTIONAL = ("scipy", "serial", "can", "sklearn", "hmmlearn", "skops", "pyvista", "vtk",
-            "matplotlib", "cobs", "mcap")
+            "matplotlib", "cobs", "mcap", "zstandard", "foxglove", "zenoh", "yourdfpy",
+            "rosbags", "cantools", "websockets")
 
 
 def run_py(code: str, cwd: Path | None = None, env: dict | None = None) -> str:
@@ -27,7 +28,8 @@ def test_import_skin_loads_numpy_alone():
 
 @pytest.mark.parametrize("module", ["skin.drivers", "skin.models", "skin.viz"])
 def test_subpackages_do_not_load_optional_dependencies_at_import(module):
-    heavy = {"serial", "can", "sklearn", "pyvista", "vtk", "matplotlib", "mcap"}
+    heavy = {"serial", "can", "sklearn", "pyvista", "vtk", "matplotlib", "mcap", "foxglove",
+             "zenoh", "yourdfpy", "rosbags", "cantools", "zstandard"}
     code = (
         f"import sys, json, {module}\n"
         "loaded = {m.split('.')[0] for m in sys.modules}\n"

@@ -229,13 +229,13 @@ def test_slope_panel_is_the_detectors_slope_sample_by_sample(files):
     traces = trace_plots.trial_traces(data, [0, 9])
     fig = trace_plots.traces_figure(traces)
     ax_s = fig.axes[1]
-    times = np.arange(data.temperature.shape[1]) / data.fs
+    times = np.arange(data.temperature.shape[-1]) / data.fs
     for i, k in enumerate([0, 9]):
         # the detector stepped one sample at a time, its state's slope read after each
         det = OnsetDetector(1)
         state = det.initial_state()
         slope = []
-        for t, y in zip(times, data.temperature[k], strict=True):
+        for t, y in zip(times, data.primary[k], strict=True):
             _, state = det.process([t], [[y]], state)
             slope.append(state.slope[0])
         (line,) = lines_with(ax_s, f"slope:{i}")

@@ -83,7 +83,7 @@ def test_a_recording_holds_wire_bytes_temperatures_events_and_layout(recorded):
     folder, _ = recorded
     rec = read_recording(folder / "run.mcap")
     assert rec.complete and rec.problem is None
-    assert rec.metadata["thermoskin"]["format"] == "1"
+    assert rec.metadata["thermoskin"]["format"] == "2"
     assert "--record" in rec.metadata["thermoskin"]["command"]
     assert rec.layout.boards == load_layout("arm").boards and len(rec.layout) == 72
     assert rec.calibration is None  # the nominal one: the layout's board constants
@@ -208,7 +208,9 @@ def test_a_file_cut_anywhere_keeps_every_complete_message_before_the_cut(recorde
     folder, _ = recorded
     data = (folder / "run.mcap").read_bytes()
     full = _messages(folder / "run.mcap")
-    ends = [m.offset + 9 + 22 + len(m.data) for m in full]  # record head, fields, payload
+    # record head (opcode, u64 length) and body
+    ends = [m.offset + 9 + int.from_bytes(data[m.offset + 1 : m.offset + 9], "little")
+            for m in full]
     cut = tmp_path / "cut.mcap"
     rng = np.random.default_rng(0)
     sizes = [0, 5, 9, full[0].offset, ends[0] - 1, ends[0], ends[50] + 1,

@@ -178,7 +178,7 @@ def test_trial_generator_honours_the_sensor(name):
     ds = simulate_trials([MATS["pine"], MATS["aluminium"]], Protocol(trials=4, run_length=2),
                          seed=2, sensor=name)
     assert ds.fs == s.sample_rate
-    assert ds.temperature.shape[1] == round(3.5 * s.sample_rate)
+    assert ds.temperature.shape[-1] == round(3.5 * s.sample_rate)
     assert np.all(np.isfinite(ds.temperature))
     assert name in ds.source
 
@@ -195,8 +195,8 @@ def test_trial_depth_response_follows_the_sensor_speed():
                                             onset_jitter=0.0), seed=1, sensor=s)
         k0 = int(ds.onset[0])
         k = k0 + round(0.25 * ds.fs)
-        moved[name] = (ds.temperature[0, k0 - 1] - ds.temperature[0, k]) / (
-            ds.temperature[0, k0 - 1] - ds.temperature[0, -1])
+        moved[name] = (ds.primary[0, k0 - 1] - ds.primary[0, k]) / (
+            ds.primary[0, k0 - 1] - ds.primary[0, -1])
     assert moved["fast-film"] > 2 * moved["paper"]
 
 

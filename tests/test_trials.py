@@ -20,7 +20,7 @@ def small(model="contact", trials=20, seed=3, **kw):
 def test_protocol_dataset_has_the_designed_shape_and_truth():
     ds = small()
     assert len(ds) == 11 * 20
-    assert ds.temperature.shape == (220, 700)  # 0.5 s before onset + 3 s at 200 Hz
+    assert ds.temperature.shape == (220, 1, 700)  # 0.5 s before onset + 3 s at 200 Hz
     assert ds.fs == 200.0 and np.all(ds.onset == 100)
     assert ds.classes == sorted(PAPER_MATERIALS)
     assert set(ds.extra) >= {"true_effusivity", "true_sensor_temperature",
@@ -30,9 +30,9 @@ def test_protocol_dataset_has_the_designed_shape_and_truth():
     # objects are at or above ambient (warmed by earlier touches, never colder)
     assert np.all(ds.extra["true_object_temperature"] >= ds.ambient - 1e-9)
     # before onset the reading sits near the initial temperature; after it, it falls
-    pre = ds.temperature[:, 90:100].mean(axis=1)
+    pre = ds.primary[:, 90:100].mean(axis=1)
     assert np.median(np.abs(pre - t0)) < 0.1
-    assert np.all(ds.temperature[:, -1] < pre)
+    assert np.all(ds.primary[:, -1] < pre)
 
 
 def test_same_seed_same_dataset_other_seed_other_dataset():
@@ -44,7 +44,7 @@ def test_same_seed_same_dataset_other_seed_other_dataset():
 def test_readings_are_quantised_by_the_paper_adc():
     ds = small(trials=10)
     # a 10-bit ADC gives few distinct readings: steps of 0.05-0.1 C near 25-40 C
-    steps = np.diff(np.unique(ds.temperature[0]))
+    steps = np.diff(np.unique(ds.primary[0]))
     assert steps.min() > 0.03
 
 
@@ -62,7 +62,7 @@ def test_warm_room_shifts_the_initial_temperatures():
 def test_multilayer_path_runs_the_protocol_with_the_heater_on():
     ds = simulate_trials([MATS["aluminium"], MATS["pine"]], Protocol(trials=12), seed=2,
                          model="multilayer")
-    assert ds.temperature.shape == (24, 700)
+    assert ds.temperature.shape == (24, 1, 700)
     assert np.all(np.isfinite(ds.temperature))
     t0 = ds.extra["true_sensor_temperature"]
     al = ds.label == "aluminium"
@@ -210,7 +210,7 @@ def test_multilayer_path_labels_the_taxel_and_ambient_it_simulated():
     assert np.array_equal(amb[0], amb[1])
     # the initial temperature is read at the contact, not 0.5 s before it
     t0 = ds.extra["true_sensor_temperature"]
-    at_onset = ds.temperature[:, 99:102].mean(axis=1)
+    at_onset = ds.primary[:, 99:102].mean(axis=1)
     assert np.max(np.abs(t0 - at_onset)) < 0.15
 
 
@@ -256,9 +256,12 @@ def test_simulate_trials_object_offset_option(tmp_path):
     assert out.returncode == 0, out.stderr
     ds = load_trials(tmp_path / "t.npz")
     assert np.any(ds.extra["true_object_temperature"] != ds.ambient)
-    out = skin("simulate", "trials", "--trials", "4", "--object-offset", "3",
+    out = skin("simulate", "trials", "--trials", "4", "--object-offset", "3,x",
                "-o", str(tmp_path / "u.npz"))
     assert out.returncode != 0 and "--object-offset" in out.stderr
+    out = skin("simulate", "trials", "--trials", "4", "--object-offset=-3",
+               "-o", str(tmp_path / "u.npz"))
+    assert out.returncode != 0 and "K >= 0" in out.stderr
 
 
 def test_bench_fusion_reports_every_arrangement(tmp_path):
@@ -295,3 +298,36 @@ def test_one_class_is_a_dataset_but_not_a_classifier_dataset(tmp_path):
     one.save(tmp_path / "one.npz")
     out = skin("train", "--data", str(tmp_path / "one.npz"), "-o", str(tmp_path / "m.skops"))
     assert out.returncode == 2 and "at least 2" in out.stderr
+
+
+def test_several_channels_see_one_object_heated_passive_and_held():
+    ds = simulate_trials([MATS["pine"], MATS["aluminium"]],
+                         Protocol(trials=10, run_length=5, object_offset=8.0,
+                                  channels=("heated", "passive", "heated@+10")), seed=4)
+    assert ds.temperature.shape == (20, 3, 700)
+    assert ds.heated[0].tolist() == [True, False, True]
+    assert np.allclose(ds.setpoint[:, 2], ds.ambient + 10.0) and np.isnan(ds.setpoint[:, :2]).all()
+    offset = ds.extra["true_object_temperature"] - ds.ambient
+    assert np.allclose(np.abs(offset[ds.label == "aluminium"]), 8.0, atol=0.5)  # +-K exactly
+    passive = ds.temperature[:, 1]
+    change = passive[:, -1] - passive[:, 90:100].mean(axis=1)  # 3 s into contact
+    assert np.all(np.sign(change[np.abs(offset) > 4]) == np.sign(offset[np.abs(offset) > 4]))
+    t0 = ds.extra["true_channel_sensor_temperature"]
+    assert np.all((t0[:, 1] >= ds.ambient - 1e-9) & (t0[:, 1] <= ds.ambient + 1.0))
+    assert len(set(ds.taxel[0].tolist())) == 3  # three distinct taxels
+    with pytest.raises(ValueError, match="primary"):
+        simulate_trials([MATS["pine"]], Protocol(trials=2, channels=("passive", "heated")))
+    with pytest.raises(ValueError, match="unknown channel"):
+        simulate_trials([MATS["pine"]], Protocol(trials=2, channels=("heated", "warm")))
+
+
+def test_simulate_trials_command_takes_channels_and_an_offset(tmp_path):
+    out = skin("simulate", "trials", "-o", str(tmp_path / "c.npz"), "--trials", "4",
+               "--materials", "pine,glass", "--channels", "heated,passive",
+               "--object-offset", "8", "--json")
+    assert out.returncode == 0, out.stderr
+    assert json.loads(out.stdout)["channels"] == ["heated", "passive"]
+    back = load_trials(tmp_path / "c.npz")
+    assert back.n_channels == 2 and not back.heated[:, 1].any()
+    bad = skin("simulate", "trials", "-o", str(tmp_path / "d.npz"), "--channels", "passive")
+    assert bad.returncode == 2 and "must be heated" in bad.stderr

@@ -304,8 +304,52 @@ def arm_from_meshes(meshes: Mapping[str, tuple[str | Path, Any]],
 _LINK_FIELDS = {"name", "mesh", "scale", "pose", "origin", "rotation", "parent"}
 
 
+def load_urdf_arm(path: str | Path, q: Any = None) -> dict[str, ArmLink]:
+    """Load the arm of a URDF file (`skin.world.urdf.load_urdf`): each link's visual meshes.
+
+    A link's meshes are joined, in its frame; its pose is the chain's at joint angles ``q``
+    (`skin.world.kinematics.Chain.poses`; the defaults by default), and it moves with the
+    nearest ancestor that has a mesh.
+
+    Raises
+    ------
+    ViewError
+        Naming the file and the link of a mesh that cannot be read.
+    """
+    from skin.world.kinematics import KinematicsError
+    from skin.world.urdf import load_urdf
+
+    try:
+        urdf = load_urdf(path)
+    except KinematicsError as exc:
+        raise ViewError(str(exc)) from None
+    poses = urdf.chain.poses(q)
+    out: dict[str, ArmLink] = {}
+    for name in urdf.chain.links:  # parents before children
+        parts = urdf.visuals.get(name)
+        if not parts:
+            continue
+        points, faces = [], []
+        for v in parts:
+            mesh = read_mesh(v.path, name, where=urdf.source)
+            local = mesh.points * np.asarray(v.scale)
+            points.append(local @ v.origin[:3, :3].T + v.origin[:3, 3])
+            faces.append(mesh.faces + sum(len(x) for x in points[:-1]))
+        parent = urdf.chain.links[name].parent
+        while parent is not None and parent not in out:
+            parent = urdf.chain.links[parent].parent
+        out[name] = ArmLink(np.vstack(points), np.vstack(faces), poses[name], parent,
+                            source=str(parts[0].path))
+    if not out:
+        raise ViewError(f"{urdf.source}: no link has a mesh to draw")
+    return out
+
+
 def load_arm(path: str | Path) -> dict[str, ArmLink]:
     """Load an arm file: one ``[[links]]`` table per link, each with its own mesh file.
+
+    A URDF file (``.urdf``) is read by `load_urdf_arm`; the name ``xarm7`` is the shipped
+    example arm (`skin.world.urdf.example_urdf`).
 
     Fields of a link: ``name`` (the layout's link name), ``mesh`` (STL, OBJ, PLY; relative
     to the arm file), optional ``scale`` (file units -> m, e.g. 0.001 for millimetres), the
@@ -319,6 +363,12 @@ def load_arm(path: str | Path) -> dict[str, ArmLink]:
         Naming the file, the line and the link of the first problem.
     """
     p = Path(path)
+    if str(path) == "xarm7" and not p.exists():
+        from skin.world.urdf import example_urdf
+
+        p = example_urdf()
+    if p.suffix.lower() == ".urdf":
+        return load_urdf_arm(p)
     try:
         text = p.read_text(encoding="utf-8")
     except OSError as exc:

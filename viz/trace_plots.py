@@ -265,9 +265,9 @@ def trial_traces(
     if bad or not trials:
         raise SkinError(f"{data.source}: no trial {bad[0] if bad else '(none given)'}; the "
                         f"dataset has {n} trials, 0 to {n - 1}")
-    times = np.arange(data.temperature.shape[1]) / data.fs
+    times = np.arange(data.temperature.shape[-1]) / data.fs
     labels = [str(data.label[k]) for k in trials]
-    traces = detect_traces(times, data.temperature[trials].T,
+    traces = detect_traces(times, data.primary[trials].T,
                            [f"{_display(lab)} (trial {k})" for k, lab in
                             zip(trials, labels, strict=True)])
     colours = _material_colours(materials)

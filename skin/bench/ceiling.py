@@ -61,7 +61,7 @@ def known_nuisance_ceiling(data: TrialSet, duration: float) -> dict:
     classes = data.classes
     effusivity = np.array([x["true_effusivity"][data.label == c][0] for c in classes])
     n = round(duration * data.fs)
-    if n < 1 or np.any(data.onset + n > data.temperature.shape[1]):
+    if n < 1 or np.any(data.onset + n > data.temperature.shape[-1]):
         raise SkinError(f"{data.source}: a {duration} s window does not fit the recording")
     k = np.arange(n)
     chosen = np.empty(len(data), dtype=int)
@@ -73,7 +73,7 @@ def known_nuisance_ceiling(data: TrialSet, duration: float) -> dict:
         predicted = contact_trace(since[None, :], x["true_sensor_temperature"][i],
                                   x["true_object_temperature"][i], effusivity[:, None],
                                   sensor, x["true_conductance"][i])
-        observed = data.temperature[i, data.onset[i] + k]
+        observed = data.primary[i, data.onset[i] + k]
         chosen[i] = int(np.argmin(np.sum((predicted - observed) ** 2, axis=1)))
     truth = np.searchsorted(classes, data.label)
     conf = np.zeros((len(classes), len(classes)), dtype=int)

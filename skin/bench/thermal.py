@@ -144,7 +144,7 @@ def inverse(durations: tuple[float, ...] = (0.25, 0.5, 1.0, 2.5), trials: int = 
     data = simulate_trials([mats[m] for m in names], Protocol(trials=trials), seed=seed)
     truth = data.extra["true_effusivity"]
     paper_set = np.isin(data.label, PAPER_MATERIALS)
-    pre = data.temperature[:, data.onset[0] - 10: data.onset[0]].mean(axis=1)
+    pre = data.primary[:, data.onset[0] - 10: data.onset[0]].mean(axis=1)
     rows, per_material = [], []
     estimators = ("paper (eqs. 10-11, median)", "least squares (MAP)",
                   "least squares + onset (MAP)")
@@ -152,7 +152,7 @@ def inverse(durations: tuple[float, ...] = (0.25, 0.5, 1.0, 2.5), trials: int = 
     for d in durations:
         n = round(d * data.fs)
         idx = data.onset[:, None] + 1 + np.arange(n)[None, :]
-        y = np.take_along_axis(data.temperature, idx, axis=1)
+        y = np.take_along_axis(data.primary, idx, axis=1)
         tt = (np.arange(n) + 1) / data.fs
         for name in estimators:
             t0 = time.perf_counter()

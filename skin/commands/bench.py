@@ -17,6 +17,11 @@ reports taxel-samples per second of the chain and of each stage, the real-time f
 200 Hz, the per-sample latency, how long results wait for their share of the budget, and the
 memory growth (`skin.bench.pipeline`).
 
+``skin bench soak --hours H --taxels N`` runs the whole chain (simulated boards on
+pseudo-terminals, serial drivers, pipeline, JSON-lines sink, MCAP recording) as fast as it goes
+for H simulated hours and reports memory and open file descriptors over time, contacts per
+simulated hour (or minute), lost frames and the growth of memory (`skin.bench.soak`).
+
 ``skin bench bus`` prints what protocol v1 costs on each bus at a sample rate: bytes (and CAN
 frames) per sample, bytes per second, the share of the bus, and the most taxels one board can
 stream (`skin.drivers.bus_load`), beside what one AVR's ADC can convert.
@@ -34,6 +39,10 @@ frame (`skin.bench.clock`).
 ``skin bench view`` times one update of the arm view (every taxel's colour computed and
 written into the mesh's colour array) beside one render, for skins of 72-1000 taxels on
 meshes of 14k and 100k vertices, with a baseline of the same run (`skin.bench.view`).
+
+``skin bench publish`` measures what publishing costs: the pipeline's throughput with a
+Zenoh or Foxglove publisher attached against without, and the latency from a sample to a
+subscriber in another process at the skin's real rate (`skin.bench.publish`).
 
 ``skin bench calibration`` runs simulated calibrations (each taxel's constants drawn within
 +-10 % of the paper's, a few contacts with a reference material) and reports how well
@@ -91,6 +100,20 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                            "-1: no budget, every contact finished at once (1)")
     pipe.add_argument("--json", action="store_true", help="print one JSON document")
     pipe.set_defaults(func=main_pipeline)
+    soak = kinds.add_parser("soak", help="the whole chain for hours of simulated time")
+    soak.add_argument("--hours", type=float, default=1.0, help="simulated hours (1)")
+    soak.add_argument("--taxels", type=int, default=1000,
+                      help="skin size (1000; boards of 256 taxels, one simulated board each)")
+    soak.add_argument("--every", type=float, default=None,
+                      help="simulated seconds between memory samples (default: 60 samples)")
+    soak.add_argument("--seed", type=int, default=0, help="seed of the simulated boards (0)")
+    soak.add_argument("--no-record", dest="record", action="store_false",
+                      help="leave out the MCAP recording")
+    soak.add_argument("--out", default=None,
+                      help="keep the events and the recording in this folder (default: a "
+                           "temporary folder, removed after)")
+    soak.add_argument("--json", action="store_true", help="print one JSON document")
+    soak.set_defaults(func=main_soak)
     bus = kinds.add_parser("bus", help="protocol cost and taxel limits per bus")
     bus.add_argument("--taxels", default="16,64", help="board sizes (default 16,64)")
     bus.add_argument("--rate", type=float, default=200.0, help="sample rate, Hz (default 200)")
@@ -104,6 +127,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     cal.add_argument("--seed", type=int, default=0, help="seed")
     cal.add_argument("--json", action="store_true", help="print one JSON document")
     cal.set_defaults(func=main_calibration)
+    pub = kinds.add_parser("publish", help="what publishing (Zenoh, Foxglove) costs, latency")
+    pub.add_argument("--taxels", type=int, default=1000, help="skin size (1000)")
+    pub.add_argument("--seconds", type=float, default=10.0, help="simulated seconds (10)")
+    pub.add_argument("--chunk", type=int, default=1,
+                     help="samples the pipeline takes at once (1: each as it comes)")
+    pub.add_argument("--publishers", default="zenoh,foxglove", help="zenoh,foxglove")
+    pub.add_argument("--json", action="store_true", help="print one JSON document")
+    pub.set_defaults(func=main_publish)
     spread = kinds.add_parser("spread", help="per-taxel spread of the simulated skin against "
                                              "a calibration file of its true constants")
     spread.add_argument("--touches", type=int, default=120, help="touches in the scene (120)")
@@ -347,6 +378,83 @@ def main_pipeline(args: argparse.Namespace) -> int:
         print(f"{r['taxels']:>7} {r['realtime_factor']:>11} {r['latency_ms']['p50']:>7} "
               f"{r['latency_ms']['p99']:>7} {r['contacts']:>8} {w['p50']!s:>11} "
               f"{w['p99']!s:>11} {r['peak_memory_mb_growth']:>9} {r['peak_memory_mb']:>8}")
+    return 0
+
+
+def main_publish(args: argparse.Namespace) -> int:
+    """Run the publishing benchmark (`skin.bench.publish`)."""
+    from skin import bench
+    from skin.bench.publish import run
+    from skin.errors import SkinError
+
+    kinds = tuple(k.strip() for k in args.publishers.split(",") if k.strip())
+    if not kinds or set(kinds) - {"zenoh", "foxglove"}:
+        raise SkinError(f"--publishers: zenoh and/or foxglove, got {args.publishers!r}")
+    if args.taxels < 1 or args.seconds <= 0 or args.chunk < 1:
+        raise SkinError("--taxels, --seconds and --chunk must be positive")
+    progress = Progress()
+    doc = run(args.taxels, args.seconds, chunk=args.chunk, publishers=kinds,
+              progress=progress.message)
+    progress.done()
+    doc["machine"] = bench.machine()
+    if args.json:
+        print(json.dumps(doc))
+        return 0
+    print(f"publishing {doc['taxels']} taxels x {doc['rate_hz']:g} Hz, {doc['samples']} samples "
+          f"in blocks of {doc['chunk']} ({doc['machine']['cpus']} cores); without publishing "
+          f"the pipeline takes {doc['baseline_samples_per_s']:g} samples/s")
+    print("throughput ratio: CPU seconds of the skin's process per sample without publishing / "
+          "with (publisher threads included); wall: the same by the wall time of the "
+          "pipeline's calls (on a loaded machine the scheduler's favours blur it)")
+    print(f"{'publisher':<10} {'throughput (CPU)':>16} {'wall':>6} {'p50 ms':>7} "
+          f"{'p99 ms':>7} {'received (paced)':>16} {'received (flat out)':>19}")
+    for kind in kinds:
+        rows = {r["mode"]: r for r in doc["rows"] if r["publisher"] == kind}
+        t, lat = rows["throughput"], rows["latency"]
+        print(f"{kind:<10} {t['cpu_ratio']:>16} {t['throughput_ratio']:>6} "
+              f"{lat['p50_latency_ms']!s:>7} "
+              f"{lat['p99_latency_ms']!s:>7} {lat['received_share']:>16.2%} "
+              f"{t['received_share']:>19.2%}")
+    return 0
+
+
+def main_soak(args: argparse.Namespace) -> int:
+    """``skin bench soak``."""
+    from skin import bench
+    from skin.bench.soak import run
+    from skin.errors import SkinError
+
+    if args.hours <= 0 or args.taxels < 1 or (args.every is not None and args.every <= 0):
+        raise SkinError("--hours, --taxels and --every must be positive")
+    progress = Progress()
+    r = run(args.hours, args.taxels, seed=args.seed, every=args.every, record=args.record,
+            folder=args.out, progress=progress.status)
+    progress.done()
+    if args.json:
+        print(json.dumps({"machine": bench.machine(), **r}))
+        return 0
+    print(f"soak: {r['taxels']} taxels on {r['boards']} simulated boards, "
+          f"{r['seconds_simulated'] / 3600:.3f} simulated h in {r['wall_s']:.0f} s "
+          f"({r['speed']} x real time, {r['taxel_samples_per_s']} taxel-samples/s)"
+          + (", recorded" if r["recorded"] else ""))
+    print(f"{'sim h':>7} {'wall s':>7} {'RSS MB':>7} {'fds':>4} {'frames':>9} {'contacts':>8}")
+    for s in r["samples"]:
+        print(f"{s['simulated_s'] / 3600:7.3f} {s['wall_s']:7.0f} {s['rss_mb']:7.1f} "
+              f"{s['open_fds']:4d} {s['frames']:9d} {s['contacts']:8d}")
+    m = r["rss_mb"]
+    print(f"RSS {m['start']} MB at start, {m['baseline']} MB at "
+          f"{r['rss_growth_baseline_at_s'] / 3600:.3g} h, {m['end']} MB at the end of the run "
+          f"(at most {m['max']} MB): growth {100 * r['rss_growth']:+.1f} % (at most "
+          f"{100 * r['rss_growth_max']:+.1f} %); open fds {r['open_fds']['start']} -> "
+          f"{r['open_fds']['end']}")
+    print(f"frames sent {r['frames_sent']}, received {r['frames_received']}, lost "
+          f"{r['lost_frames']} (gaps {r['gaps']}, late {r['late']}), CRC errors {r['crc_errors']}")
+    print(f"contacts {r['contacts']} from {r['touches']} touches, results {r['results']}; "
+          f"contacts per {r['per']}: {r['contacts_per_bin']}")
+    print("the same labels every " + r["per"] + ": "
+          + ("yes" if r["same_labels_every_bin"] else "no: " + "; ".join(
+              ", ".join(f"{k} {v}" for k, v in b.items()) for b in r["labels_per_bin"])))
+    print(f"written {r['written_mb']} MB")
     return 0
 
 

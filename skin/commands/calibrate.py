@@ -190,15 +190,15 @@ def main_thermal(args: argparse.Namespace) -> int:
     if np.any(data.onset < PRE):
         raise SkinError(f"{args.data}: every trial needs its onset and {PRE} samples before it")
     n = round(args.duration * data.fs)
-    if np.any(data.onset + n > data.temperature.shape[1]):
+    if np.any(data.onset + n > data.temperature.shape[-1]):
         raise SkinError(f"{args.data}: a {args.duration:g} s window does not fit the trials")
     t = np.arange(1, n + 1) / data.fs
     out = _existing(args.out)
-    for taxel in np.unique(data.taxel):
-        rows = np.flatnonzero(data.taxel == taxel)
-        t0 = np.array([data.temperature[i, data.onset[i] - PRE:data.onset[i]].mean()
+    for taxel in np.unique(data.taxel[:, 0]):
+        rows = np.flatnonzero(data.taxel[:, 0] == taxel)
+        t0 = np.array([data.primary[i, data.onset[i] - PRE:data.onset[i]].mean()
                        for i in rows])
-        y = np.array([data.temperature[i, data.onset[i] + 1:data.onset[i] + 1 + n]
+        y = np.array([data.primary[i, data.onset[i] + 1:data.onset[i] + 1 + n]
                       for i in rows])
         ambient = data.ambient[rows] if data.ambient is not None else np.full(rows.size, 25.0)
         try:
@@ -219,9 +219,9 @@ def main_thermal(args: argparse.Namespace) -> int:
                           "contacts": len(data), "taxels": {
                               str(int(t)): {k: np.asarray(out.taxels[int(t)][k]).item()
                                             for k in keys}
-                              for t in np.unique(data.taxel)}}))
+                              for t in np.unique(data.taxel[:, 0])}}))
         return 0
-    print(f"wrote {path}: thermal constants of {len(np.unique(data.taxel))} taxels from "
+    print(f"wrote {path}: thermal constants of {len(np.unique(data.taxel[:, 0]))} taxels from "
           f"{len(data)} contacts with {args.reference}")
     return 0
 

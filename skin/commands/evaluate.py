@@ -33,6 +33,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     src.add_argument("--train", help="dataset to train on (with --test: no cross-validation)")
     ev.add_argument("--test", help="dataset to test on (with --train); classes absent from "
                                    "training are reported with what they were called")
+    ev.add_argument("--model", metavar="FILE",
+                    help="evaluate a saved model file (skin train) on --data instead of "
+                         "training methods: at its own window, or at each of --durations an "
+                         "anytime model reads")
     ev.add_argument("--methods", default="svm-pca",
                     help="comma-separated methods: svm-pca, knn-pca, hmm, model (each with "
                          "optional :raw, :slope or :both features) and default "
@@ -61,10 +65,9 @@ def evaluate(data, method: str, duration: float, folds: int, groups: bool,
     from sklearn.metrics import confusion_matrix
     from sklearn.model_selection import GroupKFold, StratifiedKFold
 
-    from skin.models.classifiers import make_method
-    from skin.models.features import trial_matrix
+    from skin.models.classifiers import make_method, method_matrix
 
-    x = trial_matrix(data, duration)
+    x = method_matrix(data, method, duration)
     y = data.label
     classes = data.classes
     smallest = min(int(np.sum(y == c)) for c in classes)
@@ -90,7 +93,7 @@ def evaluate(data, method: str, duration: float, folds: int, groups: bool,
     conf = np.zeros((len(classes), len(classes)), dtype=int)
     top, right = [], []  # most probable class's probability, and whether it was right
     for train, test in splits:
-        model = make_method(method, fs=data.fs)
+        model = make_method(method, fs=data.fs, channels=data.n_channels)
         t0 = time.perf_counter()
         model.fit(x[train], y[train])
         t1 = time.perf_counter()
@@ -187,11 +190,14 @@ def train_test(train, test, method: str, duration: float) -> dict:
     """
     from sklearn.metrics import confusion_matrix
 
-    from skin.models.classifiers import make_method
-    from skin.models.features import trial_matrix
+    from skin.models.classifiers import make_method, method_matrix
 
-    x_train, x_test = trial_matrix(train, duration), trial_matrix(test, duration)
-    model = make_method(method, fs=train.fs)
+    if train.n_channels != test.n_channels:
+        raise SkinError(f"{test.source}: {test.n_channels} channel(s) per trial, the training "
+                        f"data {train.n_channels}")
+    x_train, x_test = method_matrix(train, method, duration), method_matrix(test, method,
+                                                                              duration)
+    model = make_method(method, fs=train.fs, channels=train.n_channels)
     t0 = time.perf_counter()
     model.fit(x_train, train.label)
     t1 = time.perf_counter()
@@ -225,6 +231,72 @@ def train_test(train, test, method: str, duration: float) -> dict:
     return out
 
 
+def saved_model(doc: dict, test, durations: list[float]) -> list[dict]:
+    """Test a loaded model file (`skin.models.modelfile.load_model`) on a dataset.
+
+    Test classes the model does not know are reported under ``unseen`` with what they were
+    called, as in `train_test`.
+    """
+    from sklearn.metrics import confusion_matrix
+
+    from skin.models.classifiers import method_matrix
+
+    est = doc["estimator"]
+    method = str(doc["method"])
+    base = method.removeprefix("anytime:")
+    channels = int(doc["features"].get("channels", 1))
+    if channels > 1 and test.n_channels != channels:
+        raise SkinError(f"{test.source}: {test.n_channels} channel(s) per trial; the model "
+                        f"reads {channels}")
+    if abs(float(doc["features"]["fs"]) - test.fs) > 1e-6:
+        raise SkinError(f"{test.source}: sampled at {test.fs:g} Hz, the model at "
+                        f"{doc['features']['fs']:g} Hz")
+    if not method.startswith("anytime:"):
+        durations = [float(doc["features"]["duration"])]
+    classes = [str(c) for c in est.classes_]
+    out = []
+    for duration in durations:
+        x = method_matrix(test if channels > 1 else test.channels([0]), base, duration)
+        t1 = time.perf_counter()
+        proba = est.predict_proba(x) if hasattr(est, "predict_proba") else None
+        pred = (np.asarray(est.classes_)[np.argmax(proba, axis=1)] if proba is not None
+                else est.predict(x)).astype(str)
+        t2 = time.perf_counter()
+        seen = np.isin(test.label, classes)
+        conf = confusion_matrix(test.label[seen], pred[seen], labels=classes)
+        recall = conf.diagonal() / np.maximum(conf.sum(axis=1), 1)
+        unseen = {}
+        for c in sorted(set(test.label[~seen].tolist())):
+            called, counts = np.unique(pred[test.label == c], return_counts=True)
+            unseen[c] = {str(k): int(v) for k, v in zip(called, counts, strict=True)}
+        r = {"method": f"model:{method}", "duration": duration,
+             "accuracy": round(float(np.mean(pred[seen] == test.label[seen])), 4)
+             if seen.any() else None, "accuracy_std": 0.0,
+             "recall": {c: round(float(v), 4) for c, v in zip(classes, recall, strict=True)},
+             "confusion": conf.tolist(), "classes": classes, "unknown": 0, "unseen": unseen,
+             "fit_ms_per_trial": 0.0,
+             "predict_ms_per_trial": round(1e3 * (t2 - t1) / len(test), 4)}
+        if proba is not None and seen.any():
+            top, right = proba[seen].max(axis=1), pred[seen] == test.label[seen]
+            r["selective"] = selective(top, right)
+            r["calibration_error"] = round(calibration_error(top, right), 4)
+        out.append(r)
+    return out
+
+
+def family_merge(classes: list[str]) -> list[set[str]] | None:
+    """Return the table's families as a merge of ``classes`` (None if one is not in it)."""
+    from skin.models.materials import load_materials
+
+    table = load_materials()
+    if not all(c in table for c in classes):
+        return None
+    fams: dict[str, set[str]] = {}
+    for c in classes:
+        fams.setdefault(table[c].family, set()).add(c)
+    return list(fams.values())
+
+
 def merged_accuracy(result: dict, merge: list[set[str]]) -> float:
     """Accuracy when each set of ``merge`` counts as one class (from the confusion matrix)."""
     classes = result["classes"]
@@ -254,6 +326,8 @@ def main(args: argparse.Namespace) -> int:
         raise SkinError("--train needs --test")
     if args.test and not args.train:
         raise SkinError("--test goes with --train (use --data for cross-validation)")
+    if args.model and not args.data:
+        raise SkinError("--model is evaluated on --data")
     data = require_classes(load_trials(args.data or args.train))
     test = load_trials(args.test) if args.test else None
     detected = int(np.sum(data.onset < 0)) + (0 if test is None else int(np.sum(test.onset < 0)))
@@ -273,6 +347,11 @@ def main(args: argparse.Namespace) -> int:
     started = time.monotonic()
     results = []
     total = len(methods) * len(durations)
+    if args.model:
+        from skin.models.modelfile import load_model
+
+        results = saved_model(load_model(args.model), data, durations)
+        methods = []
     for m in methods:
         for d in durations:
             progress.bar(len(results), total, f"evaluate {m} {d:g} s", started)
@@ -291,6 +370,10 @@ def main(args: argparse.Namespace) -> int:
             if merge:
                 results[-1]["merged_accuracy"] = round(merged_accuracy(results[-1], merge), 4)
     progress.done()
+    families = family_merge(data.classes)
+    for r in results:
+        if families is not None and r["classes"] == data.classes:
+            r["family_accuracy"] = round(merged_accuracy(r, families), 4)
     doc = {"data": str(args.data or args.train), "trials": len(data), "classes": data.classes,
            "cv": None if test is not None else args.cv, "groups": args.groups,
            "merge": [sorted(g) for g in merge], "onsets_detected": detected,
@@ -324,6 +407,8 @@ def main(args: argparse.Namespace) -> int:
               f"{r['accuracy_std']:.3f} {r['fit_ms_per_trial']:>13.3f} "
               f"{r['predict_ms_per_trial']:>17.4f}"
               + (f" {r['merged_accuracy']:>7.3f}" if merge else ""))
+        if "family_accuracy" in r:
+            print(f"{'':<14} {'':>10}   family accuracy {r['family_accuracy']:.3f}")
         if "calibration_error" in r:
             print(f"{'':<14} {'':>10}   calibration error {r['calibration_error']:.3f}")
         for sel in r.get("selective", []):

@@ -65,9 +65,9 @@ def _from_trials(path: str) -> tuple[np.ndarray, np.ndarray, list, float, str]:
     data = load_trials(path)
     if np.any(data.onset < 0):
         raise SkinError(f"{path}: every trial needs its onset (the truth) to be judged")
-    times = np.arange(data.temperature.shape[1]) / data.fs
+    times = np.arange(data.temperature.shape[-1]) / data.fs
     truth = [(i, float(times[o]), float(times[-1])) for i, o in enumerate(data.onset)]
-    return times, data.temperature.T.copy(), truth, data.fs, data.source
+    return times, data.primary.T.copy(), truth, data.fs, data.source
 
 
 def _commissioned_noise(path: str, n_taxels: int) -> np.ndarray:

@@ -65,6 +65,9 @@ def add_setup_options(run: argparse.ArgumentParser) -> None:
     run.add_argument("--model", metavar="FILE",
                      help="classify with a model file from `skin train` (taxels' evidence "
                           "fused); default: see --classifier")
+    run.add_argument("--threshold", type=float, metavar="P",
+                     help="probability needed to name a material (else its family, else "
+                          "\"unknown\"), for --model and the joint classifier (default 0.5)")
     run.add_argument("--classifier", choices=("joint", "histogram"),
                      help="without --model: the joint model that weighs a contact's taxels "
                           "with one object (default), or the paper's effusivity histogram")
@@ -92,7 +95,8 @@ def add_setup_options(run: argparse.ArgumentParser) -> None:
                      help="what --view and --video show first: material labels (default) or "
                           "each taxel's temperature")
     run.add_argument("--arm", metavar="FILE",
-                     help="arm file (TOML: a mesh file and pose per link) for the views and "
+                     help="arm file (TOML: a mesh file and pose per link; or a URDF; or xarm7, "
+                          "the example arm) for the views and "
                           "contact_map.png; default: the procedural arm of the default layout")
     run.add_argument("--first-frame-timeout", type=float, metavar="SECONDS",
                      help="fail when a device sends no frame within this time (default 5)")
@@ -102,6 +106,10 @@ def add_setup_options(run: argparse.ArgumentParser) -> None:
     run.add_argument("--sink", dest="sinks", action="append", metavar="NAME|FILE.jsonl",
                      help="where results go: events (events.jsonl in --out), terminal, or a "
                           "JSON-lines file; repeatable (default: events and terminal)")
+    run.add_argument("--publish", action="append", metavar="URL",
+                     help="publish live: foxglove://HOST:PORT (a Foxglove WebSocket server) or "
+                          "zenoh://[PREFIX] (keys PREFIX/ROBOT/temperature, contacts, health); "
+                          "repeatable (skin.stream.publish)")
     run.add_argument("--force", action="store_true",
                      help="overwrite the outputs of an earlier run in --out")
 
@@ -131,24 +139,25 @@ def resolve_setup(args: argparse.Namespace) -> Setup:
 
 def _print_table(records: list[dict[str, Any]], summary: dict[str, Any], out: str | None) -> None:
     print(f"\n{'id':>3} {'onset s':>8} {'dur s':>6} {'taxels':<18} {'label':<11} {'conf':>5} "
-          f"{'e':>7} {'truth':<11}")
+          f"{'family':<14} {'e fit':>7} {'truth':<11}")
     for rec in records:
         eff = "-" if rec["effusivity"] is None else f"{rec['effusivity']:.0f}"
         truth = rec.get("truth") or ("-" if "truth" not in rec else "(none)")
         dur = "open" if rec["duration"] is None else f"{rec['duration']:.2f}"
         print(f"{rec['contact']:>3} {rec['onset']:>8.2f} {dur:>6} "
               f"{','.join(map(str, rec['taxels'])):<18} {rec['label']:<11} "
-              f"{rec['confidence']:>5.2f} {eff:>7} {truth:<11}")
+              f"{rec['confidence']:>5.2f} {rec.get('family') or '-':<14} {eff:>7} {truth:<11}")
     print(f"\n{summary['frames']} frames in {summary['wall_time']:.1f} s wall time, "
           f"{summary['contacts']} contacts, {summary['crc_errors']} CRC errors")
     if "touches" in summary:
         print(f"scene truth: {summary['detected']}/{summary['touches']} touches detected, "
               f"{summary['correct']}/{summary['touches']} labelled correctly "
+              f"({summary['family_correct']}/{summary['touches']} at family level) "
               f"(accuracy {summary['accuracy']:.0%}), {summary['false_contacts']} false contacts; "
               f"median onset error {summary['median_onset_error']} s"
               + ("" if summary["median_log10_effusivity_error"] is None else
-                 f", median effusivity error {summary['median_log10_effusivity_error']} "
-                 "decades"))
+                 f", median error of the measured effusivity "
+                 f"{summary['median_log10_effusivity_error']} decades"))
     if out is not None:
         files = [Path(out) / n for n in ("events.jsonl", "summary.json", "contact_map.png")]
         print(f"outputs: {', '.join(str(f) for f in files if f.exists())}")

@@ -54,10 +54,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         default="contact", help="contact physics (default: contact)")
     trials.add_argument("--duration", type=float, default=3.0,
                         help="seconds recorded after onset (default 3)")
-    trials.add_argument("--object-offset", default="0,0", metavar="LOW,HIGH",
-                        help="range of a resting object's temperature above ambient, K, drawn "
-                             "per recording run (default 0,0; e.g. -8,8 for cold and warm "
-                             "objects)")
+    trials.add_argument("--object-offset", default="0,0", metavar="K|LOW,HIGH",
+                        help="a resting object's temperature above ambient, K, drawn per "
+                             "recording run: K puts it at -K or +K, LOW,HIGH anywhere between "
+                             "(default 0,0: at ambient; e.g. 8 for cold and warm objects)")
+    trials.add_argument("--channels", default="heated", metavar="C1,C2,...",
+                        help="taxels that see each contact: heated (constant power), passive "
+                             "(unheated) or heated@+D (held D K above ambient), e.g. "
+                             "heated,passive or heated,heated@+10; the first must be heated "
+                             "(default: heated)")
     trials.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     trials.add_argument("--sensor", default=None, metavar="PRESET|FILE",
                         help="sensor description: a preset (`skin sensors`) or a sensor file "
@@ -69,6 +74,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                                                  "as a calibration file")
     truth.add_argument("--scene", default="default", help="scene (default: default)")
     truth.add_argument("-o", "--out", required=True, help="calibration file to write (JSON)")
+    truth.add_argument("--json", action="store_true", help="print one JSON summary")
     truth.set_defaults(func=main_calibration)
 
 
@@ -79,8 +85,12 @@ def main_calibration(args: argparse.Namespace) -> int:
 
     scene = load_scene(args.scene)
     path = SkinSimulator(scene, duration=0.0).true_calibration().save(args.out)
-    print(f"wrote {path}: the true thermal constants of {len(scene.layout)} taxels "
-          f"(scene {scene.name}, taxel spread {scene.taxel_spread:g})")
+    if args.json:
+        print(json.dumps({"path": str(path), "taxels": len(scene.layout), "scene": scene.name,
+                          "taxel_spread": scene.taxel_spread}))
+    else:
+        print(f"wrote {path}: the true thermal constants of {len(scene.layout)} taxels "
+              f"(scene {scene.name}, taxel spread {scene.taxel_spread:g})")
     return 0
 
 
@@ -124,7 +134,7 @@ def main_trace(args: argparse.Namespace) -> int:
 def main_trials(args: argparse.Namespace) -> int:
     """Write a trial dataset."""
     from skin.models import load_materials
-    from skin.models.trials import PAPER_MATERIALS, Protocol, simulate_trials
+    from skin.models.trials import PAPER_MATERIALS, Protocol, parse_channel, simulate_trials
 
     materials = load_materials()
     names = list(PAPER_MATERIALS) if args.materials is None \
@@ -136,11 +146,21 @@ def main_trials(args: argparse.Namespace) -> int:
         raise SkinError(f"unknown material(s) {', '.join(unknown)}; known: {', '.join(materials)}")
     if args.trials < 1:
         raise SkinError("--trials must be at least 1")
-    offset = _pair(args.object_offset, "--object-offset")
-    if args.model == "multilayer" and offset != (0.0, 0.0):
+    offset = _offset(args.object_offset)
+    if args.model == "multilayer" and np.any(np.asarray(offset) != 0.0):
         raise SkinError("--object-offset needs --model contact or semi-infinite")
+    channels = tuple(c.strip() for c in args.channels.split(",") if c.strip())
+    try:
+        kinds = [parse_channel(c) for c in channels]
+    except ValueError as exc:
+        raise SkinError(f"--channels: {exc}") from None
+    if not kinds or not kinds[0][0]:
+        raise SkinError(f"--channels {args.channels!r}: the first channel must be heated")
+    if args.model == "multilayer" and len(kinds) > 1:
+        raise SkinError("--channels with several channels needs --model contact or "
+                        "semi-infinite")
     protocol = Protocol(trials=args.trials, ambient=args.ambient, duration=args.duration,
-                        object_offset=offset)
+                        object_offset=offset, channels=channels)
     sensor = None
     if args.sensor is not None:
         from skin.models.sensors import load_sensor
@@ -159,7 +179,8 @@ def main_trials(args: argparse.Namespace) -> int:
     path = ds.save(args.out)
     t0 = ds.extra["true_sensor_temperature"]
     summary = {"out": str(path), "trials": len(ds), "classes": names, "model": args.model,
-               "samples": ds.temperature.shape[1], "fs": ds.fs, "seed": args.seed,
+               "channels": list(channels),
+               "samples": ds.temperature.shape[-1], "fs": ds.fs, "seed": args.seed,
                "sensor": "paper" if sensor is None else sensor.name,
                "wall_time": round(wall, 3), "trials_per_second": round(len(ds) / wall, 1),
                "initial_temperature": {"min": round(float(t0.min()), 2),
@@ -169,10 +190,23 @@ def main_trials(args: argparse.Namespace) -> int:
         print(json.dumps(summary))
     else:
         print(f"wrote {path}: {len(ds)} trials of {len(names)} materials, "
-              f"{ds.temperature.shape[1]} samples at {ds.fs:g} Hz ({summary['trials_per_second']}"
+              f"{ds.temperature.shape[-1]} samples at {ds.fs:g} Hz ({summary['trials_per_second']}"
               f" trials/s); initial sensor temperature {t0.min():.1f}-{t0.max():.1f} C, "
               f"mean {t0.mean():.1f} C", file=sys.stdout)
     return 0
+
+
+def _offset(text: str) -> tuple[float, float] | float:
+    """Parse ``--object-offset``: one K >= 0 (objects at -K or +K) or ``LOW,HIGH``."""
+    if "," in text:
+        return _pair(text, "--object-offset")
+    try:
+        k = float(text)
+    except ValueError:
+        raise SkinError(f"--object-offset wants K or LOW,HIGH, got {text!r}") from None
+    if not (np.isfinite(k) and k >= 0):
+        raise SkinError(f"--object-offset K must be a finite K >= 0, got {text!r}")
+    return k
 
 
 def _pair(text: str, option: str) -> tuple[float, float]:

@@ -32,16 +32,47 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     tr.set_defaults(func=main)
 
 
+#: Training trials each class needs per method (PCA keeps 10 components; the HMMs fit states).
+MIN_PER_CLASS = {"svm-pca": 2, "knn-pca": 3, "hmm": 2, "model": 1, "default": 2,
+                 "fit-trees": 10}  # its early stopping holds out 10 % with every class
+MIN_TRIALS = {"svm-pca": 10, "knn-pca": 10}
+
+
+def check_enough(data, method: str) -> None:
+    """Raise a `SkinError` naming the class and the count when a dataset is too small."""
+    import numpy as np
+
+    from skin.errors import SkinError
+    from skin.models.classifiers import parse_method
+
+    base = parse_method(method)[0]
+    labels, counts = np.unique(data.label, return_counts=True)
+    need = MIN_PER_CLASS.get(base, 2)
+    if counts.min() < need:
+        raise SkinError(f"{data.source}: class {str(labels[np.argmin(counts)])!r} has "
+                        f"{counts.min()} trial(s); {method} needs at least {need} per class")
+    if len(data) < MIN_TRIALS.get(base, 0):
+        raise SkinError(f"{data.source}: {len(data)} trials; {method} needs at least "
+                        f"{MIN_TRIALS[base]} (PCA keeps 10 components)")
+
+
 def main(args: argparse.Namespace) -> int:
     """Fit and save."""
     from skin.errors import SkinError
     from skin.formats.dataset import load_trials, require_classes, with_detected_onsets
-    from skin.models.classifiers import AnytimeClassifier, make_method, parse_method
-    from skin.models.features import trial_matrix
+    from skin.models.classifiers import (
+        AnytimeClassifier,
+        make_method,
+        method_matrix,
+        parse_method,
+        reads_channels,
+    )
     from skin.models.modelfile import save_model, training_summary
 
     parse_method(args.method)
     data = with_detected_onsets(require_classes(load_trials(args.data)))  # onset -1: find it
+    check_enough(data, args.method)
+    channels = data.n_channels if reads_channels(args.method) else 1
     duration = args.duration
     if args.anytime:
         try:
@@ -54,17 +85,21 @@ def main(args: argparse.Namespace) -> int:
             raise SkinError(f"--anytime needs a method with probabilities (default, knn-pca, "
                             f"hmm); {args.method} has none")
         duration = durations[-1]
-        estimator = AnytimeClassifier(args.method, durations, fs=data.fs)
+        estimator = AnytimeClassifier(args.method, durations, fs=data.fs, channels=channels)
         method = f"anytime:{args.method}"
     else:
-        estimator = make_method(args.method, fs=data.fs)
+        estimator = make_method(args.method, fs=data.fs, channels=channels)
         method = args.method
-    x = trial_matrix(data, duration)
+    x = method_matrix(data, args.method, duration)
     started = time.perf_counter()
-    estimator.fit(x, data.label)
+    try:
+        estimator.fit(x, data.label)
+    except ValueError as exc:  # what the estimator found wrong with the data, said plainly
+        raise SkinError(f"{data.source}: cannot train {method} on {len(data)} trials: "
+                        f"{exc}") from None
     fit_time = time.perf_counter() - started
     path = save_model(args.out, estimator, method, duration, data.fs,
-                      training_summary(data, duration))
+                      training_summary(data, duration), channels=channels)
     summary = {"out": str(path), "method": method, "duration": duration,
                "classes": [str(c) for c in estimator.classes_], "trials": len(data),
                "fit_seconds": round(fit_time, 3)}

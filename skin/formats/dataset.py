@@ -1,23 +1,37 @@
 """Trial datasets (``.npz``): the interchange format for training and evaluation.
 
-Keys (see ``DESIGN.md``)::
+Version 2 (see ``DESIGN.md`` and the README): one trial is one contact seen by one or more
+channels (taxels)::
 
-    temperature  float (n_trials, n_samples), deg C
+    temperature  float (n_trials, n_channels, n_samples), deg C; NaN where a channel is absent
+    heated       bool (n_trials, n_channels): False for a passive, unheated thermistor
+    taxel        int (n_trials, n_channels): taxel id (-1 where absent)
     fs           sampling rate, Hz
     label        str (n_trials,)
     onset        int (n_trials,): sample index of contact onset, -1 = unknown (detect it)
-    ambient      float (n_trials,), deg C              optional
-    group        int (n_trials,): recording run        optional
-    taxel        int (n_trials,): taxel id             optional
+    ambient      float (n_trials,), deg C
+    group        int (n_trials,): recording run, for grouped cross-validation
+    setpoint     float (n_trials, n_channels): a held heater's setpoint, deg C (NaN: none) opt.
+    force        float (n_trials, n_samples), N                                        opt.
+    object_temperature  float (n_trials,), deg C, where it was measured               opt.
+    version      2
 
+Version 1 (``temperature`` of shape (n_trials, n_samples), one heated channel, ``taxel`` and
+``ambient`` optional per trial) still loads, as a dataset of one channel. In memory a
+`TrialSet` always holds the v2 shapes. Channel 0 is the *primary* channel (a heated one where
+the trial has one); methods that read one trace per trial read it.
+
+A channel is either present (every sample finite) or absent (every sample NaN); a trial needs
+its primary channel. A trial that breaks a rule is rejected with its index and the reason.
 Simulated datasets add their truth under ``true_`` keys (``true_onset_time``,
-``true_sensor_temperature``, ``true_object_temperature``, ``true_effusivity``,
-``true_conductance``), which loaders keep but classifiers never read. Files are loaded with
-``allow_pickle=False``: a dataset cannot run code.
+``true_sensor_temperature``, ``true_object_temperature``, ...), which loaders keep but
+classifiers never read. Files are loaded with ``allow_pickle=False``: a dataset cannot run
+code.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -30,26 +44,43 @@ class DatasetError(SkinError):
     """A trial dataset is missing a key, has a wrong shape, or holds bad values."""
 
 
+VERSION = 2
+#: Per-trial columns (n_trials,) and per-channel columns (n_trials, n_channels).
+PER_TRIAL = ("label", "onset", "ambient", "group", "object_temperature")
+PER_CHANNEL = ("heated", "taxel", "setpoint")
+
+
 @dataclass
 class TrialSet:
-    """A validated trial dataset.
+    """A validated trial dataset (version 2 shapes; see the module docstring).
 
     Attributes
     ----------
     temperature : numpy.ndarray
-        (n_trials, n_samples), deg C.
+        (n_trials, n_channels, n_samples), deg C, NaN where a channel is absent. A 2-D array
+        (n_trials, n_samples) is taken as one heated channel (version 1).
     fs : float
         Hz.
     label : numpy.ndarray
         str (n_trials,).
     onset : numpy.ndarray
         int (n_trials,), -1 = unknown.
-    ambient, group, taxel : numpy.ndarray or None
+    ambient, group : numpy.ndarray or None
         Optional per-trial columns.
+    taxel : numpy.ndarray or None
+        int (n_trials, n_channels) (or (n_trials,) for one channel).
     extra : dict
         Any other arrays in the file (e.g. the ``true_`` keys of simulated data).
     source : str
         Where it came from.
+    heated : numpy.ndarray or None
+        bool (n_trials, n_channels); None: every channel heated.
+    setpoint : numpy.ndarray or None
+        (n_trials, n_channels), deg C, NaN for a heater not held at a setpoint.
+    force : numpy.ndarray or None
+        (n_trials, n_samples), N.
+    object_temperature : numpy.ndarray or None
+        (n_trials,), deg C.
     """
 
     temperature: np.ndarray
@@ -61,12 +92,34 @@ class TrialSet:
     taxel: np.ndarray | None = None
     extra: dict[str, np.ndarray] = field(default_factory=dict)
     source: str = "<memory>"
+    heated: np.ndarray | None = None
+    setpoint: np.ndarray | None = None
+    force: np.ndarray | None = None
+    object_temperature: np.ndarray | None = None
 
     def __post_init__(self) -> None:
+        temp = np.asarray(self.temperature)
+        if temp.ndim == 2:  # version 1: one heated channel
+            temp = temp[:, None, :]
+            if self.taxel is not None and np.ndim(self.taxel) == 1:
+                self.taxel = np.asarray(self.taxel)[:, None]
+        self.temperature = temp
+        if self.heated is None and temp.ndim == 3:
+            self.heated = np.ones(temp.shape[:2], dtype=bool)
         validate(self)
 
     def __len__(self) -> int:
         return self.temperature.shape[0]
+
+    @property
+    def n_channels(self) -> int:
+        """Channels per trial."""
+        return self.temperature.shape[1]
+
+    @property
+    def primary(self) -> np.ndarray:
+        """The primary channel's readings, (n_trials, n_samples): what one-trace methods read."""
+        return self.temperature[:, 0, :]
 
     @property
     def classes(self) -> list[str]:
@@ -78,15 +131,27 @@ class TrialSet:
         pick = (lambda a: None if a is None else a[index])  # noqa: E731
         return TrialSet(self.temperature[index], self.fs, self.label[index], self.onset[index],
                         pick(self.ambient), pick(self.group), pick(self.taxel),
-                        {k: v[index] for k, v in self.extra.items()}, self.source)
+                        {k: v[index] for k, v in self.extra.items()}, self.source,
+                        pick(self.heated), pick(self.setpoint), pick(self.force),
+                        pick(self.object_temperature))
+
+    def channels(self, index: list[int] | np.ndarray) -> TrialSet:
+        """Return the dataset with only the channels at ``index`` (the first is primary)."""
+        index = np.asarray(index, dtype=int)
+        pick = (lambda a: None if a is None else a[:, index])  # noqa: E731
+        return TrialSet(self.temperature[:, index], self.fs, self.label, self.onset,
+                        self.ambient, self.group, pick(self.taxel), dict(self.extra),
+                        self.source, pick(self.heated), pick(self.setpoint), self.force,
+                        self.object_temperature)
 
     def save(self, path: str | Path) -> Path:
-        """Write the dataset as a compressed ``.npz``."""
+        """Write the dataset (version 2) as a compressed ``.npz``."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        arrays = {"temperature": self.temperature, "fs": np.asarray(self.fs),
-                  "label": self.label.astype(str), "onset": self.onset}
-        for key in ("ambient", "group", "taxel"):
+        arrays = {"version": np.asarray(VERSION), "temperature": self.temperature,
+                  "fs": np.asarray(self.fs), "label": self.label.astype(str),
+                  "onset": self.onset, "heated": self.heated}
+        for key in ("ambient", "group", "taxel", "setpoint", "force", "object_temperature"):
             if getattr(self, key) is not None:
                 arrays[key] = getattr(self, key)
         arrays.update(self.extra)
@@ -95,39 +160,61 @@ class TrialSet:
         return path
 
 
+def _first(mask: np.ndarray) -> int:
+    return int(np.flatnonzero(mask)[0])
+
+
 def validate(ts: TrialSet) -> None:
-    """Check shapes and values; raise `DatasetError` naming the key and the trial."""
+    """Check shapes and values; raise `DatasetError` naming the key, the trial and the reason."""
     src = ts.source
     temp = np.asarray(ts.temperature)
-    if temp.ndim != 2 or temp.shape[0] == 0 or temp.shape[1] < 2:
-        raise DatasetError(f"{src}: 'temperature' must be (n_trials, n_samples) with at least one "
-                           f"trial and two samples, got shape {temp.shape}")
+    if temp.ndim != 3 or temp.shape[0] == 0 or temp.shape[1] == 0 or temp.shape[2] < 2:
+        raise DatasetError(f"{src}: 'temperature' must be (n_trials, n_samples) or (n_trials, "
+                           f"n_channels, n_samples) with at least one trial, one channel and "
+                           f"two samples, got shape {np.shape(ts.temperature)}")
     if not np.issubdtype(temp.dtype, np.floating):
         raise DatasetError(f"{src}: 'temperature' must be float, got {temp.dtype}")
-    bad = ~np.all(np.isfinite(temp), axis=1)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        j = int(np.flatnonzero(~np.isfinite(temp[i]))[0])
-        raise DatasetError(f"{src}: 'temperature' of trial {i} is not finite at sample {j} "
-                           f"({int(bad.sum())} trial(s) affected)")
-    n, m = temp.shape
+    n, c, m = temp.shape
+    finite = np.isfinite(temp)
+    present = finite.any(axis=2)
+    partly = present & ~finite.all(axis=2)
+    if partly.any():  # a present channel must be whole
+        i, k = (int(v) for v in np.argwhere(partly)[0])
+        j = _first(~finite[i, k])
+        where = "" if c == 1 else f" channel {k}"
+        raise DatasetError(f"{src}: 'temperature' of trial {i}{where} is not finite at sample "
+                           f"{j} ({int(partly.any(axis=1).sum())} trial(s) affected)")
+    if not present[:, 0].all():
+        raise DatasetError(f"{src}: trial {_first(~present[:, 0])} has no reading on its "
+                           f"primary channel 0 (all NaN)")
     if not (np.isfinite(ts.fs) and ts.fs > 0):
         raise DatasetError(f"{src}: 'fs' must be a positive sampling rate, got {ts.fs!r}")
-    for key in ("label", "onset", "ambient", "group", "taxel"):
+    for key in PER_TRIAL:
         a = getattr(ts, key)
         if a is not None and np.shape(a) != (n,):
             raise DatasetError(f"{src}: '{key}' must have one value per trial ({n},), "
                                f"got shape {np.shape(a)}")
+    for key in PER_CHANNEL:
+        a = getattr(ts, key)
+        if a is not None and np.shape(a) != (n, c):
+            raise DatasetError(f"{src}: '{key}' must be (n_trials, n_channels) = ({n}, {c}), "
+                               f"got shape {np.shape(a)}")
+    if ts.heated is not None and np.asarray(ts.heated).dtype != bool:
+        raise DatasetError(f"{src}: 'heated' must be bool, got {np.asarray(ts.heated).dtype}")
+    if ts.force is not None and np.shape(ts.force) != (n, m):
+        raise DatasetError(f"{src}: 'force' must be (n_trials, n_samples) = ({n}, {m}), got "
+                           f"shape {np.shape(ts.force)}")
     onset = np.asarray(ts.onset)
     if not np.issubdtype(onset.dtype, np.integer):
         raise DatasetError(f"{src}: 'onset' must be integer sample indices, got {onset.dtype}")
     out = (onset < -1) | (onset >= m)
     if out.any():
-        i = int(np.flatnonzero(out)[0])
+        i = _first(out)
         raise DatasetError(f"{src}: 'onset' of trial {i} is {int(onset[i])}, outside -1..{m - 1}")
-    if ts.ambient is not None and not np.all(np.isfinite(ts.ambient)):
-        i = int(np.flatnonzero(~np.isfinite(ts.ambient))[0])
-        raise DatasetError(f"{src}: 'ambient' of trial {i} is not finite")
+    for key in ("ambient", "object_temperature"):
+        a = getattr(ts, key)
+        if a is not None and not np.all(np.isfinite(a)):
+            raise DatasetError(f"{src}: '{key}' of trial {_first(~np.isfinite(a))} is not finite")
     for key, a in ts.extra.items():
         if np.shape(a)[:1] != (n,):
             raise DatasetError(f"{src}: '{key}' must have one row per trial, got {np.shape(a)}")
@@ -143,7 +230,7 @@ def require_classes(data: TrialSet, at_least: int = 2) -> TrialSet:
 
 
 def load_trials(path: str | Path) -> TrialSet:
-    """Load and validate a trial dataset (no pickles are ever loaded).
+    """Load and validate a trial dataset, version 1 or 2 (no pickles are ever loaded).
 
     One class is allowed (a calibration's reference contacts); classifiers check for two
     with `require_classes`.
@@ -161,13 +248,24 @@ def load_trials(path: str | Path) -> TrialSet:
     missing = [k for k in ("temperature", "fs", "label", "onset") if k not in data]
     if missing:
         raise DatasetError(f"{path}: missing key(s) {', '.join(missing)}")
+    version = int(data.pop("version", 1 if data["temperature"].ndim == 2 else 2))
+    if version not in (1, 2):
+        raise DatasetError(f"{path}: dataset version {version}; this library reads 1 and 2")
     fs = data.pop("fs")
     if fs.size != 1:
         raise DatasetError(f"{path}: 'fs' must be one number, got shape {fs.shape}")
-    optional = {k: data.pop(k, None) for k in ("ambient", "group", "taxel")}
+    optional = {k: data.pop(k, None) for k in ("ambient", "group", "taxel", "heated",
+                                                 "setpoint", "force", "object_temperature")}
+    if optional["heated"] is not None and optional["heated"].dtype != bool:
+        if not np.isin(optional["heated"], (0, 1)).all():
+            raise DatasetError(f"{path}: 'heated' must be bool (or 0/1)")
+        optional["heated"] = optional["heated"].astype(bool)
     temp = data.pop("temperature")
     if np.issubdtype(temp.dtype, np.integer):
         temp = temp.astype(float)
+    if version == 1 and temp.ndim != 2:
+        raise DatasetError(f"{path}: a version 1 'temperature' is (n_trials, n_samples), got "
+                           f"shape {temp.shape}")
     return TrialSet(temperature=temp, fs=float(fs), label=data.pop("label").astype(str),
                     onset=data.pop("onset"), extra=data, source=str(path), **optional)
 
@@ -191,7 +289,7 @@ def with_detected_onsets(data: TrialSet, depth: float = 8e-5,
     todo = np.flatnonzero(data.onset < 0)
     if todo.size == 0:
         return data
-    y = data.temperature[todo]
+    y = data.primary[todo]
     times = np.arange(y.shape[1]) / data.fs
     detector = OnsetDetector(todo.size)
     events, _ = detector.process(times, y.T, detector.initial_state())
@@ -208,5 +306,4 @@ def with_detected_onsets(data: TrialSet, depth: float = 8e-5,
     for k, ev in first.items():
         t_on, _ = refine_onset(times, y[k], ev.time, ev.baseline, ev.slope, depth, diffusivity)
         onset[todo[k]] = int(np.clip(np.ceil(t_on * data.fs - 1e-9), 0, y.shape[1] - 1))
-    return TrialSet(data.temperature, data.fs, data.label, onset, data.ambient, data.group,
-                    data.taxel, data.extra, data.source)
+    return dataclasses.replace(data, onset=onset)

@@ -3,11 +3,11 @@
 The first stage of the pipeline. Each board sends a `Frame` per sample; a skin of several
 boards is sampled in step (the boards share a sync, so one sample carries one sequence number
 on every board) and the assembler puts each sample's frames together into one row of counts
-in layout order (its time is that of the lowest board id present). A sample is complete once
-every board has sent its frame; a board that falls more than ``max_skew`` samples behind
-another is taken as missing for that sample (its taxels' counts are NaN, which calibration
-flags), and its frame for it, should it still come, is counted late and dropped: samples
-leave in order, so the onset detector's time never runs backwards.
+in layout order (its device and host times are those of the lowest board id present). A
+sample is complete once every board has sent its frame; a board that falls more than
+``max_skew`` samples behind another is taken as missing for that sample (its taxels' counts
+are NaN, which calibration flags), and its frame for it, should it still come, is counted
+late and dropped: samples leave in order, so the onset detector's time never runs backwards.
 """
 
 from __future__ import annotations
@@ -38,12 +38,16 @@ class Samples:
         Ambient temperature, deg C (mean over the boards that sent the sample), (n,).
     duty : numpy.ndarray
         Heater duty 0-255 in layout order, NaN where missing, (n, taxels).
+    host_times : numpy.ndarray
+        Host time of each sample, s (``time.monotonic`` clock): the ``Frame.host_time`` of the
+        frame whose device time it keeps, (n,).
     """
 
     times: np.ndarray
     counts: np.ndarray
     ambient: np.ndarray
     duty: np.ndarray
+    host_times: np.ndarray
 
     def __len__(self) -> int:
         return len(self.times)
@@ -159,6 +163,7 @@ class FrameAssembler:
         counts = np.full((n, self._n), np.nan)
         duty = np.full((n, self._n), np.nan)
         times = np.empty(n)
+        host = np.empty(n)
         ambient = np.empty(n)
         for i, got in enumerate(ready):
             for board, (idx, addr) in self._maps.items():
@@ -170,6 +175,7 @@ class FrameAssembler:
                 duty[i, idx] = f.duty[addr]
             first = got[min(got)]  # the lowest board id present keeps the time
             times[i] = first.device_time
+            host[i] = first.host_time
             ambient[i] = float(np.mean([f.ambient for f in got.values()]))
         self.stats.samples += n
-        return Samples(times, counts, ambient, duty)
+        return Samples(times, counts, ambient, duty, host)

@@ -70,11 +70,80 @@ class ContactResult:
     reported_at : float
         Device time of the newest sample when the result was given, s: later than
         ``contact.decided_at`` when the work was spread over frames.
+    host : HostTimes or None
+        The same instants in host time (None when the source gave no host times).
     """
 
     contact: Contact
     estimate: MaterialEstimate
     reported_at: float
+    host: HostTimes | None = None
+
+
+@dataclass(frozen=True)
+class HostTimes:
+    """A contact's instants in host time: ``time.monotonic`` seconds, as ``Frame.host_time``.
+
+    Device times are mapped through the host times the samples carried (each board's clock
+    map, `skin.drivers.clock`), so contacts line up with anything else the host stamps (a
+    robot's joint states, camera frames); ``skin.drivers.clock.wall_time`` turns them into
+    Unix time.
+
+    Attributes
+    ----------
+    onset, decided_at, reported_at : float
+        Host time of ``contact.onset``, ``contact.decided_at`` and ``reported_at``, s.
+    release : float or None
+        Host time of ``contact.release``, s.
+    """
+
+    onset: float
+    release: float | None
+    decided_at: float
+    reported_at: float
+
+
+class HostTimeline:
+    """Device time -> host time, from the (device, host) pairs of the last samples seen.
+
+    The host - device offset of the samples is interpolated (held constant beyond the ends),
+    so a contact's instants, at most a window old, map through the same clock maps that
+    stamped its frames. A device clock running backwards (a board reset) starts it afresh.
+
+    Parameters
+    ----------
+    capacity : int
+        Samples kept.
+    """
+
+    def __init__(self, capacity: int = 8192) -> None:
+        self._device = np.full(capacity, np.nan)
+        self._offset = np.full(capacity, np.nan)
+        self._head = 0  # samples written
+
+    def append(self, device: np.ndarray, host: np.ndarray) -> None:
+        """Take a block of samples' device and host times, s."""
+        cap = len(self._device)
+        if self._head and len(device) and device[0] < self._device[(self._head - 1) % cap]:
+            self._device[:] = np.nan
+            self._offset[:] = np.nan
+            self._head = 0
+        device, offset = device[-cap:], (host - device)[-cap:]
+        idx = (self._head + np.arange(len(device))) % cap
+        self._device[idx] = device
+        self._offset[idx] = offset
+        self._head += len(device)
+
+    def to_host(self, device_time: float) -> float:
+        """Return the host time of ``device_time``, s (NaN before any sample with a host time)."""
+        cap = len(self._device)
+        n = min(self._head, cap)
+        order = (self._head - n + np.arange(n)) % cap
+        d, off = self._device[order], self._offset[order]
+        ok = np.isfinite(off)
+        if not ok.any():
+            return float("nan")
+        return float(device_time + np.interp(device_time, d[ok], off[ok]))
 
 
 class Sink(Protocol):
@@ -166,11 +235,14 @@ class Pipeline:
 
     Attributes
     ----------
+    timeline : HostTimeline
+        Maps device time to host time by the samples seen (`ContactResult.host`).
     observers : list of callable
-        Each is called as ``observer(times, temperature)`` with every block of calibrated
-        samples (device times (n,), deg C (n, taxels) in layout order, NaN where flagged),
-        before onset detection; a recording keeps them (`skin.drivers.recording.Recorder`).
-        Their time counts as the ``sinks`` stage's. Observers must not modify the arrays.
+        Each is called as ``observer(times, temperature, host_times)`` with every block of
+        calibrated samples (device times (n,), deg C (n, taxels) in layout order, NaN where
+        flagged, host times (n,)), before onset detection; a recording keeps them
+        (`skin.drivers.recording.Recorder`). Their time counts as the ``sinks`` stage's.
+        Observers must not modify the arrays.
     """
 
     def __init__(
@@ -213,7 +285,8 @@ class Pipeline:
             self.diffusivity = layout.board_array("sensor_diffusivity")
         self.ambient_offset = float(ambient_offset)
         self.sinks = list(sinks)
-        self.observers: list[Callable[[np.ndarray, np.ndarray], None]] = []
+        self.observers: list[Callable[[np.ndarray, np.ndarray, np.ndarray], None]] = []
+        self.timeline = HostTimeline()
         self.budget = budget
         self.max_wait = float(max_wait)
         self._state = self.detector.initial_state()
@@ -263,10 +336,11 @@ class Pipeline:
         self.stats.flagged += (status != 0).sum(axis=0)
         self.last_temperature = temperature[-1]
         self._now = float(samples.times[-1])
+        self.timeline.append(samples.times, samples.host_times)
         if self.observers:
             t0 = time.perf_counter()
             for observe in self.observers:
-                observe(samples.times, temperature)
+                observe(samples.times, temperature, samples.host_times)
             self.stats.seconds["sinks"] += time.perf_counter() - t0
         events, self._state = self._timed("onset", self.detector.process, samples.times,
                                           temperature, self._state)
@@ -279,6 +353,14 @@ class Pipeline:
     def _enqueue(self, decided: list[DecidedContact]) -> None:
         self._queue.extend(_Deciding(d) for d in decided)
         self.stats.contacts += sum(d.final for d in decided)
+
+    def _host_times(self, contact: Contact) -> HostTimes | None:
+        to_host = self.timeline.to_host
+        onset = to_host(contact.onset)
+        if np.isnan(onset):
+            return None
+        return HostTimes(onset, None if contact.release is None else to_host(contact.release),
+                         to_host(contact.decided_at), to_host(self._now))
 
     def _drain(self, started: float, budget: float | None) -> list[ContactResult]:
         """Refine and classify waiting contacts, one step at a time, within the budget."""
@@ -304,7 +386,8 @@ class Pipeline:
                 self._queue.popleft()
                 contact = finish_contact(head.decided, self.layout, head.refined,
                                          self.tracker.window)
-                result = ContactResult(contact, self.classifier.classify(contact), self._now)
+                result = ContactResult(contact, self.classifier.classify(contact), self._now,
+                                       self._host_times(contact))
             spent = time.perf_counter() - t0
             seconds[kind] += spent
             self._typical[kind] += 0.1 * (spent - self._typical[kind])

@@ -17,9 +17,18 @@ from skin.stream.pipeline import ContactResult
 
 
 def event_record(result: ContactResult) -> dict[str, Any]:
-    """Return the JSON-ready record of one result (one line of ``events.jsonl``)."""
-    c, e = result.contact, result.estimate
-    return {
+    """Return the JSON-ready record of one result (one line of ``events.jsonl``).
+
+    Times without a prefix are the board's device time, s; ``host_onset``, ``host_release``,
+    ``host_decided_at`` and ``host_reported_at`` are the same instants on the host's wall
+    clock (Unix time, s, mapped through each board's clock map: `skin.drivers.clock`), the
+    time base of a robot's own logs; None when the source gave no host time. ``family`` and
+    ``probabilities`` come from the classifier when it gives them.
+    """
+    from skin.drivers.clock import wall_time
+
+    c, e, h = result.contact, result.estimate, result.host
+    rec: dict[str, Any] = {
         "contact": c.id,
         "taxels": c.taxels,
         "onset": round(c.onset, 4),
@@ -30,18 +39,34 @@ def event_record(result: ContactResult) -> dict[str, Any]:
         "reported_at": round(result.reported_at, 4),
         "label": e.label,
         "confidence": round(e.confidence, 3),
+        "family": e.family,
+        "family_confidence": round(e.family_confidence, 3),
+        "probabilities": {k: round(v, 4) for k, v in sorted(e.probabilities.items(),
+                                                            key=lambda kv: -kv[1])},
         "effusivity": None if e.effusivity is None else round(e.effusivity, 1),
         "method": e.method,
         "initial_temperature": {str(w.taxel): round(w.initial, 3) for w in c.windows},
         "ambient": round(c.ambient, 3),
+        "host_onset": None if h is None else round(wall_time(h.onset), 6),
+        "host_release": None if h is None or h.release is None
+        else round(wall_time(h.release), 6),
+        "host_decided_at": None if h is None else round(wall_time(h.decided_at), 6),
+        "host_reported_at": None if h is None else round(wall_time(h.reported_at), 6),
     }
+    family = getattr(e, "family", None)
+    if family is not None:
+        rec["family"] = family
+    if e.probabilities:
+        rec["probabilities"] = {k: round(float(v), 4) for k, v in e.probabilities.items()}
+    return rec
 
 
 def contact_line(rec: dict[str, Any]) -> str:
     """Return a line of text for a record of `event_record` (with its ``truth``, if any)."""
     eff = "-" if rec["effusivity"] is None else f"{rec['effusivity']:.0f}"
     line = (f"contact {rec['contact']:3d}{' ' if rec['final'] else '~'} t={rec['onset']:7.2f} s  "
-            f"taxels {','.join(map(str, rec['taxels'])):<16s} {rec['label']:<11s} e={eff:>6s}")
+            f"taxels {','.join(map(str, rec['taxels'])):<16s} {rec['label']:<11s} "
+            f"{rec.get('family') or '-':<14s} e={eff:>6s}")
     if "truth" in rec:
         line += f"  truth {rec['truth']:<11s} {'ok' if rec['truth'] == rec['label'] else 'x'}"
     return line

@@ -750,7 +750,10 @@ def load_poses(path: str | Path, chain: Chain | None = None,
 
     - NPZ with ``time`` (n,), ``joints`` (J,) names and ``q`` (n, J): joint angles;
     - NPZ with ``time`` (n,), ``links`` (L,) names and ``poses`` (n, L, 4, 4): link poses;
-    - CSV with a header ``time,<joint>,<joint>,...`` and one row per sample (``#`` comments).
+    - CSV with a header ``time,<joint>,<joint>,...`` and one row per sample (``#`` comments);
+    - a ROS 2 bag (its folder, SQLite or MCAP storage), an ``.mcap`` file of ROS 2 messages or
+      a ROS 1 ``.bag`` of ``sensor_msgs/msg/JointState`` (`skin.world.joint_states`; Unix
+      times).
 
     Parameters
     ----------
@@ -773,6 +776,10 @@ def load_poses(path: str | Path, chain: Chain | None = None,
     path = Path(path)
     src = str(path)
     chain = chain or default_chain()
+    if path.is_dir() or path.suffix.lower() in (".bag", ".mcap"):
+        from skin.world.joint_states import load_joint_states
+
+        return load_joint_states(path, chain, tolerance=tolerance)
     if path.suffix.lower() == ".npz":
         try:
             with np.load(path, allow_pickle=False) as data:
@@ -804,7 +811,8 @@ def load_poses(path: str | Path, chain: Chain | None = None,
                               "('links', 'poses')")
     if path.suffix.lower() == ".csv":
         return _load_csv(path, chain, tolerance)
-    raise KinematicsError(f"{src}: poses must be a .npz or .csv file")
+    raise KinematicsError(f"{src}: poses must be a .npz or .csv file, a ROS 2 bag folder or "
+                          ".mcap file, or a ROS 1 .bag")
 
 
 def _load_csv(path: Path, chain: Chain, tolerance: float) -> JointTrack:

@@ -1,0 +1,284 @@
+"""Soak: the whole chain for hours of simulated time, as fast as it goes, watching for drift.
+
+`run` builds a skin of ``n`` taxels (`skin.bench.pipeline.cylinder_layout`: rings of 16,
+boards of 256), gives each board its own simulated board (`skin.drivers.sim.SkinSimulator`
+served as wire bytes on a real pseudo-terminal by `skin.drivers.sim.PtySerialDevice`), reads
+each through its serial driver (`skin.drivers.open`), a frame from each in turn, and pushes the
+frames through `skin.stream.pipeline.Pipeline` with the joint classifier, a JSON-lines sink
+and an MCAP recording (`skin.drivers.recording.Recorder`: wire bytes, temperatures, events).
+
+The touches repeat the same pattern every simulated minute (`PERIOD`), moved to other taxels,
+so a chain that does not drift gives the same contacts every hour. Every ``every`` simulated
+seconds it notes the process's resident memory, its open file descriptors, and the frames,
+results and contacts so far. It reports memory over time and its growth after the first
+simulated hour (or after the first tenth of a shorter run), contacts and results per
+simulated hour, lost frames (sequence gaps, frames sent but never read or dropped late by the
+assembler, CRC errors), the
+simulated seconds per wall second and the size of what was written.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+from collections import Counter
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from skin.formats.layout import Layout
+
+#: The touch pattern repeats every PERIOD simulated seconds.
+PERIOD = 60.0
+#: Touches per board and period, and the objects they use in turn.
+TOUCHES = 6
+OBJECTS = ("aluminium", "pine", "glass", "neoprene")
+RING = 16  # taxels per ring of `cylinder_layout`
+
+
+def soak_scenes(n_taxels: int, seconds: float, seed: int = 0) -> tuple[Layout, list[Any]]:
+    """Return the skin's layout and one scene per board, its touches repeating every PERIOD.
+
+    In each period, each board is touched `TOUCHES` times, 0.4-2.4 s long, by each object in
+    turn, on a patch of four neighbouring taxels (two in a ring, the same two in the next
+    ring) that moves from one period to the next; the last touches end before ``seconds``.
+    """
+    from skin.bench.pipeline import cylinder_layout
+    from skin.formats.scene import Scene, SceneObject, Touch
+
+    layout = cylinder_layout(n_taxels)
+    objects = {m: SceneObject(m, m, None) for m in OBJECTS}
+    scenes = []
+    for board in sorted(layout.boards):
+        taxels = [t for t in layout.taxels if t.board == board]
+        ids = [t.id for t in taxels]
+        rings = max(1, len(ids) // RING)
+        touches = []
+        for period in range(int(np.ceil(seconds / PERIOD))):
+            for slot in range(TOUCHES):
+                start = period * PERIOD + 2.0 + slot * (PERIOD - 4.0) / TOUCHES
+                length = 0.4 + 2.0 * slot / max(TOUCHES - 1, 1)
+                if start + length >= seconds - 0.5:
+                    break
+                ring = (3 * period + 5 * slot) % rings
+                k = (7 * period + 3 * slot) % RING
+                patch = [ring * RING + k, ring * RING + (k + 1) % RING]
+                if ring + 1 < rings:
+                    patch += [p + RING for p in patch]
+                patch = [ids[p] for p in patch if p < len(ids)]
+                touches.append(Touch(OBJECTS[slot % len(OBJECTS)], tuple(patch), start, length))
+        sub = Layout(taxels, [layout.boards[board]], name=f"{layout.name}, board {board}",
+                     source=layout.source)
+        scenes.append(Scene(name=f"soak-{board}", source=f"<soak board {board}>", layout=sub,
+                            duration=seconds, ambient=25.0, noise=0.02, seed=seed + board,
+                            initial_temperature=(31.0, 38.9), objects=objects,
+                            touches=tuple(touches)))
+    return layout, scenes
+
+
+def _rss_mb() -> float:
+    """Resident memory of this process now, MB."""
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+def _open_fds() -> int:
+    """Open file descriptors of this process."""
+    return len(os.listdir("/proc/self/fd"))
+
+
+def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
+        record: bool = True, folder: str | Path | None = None,
+        progress: Callable[[str], None] | None = None) -> dict:
+    """Run the soak (see the module docstring) and return its figures.
+
+    Parameters
+    ----------
+    hours : float
+        Simulated hours.
+    n_taxels : int
+        Skin size (boards of 256 taxels).
+    seed : int
+        Seed of the simulated boards (board b uses ``seed + b``).
+    every : float, optional
+        Simulated seconds between samples of memory and counts (default: 60 samples).
+    record : bool
+        Also record everything to MCAP.
+    folder : str or Path, optional
+        Where the events and the recording go (default: a temporary folder, removed after).
+    progress : callable, optional
+        Called with a status line at each sample.
+
+    Returns
+    -------
+    dict
+        ``samples`` (per sample: simulated s, wall s, ``rss_mb``, ``open_fds``, frames,
+        results, contacts; the last is taken after the boards ended); ``rss_growth`` and
+        ``rss_growth_max`` (relative, from the first simulated hour, or the first tenth of a
+        shorter run, to the run's last sample and to its largest); ``contacts_per_bin``
+        (final contacts by onset, per whole simulated hour, or per `PERIOD` for a run
+        shorter than two hours, as ``per`` says) and ``labels_per_bin`` (their labels,
+        counted; ``same_labels_every_bin``); ``lost_frames`` (``gaps``, ``late`` and
+        frames sent but not read), ``crc_errors``, ``speed`` (simulated seconds per wall
+        second), ``written_mb``.
+    """
+    import shutil
+
+    from skin import drivers
+    from skin.drivers.sim import PtySerialDevice, SkinSimulator
+    from skin.models import JointClassifier
+    from skin.stream.calibration import Calibration
+    from skin.stream.pipeline import Pipeline
+    from skin.stream.sinks import JsonLinesSink
+
+    if hours <= 0 or n_taxels < 1:
+        raise ValueError("hours and n_taxels must be positive")
+    seconds = hours * 3600.0
+    every = seconds / 60 if every is None else every
+    layout, scenes = soak_scenes(n_taxels, seconds, seed)
+    temporary = folder is None
+    out = Path(tempfile.mkdtemp(prefix="skin-soak-") if folder is None else folder)
+    out.mkdir(parents=True, exist_ok=True)
+    devices = [PtySerialDevice(SkinSimulator(scene), speed=0) for scene in scenes]
+    closers: list[Any] = list(devices)
+    opened: list[Any] = []
+    try:
+        for d in devices:
+            opened.append(drivers.open(f"serial://{d.port}?board={d.simulator.board.id}"))
+            closers.insert(0, opened[-1])
+        calibration = Calibration.from_layout(layout)
+        pipe = Pipeline(layout, JointClassifier(layout), calibration=calibration)
+        events = JsonLinesSink(out / "events.jsonl")
+        closers.insert(0, events)
+        pipe.sinks.append(events)
+        if record:
+            from skin.drivers.recording import Recorder
+
+            recorder = Recorder(out / "soak.mcap", layout, calibration=calibration,
+                                metadata={"command": f"skin bench soak --hours {hours:g} "
+                                                     f"--taxels {n_taxels}"})
+            closers.insert(0, recorder)
+            for one in opened:
+                recorder.add_driver(one)
+            pipe.sinks.append(recorder)
+            pipe.observers.append(recorder.temperature)
+        for d in devices:
+            d.start()  # after the ports are open: opening one empties its buffer
+        samples = []
+        onsets: list[float] = []  # onset of every final contact, simulated s
+        labels: list[str] = []  # and its label
+        results = 0
+        received = 0
+        batch: list = []
+        latest: dict[int, float] = {}
+        now = 0.0
+        next_sample = 0.0
+        started = time.monotonic()
+        idle_since = started
+
+        def note() -> None:
+            samples.append({"simulated_s": round(now, 1),
+                            "wall_s": round(time.monotonic() - started, 1),
+                            "rss_mb": round(_rss_mb(), 1), "open_fds": _open_fds(),
+                            "frames": received, "results": results,
+                            "contacts": len(onsets)})
+            if progress is not None:
+                s = samples[-1]
+                progress(f"[{now / 3600:6.3f}/{hours:g} h] RSS {s['rss_mb']:.0f} MB, "
+                         f"{s['open_fds']} fds, {received} frames, {len(onsets)} contacts")
+
+        per_board = [0] * len(devices)
+        while True:
+            # the boards are read in turn, a frame each, as a sync keeps real boards in step
+            # (the assembler takes a board more than 20 samples behind as missing); each
+            # simulated board waits for its reader, so nothing is dropped at full speed
+            got = 0
+            for i, (one, device) in enumerate(zip(opened, devices, strict=True)):
+                if device.done.is_set() and per_board[i] >= device.frames_sent:
+                    continue
+                frame = one.recv(timeout=1.0)
+                if frame is None:
+                    continue
+                got += 1
+                per_board[i] += 1
+                batch.append(frame)
+                latest[frame.board] = frame.device_time
+            received += got
+            if got:
+                idle_since = time.monotonic()
+                if len(latest) == len(devices):
+                    now = min(latest.values())  # the skin's time: its slowest board's
+            done = all(d.done.is_set() and n >= d.frames_sent
+                       for d, n in zip(devices, per_board, strict=True)) or (
+                time.monotonic() - idle_since > 10.0)
+            if batch and (len(batch) >= 20 * len(devices) or done):
+                for r in pipe.process(batch):
+                    results += 1
+                    if r.contact.final:
+                        onsets.append(r.contact.onset)
+                        labels.append(r.estimate.label)
+                batch = []
+            if now >= next_sample:
+                note()
+                next_sample += every
+            if done:
+                break
+        for r in pipe.flush():
+            results += 1
+            if r.contact.final:
+                onsets.append(r.contact.onset)
+                labels.append(r.estimate.label)
+        now = min(latest.values(), default=0.0)
+        note()
+        wall = time.monotonic() - started
+        sent = sum(d.frames_sent for d in devices)
+        crc = sum(one.stats.crc_errors for one in opened)
+        late = pipe.assembler.stats.late
+        for c in closers:
+            c.close()
+        closers = []
+        written = sum(p.stat().st_size for p in out.iterdir() if p.is_file())
+    finally:
+        for c in closers:
+            c.close()
+        if temporary:
+            shutil.rmtree(out, ignore_errors=True)
+    during = samples[:-1] if len(samples) > 2 else samples  # the last: after the boards ended
+    rss = np.array([s["rss_mb"] for s in during])
+    sim_t = np.array([s["simulated_s"] for s in during])
+    base_t = 3600.0 if seconds >= 2 * 3600.0 else seconds / 10
+    i_base = min(int(np.searchsorted(sim_t, base_t)), rss.size - 1)
+    base = rss[i_base]
+    bin_s = 3600.0 if seconds >= 2 * 3600.0 else PERIOD
+    bins = int(seconds // bin_s)
+    which = (np.array(onsets) // bin_s).astype(int)
+    per_bin = [int(np.sum(which == b)) for b in range(bins)]
+    # the same touches every bin: the labels given should not drift either
+    labels_per_bin = [dict(sorted(Counter(lab for lab, w in zip(labels, which, strict=True)
+                                          if w == b).items())) for b in range(bins)]
+    return {"hours": hours, "taxels": n_taxels, "boards": len(devices),
+            "seconds_simulated": round(now, 1), "wall_s": round(wall, 1),
+            "speed": round(now / wall, 2) if wall > 0 else None,
+            "taxel_samples_per_s": round(received / len(devices) * n_taxels / wall)
+            if wall > 0 else None,
+            "frames_sent": sent, "frames_received": received,
+            "lost_frames": int(sent - received + pipe.stats.gaps + late),
+            "gaps": int(pipe.stats.gaps), "late": int(late),
+            "crc_errors": int(crc), "results": results, "contacts": len(onsets),
+            "touches": sum(len(s.touches) for s in scenes),
+            "per": "hour" if bin_s == 3600.0 else f"{PERIOD:g} s",
+            "contacts_per_bin": per_bin, "labels_per_bin": labels_per_bin,
+            "same_labels_every_bin": all(x == labels_per_bin[0] for x in labels_per_bin),
+            "rss_mb": {"start": float(rss[0]), "baseline": float(base),
+                       "end": float(rss[-1]), "max": float(rss.max()),
+                       "after_run": samples[-1]["rss_mb"]},
+            "rss_growth": round(float(rss[-1] / base - 1.0), 4),
+            "rss_growth_max": round(float(rss[i_base:].max() / base - 1.0), 4),
+            "rss_growth_baseline_at_s": base_t,
+            "open_fds": {"start": samples[0]["open_fds"], "end": samples[-1]["open_fds"],
+                         "max": max(s["open_fds"] for s in samples)},
+            "recorded": record, "written_mb": round(written / 2**20, 1),
+            "samples": samples}

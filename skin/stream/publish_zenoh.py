@@ -1,0 +1,132 @@
+"""Publishing over Zenoh (eclipse-zenoh): ``zenoh://[PREFIX]`` (`skin.stream.publish`).
+
+Keys: ``<prefix>/<robot>/temperature``, ``<prefix>/<robot>/contacts``, ``<prefix>/<robot>/health``
+with the payloads of `skin.stream.publish` (Zenoh encodings ``application/octet-stream;
+thermoskin.temperature`` and ``application/json``). Contacts and health are sent reliably and
+block when the network's queue is full (none may be lost); temperatures are dropped rather than
+stall the skin. With ``listen`` or ``connect`` endpoints, multicast scouting is off: the session
+talks to those endpoints alone.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import numpy as np
+
+from skin._optional import require
+from skin.errors import SkinError
+from skin.formats.layout import Layout
+from skin.stream.pipeline import ContactResult
+from skin.stream.publish import Publisher, contact_payload, temperature_payload
+
+TOPICS = ("temperature", "contacts", "health")
+
+
+def zenoh_config(listen: list[str] | None = None, connect: list[str] | None = None,
+                 mode: str | None = None) -> Any:
+    """Return a ``zenoh.Config`` for the endpoints given (multicast scouting off with them).
+
+    Raises
+    ------
+    SkinError
+        If Zenoh refuses a setting (a malformed endpoint, an unknown mode).
+    """
+    zenoh = require("zenoh", "publishing over Zenoh")
+    conf = zenoh.Config()
+    try:
+        if mode:
+            conf.insert_json5("mode", json.dumps(mode))
+        if listen:
+            conf.insert_json5("listen/endpoints", json.dumps(listen))
+        if connect:
+            conf.insert_json5("connect/endpoints", json.dumps(connect))
+        if listen or connect:
+            conf.insert_json5("scouting/multicast/enabled", "false")
+    except Exception as exc:  # zenoh raises its own ZError
+        raise SkinError(f"zenoh: bad configuration ({exc})") from None
+    return conf
+
+
+def open_session(listen: list[str] | None = None, connect: list[str] | None = None,
+                 mode: str | None = None) -> Any:
+    """Open a Zenoh session (`zenoh_config`), naming the endpoints if it fails."""
+    zenoh = require("zenoh", "publishing over Zenoh")
+    conf = zenoh_config(listen, connect, mode)
+    try:
+        return zenoh.open(conf)
+    except Exception as exc:
+        raise SkinError(f"zenoh: cannot open a session (listen {listen or []}, connect "
+                        f"{connect or []}): {exc}") from None
+
+
+class ZenohPublisher(Publisher):
+    """Publish the skin over Zenoh (see the module docstring).
+
+    Parameters
+    ----------
+    layout : Layout
+        The skin.
+    prefix : str
+        Key prefix (``thermoskin``).
+    robot : str
+        The robot's name: the key segment after the prefix.
+    listen, connect : list of str
+        Zenoh endpoints (``tcp/127.0.0.1:7447``).
+    mode : str, optional
+        ``peer`` (Zenoh's default) or ``client``.
+    url : str
+        The URL it was opened with, for messages.
+    """
+
+    def __init__(self, layout: Layout, prefix: str = "thermoskin", robot: str = "skin",
+                 listen: list[str] | None = None, connect: list[str] | None = None,
+                 mode: str | None = None, url: str = "") -> None:
+        super().__init__(layout, robot)
+        zenoh = require("zenoh", "publishing over Zenoh")
+        self.url = url or f"zenoh://{prefix}"
+        self.keys = {t: f"{prefix}/{robot}/{t}" for t in TOPICS}
+        self._session = open_session(listen, connect, mode)
+        block, drop = zenoh.CongestionControl.BLOCK, zenoh.CongestionControl.DROP
+        reliable = zenoh.Reliability.RELIABLE
+        self._pub = {
+            "temperature": self._session.declare_publisher(
+                self.keys["temperature"], congestion_control=drop, reliability=reliable,
+                encoding=zenoh.Encoding("application/octet-stream;thermoskin.temperature")),
+            "contacts": self._session.declare_publisher(
+                self.keys["contacts"], congestion_control=block, reliability=reliable,
+                encoding=zenoh.Encoding.APPLICATION_JSON),
+            "health": self._session.declare_publisher(
+                self.keys["health"], congestion_control=block, reliability=reliable,
+                encoding=zenoh.Encoding.APPLICATION_JSON),
+        }
+        self._taxels_json = json.dumps(layout.ids.tolist(), separators=(",", ":"))
+        self._closed = False
+
+    def publish_temperature(self, times: np.ndarray, temperature: np.ndarray,
+                            host_times: np.ndarray) -> None:
+        """Send a block of samples."""
+        if not self._closed:
+            self._pub["temperature"].put(temperature_payload(
+                self.layout, self.robot, times, temperature, host_times, self._taxels_json))
+
+    def publish_contact(self, result: ContactResult) -> None:
+        """Send a contact result."""
+        if not self._closed:
+            self._pub["contacts"].put(json.dumps(contact_payload(result, self.layout,
+                                                                 self.robot)).encode())
+
+    def publish_health(self, payload: dict[str, Any]) -> None:
+        """Send a health payload."""
+        if not self._closed:
+            self._pub["health"].put(json.dumps(payload).encode())
+
+    def close(self) -> None:
+        """Undeclare the publishers and close the session (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        for pub in self._pub.values():
+            pub.undeclare()
+        self._session.close()
