@@ -32,7 +32,7 @@ def test_the_paper_sensor_gives_the_former_thresholds():
     assert d.release_rise == pytest.approx(0.12)
     assert d.slow_threshold == pytest.approx(0.6)
     assert d.slow_begin == pytest.approx(0.1)
-    assert d.drift == pytest.approx(0.0275, abs=0.003)  # 3 sigma of the smoothed reading
+    assert d.drift == pytest.approx(0.03) and d.noise_floor == pytest.approx(0.003)
 
 
 def test_thresholds_follow_each_taxels_noise():

@@ -33,8 +33,9 @@ follows from the taxel's noise and the sensor description (`skin.models.sensors`
   (commissioning measures it from a quiet stretch; default: the sensor description's
   ``noise_kelvin`` times its smoothing's noise factor). The detector's smoothed reading has
   sigma sqrt(g / (2 - g)) for its smoothing gain g; the CUSUM's least allowance (``drift``)
-  is 3 of those and its noise floor 0.3 of those. Summed over samples, the residual keeps
-  the unsmoothed noise's low-frequency power (sigma over the smoothing factor), so the
+  is 3.3 of those and its noise floor 0.33 (the paper sensor's former 0.03 and 0.003 K).
+  Summed over samples, the residual keeps the unsmoothed noise's low-frequency power (sigma
+  over the smoothing factor), so the
   CUSUM's threshold against noise is ``arl_threshold`` (Siegmund's approximation of the
   average run length of a one-sided CUSUM) for one false alarm per ``1 / false_alarm_rate``
   taxel-hours, in units of that noise: an upper bound on the false alarms (measured far
@@ -53,6 +54,7 @@ follows from the taxel's noise and the sensor description (`skin.models.sensors`
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, fields, replace
 
@@ -68,6 +70,16 @@ DISTURBANCE = {"threshold": 0.4 / _PAPER_RISE, "rise_threshold": 0.6 / _PAPER_RI
                "slow_begin": 0.1 / _PAPER_RISE}
 _PAPER_RESPONSE = 2.516  # s, the paper sensor's half-response time (SensorDescription)
 _PAPER_MODE = 2.4e-4**2 / 2.796e-9  # s, the paper sensor's l^2 / alpha
+
+
+@functools.cache
+def _paper_smoothed() -> float:
+    """Return the paper sensor's noise after the detector's smoothing, K (about 0.0092)."""
+    from skin.models.sensors import SensorDescription
+
+    s = SensorDescription()
+    g = 1.0 - math.exp(-1.0 / (s.sample_rate * 0.03))
+    return s.noise_kelvin(25.0 + s.heated_rise) * math.sqrt(g / (2.0 - g))
 
 
 def arl_threshold(arl: float | np.ndarray, k: float | np.ndarray) -> np.ndarray:
@@ -308,8 +320,10 @@ class OnsetDetector:
         per_sample = fs / 200.0  # CUSUM thresholds add up per sample
         self.level_tau = level_tau
         self.slope_tau = 0.5 * stretch if slope_tau is None else slope_tau
-        self.drift = 3.0 * smoothed if drift is None else drift
-        self.noise_floor = 0.3 * smoothed if noise_floor is None else noise_floor
+        # in units of the smoothed noise: the paper sensor's former 0.03 and 0.003 K
+        ratio = smoothed / _paper_smoothed()
+        self.drift = 0.03 * ratio if drift is None else drift
+        self.noise_floor = 0.003 * ratio if noise_floor is None else noise_floor
         # against noise: the ARL threshold for the target rate, with the allowance at 4 sigma of
         # the smoothed reading (what the CUSUM subtracts), in units of the raw sigma
         arl = fs * 3600.0 / max(false_alarm_rate, 1e-12)
