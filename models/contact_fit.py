@@ -104,8 +104,15 @@ def grid_fit(ambient: np.ndarray, t0: np.ndarray, window: np.ndarray, responses:
             "rms": np.sqrt(np.maximum(quad[np.arange(n), best], 0.0) * s2 / samples)}
 
 
-@functools.lru_cache(maxsize=32)
 def _cached_responses(samples: int, fs: float, sensor: SensorConstants) -> np.ndarray:
+    # a column of the grid depends on its own sample time only, so one grid as long as the
+    # longest window serves every shorter one (one cache entry per rate and sensor, not one
+    # per window length: those grew a run's memory by about 200 MB)
+    return _longest_responses(max(samples, round(2.5 * fs) + 1), fs, sensor)[:, :samples]
+
+
+@functools.lru_cache(maxsize=8)
+def _longest_responses(samples: int, fs: float, sensor: SensorConstants) -> np.ndarray:
     return grid_responses(samples, fs, sensor)
 
 
