@@ -32,7 +32,7 @@ def test_the_paper_sensor_gives_the_former_thresholds():
     assert d.release_rise == pytest.approx(0.12)
     assert d.slow_threshold == pytest.approx(0.6)
     assert d.slow_begin == pytest.approx(0.1)
-    assert d.drift == pytest.approx(0.0275, abs=0.003)  # 3 sigma of the smoothed reading
+    assert d.drift == pytest.approx(0.03) and d.noise_floor == pytest.approx(0.003)
 
 
 def test_thresholds_follow_each_taxels_noise():
@@ -168,3 +168,22 @@ def test_evaluate_onset_per_sensor_reports_the_issue_figures(capsys):
     assert doc["sensor"] == "fast-film" and 0 <= doc["detected_5sigma"] <= 1
     assert "delay_s" not in doc and "detected_flags" not in doc
     assert main(["evaluate-onset", "--sensor", "nonesuch", "--minutes", "1"]) == 2
+
+
+def test_a_faster_sensor_body_raises_the_disturbance_floors():
+    """Heater steps reach a thin body's thermistor faster: its floors grow, a PID's do not."""
+    from skin.stream.onset import DISTURBANCE
+
+    paper = load_sensor("paper")
+    thin = dataclasses.replace(paper, thickness=paper.thickness / 2)  # l^2 / alpha / 4
+    d_paper, d_thin = OnsetDetector(1, sensor=paper), OnsetDetector(1, sensor=thin)
+    rise = thin.heated_rise
+    assert d_thin.threshold[0] == pytest.approx(DISTURBANCE["threshold"] * rise * 4.0)
+    assert d_thin.slow_threshold[0] > 3.0 * DISTURBANCE["slow_threshold"] * rise
+    assert d_paper.threshold == pytest.approx(0.4)
+    held = dataclasses.replace(thin, heater="pid", setpoint=rise)
+    assert OnsetDetector(1, sensor=held).threshold[0] == pytest.approx(
+        max(DISTURBANCE["threshold"] * rise, OnsetDetector(1, sensor=held).noise_threshold[0]))
+    thick = dataclasses.replace(paper, thickness=paper.thickness * 2)  # slower: never lower
+    assert OnsetDetector(1, sensor=thick).threshold[0] >= DISTURBANCE["threshold"] * \
+        thick.heated_rise

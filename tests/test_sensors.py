@@ -343,3 +343,20 @@ def test_skin_simulate_calibration_writes_the_truth(tmp_path, capsys):
     assert skin_main(["simulate", "calibration", "--scene", "spread", "-o", str(out)]) == 0
     cal = load_calibration(out)
     assert len(cal.taxels) == 72 and "simulation truth" in cal.references["thermal"]
+
+
+def test_a_layout_names_a_sensor_file_beside_it(tmp_path):
+    from skin.formats.layout import load_layout
+
+    (tmp_path / "mine.toml").write_text('[[sensors]]\nname = "mine"\ndepth = 1e-4\n'
+                                        'sample_rate = 100.0\nlag = 0.2\n')
+    (tmp_path / "skin.toml").write_text(
+        '[[boards]]\nid = 0\nsensor = "mine.toml"\n\n[[taxels]]\nid = 0\nboard = 0\n'
+        'address = 0\nlink = "l"\nposition = [0, 0, 0]\nnormal = [0, 0, 1]\n')
+    board = load_layout(tmp_path / "skin.toml").boards[0]
+    assert (board.sensor_depth, board.sample_rate) == (1e-4, 100.0)
+    s = SensorDescription.from_board(board)
+    assert s.name == "mine" and s.lag == 0.2
+    (tmp_path / "mine.toml").write_text('[[sensors]]\nname = "mine"\nlag = -1.0\n')
+    with pytest.raises(LayoutError, match=r"skin.toml:1: board #0: field 'sensor': .*mine.toml:1"):
+        load_layout(tmp_path / "skin.toml")

@@ -33,8 +33,9 @@ follows from the taxel's noise and the sensor description (`skin.models.sensors`
   (commissioning measures it from a quiet stretch; default: the sensor description's
   ``noise_kelvin`` times its smoothing's noise factor). The detector's smoothed reading has
   sigma sqrt(g / (2 - g)) for its smoothing gain g; the CUSUM's least allowance (``drift``)
-  is 3 of those and its noise floor 0.3 of those. Summed over samples, the residual keeps
-  the unsmoothed noise's low-frequency power (sigma over the smoothing factor), so the
+  is 3.3 of those and its noise floor 0.33 (the paper sensor's former 0.03 and 0.003 K).
+  Summed over samples, the residual keeps the unsmoothed noise's low-frequency power (sigma
+  over the smoothing factor), so the
   CUSUM's threshold against noise is ``arl_threshold`` (Siegmund's approximation of the
   average run length of a one-sided CUSUM) for one false alarm per ``1 / false_alarm_rate``
   taxel-hours, in units of that noise: an upper bound on the false alarms (measured far
@@ -45,10 +46,15 @@ follows from the taxel's noise and the sensor description (`skin.models.sensors`
   CUSUM (so they scale with the sample rate).
 - Time constants of the baseline and the slow channel stretch with the sensor's response
   time when it is slower than the paper's (a slow sensor's contact departs slowly).
+- A sensor body whose slowest thermal mode (62.5 s for the paper's, scaled by l^2 / alpha) is
+  faster than the paper's brings heater steps and drift to the thermistor faster: the CUSUM
+  thresholds grow with the mode's speed, the slow channel's with what the mode moves within
+  its window (never below the paper's fractions; not for a PID-held heater).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, fields, replace
 
@@ -63,6 +69,17 @@ DISTURBANCE = {"threshold": 0.4 / _PAPER_RISE, "rise_threshold": 0.6 / _PAPER_RI
                "release_rise": 0.12 / _PAPER_RISE, "slow_threshold": 0.6 / _PAPER_RISE,
                "slow_begin": 0.1 / _PAPER_RISE}
 _PAPER_RESPONSE = 2.516  # s, the paper sensor's half-response time (SensorDescription)
+_PAPER_MODE = 2.4e-4**2 / 2.796e-9  # s, the paper sensor's l^2 / alpha
+
+
+@functools.cache
+def _paper_smoothed() -> float:
+    """Return the paper sensor's noise after the detector's smoothing, K (about 0.0092)."""
+    from skin.models.sensors import SensorDescription
+
+    s = SensorDescription()
+    g = 1.0 - math.exp(-1.0 / (s.sample_rate * 0.03))
+    return s.noise_kelvin(25.0 + s.heated_rise) * math.sqrt(g / (2.0 - g))
 
 
 def arl_threshold(arl: float | np.ndarray, k: float | np.ndarray) -> np.ndarray:
@@ -303,17 +320,29 @@ class OnsetDetector:
         per_sample = fs / 200.0  # CUSUM thresholds add up per sample
         self.level_tau = level_tau
         self.slope_tau = 0.5 * stretch if slope_tau is None else slope_tau
-        self.drift = 3.0 * smoothed if drift is None else drift
-        self.noise_floor = 0.3 * smoothed if noise_floor is None else noise_floor
+        # in units of the smoothed noise: the paper sensor's former 0.03 and 0.003 K
+        ratio = smoothed / _paper_smoothed()
+        self.drift = 0.03 * ratio if drift is None else drift
+        self.noise_floor = 0.003 * ratio if noise_floor is None else noise_floor
         # against noise: the ARL threshold for the target rate, with the allowance at 4 sigma of
         # the smoothed reading (what the CUSUM subtracts), in units of the raw sigma
         arl = fs * 3600.0 / max(false_alarm_rate, 1e-12)
         self.noise_threshold = white * arl_threshold(arl, 4.0 * smoothed / white)
 
+        # a sensor body faster than the paper's carries heater steps and drift to the thermistor
+        # faster: they bend the baseline's trend more within the CUSUM's and the slow channel's
+        # windows (a PID loop holds its setpoint: no heater steps)
+        mode = 62.5 * sensor.reheat_time_constant / _PAPER_MODE  # the slowest mode, s
+        quick = 1.0 if sensor.heater == "pid" else max(1.0, 62.5 / mode)
+        slow_tau_now = 3.0 * stretch if slow_tau is None else slow_tau
+        slow_quick = 1.0 if quick == 1.0 else max(
+            1.0, -math.expm1(-slow_tau_now / mode) / -math.expm1(-slow_tau_now / 62.5))
+
         def scaled(value: object, key: str, cusum: bool) -> np.ndarray | float:
             if value is not None:
                 return value
-            floor = DISTURBANCE[key] * rise * (per_sample if cusum else 1.0)
+            fast = quick if cusum else (slow_quick if key == "slow_threshold" else 1.0)
+            floor = DISTURBANCE[key] * rise * fast * (per_sample if cusum else 1.0)
             # levels compared within the smoothed reading stay 8 of its sigmas clear of noise
             return np.maximum(floor, self.noise_threshold if cusum else 8.0 * smoothed)
 
