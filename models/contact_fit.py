@@ -104,8 +104,11 @@ def grid_fit(ambient: np.ndarray, t0: np.ndarray, window: np.ndarray, responses:
             "rms": np.sqrt(np.maximum(quad[np.arange(n), best], 0.0) * s2 / samples)}
 
 
-@functools.lru_cache(maxsize=32)
+@functools.lru_cache(maxsize=4)
 def _cached_responses(samples: int, fs: float, sensor: SensorConstants) -> np.ndarray:
+    # one table per sensor, as long as the longest window; shorter windows read its first
+    # columns (the grid's times k / fs are the same), so the cache stays a few tables
+    # (~6.6 MB each at 2.5 s) whatever lengths the contacts have
     return grid_responses(samples, fs, sensor)
 
 
@@ -135,6 +138,7 @@ def fitted_effusivity(contact, fs: float = 200.0, min_duration: float = 0.1,
     y = np.array([np.interp(grid, w.time[ok], w.temperature[ok]) for w, ok in usable])
     t0 = np.array([w.initial for w, _ in usable])
     sensor = SensorConstants() if sensor is None else sensor
-    fit = grid_fit(np.array([contact.ambient]), t0[None, :], y[None], _cached_responses(
-        grid.size, float(fs), sensor))
+    longest = int(np.floor(max_duration * fs + 1e-9)) + 1
+    table = _cached_responses(max(longest, grid.size), float(fs), sensor)
+    fit = grid_fit(np.array([contact.ambient]), t0[None, :], y[None], table[:, : grid.size])
     return float(10.0 ** fit["log_e"][0]), float(fit["log_e_std"][0])
