@@ -35,8 +35,12 @@ class Progress:
         self._last = -np.inf
         self._shown = False
 
-    def status(self, text: str, now: float | None = None) -> None:
-        """Show ``text`` as the status line; ``now`` (s) paces it off a terminal."""
+    def status(self, text: str, now: float | None = None, force: bool = False) -> None:
+        """Show ``text`` as the status line; ``now`` (s) paces it off a terminal.
+
+        ``force`` prints it off a terminal even within ``every`` seconds of the last line (a
+        final state must not be swallowed by the pacing).
+        """
         now = time.monotonic() if now is None else now
         if self.tty:
             for other in [p for p in _SHOWN if p is not self]:
@@ -46,20 +50,24 @@ class Progress:
             self._shown = True
             if self not in _SHOWN:
                 _SHOWN.append(self)
-        elif now - self._last >= self.every:
+        elif force or now - self._last >= self.every:
             self.stream.write(text + "\n")
             self.stream.flush()
             self._last = now
 
     def bar(self, done: int, total: int, label: str, started: float) -> None:
-        """Show ``label [####----] done/total`` with the rate and the time left."""
+        """Show ``label [####----] done/total`` with the rate and the time left.
+
+        The last state (``done == total``) is always printed, also off a terminal.
+        """
         frac = done / total if total else 1.0
         elapsed = max(time.monotonic() - started, 1e-9)
         rate = done / elapsed
         left = (total - done) / rate if rate > 0 else float("inf")
         filled = round(20 * frac)
+        eta = "?" if not np.isfinite(left) else f"{left:.0f}"
         self.status(f"{label} [{'#' * filled}{'-' * (20 - filled)}] {done}/{total} "
-                    f"({rate:.0f}/s, {left:.0f} s left)")
+                    f"({rate:.2g}/s, {eta} s left)", force=done >= total)
 
     def clear(self) -> None:
         """Clear this status line if it is on screen (the next `status` redraws it)."""

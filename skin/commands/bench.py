@@ -179,15 +179,16 @@ def main_thermal(args: argparse.Namespace) -> int:
         return 0
     base = {r["case"]: r["time_per_trial_ms"] for r in forward
             if r["model"] == "semi-infinite"}
-    print(f"forward models, 2.5 s contact; time relative to the semi-infinite closed form "
-          f"of the same case ({doc['machine']['cpus']} cores)")
-    print(f"{'case':<10} {'model':<36} {'scheme':<15} {'cells':>5} {'dt s':>7} "
+    print(f"forward models, 2.5 s contact, each row on the same {forward[0]['trials']} "
+          f"distinct trials; time relative to the semi-infinite closed form of the same case "
+          f"({doc['machine']['cpus']} cores)")
+    print(f"{'case':<10} {'model':<43} {'scheme':<15} {'cells':>5} {'dt s':>7} "
           f"{'rms err K':>10} {'ms/trial':>9} {'x closed':>9}")
     for r in forward:
         cells_s = "-" if r["cells"] is None else str(r["cells"])
         dt_s = "-" if r["dt"] is None else f"{r['dt']:g}"
-        model = r["model"] + ("" if not r.get("conductance") else f" h={r['conductance']:g}")
-        print(f"{r['case']:<10} {model:<36} {r['scheme']:<15} {cells_s:>5} {dt_s:>7} "
+        model = r["model"] + ("" if not r.get("conductance") else " h~3000")
+        print(f"{r['case']:<10} {model:<43} {r['scheme']:<15} {cells_s:>5} {dt_s:>7} "
               f"{r['rms_error']:>10.2e} {r['time_per_trial_ms']:>9.3f} "
               f"{r['time_per_trial_ms'] / base[r['case']]:>9.0f}")
     print("\ninverse estimators on simulated trials (paper's protocol, 11 materials)")

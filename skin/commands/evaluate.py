@@ -59,6 +59,27 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.set_defaults(func=main)
 
 
+def _time_left(spent: list[tuple[float, float]], left: list[float], methods_left: int) -> str:
+    """Say how long the rest takes, as far as it is known.
+
+    Methods differ tenfold in cost, and a method's cost grows with the window anywhere from
+    not at all (svm-pca) to in proportion (hmm): only a method's own steps predict its next
+    ones. The next steps are extrapolated from its first and last as a power of the window
+    (exponent 0.5 after one step); methods not started yet are named, not guessed.
+    """
+    if not spent:
+        guess = "time left unknown until a step of it has run"
+    else:
+        (d0, t0), (d1, t1) = spent[0], spent[-1]
+        power = 0.5
+        if d1 > d0 and t0 > 0 and t1 > 0:
+            power = float(np.clip(np.log(t1 / t0) / np.log(d1 / d0), 0.0, 1.5))
+        guess = f"about {sum(t1 * (d / d1) ** power for d in left):.0f} s left of this method"
+    if methods_left:
+        guess += f", then {methods_left} more method{'s' * (methods_left > 1)} not timed yet"
+    return guess
+
+
 def evaluate(data, method: str, duration: float, folds: int, groups: bool,
              seed: int = 0) -> dict:
     """Cross-validate ``method`` on the first ``duration`` s after onset; return the figures."""
@@ -352,15 +373,22 @@ def main(args: argparse.Namespace) -> int:
 
         results = saved_model(load_model(args.model), data, durations)
         methods = []
-    for m in methods:
-        for d in durations:
-            progress.bar(len(results), total, f"evaluate {m} {d:g} s", started)
+    for k, m in enumerate(methods):
+        spent: list[tuple[float, float]] = []  # (duration, seconds) of this method's steps
+        for j, d in enumerate(durations):
+            progress.status(f"evaluate {m} {d:g} s ({len(results) + 1}/{total}; "
+                            f"{_time_left(spent, durations[j:], len(methods) - k - 1)})")
+            t0 = time.monotonic()
             if test is None:
                 results.append(evaluate(data, m, d, args.cv, args.groups, args.seed))
             else:
                 results.append(train_test(data, test, m, d))
+            spent.append((d, time.monotonic() - t0))
             if merge:
                 results[-1]["merged_accuracy"] = round(merged_accuracy(results[-1], merge), 4)
+    if methods:
+        progress.status(f"evaluated {total} method-durations in "
+                        f"{time.monotonic() - started:.0f} s", force=True)
     if args.ceiling:
         from skin.bench.ceiling import known_nuisance_ceiling
 
