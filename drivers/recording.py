@@ -126,6 +126,7 @@ _EVENT_SCHEMA = {
         "host_decided_at": {"type": ["number", "null"]},
         "host_reported_at": {"type": ["number", "null"]},
         "family": {"type": ["string", "null"]},
+        "family_confidence": {"type": "number"},
         "probabilities": {"type": "object", "additionalProperties": {"type": "number"}},
     },
 }

@@ -65,6 +65,8 @@ class SkinSimulator:
 
     def __init__(self, scene: Scene, duration: float | None = None,
                  contact: str = "perfect") -> None:
+        import scipy.signal  # noqa: F401  (the frames' filters: loaded here, not at the first frame)
+
         from skin.models.materials import load_materials
         from skin.models.physics import heated_temperature
         from skin.models.sensors import SensorDescription

@@ -104,11 +104,15 @@ def grid_fit(ambient: np.ndarray, t0: np.ndarray, window: np.ndarray, responses:
             "rms": np.sqrt(np.maximum(quad[np.arange(n), best], 0.0) * s2 / samples)}
 
 
-@functools.lru_cache(maxsize=4)
 def _cached_responses(samples: int, fs: float, sensor: SensorConstants) -> np.ndarray:
-    # one table per sensor, as long as the longest window; shorter windows read its first
-    # columns (the grid's times k / fs are the same), so the cache stays a few tables
-    # (~6.6 MB each at 2.5 s) whatever lengths the contacts have
+    # a column of the grid depends on its own sample time only, so one grid as long as the
+    # longest window serves every shorter one (one cache entry per rate and sensor, not one
+    # per window length: those grew a run's memory by about 200 MB)
+    return _longest_responses(max(samples, round(2.5 * fs) + 1), fs, sensor)[:, :samples]
+
+
+@functools.lru_cache(maxsize=8)
+def _longest_responses(samples: int, fs: float, sensor: SensorConstants) -> np.ndarray:
     return grid_responses(samples, fs, sensor)
 
 
@@ -138,7 +142,6 @@ def fitted_effusivity(contact, fs: float = 200.0, min_duration: float = 0.1,
     y = np.array([np.interp(grid, w.time[ok], w.temperature[ok]) for w, ok in usable])
     t0 = np.array([w.initial for w, _ in usable])
     sensor = SensorConstants() if sensor is None else sensor
-    longest = int(np.floor(max_duration * fs + 1e-9)) + 1
-    table = _cached_responses(max(longest, grid.size), float(fs), sensor)
-    fit = grid_fit(np.array([contact.ambient]), t0[None, :], y[None], table[:, : grid.size])
+    fit = grid_fit(np.array([contact.ambient]), t0[None, :], y[None], _cached_responses(
+        grid.size, float(fs), sensor))
     return float(10.0 ** fit["log_e"][0]), float(fit["log_e_std"][0])

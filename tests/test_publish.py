@@ -182,3 +182,28 @@ def test_skin_run_publishes_every_contact_to_foxglove_and_zenoh(tmp_path):
     assert zsummary["samples"] == sum(r["samples"] for r in temps)
     assert summary["published"][f"zenoh://test?connect=tcp/127.0.0.1:{zport}&robot=arm"][
         "contacts"] == len(events)
+
+
+def test_protobuf_schemas_are_valid_for_the_protobuf_library():
+    pytest.importorskip("google.protobuf")
+    from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+
+    from skin.formats import protobuf as pb
+
+    def message_class(descriptor: bytes, name: str):
+        pool = descriptor_pool.DescriptorPool()
+        for f in descriptor_pb2.FileDescriptorSet.FromString(descriptor).file:
+            pool.Add(f)
+        return message_factory.GetMessageClass(pool.FindMessageTypeByName(name))
+
+    Temperature = message_class(pb.temperature_descriptor(), pb.TEMPERATURE_SCHEMA)
+    ours = pb.encode_temperature(1.7e9, 2.5, np.array([20.5, np.nan]), pb.packed_ids([5, 300]))
+    theirs = Temperature.FromString(ours)
+    assert (theirs.host_time, theirs.device_time, list(theirs.taxel)) == (1.7e9, 2.5, [5, 300])
+    assert theirs.temperature[0] == 20.5 and np.isnan(theirs.temperature[1])
+    back = pb.decode_temperature(Temperature(device_time=0.0, temperature=[1.5],
+                                             taxel=[9]).SerializeToString())
+    assert back["device_time"] == 0.0 and back["taxel"] == [9]  # proto3 leaves zeros out
+    Wire = message_class(pb.wire_descriptor(), pb.WIRE_SCHEMA)
+    assert Wire.FromString(pb.encode_wire(b"\x00ab")).data == b"\x00ab"
+    assert pb.decode_wire(Wire(data=b"xyz").SerializeToString()) == b"xyz"

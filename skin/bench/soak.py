@@ -213,7 +213,7 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
                     now = min(latest.values())  # the skin's time: its slowest board's
             done = all(d.done.is_set() and n >= d.frames_sent
                        for d, n in zip(devices, per_board, strict=True)) or (
-                time.monotonic() - idle_since > 10.0)
+                time.monotonic() - idle_since > 30.0)  # a board went silent
             if batch and (len(batch) >= 20 * len(devices) or done):
                 for r in pipe.process(batch):
                     results += 1

@@ -72,7 +72,7 @@ def encode_temperature(host_time: float, device_time: float, temperature: np.nda
 
 def decode_temperature(data: bytes) -> dict[str, Any]:
     """Decode a ``thermoskin.Temperature`` message (as `encode_temperature` writes it)."""
-    out: dict[str, Any] = {"host_time": None, "device_time": None,
+    out: dict[str, Any] = {"host_time": 0.0, "device_time": 0.0,  # proto3 defaults
                            "temperature": np.zeros(0), "taxel": []}
     i = 0
     while i < len(data):

@@ -260,7 +260,7 @@ def open_publisher(url: str, layout: Layout, robot: str | None = None,
     layout : Layout
         The skin.
     robot : str, optional
-        The robot's name; the URL's ``robot=``, else the layout's name, else ``"skin"``.
+        The robot's name (a key segment); the URL's ``robot=`` wins; ``"skin"`` by default.
     chain : skin.world.kinematics.Chain, optional
         The arm's links and joints (a URDF's), for the views that draw it; the default arm's
         when the layout's links are its.
@@ -272,7 +272,7 @@ def open_publisher(url: str, layout: Layout, robot: str | None = None,
     """
     check_publisher_url(url)
     parts, query = _query(url)
-    name = query.pop("robot", None) or robot or layout.name or "skin"
+    name = query.pop("robot", None) or robot or "skin"
     name = "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
     if parts.scheme == "zenoh":
         from skin.stream.publish_zenoh import ZenohPublisher

@@ -65,22 +65,22 @@ GREY = (0.6, 0.6, 0.6)
 DISC = (0.012, 0.002)
 
 
-def _z_frame(normal: np.ndarray) -> np.ndarray:
-    """Return a rotation matrix whose z axis is the unit ``normal``."""
-    z = np.asarray(normal, dtype=float)
-    z = z / np.linalg.norm(z)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+def _z_frames(normals: np.ndarray) -> np.ndarray:
+    """Return rotation matrices (n, 3, 3) whose z axes are the unit ``normals`` (n, 3)."""
+    z = np.asarray(normals, dtype=float).reshape(-1, 3)
+    z = z / np.linalg.norm(z, axis=1, keepdims=True)
+    helper = np.where((np.abs(z[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
     x = np.cross(helper, z)
-    x /= np.linalg.norm(x)
-    return np.column_stack([x, np.cross(z, x), z])
+    x /= np.linalg.norm(x, axis=1, keepdims=True)
+    return np.stack([x, np.cross(z, x), z], axis=2)
 
 
-def _quaternion(rotation: np.ndarray) -> tuple[float, float, float, float]:
-    """Return the quaternion (w, x, y, z) of a rotation matrix."""
+def _quaternions(rotations: np.ndarray) -> np.ndarray:
+    """Return the quaternions (n, 4) as (w, x, y, z) of rotation matrices (n, 3, 3)."""
     from scipy.spatial.transform import Rotation
 
-    x, y, z, w = Rotation.from_matrix(rotation).as_quat()
-    return float(w), float(x), float(y), float(z)
+    q = Rotation.from_matrix(np.asarray(rotations, dtype=float).reshape(-1, 3, 3)).as_quat()
+    return q[:, [3, 0, 1, 2]]
 
 
 class FoxglovePublisher(Publisher):
@@ -139,15 +139,15 @@ class FoxglovePublisher(Publisher):
         self._taxels = packed_ids(layout.ids)
         self._labels: dict[int, str] = {}  # taxel index -> material of its last contact
         self._poses = self._link_poses(chain)
-        self._tf_msg = self._transforms()
+        frames = _z_frames(layout.normals)  # each taxel's frame: z along its outward normal
+        quats = _quaternions(frames).tolist()
+        self._tf_msg = self._transforms(quats)
         m = self._msg
         self._disc_poses = []
-        for k in range(len(layout)):
-            w, x, y, z = _quaternion(_z_frame(layout.normals[k]))
-            p = layout.positions[k]
-            self._disc_poses.append(m.Pose(
-                position=m.Vector3(x=float(p[0]), y=float(p[1]), z=float(p[2])),
-                orientation=m.Quaternion(x=float(x), y=float(y), z=float(z), w=float(w))))
+        for k, (w, x, y, z) in enumerate(quats):
+            p = layout.positions[k].tolist()
+            self._disc_poses.append(m.Pose(position=m.Vector3(x=p[0], y=p[1], z=p[2]),
+                                           orientation=m.Quaternion(x=x, y=y, z=z, w=w)))
         self._discs = [self._disc(k) for k in range(len(layout))]
         self._scene_msg: Any = None
         self._next_static = 0.0
@@ -164,24 +164,23 @@ class FoxglovePublisher(Publisher):
         order = list(poses) + sorted(links - set(poses))  # parents before children
         return {link: poses.get(link, np.eye(4)) for link in order}
 
-    def _transforms(self) -> Any:
+    def _transforms(self, taxel_quats: list[list[float]]) -> Any:
         """Return the layout's frames (built once: taxels do not move on their links)."""
         m = self._msg
 
-        def tf(parent: str, child: str, pose: np.ndarray) -> Any:
-            w, x, y, z = _quaternion(pose[:3, :3])
-            t = pose[:3, 3]
-            return m.FrameTransform(
-                parent_frame_id=parent, child_frame_id=child,
-                translation=m.Vector3(x=float(t[0]), y=float(t[1]), z=float(t[2])),
-                rotation=m.Quaternion(x=float(x), y=float(y), z=float(z), w=float(w)))
+        def tf(parent: str, child: str, t: list[float], q: list[float]) -> Any:
+            w, x, y, z = q
+            return m.FrameTransform(parent_frame_id=parent, child_frame_id=child,
+                                    translation=m.Vector3(x=t[0], y=t[1], z=t[2]),
+                                    rotation=m.Quaternion(x=x, y=y, z=z, w=w))
 
-        out = [tf("world", link, pose) for link, pose in self._poses.items()]
-        for k, taxel in enumerate(self.layout.taxels):
-            pose = np.eye(4)
-            pose[:3, 3] = self.layout.positions[k]
-            pose[:3, :3] = _z_frame(self.layout.normals[k])
-            out.append(tf(taxel.link, f"taxel_{taxel.id}", pose))
+        poses = list(self._poses.items())
+        link_quats = _quaternions(np.array([p[:3, :3] for _, p in poses])).tolist()
+        out = [tf("world", link, p[:3, 3].tolist(), q)
+               for (link, p), q in zip(poses, link_quats, strict=True)]
+        positions = self.layout.positions.tolist()
+        out += [tf(taxel.link, f"taxel_{taxel.id}", positions[k], taxel_quats[k])
+                for k, taxel in enumerate(self.layout.taxels)]
         return m.FrameTransforms(transforms=out)
 
     def _disc(self, k: int) -> Any:

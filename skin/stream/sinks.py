@@ -22,8 +22,7 @@ def event_record(result: ContactResult) -> dict[str, Any]:
     Times without a prefix are the board's device time, s; ``host_onset``, ``host_release``,
     ``host_decided_at`` and ``host_reported_at`` are the same instants on the host's wall
     clock (Unix time, s, mapped through each board's clock map: `skin.drivers.clock`), the
-    time base of a robot's own logs; None when the source gave no host time. ``family`` and
-    ``probabilities`` come from the classifier when it gives them.
+    time base of a robot's own logs; None when the source gave no host time.
     """
     from skin.drivers.clock import wall_time
 
@@ -53,11 +52,6 @@ def event_record(result: ContactResult) -> dict[str, Any]:
         "host_decided_at": None if h is None else round(wall_time(h.decided_at), 6),
         "host_reported_at": None if h is None else round(wall_time(h.reported_at), 6),
     }
-    family = getattr(e, "family", None)
-    if family is not None:
-        rec["family"] = family
-    if e.probabilities:
-        rec["probabilities"] = {k: round(float(v), 4) for k, v in e.probabilities.items()}
     return rec
 
 
