@@ -224,9 +224,9 @@ class ContactClassifier(ClassifierMixin, BaseEstimator):
     """
 
     def __init__(self, channels: int = 1, fs: float = 200.0, object_spread: float = 10.0,
-                 copies: int = 2, learner: str = "linear", C: float = 1.0,
+                 copies: int = 2, learner: str = "linear", C: float = 0.1,
                  calibration: str | None = "temperature", cv: int = 3, points: int = 4,
-                 excess: bool = True, warp: float = 0.25, sensor_spread: float = 1.0,
+                 excess: bool = True, warp: float = 0.25, sensor_spread: float = 0.5,
                  random_state: int = 0) -> None:
         self.warp = warp
         self.sensor_spread = sensor_spread
