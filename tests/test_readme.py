@@ -29,6 +29,7 @@ USERS_OWN = {
     "my_arm.toml": "the user's arm file (their meshes)",
     "trials.csv": "trials recorded elsewhere, imported",
     "refs.csv": "the user's thermistor readings in reference baths",
+    "quiet.mcap": "a quiet minute of the user's own skin, recorded",
 }
 #: Options whose value is a file the command reads, and those it writes.
 READS = {"--data", "--train", "--test", "--from", "--model", "--poses", "--calibration",
@@ -116,6 +117,8 @@ CI_SIZES = [
     (("skin", "bench", "pipeline"), ["--taxels", "64", "--seconds", "4"]),
     (("skin", "bench", "calibration"), ["--taxels", "2", "--contacts", "2"]),
     (("skin", "evaluate-onset"), ["--taxels", "2", "--minutes", "1"]),
+    (("skin", "bench", "spread"), ["--touches", "8"]),
+    (("skin", "bench", "soak"), ["--hours", "0.01", "--taxels", "256"]),
 ]
 #: Lines not run, with the reason (hardware, a window, another machine, other extras).
 SKIPPED = {
@@ -134,6 +137,7 @@ SKIPPED = {
     "skin run --scene my_scene.toml": "the user's own scene",
     "skin calibrate thermistors --data refs.csv": "the user's own reference readings",
     "skin dataset import trials.csv": "the user's own recordings",
+    "skin commission --port": "the user's own quiet recording (tests/test_commission.py)",
 }
 
 
