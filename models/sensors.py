@@ -589,6 +589,27 @@ def load_sensors(path: str | Path | None = None) -> dict[str, SensorDescription]
     return parse_sensors(text, str(path))
 
 
+def load_sensor_field(ref: object, base: Path | None) -> tuple[SensorDescription, str]:
+    """Resolve a file's ``sensor`` field: a preset name or a sensor file relative to ``base``.
+
+    Returns
+    -------
+    (SensorDescription, str)
+        The sensor and the reference as resolved (a relative file joined to ``base``).
+
+    Raises
+    ------
+    SensorError
+        When the field is not a non-empty string or names no sensor.
+    """
+    if not isinstance(ref, str) or not ref:
+        raise SensorError("must be a preset name or a sensor file")
+    path = Path(ref.partition("#")[0])
+    if base is not None and path.suffix and not path.is_absolute():
+        ref = str(base / ref)
+    return load_sensor(ref), ref
+
+
 def load_sensor(ref: str | Path | SensorDescription | None = None) -> SensorDescription:
     """Resolve a sensor: a description, a preset name, a file (one sensor) or ``FILE#NAME``.
 
