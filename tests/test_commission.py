@@ -111,6 +111,22 @@ def test_evaluate_onset_reads_the_commissioned_noise(tmp_path, capsys):
     assert "no commissioned noise_sigma" in capsys.readouterr().err
 
 
+def test_evaluate_onset_commissioned_on_another_unit(capsys):
+    """--commissioned: the noise measured on a quiet minute of another seed sets the detector."""
+    from skin.models.sensors import load_sensor
+
+    assert skin_main(["evaluate-onset", "--sensor", "low-cost", "--commissioned", "--taxels",
+                      "3", "--minutes", "1", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert "commissioned on unit seed 1000" in doc["source"]
+    s = load_sensor("low-cost")
+    nominal = s.noise_kelvin(25.0 + s.heated_rise) * s.smoothing_noise_factor()
+    assert doc["noise_sigma_k"] == pytest.approx(nominal, rel=0.25)
+    assert doc["noise_sigma_k"] != pytest.approx(nominal, rel=1e-6)  # measured, not copied
+    assert skin_main(["evaluate-onset", "--commissioned", "--data", "x.npz"]) == 2
+    assert "not with --data" in capsys.readouterr().err
+
+
 def test_skin_commission_fits_each_taxels_response_from_reference_touches(tmp_path, capsys):
     """Every taxel of the shipped scene gets its own fit, written to the calibration file.
 
