@@ -39,7 +39,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     cmd.add_argument("--touches", metavar="MATERIALS", default=None,
                      help="instead of the noise, fit each taxel's sensor response from touches "
                           "of these reference materials at room temperature in the recording, "
-                          "e.g. aluminium,pine (at least 3 touches of each of 2, held 2.5 s)")
+                          "e.g. aluminium,pine (at least 3 touches of each of 2, held 2.5 s); "
+                          "experimental: with onsets detected from 10-bit readings the fit was "
+                          "not closer to the true constants than the nominal ones (CHANGELOG)")
     cmd.add_argument("--room", type=float, default=None, metavar="C",
                      help="room temperature of the references, deg C (default: the "
                           "recording's ambient sensor)")
