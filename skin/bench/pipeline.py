@@ -44,7 +44,8 @@ def cylinder_layout(n: int, radius: float = 0.05, pitch: float = 0.02) -> Layout
 
 
 def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minute: float = 6.0,
-        budget: float | None = 0.001, chunk: int = 200) -> dict:
+        budget: float | None = 0.001, chunk: int = 200, workers: int = 1,
+        keep_results: bool = False) -> dict:
     """Push ``duration`` s of a simulated ``n_taxels`` skin through the chain; see the module.
 
     Parameters
@@ -63,6 +64,10 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
     chunk : int
         Samples simulated, encoded and decoded at a time: the memory is that of one chunk,
         whatever ``duration``.
+    workers : int
+        The pipeline's onset worker processes (`skin.stream.shards`), started before timing.
+    keep_results : bool
+        Also return the `ContactResult` objects given, in order, under ``results`` (not JSON).
 
     Returns
     -------
@@ -71,7 +76,7 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
         stage), ``realtime_factor``, ``latency_ms`` (p50, p99 per sample after decoding),
         ``result_wait_ms`` (p50, p99 of device time from a contact's decision to its result),
         ``contacts`` decided, ``peak_memory_mb_growth`` and ``peak_memory_mb`` (the process's
-        peak resident set, MB).
+        peak resident set, MB; the workers' are not counted).
     """
     from skin.bench.streams import stream_chunks
     from skin.drivers.protocol import StreamDecoder, encode_sample
@@ -87,7 +92,7 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
     wires = {b: layout.channel_map(b)[0] for b in boards}
     duty = np.full(BOARD_CHANNELS, 255)
     decoders = [StreamDecoder(board=b) for b in boards]
-    pipe = Pipeline(layout, JointClassifier(layout), budget=budget)
+    pipe = Pipeline(layout, JointClassifier(layout), budget=budget, workers=workers).start()
     fs = float(layout.boards[boards[0]].sample_rate)  # the boards sample in step
     n = round(duration * fs)
     samples = n * n_taxels
@@ -116,23 +121,28 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
     started = time.perf_counter()
     results += pipe.flush()  # the contacts still open or waiting at the end
     t_chain += time.perf_counter() - started
+    pipe.close()
     total = t_decode + t_chain
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     waits = np.array([r.reported_at - r.contact.decided_at for r in results]) * 1e3
     stages = {"decode": t_decode, **pipe.stats.seconds}
-    return {"taxels": n_taxels, "boards": len(boards), "frames": n * len(boards),
-            "seconds_simulated": duration, "contacts_per_minute": contacts_per_minute,
-            "budget_ms": None if budget is None else budget * 1e3,
-            "taxel_samples_per_s": round(samples / total),
-            "stages": {k: round(samples / v) if v > 0 else None for k, v in stages.items()},
-            "stage_share": {k: round(v / total, 3) for k, v in stages.items()},
-            "realtime_factor": round(duration / total, 2),
-            "latency_ms": {"p50": round(1e3 * float(np.percentile(latency, 50)), 3),
-                           "p99": round(1e3 * float(np.percentile(latency, 99)), 3)},
-            "result_wait_ms": {"p50": round(float(np.percentile(waits, 50)), 1) if waits.size
-                               else None,
-                               "p99": round(float(np.percentile(waits, 99)), 1) if waits.size
-                               else None},
-            "contacts": len(results),
-            "peak_memory_mb_growth": round((peak - peak0) / 1024.0, 1),
-            "peak_memory_mb": round(peak / 1024.0, 1)}
+    doc = {"taxels": n_taxels, "boards": len(boards), "workers": workers,
+           "frames": n * len(boards),
+           "seconds_simulated": duration, "contacts_per_minute": contacts_per_minute,
+           "budget_ms": None if budget is None else budget * 1e3,
+           "taxel_samples_per_s": round(samples / total),
+           "stages": {k: round(samples / v) if v > 0 else None for k, v in stages.items()},
+           "stage_share": {k: round(v / total, 3) for k, v in stages.items()},
+           "realtime_factor": round(duration / total, 2),
+           "latency_ms": {"p50": round(1e3 * float(np.percentile(latency, 50)), 3),
+                          "p99": round(1e3 * float(np.percentile(latency, 99)), 3)},
+           "result_wait_ms": {"p50": round(float(np.percentile(waits, 50)), 1) if waits.size
+                              else None,
+                              "p99": round(float(np.percentile(waits, 99)), 1) if waits.size
+                              else None},
+           "contacts": len(results),
+           "peak_memory_mb_growth": round((peak - peak0) / 1024.0, 1),
+           "peak_memory_mb": round(peak / 1024.0, 1)}
+    if keep_results:
+        doc["results"] = results
+    return doc
