@@ -113,7 +113,7 @@ def test_skin_run_with_workers_gives_the_events_of_one_process(tmp_path):
         with Skin(speed=0.0, duration=12.0, out=None, map=False, sinks=[],
                   workers=workers) as skin:
             got[workers] = list(skin.results())
-            shards = skin.pipeline._shards
+            shards = skin.pipeline.onset_workers
             procs = [] if shards is None else list(shards._procs)
         assert all(not p.is_alive() for p in procs)  # closed with the Skin
         assert len(procs) == (3 if workers == 3 else 0)
@@ -129,7 +129,7 @@ def test_a_worker_that_dies_is_named_and_the_blocks_before_were_observed():
     pipe.observers.append(lambda times, temperature, host: seen.append(len(times)))
     try:
         pipe.process(frames[:20])
-        pid = pipe._shards._procs[1].pid
+        pid = pipe.onset_workers._procs[1].pid
         os.kill(pid, signal.SIGKILL)
         with pytest.raises(SkinError, match=rf"onset worker 1 \(pid {pid}, 36 taxels of "
                                             r"board 0\) died \(exit code -9\)"):

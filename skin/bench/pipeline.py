@@ -45,7 +45,7 @@ def cylinder_layout(n: int, radius: float = 0.05, pitch: float = 0.02) -> Layout
 
 def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minute: float = 6.0,
         budget: float | None = 0.001, chunk: int = 200, workers: int = 1,
-        keep_results: bool = False) -> dict:
+        keep_results: bool = False, block: int = 1) -> dict:
     """Push ``duration`` s of a simulated ``n_taxels`` skin through the chain; see the module.
 
     Parameters
@@ -65,7 +65,12 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
         Samples simulated, encoded and decoded at a time: the memory is that of one chunk,
         whatever ``duration``.
     workers : int
-        The pipeline's onset worker processes (`skin.stream.shards`), started before timing.
+        The pipeline's onset worker processes (`skin.stream.shards`), started before timing;
+        with more than one, ``worker_seconds`` gives each worker's seconds in its detector
+        (wall, CPU) and the parent's wait for them.
+    block : int
+        Samples the pipeline takes per call (1: each as it comes; a live `skin.Skin` takes
+        what has arrived, up to 20 frames); ``latency_ms`` is then per call.
     keep_results : bool
         Also return the `ContactResult` objects given, in order, under ``results`` (not JSON).
 
@@ -99,6 +104,8 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
     latency = np.empty(n)
     results = []
     t_decode = t_chain = 0.0
+    waiting: list = []  # the frames of the samples since ``since``, for the next call
+    since = 0
     # bounded memory: one chunk of the stream, its packets and frames at a time
     for part in stream_chunks([table[m] for m in ("aluminium", "pine", "glass", "neoprene")],
                               n_taxels=n_taxels, duration=duration,
@@ -110,23 +117,28 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
             packets = [encode_sample(k, int(t * 1e6), counts[i, wires[b]],
                                      float(part.ambient[i]), duty[: wires[b].size])
                        for b in boards]
+            since = k if not waiting else since
             t0 = time.perf_counter()
-            sample = [f for dec, p in zip(decoders, packets, strict=True) for f in dec.feed(p)]
+            waiting += [f for dec, p in zip(decoders, packets, strict=True) for f in dec.feed(p)]
             t1 = time.perf_counter()
-            results += pipe.process(sample)
-            t2 = time.perf_counter()
-            latency[k] = t2 - t1
             t_decode += t1 - t0
+            if (k + 1) % block and k + 1 < n:
+                continue
+            results += pipe.process(waiting)
+            waiting = []
+            t2 = time.perf_counter()
+            latency[since : k + 1] = t2 - t1
             t_chain += t2 - t1
     started = time.perf_counter()
     results += pipe.flush()  # the contacts still open or waiting at the end
     t_chain += time.perf_counter() - started
+    busy = None if pipe.onset_workers is None else pipe.onset_workers.busy
     pipe.close()
     total = t_decode + t_chain
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     waits = np.array([r.reported_at - r.contact.decided_at for r in results]) * 1e3
     stages = {"decode": t_decode, **pipe.stats.seconds}
-    doc = {"taxels": n_taxels, "boards": len(boards), "workers": workers,
+    doc = {"taxels": n_taxels, "boards": len(boards), "workers": workers, "block": block,
            "frames": n * len(boards),
            "seconds_simulated": duration, "contacts_per_minute": contacts_per_minute,
            "budget_ms": None if budget is None else budget * 1e3,
@@ -143,6 +155,42 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
            "contacts": len(results),
            "peak_memory_mb_growth": round((peak - peak0) / 1024.0, 1),
            "peak_memory_mb": round(peak / 1024.0, 1)}
+    if busy is not None:  # the workers' own seconds in their detectors: wall, CPU
+        doc["worker_seconds"] = {"wall": [round(float(v), 3) for v in busy[:, 0]],
+                                 "cpu": [round(float(v), 3) for v in busy[:, 1]],
+                                 "parent_onset_wait": round(pipe.stats.seconds["onset"], 3)}
     if keep_results:
         doc["results"] = results
     return doc
+
+
+def workers_on_paper(one: dict, two: dict, workers: int) -> dict:
+    """Speed-up of ``workers`` onset workers over one process, on paper, from two measured runs.
+
+    Parameters
+    ----------
+    one, two : dict
+        `run`'s rows of the same skin and stream with 1 and with 2 workers (same run).
+    workers : int
+        Workers to extrapolate to, each with a core of its own.
+
+    Returns
+    -------
+    dict
+        ``onset_share`` p (of the 1-worker chain's time), ``amdahl`` (1 / (1 - p + p / N):
+        the onset stage divided evenly, free transfers), and ``measured_parts``: the rest of
+        the 1-worker chain, plus the 2-worker run's detector CPU seconds (both workers) / N,
+        plus its transfer cost (the parent's wait beyond the slower worker's wall time: send,
+        receive, merge), taken as not growing with N.
+    """
+    p = one["stage_share"]["onset"]
+    samples = one["frames"] // one["boards"] * one["taxels"]  # the same in both runs
+    t_one = samples / one["taxel_samples_per_s"]  # the 1-worker chain's seconds
+    ws = two["worker_seconds"]
+    transfer = max(ws["parent_onset_wait"] - max(ws["wall"]), 0.0)
+    parts = (1.0 - p) * t_one + sum(ws["cpu"]) / workers + transfer
+    return {"workers": workers, "onset_share": p,
+            "amdahl": round(1.0 / (1.0 - p + p / workers), 2),
+            "measured_parts": round(t_one / parts, 2),
+            "transfer_share": round(transfer / t_one, 3),
+            "worker_cpu_over_onset": round(sum(ws["cpu"]) / (p * t_one), 2)}

@@ -32,7 +32,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol, TypeVar
+from typing import TYPE_CHECKING, Protocol, TypeVar
 
 import numpy as np
 
@@ -44,6 +44,9 @@ from skin.stream.assembly import FrameAssembler, Samples
 from skin.stream.calibration import Calibration
 from skin.stream.onset import OnsetDetector
 from skin.stream.tracking import ContactTracker, DecidedContact, finish_contact, refine_member
+
+if TYPE_CHECKING:
+    from skin.stream.shards import OnsetShards
 
 T = TypeVar("T")
 
@@ -298,7 +301,7 @@ class Pipeline:
         self.max_wait = float(max_wait)
         self._state = self.detector.initial_state()
         self.workers = int(workers)
-        self._shards = None  # skin.stream.shards.OnsetShards, from the first block on
+        self._shards: OnsetShards | None = None  # from `start` or the first block on
         self._queue: deque[_Deciding] = deque()
         self._typical = {"refine": 0.0, "classify": 0.0}  # running mean of a step's cost, s
         self._now = -np.inf
@@ -328,6 +331,11 @@ class Pipeline:
         if self._shards is not None:
             return self._shards.in_contact.copy()
         return self._state.in_contact.copy()
+
+    @property
+    def onset_workers(self) -> OnsetShards | None:
+        """The running `skin.stream.shards.OnsetShards`, or None (one process, or closed)."""
+        return self._shards
 
     def start(self) -> Pipeline:
         """Start the onset workers now rather than at the first block (idempotent)."""

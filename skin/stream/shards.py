@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import copy
 import multiprocessing
+import time
 import traceback
 from multiprocessing.connection import Connection, wait
 from typing import Any
@@ -71,7 +72,7 @@ def sub_detector(detector: OnsetDetector, taxels: np.ndarray) -> OnsetDetector:
 
 
 def _serve(conn: Connection, detector: OnsetDetector, taxels: np.ndarray) -> None:
-    """Worker loop: ``(times, temperature)`` in, ``("ok", events, in_contact)`` out."""
+    """Worker loop: ``(times, temperature)`` in, ``("ok", events, in_contact, busy)`` out."""
     state: DetectorState = detector.initial_state()
     try:
         while True:
@@ -79,14 +80,16 @@ def _serve(conn: Connection, detector: OnsetDetector, taxels: np.ndarray) -> Non
             if job is None:
                 return
             times, temperature = job
+            wall, cpu = time.perf_counter(), time.process_time()
             events, state = detector.process(times, temperature, state)
+            busy = (time.perf_counter() - wall, time.process_time() - cpu)
             # layout indices, so the parent merges without knowing the shard
             conn.send(("ok", [_relabel(e, int(taxels[e.taxel])) for e in events],
-                       state.in_contact))
+                       state.in_contact, busy))
     except (EOFError, KeyboardInterrupt):  # the parent went away
         return
     except Exception:  # the parent reports it, naming this worker
-        conn.send(("error", traceback.format_exc(), None))
+        conn.send(("error", traceback.format_exc(), None, None))
 
 
 def _relabel(event: OnsetEvent, taxel: int) -> OnsetEvent:
@@ -105,6 +108,13 @@ class OnsetShards:
         The skin (its boards decide the shards).
     workers : int
         Worker processes, >= 1.
+
+    Attributes
+    ----------
+    busy : numpy.ndarray, shape (shards, 2)
+        Each worker's seconds inside its detector so far: wall and CPU (the parent's wait
+        beyond the slowest worker's wall time is the cost of sending and merging; CPU below
+        wall is the worker waiting for a core).
     """
 
     def __init__(self, detector: OnsetDetector, layout: Layout, workers: int) -> None:
@@ -113,6 +123,7 @@ class OnsetShards:
         self.n_taxels = detector.n_taxels
         self.shards = shard_taxels(layout, workers)
         self.in_contact = np.zeros(self.n_taxels, dtype=bool)
+        self.busy = np.zeros((len(self.shards), 2))
         context = multiprocessing.get_context("spawn")
         self._conns: list[Connection] = []
         self._procs: list[Any] = []
@@ -152,13 +163,14 @@ class OnsetShards:
         for i, (conn, taxels) in enumerate(zip(self._conns, self.shards, strict=True)):
             wait([conn, self._procs[i].sentinel])
             try:
-                status, got, in_contact = conn.recv()
+                status, got, in_contact, busy = conn.recv()
             except (EOFError, ConnectionResetError, OSError):
                 raise self._died(i) from None
             if status != "ok":
                 raise SkinError(f"onset {self.describe(i)} failed:\n{got}")
             events += got
             self.in_contact[taxels] = in_contact
+            self.busy[i] += busy
         events.sort(key=lambda e: (e.detected_at, e.channel, e.taxel))
         return events
 
