@@ -51,6 +51,7 @@ import numpy as np
 
 from skin.errors import SensorError
 from skin.formats.datafiles import header_lines, is_number
+from skin.models.physics import SensorConstants
 
 HEATER_MODES = ("constant", "pid", "off-at-contact", "on-during-contact")
 SMOOTHING_KINDS = ("none", "moving-average", "low-pass", "savgol")
@@ -60,8 +61,12 @@ _ERFC_INV_HALF = 0.4769362762044699  # erfc(z) = 0.5
 
 
 @dataclass(frozen=True)
-class SensorDescription:
+class SensorDescription(SensorConstants):
     """One kind of heated taxel (defaults: the paper's sensor).
+
+    The thermal and electrical constants, and the figures derived from them (`effusivity`,
+    `reheat_time_constant`), are those of `skin.models.physics.SensorConstants`; a description
+    adds the reading's dynamics, the heater's control, the sampling and the smoothing.
 
     Attributes
     ----------
@@ -109,13 +114,6 @@ class SensorDescription:
 
     name: str = DEFAULT_SENSOR
     summary: str = field(default="the founding paper's sensor", compare=False)
-    depth: float = 8e-5
-    diffusivity: float = 2.796e-9
-    conductivity: float = 0.0349
-    heater_area: float = 1.5625e-4
-    thickness: float = 2.4e-4
-    heater_voltage: float = 2.5
-    heater_resistance: float = 19.7
     lag: float = 0.0
     heater: str = "constant"
     control_time: float = 2.0
@@ -130,16 +128,6 @@ class SensorDescription:
     savgol_order: int = 2
 
     # -- derived figures -------------------------------------------------------------------
-    @property
-    def effusivity(self) -> float:
-        """Sensor effusivity k / sqrt(alpha), W s^0.5 / (m^2 K)."""
-        return self.conductivity / np.sqrt(self.diffusivity)
-
-    @property
-    def reheat_time_constant(self) -> float:
-        """Lumped time constant l^2 / alpha of the sensor layer, s."""
-        return self.thickness**2 / self.diffusivity
-
     @property
     def heater_power(self) -> float:
         """Heater power V^2 / R, W (eq. 1)."""
@@ -197,10 +185,8 @@ class SensorDescription:
         return float(np.sqrt(np.sum(smooth(impulse, self) ** 2)))
 
     # -- conversions ------------------------------------------------------------------------
-    def constants(self) -> Any:
-        """Return the `skin.models.physics.SensorConstants` of the thermal body."""
-        from skin.models.physics import SensorConstants
-
+    def constants(self) -> SensorConstants:
+        """Return the thermal body alone, as plain `skin.models.physics.SensorConstants`."""
         return SensorConstants(depth=self.depth, diffusivity=self.diffusivity,
                                conductivity=self.conductivity, heater_area=self.heater_area,
                                thickness=self.thickness, heater_voltage=self.heater_voltage,
@@ -601,6 +587,27 @@ def load_sensors(path: str | Path | None = None) -> dict[str, SensorDescription]
     except OSError as exc:
         raise SensorError(f"{path}: cannot read sensor file: {exc.strerror}") from None
     return parse_sensors(text, str(path))
+
+
+def load_sensor_field(ref: object, base: Path | None) -> tuple[SensorDescription, str]:
+    """Resolve a file's ``sensor`` field: a preset name or a sensor file relative to ``base``.
+
+    Returns
+    -------
+    (SensorDescription, str)
+        The sensor and the reference as resolved (a relative file joined to ``base``).
+
+    Raises
+    ------
+    SensorError
+        When the field is not a non-empty string or names no sensor.
+    """
+    if not isinstance(ref, str) or not ref:
+        raise SensorError("must be a preset name or a sensor file")
+    path = Path(ref.partition("#")[0])
+    if base is not None and path.suffix and not path.is_absolute():
+        ref = str(base / ref)
+    return load_sensor(ref), ref
 
 
 def load_sensor(ref: str | Path | SensorDescription | None = None) -> SensorDescription:

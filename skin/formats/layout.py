@@ -254,15 +254,10 @@ def _parse_board(raw: Any, where: str, base: Path | None = None) -> Board:
 def _sensor_fields(ref: Any, where: str, base: Path | None) -> dict[str, Any]:
     """Return the board fields a named sensor sets, and its name (a file: from the layout)."""
     from skin.errors import SensorError
-    from skin.models.sensors import load_sensor
+    from skin.models.sensors import load_sensor_field
 
-    if not isinstance(ref, str) or not ref:
-        raise LayoutError(f"{where}: field 'sensor' must be a preset name or a sensor file")
-    path = Path(ref.partition("#")[0])
-    if base is not None and path.suffix and not path.is_absolute():
-        ref = str(base / ref)
     try:
-        sensor = load_sensor(ref)
+        sensor, ref = load_sensor_field(ref, base)
     except SensorError as exc:
         raise LayoutError(f"{where}: field 'sensor': {exc}") from None
     return {**sensor.board_fields(), "sensor": ref}

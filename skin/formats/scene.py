@@ -121,15 +121,10 @@ def _with_sensor(layout: Layout, ref: object, source: str, base: Path | None) ->
     from dataclasses import replace
 
     from skin.errors import SensorError
-    from skin.models.sensors import load_sensor
+    from skin.models.sensors import load_sensor_field
 
-    if not isinstance(ref, str):
-        raise SceneError(f"{source}: field 'sensor' must be a sensor preset name or file")
-    path = Path(ref.partition("#")[0])
-    if base is not None and path.suffix and not path.is_absolute():
-        ref = str(base / ref)
     try:
-        sensor = load_sensor(ref)
+        sensor, ref = load_sensor_field(ref, base)
     except SensorError as exc:
         raise SceneError(f"{source}: field 'sensor': {exc}") from None
     boards = [replace(b, **sensor.board_fields(), sensor=ref) for b in layout.boards.values()]
