@@ -112,7 +112,8 @@ class Setup:
         ``material`` or ``temperature``.
     workers : int
         Processes for onset detection (`skin.stream.shards`): 1 runs the whole pipeline in
-        this process; more shard the skin's boards across that many (the same results).
+        this process; more shard the skin's boards across that many processes, this one
+        included (the same results).
     origin : dict
         Field name -> where its value came from (``default`` when absent).
     """

@@ -114,9 +114,9 @@ def test_skin_run_with_workers_gives_the_events_of_one_process(tmp_path):
                   workers=workers) as skin:
             got[workers] = list(skin.results())
             shards = skin.pipeline.onset_workers
-            procs = [] if shards is None else list(shards._procs)
+            procs = [] if shards is None else [p for p in shards._procs if p is not None]
         assert all(not p.is_alive() for p in procs)  # closed with the Skin
-        assert len(procs) == (3 if workers == 3 else 0)
+        assert len(procs) == (2 if workers == 3 else 0)  # shard 0 is detected in this process
     assert len(got[1]) >= 5
     assert _key(got[3]) == _key(got[1])
 

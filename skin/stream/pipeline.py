@@ -237,8 +237,8 @@ class Pipeline:
         open (results with ``contact.final`` False; `skin.stream.tracking.ContactTracker`).
     workers : int
         Processes for onset detection: 1 runs it here; more shard the taxels across that
-        many worker processes (`skin.stream.shards`), started by `start` (or at the first
-        block) and stopped by `close`; the results are the same.
+        many processes, this one included (`skin.stream.shards`); the others are started by
+        `start` (or at the first block) and stopped by `close`. The results are the same.
 
     Attributes
     ----------

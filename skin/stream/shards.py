@@ -5,7 +5,8 @@ stages), and each taxel's detector is independent of the others'. `OnsetShards` 
 taxels into ``workers`` shards - whole boards when there are at least as many boards as
 workers, else even runs of taxels - and runs one `skin.stream.onset.OnsetDetector` per shard in
 a process of its own (the standard library's ``multiprocessing``, ``spawn`` start method: safe
-with the drivers' reader threads). The pipeline's process keeps everything else: assembling
+with the drivers' reader threads) - except shard 0, which the pipeline's process detects itself
+while the workers detect theirs. The pipeline's process keeps everything else: assembling
 frames, calibrating (so observers such as a recording have every block before it is sent),
 tracking, refining and classifying. Each block's events come back and are merged in the
 detector's own order (sample, `OnsetEvent.channel`, taxel), so the results are those of one
@@ -107,14 +108,14 @@ class OnsetShards:
     layout : Layout
         The skin (its boards decide the shards).
     workers : int
-        Worker processes, >= 1.
+        Processes for onset detection, this one included (``workers - 1`` are started; shard
+        0 is detected here while the workers detect theirs), >= 1.
 
     Attributes
     ----------
     busy : numpy.ndarray, shape (shards, 2)
-        Each worker's seconds inside its detector so far: wall and CPU (the parent's wait
-        beyond the slowest worker's wall time is the cost of sending and merging; CPU below
-        wall is the worker waiting for a core).
+        Each shard's seconds inside its detector so far, wall and CPU (row 0: this process's
+        own shard; CPU below wall is a process waiting for a core).
     """
 
     def __init__(self, detector: OnsetDetector, layout: Layout, workers: int) -> None:
@@ -125,11 +126,14 @@ class OnsetShards:
         self.in_contact = np.zeros(self.n_taxels, dtype=bool)
         self.busy = np.zeros((len(self.shards), 2))
         context = multiprocessing.get_context("spawn")
-        self._conns: list[Connection] = []
-        self._procs: list[Any] = []
+        # shard 0 is this process's own: it would otherwise idle while the workers run
+        self._conns: list[Connection | None] = [None]
+        self._procs: list[Any] = [None]
+        self._local = sub_detector(detector, self.shards[0])
+        self._local_state = self._local.initial_state()
         boards = np.array([t.board for t in layout.taxels])
         self.boards = [sorted(set(boards[taxels].tolist())) for taxels in self.shards]
-        for i, taxels in enumerate(self.shards):
+        for i, taxels in enumerate(self.shards[1:], start=1):
             parent, child = context.Pipe()
             proc = context.Process(target=_serve, name=f"skin-onset-{i}", daemon=True,
                                    args=(child, sub_detector(detector, taxels), taxels))
@@ -154,13 +158,20 @@ class OnsetShards:
         """
         if not self._conns:
             raise SkinError("the onset workers are closed")
-        for i, (conn, taxels) in enumerate(zip(self._conns, self.shards, strict=True)):
+        for i in range(1, len(self.shards)):
             try:
-                conn.send((times, np.ascontiguousarray(temperature[:, taxels])))
+                self._conns[i].send((times, np.ascontiguousarray(temperature[:, self.shards[i]])))
             except (BrokenPipeError, ConnectionResetError, EOFError):
                 raise self._died(i) from None
-        events: list[OnsetEvent] = []
-        for i, (conn, taxels) in enumerate(zip(self._conns, self.shards, strict=True)):
+        wall, cpu = time.perf_counter(), time.process_time()
+        taxels = self.shards[0]
+        events, self._local_state = self._local.process(times, temperature[:, taxels],
+                                                        self._local_state)
+        events = [_relabel(e, int(taxels[e.taxel])) for e in events]
+        self.in_contact[taxels] = self._local_state.in_contact
+        self.busy[0] += (time.perf_counter() - wall, time.process_time() - cpu)
+        for i in range(1, len(self.shards)):
+            conn, taxels = self._conns[i], self.shards[i]
             wait([conn, self._procs[i].sentinel])
             try:
                 status, got, in_contact, busy = conn.recv()
@@ -183,12 +194,12 @@ class OnsetShards:
 
     def close(self) -> None:
         """Stop the workers (idempotent): ask each to end, then terminate any that hangs."""
-        for conn in self._conns:
+        for conn in self._conns[1:]:
             try:
                 conn.send(None)
             except (BrokenPipeError, ConnectionResetError, OSError):
                 pass
-        for conn, proc in zip(self._conns, self._procs, strict=True):
+        for conn, proc in zip(self._conns[1:], self._procs[1:], strict=True):
             proc.join(JOIN_TIMEOUT)
             if proc.is_alive():
                 proc.terminate()
