@@ -124,3 +124,226 @@ def quiet_figures(times: np.ndarray, temperature: np.ndarray,
         raise CommissioningError(f"the quiet stretch lasts {seconds:.0f} s; at most {hi:g} s "
                                  f"(the room drifts): cut it")
     return QuietFigures(sigma, low, slope, jitter, seconds, fs)
+
+
+# --- reference touches: the sensor response ------------------------------------------------
+
+#: Least touches of each material, and least materials, that pin a sensor response.
+MIN_TOUCHES, MIN_MATERIALS = 3, 2
+#: Seconds of each touch fitted (the touch must last this long).
+TOUCH_SECONDS = 2.5
+#: The first part of each touch left out of the fit, s: the onset is dated to some 20-60 ms,
+#: an error that weighs most where the response is steepest.
+TOUCH_SKIP = 0.2
+#: Upper bound of a touch's fitted conductance, W/(m^2 K): a firm touch may be near perfect.
+CONDUCTANCE_MAX = 1e6
+
+
+@dataclass(frozen=True)
+class ReferenceTouch:
+    """One detected touch of a taxel with a reference material at room temperature.
+
+    Attributes
+    ----------
+    column : int
+        The taxel's column (layout order).
+    onset : float
+        Refined onset, s.
+    initial : float
+        The taxel's temperature at the onset (its baseline there), deg C.
+    material : str
+        The reference the touch fits best (`assign_materials`).
+    t, y : numpy.ndarray
+        Time since the onset and reading of the `TOUCH_SECONDS` after it.
+    """
+
+    column: int
+    onset: float
+    initial: float
+    material: str
+    t: np.ndarray
+    y: np.ndarray
+
+
+@dataclass(frozen=True)
+class ResponseFit:
+    """A fitted sensor response: whose touches, and the fit (`skin.models.sensor_fit`)."""
+
+    columns: np.ndarray
+    scope: str  # "taxel" or "board"
+    touches: int
+    materials: dict
+    fit: object
+
+
+def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
+                 sensors: list, noise: np.ndarray | None = None,
+                 ) -> tuple[list[tuple[int, float, float, np.ndarray, np.ndarray]], int]:
+    """Detect touches with the pipeline's onset detector and date them with `refine_onset`.
+
+    Returns
+    -------
+    touches : list of tuple
+        (column, onset, initial temperature, time since onset, readings) of each falling
+        touch lasting at least `TOUCH_SECONDS` with every sample of that window present.
+    short : int
+        Touches left out: too short, rising (a warm object) or with missing samples.
+    """
+    from skin.stream.onset_refine import refine_onset
+    from skin.stream.pipeline import _detector_for
+
+    t = np.asarray(times, dtype=float)
+    y = np.asarray(temperature, dtype=float)
+    n = round((TOUCH_SECONDS - TOUCH_SKIP) / float(np.median(np.diff(t))))
+    detector = _detector_for(layout, noise)
+    events, _ = detector.process(t, y, detector.initial_state())
+    open_: dict[int, object] = {}
+    out, short = [], 0
+    for ev in events:
+        if ev.kind == "onset":
+            open_[ev.taxel] = ev
+            continue
+        on = open_.pop(ev.taxel, None)
+        if on is None:
+            continue
+        k = ev.taxel
+        if on.direction != -1 or ev.time - on.time < TOUCH_SECONDS:
+            short += 1
+            continue
+        near = (t >= on.time - 1.0) & (t <= ev.time)
+        onset, initial = refine_onset(t[near], y[near, k], on.time, on.baseline, on.slope,
+                                      sensors[k].depth, sensors[k].diffusivity)
+        first = int(np.searchsorted(t, onset + TOUCH_SKIP, side="right"))
+        window = slice(first, first + n)
+        if first + n > t.size or t[first + n - 1] > ev.time or not np.all(
+                np.isfinite(y[window, k])):
+            short += 1
+            continue
+        out.append((k, float(onset), float(initial), t[window] - onset, y[window, k].copy()))
+    return out, short + len(open_)
+
+
+def assign_materials(touches: list, materials: dict, sensors: list, room: float,
+                     ) -> tuple[list[ReferenceTouch], list[tuple[int, float]]]:
+    """Name each touch's reference: the material whose contact response fits it best.
+
+    Each candidate's response (nominal sensor, `contact_trace`) is tried over its contact
+    conductance range; a touch whose best fit is not at least twice as close as the runner-up
+    is ambiguous and left out (the references must differ clearly in effusivity).
+
+    Returns
+    -------
+    assigned : list of ReferenceTouch
+    ambiguous : list of tuple
+        (column, onset) of the touches left out.
+    """
+    from skin.models.physics import contact_trace
+
+    names = list(materials)
+    assigned, ambiguous = [], []
+    for k, onset, initial, tt, yy in touches:
+        rms = []
+        for name in names:
+            m = materials[name]
+            h = np.logspace(*np.log10(m.conductance_range), 24)[:, None]
+            model = contact_trace(tt[None, :], initial, room, m.effusivity, sensors[k], h)
+            rms.append(float(np.sqrt(np.mean((model - yy) ** 2, axis=1)).min()))
+        order = np.argsort(rms)
+        if len(names) > 1 and rms[order[1]] < 2.0 * rms[order[0]]:
+            ambiguous.append((k, onset))
+            continue
+        assigned.append(ReferenceTouch(k, onset, initial, names[order[0]], tt, yy))
+    return assigned, ambiguous
+
+
+def _pins(touches: list[ReferenceTouch]) -> bool:
+    counts: dict[str, int] = {}
+    for tc in touches:
+        counts[tc.material] = counts.get(tc.material, 0) + 1
+    return sum(c >= MIN_TOUCHES for c in counts.values()) >= MIN_MATERIALS
+
+
+def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict,
+                  sensors: list, room: float) -> list[ResponseFit]:
+    """Fit each taxel's response, or its board's where the taxel has too few touches.
+
+    A taxel (or a board, pooling its taxels' touches) needs `MIN_TOUCHES` touches of each of
+    `MIN_MATERIALS` references; the fit is `skin.models.sensor_fit.fit_sensor_constants`.
+
+    Raises
+    ------
+    CommissioningError
+        If no taxel and no board has enough touches: the message says what to record.
+    """
+    from skin.models.sensor_fit import fit_sensor_constants
+
+    by_taxel: dict[int, list[ReferenceTouch]] = {}
+    for tc in touches:
+        by_taxel.setdefault(tc.column, []).append(tc)
+    groups = [(np.array([k]), "taxel", tcs) for k, tcs in sorted(by_taxel.items())
+              if _pins(tcs)]
+    done = {int(g[0][0]) for g in groups}
+    for b in layout.boards:
+        cols = [i for i, tx in enumerate(layout.taxels) if tx.board == b and i not in done]
+        pool = [tc for k in cols for tc in by_taxel.get(k, [])]
+        if cols and _pins(pool):
+            groups.append((np.array(cols), "board", pool))
+    if not groups:
+        found = {}
+        for tc in touches:
+            found[tc.material] = found.get(tc.material, 0) + 1
+        raise CommissioningError(
+            f"the recording cannot pin the sensor response: it holds {len(touches)} usable "
+            f"touches ({', '.join(f'{v} of {k}' for k, v in found.items()) or 'none'}); record "
+            f"at least {MIN_TOUCHES} touches of at least {MIN_MATERIALS} of "
+            f"{', '.join(materials)}, each held {TOUCH_SECONDS:g} s or more at room "
+            f"temperature, on every taxel (or, pooled per board, on each board)")
+    out = []
+    for cols, scope, tcs in groups:
+        first = int(cols[0])
+        mats = [materials[tc.material] for tc in tcs]
+        fit = fit_sensor_constants(
+            np.array([tc.t for tc in tcs]), np.array([tc.y for tc in tcs]),
+            [tc.initial for tc in tcs], np.full(len(tcs), room),
+            [m.effusivity for m in mats], nominal=sensors[first],
+            conductance_range=([m.conductance_range[0] for m in mats],
+                               [CONDUCTANCE_MAX] * len(mats)))
+        counts: dict[str, int] = {}
+        for tc in tcs:
+            counts[tc.material] = counts.get(tc.material, 0) + 1
+        out.append(ResponseFit(cols, scope, len(tcs), counts, fit))
+    return out
+
+
+def commission_response(times: np.ndarray, temperature: np.ndarray, layout: object,
+                        materials: dict, sensors: list, room: float,
+                        noise: np.ndarray | None = None, passes: int = 2,
+                        ) -> tuple[list[ResponseFit], dict]:
+    """Detect, date, name and fit reference touches (see `fit_responses`).
+
+    The onsets are dated with the taxels' current constants (`refine_onset` fits their
+    response); each further pass re-dates them with the constants just fitted and fits again.
+
+    Returns
+    -------
+    fits : list of ResponseFit
+    counts : dict
+        Touches ``detected``, ``left_out`` (short, warm or incomplete) and ``ambiguous``.
+    """
+    import dataclasses
+
+    current = list(sensors)
+    fits: list[ResponseFit] = []
+    counts: dict = {}
+    for _ in range(passes):
+        touches, short = find_touches(times, temperature, layout, current, noise)
+        assigned, ambiguous = assign_materials(touches, materials, current, room)
+        counts = {"detected": len(touches) + short, "left_out": short,
+                  "ambiguous": len(ambiguous)}
+        fits = fit_responses(assigned, layout, materials, sensors, room)
+        current = list(sensors)
+        for f in fits:
+            for k in f.columns:
+                current[k] = dataclasses.replace(sensors[k], diffusivity=f.fit.sensor.diffusivity,
+                                                 conductivity=f.fit.sensor.conductivity)
+    return fits, counts

@@ -48,25 +48,28 @@ class SensorFit:
 
 
 def fit_sensor_constants(t: np.ndarray, temperature: np.ndarray, t_sensor: Sequence[float],
-                         t_object: Sequence[float], e_reference: float,
+                         t_object: Sequence[float], e_reference: float | Sequence[float],
                          nominal: SensorConstants | None = None,
-                         conductance_range: tuple[float, float] = (1e2, 1e7)) -> SensorFit:
+                         conductance_range: tuple = (1e2, 1e7)) -> SensorFit:
     """Fit a taxel's diffusivity and conductivity from reference contacts.
 
     Parameters
     ----------
     t : numpy.ndarray
-        Time since contact of each sample, s, (n_samples,).
+        Time since contact of each sample, s, (n_samples,), or per contact
+        (n_contacts, n_samples) when the contacts' onsets fall between samples.
     temperature : numpy.ndarray
         The taxel's readings in each contact, (n_contacts, n_samples), deg C.
     t_sensor, t_object : sequence of float
         Sensor temperature before, and the reference's temperature in, each contact, deg C.
-    e_reference : float
-        The reference's effusivity, W s^0.5 / (m^2 K).
+    e_reference : float or sequence of float
+        The reference's effusivity, W s^0.5 / (m^2 K), or each contact's (several reference
+        materials: different effusivities pin depth, diffusivity and conductivity better).
     nominal : SensorConstants, optional
         Starting point and the constants that are not fitted (default: the paper's).
-    conductance_range : tuple of float
-        Bounds of each contact's conductance, W/(m^2 K) (the reference's range, from
+    conductance_range : tuple
+        Bounds of each contact's conductance, W/(m^2 K), two floats or two per-contact
+        sequences (the reference's range, from
         `skin.models.materials.Material.conductance_range`, keeps a slow contact from
         passing for a slow sensor).
 
@@ -83,37 +86,42 @@ def fit_sensor_constants(t: np.ndarray, temperature: np.ndarray, t_sensor: Seque
     from scipy.optimize import least_squares
 
     s0 = SensorConstants() if nominal is None else nominal
-    t = np.asarray(t, dtype=float)
     y = np.atleast_2d(np.asarray(temperature, dtype=float))
     ts = np.asarray(t_sensor, dtype=float)
     to = np.asarray(t_object, dtype=float)
-    if y.shape != (ts.size, t.size) or to.shape != ts.shape:
-        raise ValueError(f"temperature must be (n_contacts, n_samples) = ({ts.size}, {t.size})"
-                         f" with one sensor and one object temperature per contact; got "
-                         f"{y.shape}, {ts.size} and {to.size}")
+    t = np.atleast_2d(np.asarray(t, dtype=float))
+    e_ref = np.broadcast_to(np.asarray(e_reference, dtype=float), ts.shape)[:, None]
+    if (y.shape != (ts.size, t.shape[-1]) or to.shape != ts.shape
+            or t.shape[0] not in (1, ts.size)):
+        raise ValueError(f"temperature must be (n_contacts, n_samples) = ({ts.size}, "
+                         f"{t.shape[-1]}) with one sensor and one object temperature per "
+                         f"contact; got {y.shape}, {ts.size} and {to.size}")
     if not np.all(np.isfinite(y)):
         raise ValueError("readings must be finite")
     if np.all(np.abs(ts - to) < 0.5):
         raise ValueError("every contact has the sensor within 0.5 K of the reference: no heat "
                          "flows, so nothing can be fitted; heat the taxel first")
 
+    m = ts.size
+
     def model(p: np.ndarray) -> np.ndarray:
         s = dataclasses.replace(s0, diffusivity=float(np.exp(p[0])),
                                 conductivity=float(np.exp(p[1])))
-        h = np.exp(p[2:])[:, None]
-        return contact_trace(t[None, :], ts[:, None], to[:, None], e_reference, s, h)
+        h = np.exp(p[2:2 + m])[:, None]
+        return contact_trace(t, ts[:, None], to[:, None], e_ref, s, h)
 
-    lo_h, hi_h = np.log(conductance_range[0]), np.log(conductance_range[1])
+    lo_h = np.broadcast_to(np.log(np.asarray(conductance_range[0], dtype=float)), ts.shape)
+    hi_h = np.broadcast_to(np.log(np.asarray(conductance_range[1], dtype=float)), ts.shape)
     start = np.concatenate([[np.log(s0.diffusivity), np.log(s0.conductivity)],
-                            np.full(ts.size, 0.5 * (lo_h + hi_h))])
-    lower = np.concatenate([start[:2] - np.log(3.0), np.full(ts.size, lo_h)])
-    upper = np.concatenate([start[:2] + np.log(3.0), np.full(ts.size, hi_h)])
+                            0.5 * (lo_h + hi_h)])
+    lower = np.concatenate([start[:2] - np.log(3.0), lo_h])
+    upper = np.concatenate([start[:2] + np.log(3.0), hi_h])
     res = least_squares(lambda p: (model(p) - y).ravel(), start, bounds=(lower, upper),
                         x_scale=1.0, max_nfev=200)
     sensor = dataclasses.replace(s0, diffusivity=float(np.exp(res.x[0])),
                                  conductivity=float(np.exp(res.x[1])))
     rms = float(np.sqrt(np.mean(res.fun**2)))
-    return SensorFit(sensor, np.exp(res.x[2:]), rms, bool(res.success))
+    return SensorFit(sensor, np.exp(res.x[2:2 + m]), rms, bool(res.success))
 
 
 def reference_contacts(sensor: SensorConstants, reference: Material, rng: np.random.Generator,

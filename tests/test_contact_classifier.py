@@ -98,6 +98,26 @@ def test_passive_channel_names_cold_and_warm_objects_one_channel_cannot(two_chan
     assert acc[2] > acc[1] + 0.2
 
 
+def test_copies_only_where_a_second_channel_pins_the_object(two_channel):
+    """One heated channel cannot tell a cold object from a conductive one: no copies there."""
+    train, _ = two_channel
+    one = train.channels([0])
+    x1, x2 = contact_matrix(one, 0.5), contact_matrix(train, 0.5)
+    m1 = ContactClassifier(1).fit(x1, one.label)
+    assert not m1.copied_ and m1.C_ == 1.0
+    assert m1.raw_ is not None  # ambient data: the raw-window expert joins in
+    forced = ContactClassifier(1, unpinned_copies=True).fit(x1, one.label)
+    assert forced.copied_ and forced.C_ == 0.1
+    assert ContactClassifier(2).augment(x2, train.label)[0].shape[0] > x2.shape[0]
+    assert ContactClassifier(2).fit(x2, train.label).raw_ is None  # it would unteach them
+    x2[:, 1 + 101:] = np.nan  # no contact reached the passive taxel: nothing pins the object
+    m2 = ContactClassifier(2).fit(x2, train.label)
+    assert not m2.copied_
+    # the ambient-trained one-channel model is the same with or without the unused spread
+    same = ContactClassifier(1, object_spread=0.0).fit(x1, one.label)
+    assert np.allclose(m1.predict_proba(x1), same.predict_proba(x1))
+
+
 def test_absent_channel_is_read_as_absent(two_channel):
     train, test = two_channel
     m = ContactClassifier(2).fit(contact_matrix(train, 0.5), train.label)

@@ -138,6 +138,7 @@ SKIPPED = {
     "skin calibrate thermistors --data refs.csv": "the user's own reference readings",
     "skin dataset import trials.csv": "the user's own recordings",
     "skin commission --port": "the user's own quiet recording (tests/test_commission.py)",
+    "--touches aluminium,pine": "20-40 s of fitting (tests/test_commission.py runs it)",
 }
 
 

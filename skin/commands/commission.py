@@ -36,22 +36,31 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                      help="seconds of the stretch to use (default 60, at least 10)")
     cmd.add_argument("--layout", default=None,
                      help="layout (default: the recording's, else arm)")
+    cmd.add_argument("--touches", metavar="MATERIALS", default=None,
+                     help="instead of the noise, fit each taxel's sensor response from touches "
+                          "of these reference materials at room temperature in the recording, "
+                          "e.g. aluminium,pine (at least 3 touches of each of 2, held 2.5 s); "
+                          "experimental: with onsets detected from 10-bit readings the fit was "
+                          "not closer to the true constants than the nominal ones (CHANGELOG)")
+    cmd.add_argument("--room", type=float, default=None, metavar="C",
+                     help="room temperature of the references, deg C (default: the "
+                          "recording's ambient sensor)")
     cmd.add_argument("-o", "--out", required=True, help="calibration file to write or update")
     cmd.add_argument("--json", action="store_true",
                      help="print one JSON document on stdout and nothing else")
     cmd.set_defaults(func=main)
 
 
-def read_stretch(url: str, layout: object, seconds: float,
-                 calibration: object = None) -> tuple[np.ndarray, np.ndarray]:
-    """Read ``seconds`` of a source as (times, temperatures in layout order)."""
+def read_stretch(url: str, layout: object, seconds: float, calibration: object = None,
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Read ``seconds`` of a source as (times, temperatures in layout order, ambient)."""
     from skin import drivers
     from skin.stream.assembly import FrameAssembler
     from skin.stream.calibration import Calibration
 
     cal = calibration or Calibration.from_layout(layout)
     assembler = FrameAssembler(layout)
-    times, temps = [], []
+    times, temps, ambient = [], [], []
     first = None
     with drivers.open(url) as driver:
         while True:
@@ -63,15 +72,17 @@ def read_stretch(url: str, layout: object, seconds: float,
             if len(block):
                 times.append(block.times)
                 temps.append(cal.temperature(block.counts)[0])
+                ambient.append(block.ambient)
             if frame.device_time - first >= seconds:
                 break
     block = assembler.flush()
     if len(block):
         times.append(block.times)
         temps.append(cal.temperature(block.counts)[0])
+        ambient.append(block.ambient)
     if not times:
         raise SkinError(f"{url}: no frame arrived: check the port, then record again")
-    return np.concatenate(times), np.concatenate(temps)
+    return np.concatenate(times), np.concatenate(temps), np.concatenate(ambient)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -84,6 +95,10 @@ def main(args: argparse.Namespace) -> int:
 
     if not QUIET_SECONDS[0] <= args.seconds <= QUIET_SECONDS[1]:
         raise SkinError(f"--seconds must lie within {QUIET_SECONDS[0]:g}-{QUIET_SECONDS[1]:g}")
+    if args.touches:
+        from skin.models import load_materials
+
+        _reference_names(args.touches, load_materials())
     layout = _layout(args.port, args.layout, load_layout)
     out = Path(args.out)
     cal_file = load_calibration(out) if out.exists() else CalibrationFile()
@@ -91,7 +106,9 @@ def main(args: argparse.Namespace) -> int:
     started = time.monotonic()
     progress.message(f"reading {args.seconds:g} s of {args.port}")
     calibration, _ = cal_file.apply(layout)
-    times, temps = read_stretch(args.port, layout, args.seconds, calibration)
+    times, temps, ambient = read_stretch(args.port, layout, args.seconds, calibration)
+    if args.touches:
+        return _touches(args, layout, cal_file, out, times, temps, ambient, started, progress)
     q = quiet_figures(times, temps, layout.ids)
     for i, t in enumerate(layout.ids):
         entry = cal_file.taxels.setdefault(int(t), {})
@@ -118,6 +135,63 @@ def main(args: argparse.Namespace) -> int:
         print(f"  {key:<18} median {s['median']:.4g} {unit} (min {s['min']:.4g}, "
               f"max {s['max']:.4g})")
     return 0
+
+
+def _touches(args: argparse.Namespace, layout: object, cal_file: object, out: object,
+             times: np.ndarray, temps: np.ndarray, ambient: np.ndarray, started: float,
+             progress: Progress) -> int:
+    """Fit the sensor response from reference touches (`skin.models.commission`)."""
+    from skin.formats.calibration_file import noise_sigma
+    from skin.models import load_materials
+    from skin.models.commission import commission_response
+
+    table = load_materials()
+    names = _reference_names(args.touches, table)
+    room = args.room if args.room is not None else float(np.nanmean(ambient))
+    if not np.isfinite(room):
+        raise SkinError("the recording has no ambient reading: give --room C")
+    _, sensors = cal_file.apply(layout)
+    progress.message(f"fitting the response from touches of {', '.join(names)}")
+    fits, counts = commission_response(times, temps, layout, {m: table[m] for m in names},
+                                       sensors, room, noise=noise_sigma(cal_file, layout))
+    for f in fits:
+        for k in f.columns:
+            cal_file.taxels.setdefault(int(layout.ids[k]), {}).update(
+                diffusivity=f.fit.sensor.diffusivity, conductivity=f.fit.sensor.conductivity,
+                depth=f.fit.sensor.depth, thermal_rms=round(f.fit.rms, 5),
+                thermal_contacts=f.touches, thermal_converged=f.fit.converged,
+                thermal_scope=f.scope)
+    cal_file.references["thermal"] = (f"touches of {', '.join(names)} at {room:.2f} C in "
+                                      f"{args.port}")
+    cal_file.save(out)
+    progress.done()
+    fitted = sum(len(f.columns) for f in fits)
+    doc = {"out": str(out), "taxels": len(layout), "fitted": fitted,
+           "per_taxel": sum(len(f.columns) for f in fits if f.scope == "taxel"),
+           "per_board": sum(len(f.columns) for f in fits if f.scope == "board"),
+           "room_c": round(room, 3), **counts,
+           "thermal_rms_k": _stats(np.array([f.fit.rms for f in fits])),
+           "wall_time": round(time.monotonic() - started, 2)}
+    if args.json:
+        print(json.dumps(doc))
+        return 0
+    print(f"wrote {out}: sensor response of {fitted} of {len(layout)} taxels "
+          f"({doc['per_taxel']} per taxel, {doc['per_board']} per board) from "
+          f"{counts['detected']} touches at {room:.2f} C ({counts['left_out']} too short or "
+          f"warm, {counts['ambiguous']} ambiguous); fit rms median "
+          f"{doc['thermal_rms_k']['median']:.3g} K")
+    return 0
+
+
+def _reference_names(touches: str, table: dict) -> list[str]:
+    """Return the ``--touches`` materials, checked: at least 2, all in the materials table."""
+    names = list(dict.fromkeys(m.strip() for m in touches.split(",") if m.strip()))
+    unknown = [m for m in names if m not in table]
+    if unknown or len(names) < 2:
+        raise SkinError(f"--touches needs at least 2 known reference materials; "
+                        f"{'unknown: ' + ', '.join(unknown) if unknown else 'got ' + touches}"
+                        f" (known: {', '.join(sorted(table))})")
+    return names
 
 
 def _stats(values: np.ndarray) -> dict:

@@ -52,6 +52,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--sensor", default=None, metavar="PRESET|FILE",
                     help="simulate this sensor's stream and set the detector by it (`skin "
                          "sensors`); adds detected_5sigma and delay_floor_ratio_median")
+    ev.add_argument("--commissioned", action="store_true",
+                    help="set the detector by noise commissioned (`skin commission`'s quiet "
+                         "figures) on a quiet minute of another simulated unit (seed + 1000), "
+                         "not the one measured")
     ev.add_argument("--calibration", default=None, metavar="FILE",
                     help="a calibration file from `skin commission`: each taxel's measured "
                          "noise sets the detector (taxel ids = stream columns)")
@@ -82,6 +86,18 @@ def _commissioned_noise(path: str, n_taxels: int) -> np.ndarray:
     return np.array([cal.taxels[k]["noise_sigma"] for k in range(n_taxels)], dtype=float)
 
 
+def _commissioned_elsewhere(table: dict, names: list, n_taxels: int, seed: int,
+                           sensor: object) -> np.ndarray:
+    """Each taxel's noise from a quiet minute of another simulated unit (`quiet_figures`)."""
+    from skin.bench.streams import simulate_stream
+    from skin.models.commission import quiet_figures
+
+    quiet = simulate_stream([table[n] for n in names], n_taxels=n_taxels, duration=60.0,
+                            contacts_per_minute=0.0, disturbances=False, seed=seed,
+                            sensor=sensor)
+    return quiet_figures(quiet.times, quiet.temperature).noise_sigma
+
+
 def _sensor_figures(contacts: list, flags: list, delays: list, errors: list, detector: object,
                     min_duration: float) -> dict:
     """Return issue 16's figures: 5-sigma detection, delay against the floor, onset error."""
@@ -108,6 +124,9 @@ def main(args: argparse.Namespace) -> int:
     from skin.bench.onset_eval import evaluate_onsets
     from skin.bench.streams import GUST_DEPTH
 
+    if args.commissioned and (args.data or args.calibration):
+        raise SkinError("--commissioned simulates its own quiet stretch: not with --data or "
+                        "--calibration")
     progress = Progress()
     started = time.monotonic()
     by_material = None
@@ -150,6 +169,9 @@ def main(args: argparse.Namespace) -> int:
     if args.calibration is not None:
         sigma = _commissioned_noise(args.calibration, temperature.shape[1])
         source += f", noise from {args.calibration}"
+    if args.commissioned:
+        sigma = _commissioned_elsewhere(table, names, args.taxels, args.seed + 1000, sensor)
+        source += f", noise commissioned on unit seed {args.seed + 1000}"
     if args.sensor is not None or sigma is not None:
         from skin.stream.onset import OnsetDetector
 
