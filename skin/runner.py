@@ -139,7 +139,7 @@ class Skin:
             self.pipeline = Pipeline(
                 self.layout, self.classifier, calibration=self.calibration, sensors=self.sensors,
                 ambient_offset=0.0 if self.cal_file is None else self.cal_file.ambient_offset,
-                window=s.window, provisional=s.provisional,
+                window=s.window, provisional=s.provisional, workers=s.workers,
                 noise=noise_sigma(self.cal_file, self.layout))  # commissioned noise, if any
         except ValueError as exc:
             raise SkinError(f"--window / --provisional: {exc}") from None
@@ -296,6 +296,9 @@ class Skin:
         self._closers.append(self._driver)
         log.info("reading %s (%d taxels)", self._source_name(), len(self.layout))
         self._make_sinks()
+        if s.workers > 1:  # started before the first frame, stopped with the sources
+            self._closers.append(self.pipeline.start())
+            log.info("onset detection in %d worker processes", s.workers)
         log.info("sinks: %s", ", ".join(type(k).__name__ for k in self.pipeline.sinks))
         if s.view or s.video:
             self._live = self._live_view()

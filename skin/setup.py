@@ -28,7 +28,7 @@ contact on stderr); any other entry ending in ``.jsonl`` is a JSON-lines file of
 GROUPS: dict[str, tuple[str, ...]] = {
     "source": ("port", "reconnect", "first_frame_timeout", "firmware_sim", "scene", "duration",
                "speed", "contact"),
-    "skin": ("layout", "calibration"),
+    "skin": ("layout", "calibration", "workers"),
     "classifier": ("model", "classifier", "threshold", "expect", "window", "provisional"),
     "output": ("out", "force", "sinks", "publish", "record", "map", "arm", "view", "video",
                "view_mode"),
@@ -110,6 +110,10 @@ class Setup:
         Movie of the arm view (.gif, .mp4).
     view_mode : str
         ``material`` or ``temperature``.
+    workers : int
+        Processes for onset detection (`skin.stream.shards`): 1 runs the whole pipeline in
+        this process; more shard the skin's boards across that many processes, this one
+        included (the same results).
     origin : dict
         Field name -> where its value came from (``default`` when absent).
     """
@@ -140,6 +144,7 @@ class Setup:
     view: bool = False
     video: str | None = None
     view_mode: str = "material"
+    workers: int = 1
     origin: dict[str, str] = field(default_factory=dict, compare=False)
 
     def updated(self, values: Mapping[str, Any], origin: str | Mapping[str, str]) -> Setup:
@@ -224,6 +229,17 @@ def _positive(value: Any) -> float:
     return out
 
 
+def _count(value: Any) -> int:
+    if isinstance(value, str):  # the command line's "2"
+        try:
+            value = int(value)
+        except ValueError:
+            raise ValueError(f"must be a whole number, got {value!r}") from None
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ValueError(f"must be a whole number of at least 1, got {value!r}")
+    return value
+
+
 def _probability(value: Any) -> float:
     out = _number(value)
     if not 0.0 <= out <= 1.0:
@@ -290,4 +306,5 @@ _CHECKS: dict[str, Callable[[Any], Any]] = {
     "view": _flag,
     "video": _optional_text,
     "view_mode": _choice("material", "temperature"),
+    "workers": _count,
 }

@@ -98,6 +98,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     pipe.add_argument("--budget", type=float, default=1.0,
                       help="ms per sample for refining and classifying; 0: one step a sample, "
                            "-1: no budget, every contact finished at once (1)")
+    pipe.add_argument("--workers", default="1",
+                      help="onset worker processes to compare, e.g. 1,2 (default 1; "
+                           "skin.stream.shards; the first is the baseline)")
+    pipe.add_argument("--block", type=int, default=1,
+                      help="samples the pipeline takes per call (1: each as it comes; "
+                           "skin run takes up to 20)")
     pipe.add_argument("--json", action="store_true", help="print one JSON document")
     pipe.set_defaults(func=main_pipeline)
     soak = kinds.add_parser("soak", help="the whole chain for hours of simulated time")
@@ -351,26 +357,36 @@ def main_pipeline(args: argparse.Namespace) -> int:
         raise SkinError("--taxels must be positive")
     if args.seconds <= 0 or args.contacts_per_minute < 0:
         raise SkinError("--seconds must be positive and --contacts-per-minute >= 0")
+    try:
+        workers = [int(v) for v in args.workers.split(",") if v.strip()]
+    except ValueError:
+        raise SkinError(f"--workers wants integers, got {args.workers!r}") from None
+    if not workers or min(workers) < 1 or args.block < 1:
+        raise SkinError("--workers and --block must be at least 1")
     budget = None if args.budget < 0 else args.budget / 1e3
     progress = Progress()
     rows = []
     for n in sizes:
-        progress.message(f"{n} taxels x {args.seconds:g} s")
-        rows.append(run(n, args.seconds, contacts_per_minute=args.contacts_per_minute,
-                        budget=budget))
+        for w in workers:
+            progress.message(f"{n} taxels x {args.seconds:g} s, {w} worker"
+                             f"{'s' if w > 1 else ''}")
+            rows.append(run(n, args.seconds, contacts_per_minute=args.contacts_per_minute,
+                            budget=budget, workers=w, block=args.block))
     progress.done()
-    doc = {"machine": bench.machine(), "results": rows}
+    doc = {"machine": bench.machine(), "block": args.block, "results": rows,
+           "speedup": _speedups(rows, workers)}
     if args.json:
         print(json.dumps(doc))
         return 0
     print(f"streaming chain, one sample at a time ({doc['machine']['cpus']} cores; "
           f"{args.contacts_per_minute:g} contacts per taxel-minute; budget "
           f"{'none' if budget is None else f'{args.budget:g} ms'})")
-    print("taxel-samples per second, of the chain and of each stage alone:")
+    print("taxel-samples per second, of the chain and of each stage alone (with workers, onset "
+          "is the parent's wait for them):")
     names = list(rows[0]["stages"])
-    print(f"{'taxels':>7} {'chain':>10} " + " ".join(f"{k:>10}" for k in names))
+    print(f"{'taxels':>7} {'workers':>7} {'chain':>10} " + " ".join(f"{k:>10}" for k in names))
     for r in rows:
-        print(f"{r['taxels']:>7} {r['taxel_samples_per_s']:>10} "
+        print(f"{r['taxels']:>7} {r['workers']:>7} {r['taxel_samples_per_s']:>10} "
               + " ".join(f"{r['stages'][k] or '-':>10}" for k in names))
     print(f"\n{'taxels':>7} {'x real time':>11} {'p50 ms':>7} {'p99 ms':>7} {'contacts':>8} "
           f"{'wait p50 ms':>11} {'wait p99 ms':>11} {'memory MB':>9} {'peak MB':>8}")
@@ -379,7 +395,35 @@ def main_pipeline(args: argparse.Namespace) -> int:
         print(f"{r['taxels']:>7} {r['realtime_factor']:>11} {r['latency_ms']['p50']:>7} "
               f"{r['latency_ms']['p99']:>7} {r['contacts']:>8} {w['p50']!s:>11} "
               f"{w['p99']!s:>11} {r['peak_memory_mb_growth']:>9} {r['peak_memory_mb']:>8}")
+    for sp in doc["speedup"]:
+        print(f"\n{sp['taxels']} taxels, samples in blocks of {args.block}: speed-up over "
+              f"{workers[0]} worker{'s' if workers[0] > 1 else ''} (same run): "
+              + ", ".join(f"{k} workers x{v}" for k, v in sp["measured"].items()))
+        if "on_paper" in sp:
+            paper = sp["on_paper"]
+            print(f"  on paper, {paper['workers']} workers with a core each (onset "
+                  f"{paper['onset_share']:.0%} of one process's time): x{paper['amdahl']} "
+                  f"if transfers were free, x{paper['measured_parts']} from the 2-worker "
+                  f"run's parts (transfers {paper['transfer_share']:.1%} of one process's "
+                  f"time; workers' CPU / one process's onset time "
+                  f"{paper['worker_cpu_over_onset']})")
     return 0
+
+
+def _speedups(rows: list[dict], workers: list[int]) -> list[dict]:
+    """Per skin size: each worker count's throughput over the first's; 8 on paper from 1 and 2."""
+    from skin.bench.pipeline import workers_on_paper
+
+    out = []
+    for n in dict.fromkeys(r["taxels"] for r in rows):
+        by = {r["workers"]: r for r in rows if r["taxels"] == n}
+        base = by[workers[0]]["taxel_samples_per_s"]
+        entry: dict = {"taxels": n, "measured": {
+            w: round(r["taxel_samples_per_s"] / base, 2) for w, r in by.items()}}
+        if 1 in by and 2 in by:
+            entry["on_paper"] = workers_on_paper(by[1], by[2], 8)
+        out.append(entry)
+    return out
 
 
 def main_publish(args: argparse.Namespace) -> int:

@@ -56,7 +56,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -126,6 +126,10 @@ class OnsetEvent:
     direction : int
         -1: the reading fell (an object cooler than the taxel); +1: it rose (an object
         warmer than the taxel, heat flowing into the sensor).  A release has its onset's.
+    channel : int
+        Which test raised it (0 fall, 1 rise, 2 slow fall, 3 release): the detector gives the
+        events of one sample in (channel, taxel) order, so events of shards of taxels
+        (`skin.stream.shards`) merge back into the same order. Not compared.
     """
 
     kind: str
@@ -135,6 +139,7 @@ class OnsetEvent:
     baseline: float
     slope: float
     direction: int = -1
+    channel: int = field(default=0, compare=False, repr=False)
 
 
 @dataclass(frozen=True)
@@ -520,7 +525,7 @@ class OnsetDetector:
             t0 = float(s.rise_start[k])
             events.append(OnsetEvent("onset", int(k), t0, t,
                                      float(s.level[k] + s.slope[k] * (t0 - s.t_level[k])),
-                                     float(s.slope[k]), 1))
+                                     float(s.slope[k]), 1, 1))
         # the slow channel: a fall below the slow average of the smoothed reading
         fall = np.where(idle, s.slow - s.smooth, 0.0)
         begins = idle & (fall > self.slow_begin) & np.isnan(s.slow_start)
@@ -530,7 +535,7 @@ class OnsetDetector:
                       & np.isfinite(s.slow_start))
         for k in np.flatnonzero(slow_alarm):
             events.append(OnsetEvent("onset", int(k), float(s.slow_start[k]), t,
-                                     float(s.slow[k]), 0.0, -1))
+                                     float(s.slow[k]), 0.0, -1, 2))
         t0 = np.where(alarm, s.t_start, s.rise_start)
         alarm = alarm | slow_alarm
         onset = alarm | rise_alarm
@@ -596,7 +601,7 @@ class OnsetDetector:
         s.t_extreme[stopped] = np.minimum(s.t_extreme[stopped], turn[stopped])
         for k in np.flatnonzero(released):
             events.append(OnsetEvent("release", int(k), float(s.t_extreme[k]), t,
-                                     float(s.extreme[k]), 0.0, int(d[k])))
+                                     float(s.extreme[k]), 0.0, int(d[k]), 3))
         if released.any():
             r = released
             s.in_contact[r] = False

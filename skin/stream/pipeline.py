@@ -32,7 +32,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol, TypeVar
+from typing import TYPE_CHECKING, Protocol, TypeVar
 
 import numpy as np
 
@@ -44,6 +44,9 @@ from skin.stream.assembly import FrameAssembler, Samples
 from skin.stream.calibration import Calibration
 from skin.stream.onset import OnsetDetector
 from skin.stream.tracking import ContactTracker, DecidedContact, finish_contact, refine_member
+
+if TYPE_CHECKING:
+    from skin.stream.shards import OnsetShards
 
 T = TypeVar("T")
 
@@ -232,6 +235,10 @@ class Pipeline:
     provisional : sequence of float
         Seconds after a contact's first onset at which it is also classified while still
         open (results with ``contact.final`` False; `skin.stream.tracking.ContactTracker`).
+    workers : int
+        Processes for onset detection: 1 runs it here; more shard the taxels across that
+        many processes, this one included (`skin.stream.shards`); the others are started by
+        `start` (or at the first block) and stopped by `close`. The results are the same.
 
     Attributes
     ----------
@@ -261,11 +268,14 @@ class Pipeline:
         max_skew: int = 20,
         provisional: Sequence[float] = (),
         noise: np.ndarray | None = None,
+        workers: int = 1,
     ) -> None:
         rates = {b.sample_rate for b in layout.boards.values()}
         if len(rates) != 1:
             raise SkinError(f"{layout.source}: the boards of one skin must share a sample rate "
                             f"(sampled in step); got {sorted(rates)} Hz")
+        if workers < 1:
+            raise ValueError(f"workers must be >= 1, got {workers}")
         if budget is not None and budget < 0:
             raise ValueError(f"budget must be None or >= 0 s, got {budget}")
         self.layout = layout
@@ -290,6 +300,8 @@ class Pipeline:
         self.budget = budget
         self.max_wait = float(max_wait)
         self._state = self.detector.initial_state()
+        self.workers = int(workers)
+        self._shards: OnsetShards | None = None  # from `start` or the first block on
         self._queue: deque[_Deciding] = deque()
         self._typical = {"refine": 0.0, "classify": 0.0}  # running mean of a step's cost, s
         self._now = -np.inf
@@ -316,7 +328,28 @@ class Pipeline:
 
     def in_contact(self) -> np.ndarray:
         """Boolean mask of the taxels in contact now (layout order)."""
+        if self._shards is not None:
+            return self._shards.in_contact.copy()
         return self._state.in_contact.copy()
+
+    @property
+    def onset_workers(self) -> OnsetShards | None:
+        """The running `skin.stream.shards.OnsetShards`, or None (one process, or closed)."""
+        return self._shards
+
+    def start(self) -> Pipeline:
+        """Start the onset workers now rather than at the first block (idempotent)."""
+        if self.workers > 1 and self._shards is None:
+            from skin.stream.shards import OnsetShards
+
+            self._shards = OnsetShards(self.detector, self.layout, self.workers)
+        return self
+
+    def close(self) -> None:
+        """Stop the onset workers, if any (idempotent)."""
+        if self._shards is not None:
+            self._shards.close()
+            self._shards = None
 
     def _timed(self, stage: str, func: Callable[..., T], *args: object) -> T:
         t0 = time.perf_counter()
@@ -342,13 +375,18 @@ class Pipeline:
             for observe in self.observers:
                 observe(samples.times, temperature, samples.host_times)
             self.stats.seconds["sinks"] += time.perf_counter() - t0
-        events, self._state = self._timed("onset", self.detector.process, samples.times,
-                                          temperature, self._state)
+        events = self._timed("onset", self._onsets, samples.times, temperature)
         self.stats.onsets += sum(e.kind == "onset" for e in events)
         self.stats.releases += sum(e.kind == "release" for e in events)
         decided = self._timed("track", self.tracker.update, samples.times, temperature,
                               samples.ambient + self.ambient_offset, events)
         self._enqueue(decided)
+
+    def _onsets(self, times: np.ndarray, temperature: np.ndarray) -> list:
+        if self.workers == 1:
+            events, self._state = self.detector.process(times, temperature, self._state)
+            return events
+        return self.start()._shards.process(times, temperature)
 
     def _enqueue(self, decided: list[DecidedContact]) -> None:
         self._queue.extend(_Deciding(d) for d in decided)
