@@ -149,3 +149,147 @@ def test_workers_must_be_at_least_one():
         Pipeline(scene.layout, HistogramClassifier(scene.layout), workers=0)
     with pytest.raises(SkinError, match="workers: must be a whole number of at least 1"):
         Setup().updated({"workers": 0}, "command line")
+
+
+# --- boards in worker processes (skin.stream.board_workers) ----------------------------------
+def _board_workers(layout, shards, block=10):
+    from skin.stream.board_workers import BoardWorkers
+
+    pipe = Pipeline(layout, JointClassifier(layout))
+    results = []
+    with BoardWorkers(pipe, shards, block=block) as bw:
+        while not bw.done:
+            results += bw.feed(bw.blocks())
+        results += bw.finish()
+    return results, pipe
+
+
+def test_board_workers_give_the_results_of_one_process_when_contacts_cross_boards():
+    from skin.stream.board_workers import FramesSource
+
+    scene = load_scene("default")
+    layout, frames = _two_boards(scene, list(SkinSimulator(scene, duration=14.0).frames()))
+    one = _run(layout, frames, 1)  # 20 frames of two boards: blocks of 10 samples
+    shards = [([b], FramesSource(tuple(f for f in frames if f.board == b), step=7))
+              for b in (0, 1)]
+    two, pipe = _board_workers(layout, shards, block=10)
+    boards = [t.board for t in layout.taxels]
+    assert len([r for r in one if len({boards[k] for k in r.contact.taxels}) > 1]) >= 3
+    assert _key(two) == _key(one)
+    assert pipe.stats.frames == len(frames) and pipe.stats.samples == len(frames) // 2
+
+
+def test_board_workers_join_a_sample_one_shard_lost_as_one_process_does():
+    from skin.stream.board_workers import FramesSource
+
+    scene = load_scene("default")
+    layout, frames = _two_boards(scene, list(SkinSimulator(scene, duration=10.0).frames()))
+    lost = {(1, 300), (1, 301), (1, 1200)}  # board 1 loses three frames
+    frames = [f for f in frames if (f.board, f.seq) not in lost]
+    ref = Pipeline(layout, JointClassifier(layout))
+    one = ref.process(frames) + ref.flush()
+    shards = [([b], FramesSource(tuple(f for f in frames if f.board == b), step=13))
+              for b in (0, 1)]
+    two, pipe = _board_workers(layout, shards, block=25)
+    # blocks of other sizes: the same contacts and labels (a result's report time may move)
+    assert len(one) >= 3
+    assert [(repr(r.contact), repr(r.estimate)) for r in two] == [
+        (repr(r.contact), repr(r.estimate)) for r in one]
+    assert pipe.stats.gaps == ref.stats.gaps == 3  # frames missing by sequence numbers
+    assert pipe.stats.samples == ref.stats.samples == 2000
+    assert np.array_equal(pipe.stats.flagged, ref.stats.flagged)
+    assert pipe.stats.flagged.sum() == 3 * 36
+
+
+def test_board_workers_open_their_own_serial_ports():
+    """Two simulated boards on pseudo-terminals, each opened and read by its own worker."""
+    from skin.bench.soak import soak_scenes
+    from skin.drivers import open as open_driver
+    from skin.drivers.sim import PtySerialDevice
+    from skin.stream.board_workers import UrlSource
+
+    layout, scenes = soak_scenes(512, 40.0, seed=3)
+
+    def devices():
+        return [PtySerialDevice(SkinSimulator(s), speed=0) for s in scenes]
+
+    # one process: the boards read in turn, 10 samples a block
+    devs = devices()
+    drivers = [open_driver(f"serial://{d.port}?board={d.simulator.board.id}") for d in devs]
+    for d in devs:
+        d.start()
+    ref = Pipeline(layout, JointClassifier(layout))
+    one, batch = [], []
+    try:
+        while True:
+            for drv in drivers:
+                f = drv.recv(timeout=2.0)
+                if f is not None:
+                    batch.append(f)
+            if len(batch) == 20 or (batch and all(d.done.is_set() for d in devs)):
+                one += ref.process(batch)
+                batch = []
+            if all(d.done.is_set() for d in devs) and ref.stats.frames >= sum(
+                    d.frames_sent for d in devs):
+                break
+        one += ref.flush()
+    finally:
+        for c in drivers + devs:
+            c.close()
+    devs = devices()
+    try:
+        from skin.stream.board_workers import BoardWorkers
+
+        pipe = Pipeline(layout, JointClassifier(layout))
+        two = []
+        shards = [([d.simulator.board.id],
+                   UrlSource((f"serial://{d.port}?board={d.simulator.board.id}",)))
+                  for d in devs]
+        with BoardWorkers(pipe, shards, block=10) as bw:  # the ports open before any frame
+            for d in devs:
+                d.start()
+            while not (all(d.done.is_set() for d in devs)
+                       and bw.frames >= sum(d.frames_sent for d in devs)):
+                two += bw.feed(bw.blocks())
+            two += bw.finish()
+    finally:
+        for d in devs:
+            d.close()
+    assert len(one) >= 6 and ref.stats.frames == 2 * 8000
+    assert _key(two) == _key(one)
+    assert pipe.stats.frames == ref.stats.frames and pipe.stats.gaps == 0
+
+
+def test_a_board_worker_that_dies_is_named_with_its_exit_code():
+    from skin.stream.board_workers import BoardWorkers, FramesSource
+
+    scene = load_scene("default")
+    layout, frames = _two_boards(scene, list(SkinSimulator(scene, duration=30.0).frames()))
+    pipe = Pipeline(layout, HistogramClassifier(layout))
+    shards = [([b], FramesSource(tuple(f for f in frames if f.board == b), step=1))
+              for b in (0, 1)]
+    with BoardWorkers(pipe, shards, block=10) as bw:
+        pipe_blocks = bw.blocks(1.0)
+        bw.feed(pipe_blocks)
+        pid = bw._procs[1].pid
+        os.kill(pid, signal.SIGKILL)
+        with pytest.raises(SkinError, match=rf"board worker 1 \(pid {pid}, 36 taxels of board "
+                                            r"1\) died \(exit code -9\)"):
+            while True:
+                bw.feed(bw.blocks(1.0))
+    assert all(not p.is_alive() for p in bw._procs) if bw._procs else True
+
+
+def test_board_workers_check_their_boards_and_ports_before_the_first_frame():
+    from skin.stream.board_workers import BoardWorkers, UrlSource
+
+    layout = cylinder_layout(600)  # boards 0, 1, 2
+    pipe = Pipeline(layout, HistogramClassifier(layout))
+    with pytest.raises(SkinError, match=r"board \[2\] of .* given to no worker"):
+        BoardWorkers(pipe, [([0], UrlSource(())), ([1], UrlSource(()))])
+    with pytest.raises(SkinError, match="board 1 is given to workers 0 and 1"):
+        BoardWorkers(pipe, [([0, 1], UrlSource(())), ([1, 2], UrlSource(()))])
+    with pytest.raises(SkinError, match=r"board worker 1 \(.*\) could not open its boards: "
+                                        r".*/dev/no-such-port"):
+        BoardWorkers(pipe, [([0, 1], UrlSource(())),
+                            ([2], UrlSource(("serial:///dev/no-such-port?board=2",)))])

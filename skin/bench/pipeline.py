@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import resource
 import time
+from typing import Any
 
 import numpy as np
 
@@ -62,12 +63,14 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
     budget : float or None
         The pipeline's per-sample budget for refining and classifying, s (None: none).
     chunk : int
-        Samples simulated, encoded and decoded at a time: the memory is that of one chunk,
-        whatever ``duration``.
+        Samples simulated and encoded at a time: the memory is that of one chunk, whatever
+        ``duration`` (the boards' wire bytes go to a temporary folder, before timing).
     workers : int
-        The pipeline's onset worker processes (`skin.stream.shards`), started before timing;
-        with more than one, ``worker_seconds`` gives each worker's seconds in its detector
-        (wall, CPU) and the parent's wait for them.
+        1: one process decodes and runs the whole chain. More: the boards are shared out to
+        that many worker processes (`skin.stream.board_workers`), each decoding, assembling,
+        calibrating and detecting onsets on its own boards, and this process joins, tracks,
+        refines and classifies; ``worker_seconds`` gives each worker's seconds per stage and
+        its CPU, ``parent_cpu_s`` this process's.
     block : int
         Samples the pipeline takes per call (1: each as it comes; a live `skin.Skin` takes
         what has arrived, up to 20 frames); ``latency_ms`` is then per call.
@@ -78,14 +81,20 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
     -------
     dict
         ``taxel_samples_per_s`` (whole chain), ``stages`` (taxel-samples per second of each
-        stage), ``realtime_factor``, ``latency_ms`` (p50, p99 per sample after decoding),
-        ``result_wait_ms`` (p50, p99 of device time from a contact's decision to its result),
-        ``contacts`` decided, ``peak_memory_mb_growth`` and ``peak_memory_mb`` (the process's
-        peak resident set, MB; the workers' are not counted).
+        stage; with workers, decode to onset: their CPU seconds, summed over the workers),
+        ``realtime_factor``, ``latency_ms`` (p50, p99 per call of the pipeline after
+        decoding), ``result_wait_ms`` (p50, p99 of device time from a contact's decision to
+        its result), ``contacts``
+        decided, ``peak_memory_mb_growth`` and ``peak_memory_mb`` (this process's peak
+        resident set, MB; ``workers_peak_memory_mb``: each worker's), ``wall_s`` and
+        ``cpu_s`` (the chain's seconds, wall and CPU, the workers' CPU included).
     """
+    import tempfile
+
     from skin.bench.streams import stream_chunks
-    from skin.drivers.protocol import StreamDecoder, encode_sample
+    from skin.drivers.protocol import encode_sample
     from skin.models import JointClassifier, load_materials
+    from skin.stream.board_workers import WireSource, WireWriter
     from skin.stream.calibration import Calibration
     from skin.stream.pipeline import Pipeline
 
@@ -96,48 +105,33 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
     boards = sorted(layout.boards)
     wires = {b: layout.channel_map(b)[0] for b in boards}
     duty = np.full(BOARD_CHANNELS, 255)
-    decoders = [StreamDecoder(board=b) for b in boards]
-    pipe = Pipeline(layout, JointClassifier(layout), budget=budget, workers=workers).start()
     fs = float(layout.boards[boards[0]].sample_rate)  # the boards sample in step
     n = round(duration * fs)
     samples = n * n_taxels
-    latency = np.empty(n)
-    results = []
-    t_decode = t_chain = 0.0
-    waiting: list = []  # the frames of the samples since ``since``, for the next call
-    since = 0
-    # bounded memory: one chunk of the stream, its packets and frames at a time
-    for part in stream_chunks([table[m] for m in ("aluminium", "pine", "glass", "neoprene")],
-                              n_taxels=n_taxels, duration=duration,
-                              contacts_per_minute=contacts_per_minute, fs=fs, seed=seed,
-                              chunk=chunk):
-        counts = np.clip(np.rint(cal.counts(part.temperature)), 1, 1022).astype(np.int64)
-        for i, t in enumerate(part.times):
-            k = part.start + i
-            packets = [encode_sample(k, int(t * 1e6), counts[i, wires[b]],
-                                     float(part.ambient[i]), duty[: wires[b].size])
-                       for b in boards]
-            since = k if not waiting else since
-            t0 = time.perf_counter()
-            waiting += [f for dec, p in zip(decoders, packets, strict=True) for f in dec.feed(p)]
-            t1 = time.perf_counter()
-            t_decode += t1 - t0
-            if (k + 1) % block and k + 1 < n:
-                continue
-            results += pipe.process(waiting)
-            waiting = []
-            t2 = time.perf_counter()
-            latency[since : k + 1] = t2 - t1
-            t_chain += t2 - t1
-    started = time.perf_counter()
-    results += pipe.flush()  # the contacts still open or waiting at the end
-    t_chain += time.perf_counter() - started
-    busy = None if pipe.onset_workers is None else pipe.onset_workers.busy
-    pipe.close()
-    total = t_decode + t_chain
+    with tempfile.TemporaryDirectory(prefix="skin-bench-wire-") as folder:
+        # not timed: the boards' wire bytes, one chunk of the stream at a time
+        writer = WireWriter(folder, boards)
+        for part in stream_chunks([table[m] for m in ("aluminium", "pine", "glass",
+                                                      "neoprene")],
+                                  n_taxels=n_taxels, duration=duration,
+                                  contacts_per_minute=contacts_per_minute, fs=fs, seed=seed,
+                                  chunk=chunk):
+            counts = np.clip(np.rint(cal.counts(part.temperature)), 1, 1022).astype(np.int64)
+            for i, t in enumerate(part.times):
+                writer.add([encode_sample(part.start + i, int(t * 1e6), counts[i, wires[b]],
+                                          float(part.ambient[i]), duty[: wires[b].size])
+                            for b in boards])
+        writer.close()
+        pipe = Pipeline(layout, JointClassifier(layout), budget=budget)
+        if workers == 1:
+            timed = _one_process(pipe, WireSource(folder, tuple(boards)), n, block)
+        else:
+            timed = _board_workers(pipe, folder, workers, block)
+    results, total, latency = timed.pop("results"), timed.pop("wall"), timed.pop("latency")
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     waits = np.array([r.reported_at - r.contact.decided_at for r in results]) * 1e3
-    stages = {"decode": t_decode, **pipe.stats.seconds}
+    # with workers, the parent's assemble, calibrate and onset are the workers' (summed)
+    stages = {"decode": 0.0, **pipe.stats.seconds, **timed.pop("stages")}
     doc = {"taxels": n_taxels, "boards": len(boards), "workers": workers, "block": block,
            "frames": n * len(boards),
            "seconds_simulated": duration, "contacts_per_minute": contacts_per_minute,
@@ -154,43 +148,105 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
                               else None},
            "contacts": len(results),
            "peak_memory_mb_growth": round((peak - peak0) / 1024.0, 1),
-           "peak_memory_mb": round(peak / 1024.0, 1)}
-    if busy is not None:  # the workers' own seconds in their detectors: wall, CPU
-        doc["worker_seconds"] = {"wall": [round(float(v), 3) for v in busy[:, 0]],
-                                 "cpu": [round(float(v), 3) for v in busy[:, 1]],
-                                 "parent_onset_wait": round(pipe.stats.seconds["onset"], 3)}
+           "peak_memory_mb": round(peak / 1024.0, 1), **timed}
     if keep_results:
         doc["results"] = results
     return doc
 
 
+def _one_process(pipe: Any, source: Any, n: int, block: int) -> dict:
+    """Run the whole chain in this process: decode each sample's packets, process blocks."""
+    reader = source.reader()
+    cpu = time.process_time()  # with the file reads: a sliver more than the chain's
+    latency = np.empty(n)
+    results: list = []
+    t_decode = t_chain = 0.0
+    waiting: list = []  # the frames of the samples since ``since``, for the next call
+    since = 0
+    try:
+        for k in range(n):
+            since = k if not waiting else since
+            t0 = time.perf_counter()
+            waiting += reader.read(0.0)
+            t1 = time.perf_counter()
+            t_decode += t1 - t0
+            if (k + 1) % block and k + 1 < n:
+                continue
+            results += pipe.process(waiting)
+            waiting = []
+            t2 = time.perf_counter()
+            latency[since : k + 1] = t2 - t1
+            t_chain += t2 - t1
+    finally:
+        reader.close()
+    started = time.perf_counter()
+    results += pipe.flush()  # the contacts still open or waiting at the end
+    t_chain += time.perf_counter() - started
+    return {"results": results, "wall": t_decode + t_chain, "latency": latency,
+            "stages": {"decode": t_decode}, "wall_s": round(t_decode + t_chain, 3),
+            "cpu_s": round(time.process_time() - cpu, 3)}
+
+
+def _board_workers(pipe: Any, folder: str, workers: int, block: int) -> dict:
+    """Run the boards in ``workers`` processes (`skin.stream.board_workers`), join here."""
+    from skin.stream.board_workers import WORKER_STAGES, BoardWorkers, WireSource, shard_boards
+
+    shards = [(b, WireSource(folder, tuple(b), step=20)) for b in shard_boards(pipe.layout,
+                                                                              workers)]
+    latency = []
+    results: list = []
+    with BoardWorkers(pipe, shards, block=block) as bw:  # started, every source open
+        wall, cpu = time.perf_counter(), time.process_time()
+        while not bw.done:
+            got = bw.blocks(0.05)
+            t0 = time.perf_counter()
+            results += bw.feed(got)
+            if got:
+                latency.append((time.perf_counter() - t0) / len(got))
+        results += bw.finish()
+        wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+        seconds, peaks = bw.seconds.copy(), list(bw.peak_mb)
+    per = dict(zip(WORKER_STAGES, seconds[:, :-1].T, strict=True))
+    return {"results": results, "wall": wall, "latency": np.array(latency or [0.0]),
+            # the workers' stages, summed over the workers (decode: reading their bytes)
+            "stages": {"decode": float(per["read"].sum()), "assemble": float(
+                per["assemble"].sum()), "calibrate": float(per["calibrate"].sum()),
+                "onset": float(per["onset"].sum())},
+            "worker_seconds": {**{k: [round(float(x), 3) for x in v] for k, v in per.items()},
+                               "cpu": [round(float(x), 3) for x in seconds[:, -1]]},
+            "parent_cpu_s": round(cpu, 3), "wall_s": round(wall, 3),
+            "cpu_s": round(cpu + float(seconds[:, -1].sum()), 3),
+            "workers_peak_memory_mb": [round(p, 1) for p in peaks]}
+
+
 def workers_on_paper(one: dict, two: dict, workers: int) -> dict:
-    """Speed-up of ``workers`` onset workers over one process, on paper, from two measured runs.
+    """Speed-up of ``workers`` board workers over one process, on paper, from measured runs.
+
+    CPU seconds, not wall seconds: on a shared machine the wall time measures the load of
+    the others as much as the chain.
 
     Parameters
     ----------
     one, two : dict
         `run`'s rows of the same skin and stream with 1 and with 2 workers (same run).
     workers : int
-        Workers to extrapolate to, each with a core of its own.
+        Workers to extrapolate to, each with a core of its own, and one core for this process.
 
     Returns
     -------
     dict
-        ``onset_share`` p (of the 1-worker chain's time), ``amdahl`` (1 / (1 - p + p / N):
-        the onset stage divided evenly, free transfers), and ``measured_parts``: the rest of
-        the 1-worker chain, plus the 2-worker run's detector CPU seconds (both workers) / N,
-        plus its transfer cost (the parent's wait beyond the slower worker's wall time: send,
-        receive, merge), taken as not growing with N.
+        ``parent_share``: this process's CPU seconds in the 2-worker run (joining, tracking,
+        refining, classifying) over the 1-worker chain's CPU seconds; ``workers_share``: the
+        workers' CPU seconds, summed, over the same (above 1 - ``parent_share``: what sharding
+        costs); ``pipelined``: the speed-up when the parent and the workers run at once, each
+        on its own core (the slower of the parent and a worker's share of the work sets the
+        pace); ``two_cores``: the best two cores of their own can give the 2-worker run (all
+        its CPU seconds spread over two cores).
     """
-    p = one["stage_share"]["onset"]
-    samples = one["frames"] // one["boards"] * one["taxels"]  # the same in both runs
-    t_one = samples / one["taxel_samples_per_s"]  # the 1-worker chain's seconds
-    ws = two["worker_seconds"]
-    transfer = max(ws["parent_onset_wait"] - max(ws["wall"]), 0.0)
-    parts = (1.0 - p) * t_one + sum(ws["cpu"]) / workers + transfer
-    return {"workers": workers, "onset_share": p,
-            "amdahl": round(1.0 / (1.0 - p + p / workers), 2),
-            "measured_parts": round(t_one / parts, 2),
-            "transfer_share": round(transfer / t_one, 3),
-            "worker_cpu_over_onset": round(sum(ws["cpu"]) / (p * t_one), 2)}
+    t_one = one["cpu_s"]
+    parent = two["parent_cpu_s"]
+    work = sum(two["worker_seconds"]["cpu"])
+    return {"workers": workers, "parent_share": round(parent / t_one, 3),
+            "workers_share": round(work / t_one, 3),
+            "pipelined": round(t_one / max(parent, work / workers), 2),
+            "two_cores": round(t_one / ((parent + work) / 2), 2)}

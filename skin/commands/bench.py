@@ -99,8 +99,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                       help="ms per sample for refining and classifying; 0: one step a sample, "
                            "-1: no budget, every contact finished at once (1)")
     pipe.add_argument("--workers", default="1",
-                      help="onset worker processes to compare, e.g. 1,2 (default 1; "
-                           "skin.stream.shards; the first is the baseline)")
+                      help="board worker processes to compare, e.g. 1,2 (default 1: one "
+                           "process; skin.stream.board_workers; the first is the baseline)")
     pipe.add_argument("--block", type=int, default=1,
                       help="samples the pipeline takes per call (1: each as it comes; "
                            "skin run takes up to 20)")
@@ -381,32 +381,33 @@ def main_pipeline(args: argparse.Namespace) -> int:
     print(f"streaming chain, one sample at a time ({doc['machine']['cpus']} cores; "
           f"{args.contacts_per_minute:g} contacts per taxel-minute; budget "
           f"{'none' if budget is None else f'{args.budget:g} ms'})")
-    print("taxel-samples per second, of the chain and of each stage alone (with workers, onset "
-          "is the parent's wait for them):")
+    print("taxel-samples per second, of the chain and of each stage alone (with workers, "
+          "decode, assemble, calibrate and onset are the workers' seconds, summed):")
     names = list(rows[0]["stages"])
     print(f"{'taxels':>7} {'workers':>7} {'chain':>10} " + " ".join(f"{k:>10}" for k in names))
     for r in rows:
         print(f"{r['taxels']:>7} {r['workers']:>7} {r['taxel_samples_per_s']:>10} "
               + " ".join(f"{r['stages'][k] or '-':>10}" for k in names))
     print(f"\n{'taxels':>7} {'x real time':>11} {'p50 ms':>7} {'p99 ms':>7} {'contacts':>8} "
-          f"{'wait p50 ms':>11} {'wait p99 ms':>11} {'memory MB':>9} {'peak MB':>8}")
+          f"{'wait p50 ms':>11} {'wait p99 ms':>11} {'memory MB':>9} {'peak MB':>8} {'wall s':>7} "
+          f"{'CPU s':>7}")
     for r in rows:
         w = r["result_wait_ms"]
         print(f"{r['taxels']:>7} {r['realtime_factor']:>11} {r['latency_ms']['p50']:>7} "
               f"{r['latency_ms']['p99']:>7} {r['contacts']:>8} {w['p50']!s:>11} "
-              f"{w['p99']!s:>11} {r['peak_memory_mb_growth']:>9} {r['peak_memory_mb']:>8}")
+              f"{w['p99']!s:>11} {r['peak_memory_mb_growth']:>9} {r['peak_memory_mb']:>8} "
+              f"{r['wall_s']:>7} {r['cpu_s']:>7}")
     for sp in doc["speedup"]:
         print(f"\n{sp['taxels']} taxels, samples in blocks of {args.block}: speed-up over "
               f"{workers[0]} worker{'s' if workers[0] > 1 else ''} (same run): "
               + ", ".join(f"{k} workers x{v}" for k, v in sp["measured"].items()))
         if "on_paper" in sp:
             paper = sp["on_paper"]
-            print(f"  on paper, {paper['workers']} workers with a core each (onset "
-                  f"{paper['onset_share']:.0%} of one process's time): x{paper['amdahl']} "
-                  f"if transfers were free, x{paper['measured_parts']} from the 2-worker "
-                  f"run's parts (transfers {paper['transfer_share']:.1%} of one process's "
-                  f"time; workers' CPU / one process's onset time "
-                  f"{paper['worker_cpu_over_onset']})")
+            print(f"  CPU seconds of the 2-worker run over one process's: parent "
+                  f"{paper['parent_share']:.0%}, workers {paper['workers_share']:.0%}; on "
+                  f"paper, {paper['workers']} workers and the parent with a core each: "
+                  f"x{paper['pipelined']}; 2 workers on 2 cores of their own: "
+                  f"x{paper['two_cores']}")
     return 0
 
 

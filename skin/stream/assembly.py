@@ -99,6 +99,8 @@ class FrameAssembler:
         self._wraps: dict[int, int] = {b: 0 for b in layout.boards}
         self._pending: dict[int, dict[int, Frame]] = {}  # unwrapped seq -> board -> frame
         self._next: int | None = None  # the next sample to put out
+        #: Unwrapped sequence numbers of the samples the last `push` or `flush` put out.
+        self.last_seqs = np.zeros(0, dtype=np.int64)
         self.stats = AssemblyStats(gaps={b: 0 for b in layout.boards},
                                    missing={b: 0 for b in layout.boards})
 
@@ -147,6 +149,7 @@ class FrameAssembler:
 
     def _complete(self, flush: bool) -> Samples:
         ready = []
+        seqs = []
         everyone = len(self._maps)
         newest = max(self._newest.values(), default=-1)
         while self._pending:
@@ -155,7 +158,9 @@ class FrameAssembler:
                     or newest - seq > self.max_skew):
                 break
             ready.append(self._pending.pop(seq))
+            seqs.append(seq)
             self._next = seq + 1
+        self.last_seqs = np.array(seqs, dtype=np.int64)
         return self._assemble(ready)
 
     def _assemble(self, ready: list[dict[int, Frame]]) -> Samples:
@@ -176,6 +181,7 @@ class FrameAssembler:
             first = got[min(got)]  # the lowest board id present keeps the time
             times[i] = first.device_time
             host[i] = first.host_time
-            ambient[i] = float(np.mean([f.ambient for f in got.values()]))
+            # in board order, whatever order the frames came in (the same sum every time)
+            ambient[i] = float(np.mean([got[b].ambient for b in sorted(got)]))
         self.stats.samples += n
         return Samples(times, counts, ambient, duty, host)

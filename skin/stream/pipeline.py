@@ -46,6 +46,7 @@ from skin.stream.onset import OnsetDetector
 from skin.stream.tracking import ContactTracker, DecidedContact, finish_contact, refine_member
 
 if TYPE_CHECKING:
+    from skin.stream.board_workers import CalibratedBlock
     from skin.stream.shards import OnsetShards
 
 T = TypeVar("T")
@@ -365,21 +366,41 @@ class Pipeline:
             return
         temperature, status = self._timed("calibrate", self.calibration.temperature,
                                           samples.counts)
-        self.stats.samples += len(samples)
         self.stats.flagged += (status != 0).sum(axis=0)
+        self._track(samples.times, temperature, samples.ambient, samples.host_times, None)
+
+    def process_calibrated(self, block: CalibratedBlock) -> list[ContactResult]:
+        """Track a block assembled, calibrated and onset-detected elsewhere; return the results.
+
+        The block comes from `skin.stream.board_workers` (boards read in worker processes).
+
+        The block's frames, gaps and flagged samples are the caller's to count in `stats`
+        (``stats.frames``, ``stats.gaps``, ``stats.flagged``).
+        """
+        started = time.perf_counter()
+        if len(block.times):
+            self._track(block.times, block.temperature, block.ambient, block.host_times,
+                        block.events)
+        return self._drain(started, self.budget)
+
+    def _track(self, times: np.ndarray, temperature: np.ndarray, ambient: np.ndarray,
+               host_times: np.ndarray, events: list | None) -> None:
+        """Observe, detect (unless ``events`` are given) and track calibrated samples."""
+        self.stats.samples += len(times)
         self.last_temperature = temperature[-1]
-        self._now = float(samples.times[-1])
-        self.timeline.append(samples.times, samples.host_times)
+        self._now = float(times[-1])
+        self.timeline.append(times, host_times)
         if self.observers:
             t0 = time.perf_counter()
             for observe in self.observers:
-                observe(samples.times, temperature, samples.host_times)
+                observe(times, temperature, host_times)
             self.stats.seconds["sinks"] += time.perf_counter() - t0
-        events = self._timed("onset", self._onsets, samples.times, temperature)
+        if events is None:
+            events = self._timed("onset", self._onsets, times, temperature)
         self.stats.onsets += sum(e.kind == "onset" for e in events)
         self.stats.releases += sum(e.kind == "release" for e in events)
-        decided = self._timed("track", self.tracker.update, samples.times, temperature,
-                              samples.ambient + self.ambient_offset, events)
+        decided = self._timed("track", self.tracker.update, times, temperature,
+                              ambient + self.ambient_offset, events)
         self._enqueue(decided)
 
     def _onsets(self, times: np.ndarray, temperature: np.ndarray) -> list:
