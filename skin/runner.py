@@ -24,6 +24,7 @@ import logging
 import math
 import sys
 import time
+from collections import deque
 from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
@@ -40,6 +41,9 @@ log = logging.getLogger("skin.runner")
 
 OUTPUTS = ("events.jsonl", "summary.json", "contact_map.png")
 """Files whose presence marks an output folder as holding an earlier run."""
+
+KEEP_RECENT = 1000
+"""Results (and their records) `Skin` keeps of a run of a device: the most recent ones."""
 
 
 class Skin:
@@ -61,7 +65,14 @@ class Skin:
     layout, calibration, classifier, pipeline, scene, materials
         The chain's parts, set by `check`.
     records : list of dict
-        Every result given, as the lines of ``events.jsonl`` (with ``truth`` for a scene).
+        The results given, as the lines of ``events.jsonl`` (with ``truth`` for a scene):
+        every one for a simulated scene (its touches bound them), else the last
+        `KEEP_RECENT` (``events.jsonl`` and the sinks have them all).
+    results_given : collections.deque of ContactResult
+        The last `KEEP_RECENT` results given. The summary's figures do not depend on it: the
+        counts run as results come, and only a scene's matching and the contact map keep
+        every final contact, without its samples (``contact.windows`` emptied), so a
+        day-long run of a device does not grow with its contacts.
     summary : dict or None
         What `run` (or `finish`) reported.
     """
@@ -73,7 +84,11 @@ class Skin:
         self.progress = Progress() if progress is None else progress
         self.records: list[dict[str, Any]] = []
         self.summary: dict[str, Any] | None = None
-        self.results_given: list[ContactResult] = []
+        self.results_given: deque[ContactResult] = deque(maxlen=KEEP_RECENT)
+        self._records: deque[dict[str, Any]] | list[dict[str, Any]] = deque(maxlen=KEEP_RECENT)
+        self._finals: list[ContactResult] = []  # without samples, when needed:
+        self._keep_finals: bool | None = None  # a scene's matching or the contact map
+        self._final_count = 0
         self._checked = False
         self._opened = False
         self._closed = False
@@ -472,7 +487,20 @@ class Skin:
         return self.source_url if isinstance(self.source_url, str) else ", ".join(self.source_url)
 
     def _given(self, new: list[ContactResult]) -> Iterator[ContactResult]:
+        from skin.stream.sinks import event_record
+
+        if self._keep_finals is None:  # a scene's matching or the contact map needs them all
+            s = self.setup
+            self._keep_finals = self.scene is not None or (s.map and s.out is not None)
+            if self.scene is not None:
+                self._records = []
         self.results_given.extend(new)
+        for r in new:
+            self._records.append(event_record(r))
+            if r.contact.final:
+                self._final_count += 1
+                if self._keep_finals:
+                    self._finals.append(replace(r, contact=replace(r.contact, windows=[])))
         if self._live is not None:
             self._live.step(self._now, new, self.pipeline.in_contact(),
                             self.pipeline.last_temperature)
@@ -507,15 +535,14 @@ class Skin:
     def finish(self) -> dict[str, Any]:
         """Summarise the run; with an output folder, write its files. Returns the summary."""
         from skin.formats.scene import match_touches
-        from skin.stream.sinks import event_record
 
         s, pipeline, layout = self.setup, self.pipeline, self.layout
         duration = self.duration
         if math.isinf(duration):  # a replay to its end: the time it held
             duration = pipeline.stats.samples / next(iter(layout.boards.values())).sample_rate
         wall = time.monotonic() - self._t_wall
-        results = [r for r in self.results_given if r.contact.final]
-        records = [event_record(r) for r in self.results_given]
+        results = list(self._finals)  # every final contact when needed, else none
+        records = list(self._records)
         link, health = self._link, self._health
         summary: dict[str, Any] = {
             "source": "simulation" if self.scene is not None else self.url,
@@ -530,7 +557,7 @@ class Skin:
             "reconnects": None if health is None else health.reconnects,
             "flagged_taxels": [int(layout.ids[k])
                                for k in np.flatnonzero(pipeline.stats.flagged)],
-            "contacts": len(results),
+            "contacts": self._final_count,
         }
         if self.publishers:
             summary["published"] = {p.url: dict(p.sent) for p in self.publishers}

@@ -279,3 +279,35 @@ def test_leaving_the_with_block_closes_sources_sinks_and_the_simulation(tmp_path
     # what was given before leaving is in events.jsonl
     assert [e["contact"] for e in lines(tmp_path / "run" / "events.jsonl")
             ][:1] == [first.contact.id]
+
+
+def test_a_device_run_keeps_recent_results_and_exact_counts(monkeypatch):
+    """A run of a device keeps the last KEEP_RECENT results, not one per contact."""
+    from skin import runner
+
+    monkeypatch.setattr(runner, "KEEP_RECENT", 3)
+    with Skin(port=["sim://default?speed=0&duration=30"], out=None, map=False,
+              sinks=[]) as skin:
+        given = list(skin.results())
+        finals = [r for r in given if r.contact.final]
+        summary = skin.finish()
+    assert len(finals) >= 8  # more contacts than are kept
+    assert summary["contacts"] == len(finals)  # the count runs as results come
+    assert list(skin.results_given) == given[-3:]
+    assert [rec["contact"] for rec in skin.records] == [r.contact.id for r in given[-3:]]
+    assert skin._finals == []  # no scene, no map: no contact kept for the summary
+
+
+def test_a_scene_run_keeps_every_contact_without_its_samples(monkeypatch):
+    from skin import runner
+
+    monkeypatch.setattr(runner, "KEEP_RECENT", 2)
+    with Skin(speed=0.0, duration=20.0, out=None, map=False, sinks=[]) as skin:
+        given = list(skin.results())
+        summary = skin.finish()
+    finals = [r for r in given if r.contact.final]
+    assert summary["contacts"] == len(finals) > 2 and summary["detected"] >= 3
+    assert len(skin.records) == len(given)  # a scene's truth is written into every record
+    assert len(skin.results_given) == 2
+    assert [r.contact.id for r in skin._finals] == [r.contact.id for r in finals]
+    assert all(r.contact.windows == [] for r in skin._finals)
