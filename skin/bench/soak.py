@@ -2,9 +2,7 @@
 
 `run` builds a skin of ``n`` taxels (`skin.bench.pipeline.cylinder_layout`: rings of 16,
 boards of 256), gives each board its own simulated board (`skin.drivers.sim.SkinSimulator`
-served as wire bytes on a real pseudo-terminal by `skin.drivers.sim.PtySerialDevice`; the
-simulated boards run in a process of their own, `SimulatedBoards`, as real boards are other
-hardware: they neither share this process's interpreter lock nor count in its memory), reads
+served as wire bytes on a real pseudo-terminal by `skin.drivers.sim.PtySerialDevice`), reads
 each through its serial driver (`skin.drivers.open`), a frame from each in turn, and pushes the
 frames through `skin.stream.pipeline.Pipeline` with the joint classifier, a JSON-lines sink
 and an MCAP recording (`skin.drivers.recording.Recorder`: wire bytes, temperatures, events).
@@ -81,90 +79,6 @@ def soak_scenes(n_taxels: int, seconds: float, seed: int = 0) -> tuple[Layout, l
     return layout, scenes
 
 
-class SimulatedBoards:
-    """The soak's simulated boards, served on pseudo-terminals by a process of their own.
-
-    Parameters
-    ----------
-    n_taxels, seconds, seed
-        As `soak_scenes`.
-
-    Attributes
-    ----------
-    ports : list of (str, int)
-        Each board's pseudo-terminal and board id, in board order.
-    """
-
-    def __init__(self, n_taxels: int, seconds: float, seed: int) -> None:
-        import multiprocessing
-
-        context = multiprocessing.get_context("spawn")
-        n_boards = -(-n_taxels // 256)
-        self._sent = context.Array("q", n_boards, lock=False)
-        self._done = context.Array("b", n_boards, lock=False)
-        self._conn, child = context.Pipe()
-        self._proc = context.Process(target=_serve_boards, name="skin-soak-boards", daemon=True,
-                                     args=(child, n_taxels, seconds, seed, self._sent,
-                                           self._done))
-        self._proc.start()
-        child.close()
-        if not self._conn.poll(120.0):
-            self.close()
-            raise RuntimeError("the simulated boards did not start in 120 s")
-        self.ports: list[tuple[str, int]] = self._conn.recv()
-
-    def start(self) -> None:
-        """Start sending (after the ports are open here: opening one empties its buffer)."""
-        self._conn.send("start")
-
-    def done(self, i: int) -> bool:
-        """Whether board ``i`` has sent its last frame (`sent` is then final)."""
-        return bool(self._done[i])
-
-    def sent(self, i: int) -> int:
-        """Frames board ``i`` has sent so far."""
-        return int(self._sent[i])
-
-    def close(self) -> None:
-        """Close the pseudo-terminals and end the process (idempotent)."""
-        if self._proc.is_alive():
-            try:
-                self._conn.send("close")
-            except OSError:
-                pass
-            self._proc.join(10.0)
-            if self._proc.is_alive():
-                self._proc.terminate()
-                self._proc.join(5.0)
-        self._conn.close()
-
-
-def _serve_boards(conn: Any, n_taxels: int, seconds: float, seed: int, sent: Any,
-                  done: Any) -> None:
-    """Serve each board's scene on a pseudo-terminal at full speed (the boards' process)."""
-    from skin.drivers.sim import PtySerialDevice, SkinSimulator
-
-    _, scenes = soak_scenes(n_taxels, seconds, seed)
-    devices = [PtySerialDevice(SkinSimulator(scene), speed=0) for scene in scenes]
-    try:
-        conn.send([(d.port, d.simulator.board.id) for d in devices])
-        if conn.recv() != "start":
-            return
-        for d in devices:
-            d.start()
-        while not conn.poll(0.05):
-            for i, d in enumerate(devices):
-                if not done[i]:
-                    finished = d.done.is_set()
-                    sent[i] = d.frames_sent  # final once done is set
-                    done[i] = finished
-    except (EOFError, OSError, KeyboardInterrupt):
-        pass
-    finally:
-        for d in devices:
-            d.close()
-
-
 def _rss_mb() -> float:
     """Resident memory of this process now, MB."""
     with open("/proc/self/statm") as f:
@@ -214,6 +128,7 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
     import shutil
 
     from skin import drivers
+    from skin.drivers.sim import PtySerialDevice, SkinSimulator
     from skin.models import JointClassifier
     from skin.stream.calibration import Calibration
     from skin.stream.pipeline import Pipeline
@@ -227,12 +142,12 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
     temporary = folder is None
     out = Path(tempfile.mkdtemp(prefix="skin-soak-") if folder is None else folder)
     out.mkdir(parents=True, exist_ok=True)
-    boards = SimulatedBoards(n_taxels, seconds, seed)
-    closers: list[Any] = [boards]
+    devices = [PtySerialDevice(SkinSimulator(scene), speed=0) for scene in scenes]
+    closers: list[Any] = list(devices)
     opened: list[Any] = []
     try:
-        for port, board in boards.ports:
-            opened.append(drivers.open(f"serial://{port}?board={board}"))
+        for d in devices:
+            opened.append(drivers.open(f"serial://{d.port}?board={d.simulator.board.id}"))
             closers.insert(0, opened[-1])
         calibration = Calibration.from_layout(layout)
         pipe = Pipeline(layout, JointClassifier(layout), calibration=calibration)
@@ -250,7 +165,8 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
                 recorder.add_driver(one)
             pipe.sinks.append(recorder)
             pipe.observers.append(recorder.temperature)
-        boards.start()  # after the ports are open: opening one empties its buffer
+        for d in devices:
+            d.start()  # after the ports are open: opening one empties its buffer
         samples = []
         onsets: list[float] = []  # onset of every final contact, simulated s
         labels: list[str] = []  # and its label
@@ -274,14 +190,14 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
                 progress(f"[{now / 3600:6.3f}/{hours:g} h] RSS {s['rss_mb']:.0f} MB, "
                          f"{s['open_fds']} fds, {received} frames, {len(onsets)} contacts")
 
-        per_board = [0] * len(opened)
+        per_board = [0] * len(devices)
         while True:
             # the boards are read in turn, a frame each, as a sync keeps real boards in step
             # (the assembler takes a board more than 20 samples behind as missing); each
             # simulated board waits for its reader, so nothing is dropped at full speed
             got = 0
-            for i, one in enumerate(opened):
-                if boards.done(i) and per_board[i] >= boards.sent(i):
+            for i, (one, device) in enumerate(zip(opened, devices, strict=True)):
+                if device.done.is_set() and per_board[i] >= device.frames_sent:
                     continue
                 frame = one.recv(timeout=1.0)
                 if frame is None:
@@ -293,12 +209,12 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
             received += got
             if got:
                 idle_since = time.monotonic()
-                if len(latest) == len(opened):
+                if len(latest) == len(devices):
                     now = min(latest.values())  # the skin's time: its slowest board's
-            done = all(boards.done(i) and n >= boards.sent(i)
-                       for i, n in enumerate(per_board)) or (
+            done = all(d.done.is_set() and n >= d.frames_sent
+                       for d, n in zip(devices, per_board, strict=True)) or (
                 time.monotonic() - idle_since > 30.0)  # a board went silent
-            if batch and (len(batch) >= 20 * len(opened) or done):
+            if batch and (len(batch) >= 20 * len(devices) or done):
                 for r in pipe.process(batch):
                     results += 1
                     if r.contact.final:
@@ -318,7 +234,7 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
         now = min(latest.values(), default=0.0)
         note()
         wall = time.monotonic() - started
-        sent = sum(boards.sent(i) for i in range(len(opened)))
+        sent = sum(d.frames_sent for d in devices)
         crc = sum(one.stats.crc_errors for one in opened)
         late = pipe.assembler.stats.late
         for c in closers:
@@ -343,10 +259,10 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
     # the same touches every bin: the labels given should not drift either
     labels_per_bin = [dict(sorted(Counter(lab for lab, w in zip(labels, which, strict=True)
                                           if w == b).items())) for b in range(bins)]
-    return {"hours": hours, "taxels": n_taxels, "boards": len(boards.ports),
+    return {"hours": hours, "taxels": n_taxels, "boards": len(devices),
             "seconds_simulated": round(now, 1), "wall_s": round(wall, 1),
             "speed": round(now / wall, 2) if wall > 0 else None,
-            "taxel_samples_per_s": round(received / len(boards.ports) * n_taxels / wall)
+            "taxel_samples_per_s": round(received / len(devices) * n_taxels / wall)
             if wall > 0 else None,
             "frames_sent": sent, "frames_received": received,
             "lost_frames": int(sent - received + pipe.stats.gaps + late),
