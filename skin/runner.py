@@ -94,6 +94,7 @@ class Skin:
         self._closed = False
         self._device: Any = None
         self._driver: Any = None
+        self._workers: Any = None  # BoardWorkers: serial boards read in worker processes
         self._closers: list[Any] = []
         self._live: Any = None
         self._recorder: Any = None
@@ -305,6 +306,16 @@ class Skin:
             for name in (*OUTPUTS, LAYOUT_FILE, CHAIN_FILE):  # none of an earlier run stays
                 (out / name).unlink(missing_ok=True)
         self._make_source()
+        shards = self._board_shards()
+        if shards is not None:  # each worker opens its own ports, before the sinks
+            from skin.stream.board_workers import BoardWorkers
+
+            self._workers = BoardWorkers(self.pipeline, shards, block=10)
+            self._closers.append(self._workers)
+            log.info("reading %s (%d taxels) in %d board workers", self._source_name(),
+                     len(self.layout), len(shards))
+            self._make_sinks()
+            return self
         from skin import drivers
 
         self._driver = drivers.open(self.source_url)  # before the sinks: a bad port makes none
@@ -333,6 +344,39 @@ class Skin:
         elif self._device is not None:
             self._device.start()  # after the port is open: opening it empties its buffer
         return self
+
+    def _board_shards(self) -> list | None:
+        """Shard serial ports (one board each, ``?board=``) across ``workers`` processes.
+
+        Used when ``workers`` > 1, every port is a serial port and there are at least as many
+        as workers, and nothing records the wire bytes (``record``: they are read in the
+        workers); otherwise (a simulation, a replay, CAN buses, a recording) onset detection
+        alone runs in workers (`skin.stream.shards`). Returns None then.
+        """
+        s = self.setup
+        urls = [self.source_url] if isinstance(self.source_url, str) else self.source_url
+        if (s.workers < 2 or s.record or s.firmware_sim or self.scene is not None or not urls
+                or len(urls) < s.workers or not all(u.startswith("serial") for u in urls)):
+            return None
+        from urllib.parse import parse_qs
+
+        from skin.stream.board_workers import UrlSource, shard_boards
+
+        by_board: dict[int, str] = {}
+        for url in urls:
+            query = parse_qs(url.partition("?")[2])
+            board = int(query.get("board", ["0"])[0])
+            if board in by_board:
+                raise SkinError(f"--port {url}: board {board} is also {by_board[board]}; give "
+                                "each serial port its board id (?board=N)")
+            if "reconnect" not in query:
+                url += f"{'&' if '?' in url else '?'}reconnect={s.reconnect:g}"
+            by_board[board] = url
+        if sorted(by_board) != sorted(self.layout.boards):
+            raise SkinError(f"--port: the ports give boards {sorted(by_board)}, the layout "
+                            f"{self.layout.source} has {sorted(self.layout.boards)}")
+        return [(boards, UrlSource(tuple(by_board[b] for b in boards)))
+                for boards in shard_boards(self.layout, s.workers)]
 
     def _make_source(self) -> None:
         s = self.setup
@@ -431,6 +475,9 @@ class Skin:
             If no frame arrives within ``first_frame_timeout`` seconds, or none at all.
         """
         self.open()
+        if self._workers is not None:
+            yield from self._worker_results()
+            return
         s, driver, device, pipeline = self.setup, self._driver, self._device, self.pipeline
         duration = self.duration
         self._t_wall = time.monotonic()
@@ -483,6 +530,32 @@ class Skin:
         yield from self._given(pipeline.flush())
         self._link, self._health = driver.stats, driver.health
 
+    def _worker_results(self) -> Iterator[ContactResult]:
+        """`results` when the boards are read in worker processes (`_board_shards`)."""
+        from skin.drivers.protocol import LinkStats
+
+        s, workers, duration = self.setup, self._workers, self.duration
+        self._t_wall = time.monotonic()
+        first_time: float | None = None
+        while not workers.done:
+            blocks = workers.blocks(0.2)
+            if blocks:
+                first_time = blocks[0].times[0] if first_time is None else first_time
+                self._now = float(blocks[-1].times[-1] - first_time)
+            yield from self._given(workers.feed(blocks))
+            self.progress.status(
+                f"[{self._now:6.1f}/{duration:.1f} s] frames {workers.frames}  in contact "
+                f"{int(workers.in_contact.sum()):2d}  contacts {self.pipeline.stats.contacts}  "
+                f"crc errors {workers.crc_errors}", self._now)
+            if workers.frames == 0 and time.monotonic() - self._t_wall > s.first_frame_timeout:
+                raise SkinError(f"no frame arrived from {self._source_name()} in "
+                                f"{s.first_frame_timeout:g} s: is the device powered and "
+                                "sending, the port and its settings right?")
+            if self._now >= duration - 1e-9:
+                break
+        yield from self._given(workers.finish())
+        self._link = LinkStats(crc_errors=workers.crc_errors)
+
     def _source_name(self) -> str:
         return self.source_url if isinstance(self.source_url, str) else ", ".join(self.source_url)
 
@@ -502,7 +575,8 @@ class Skin:
                 if self._keep_finals:
                     self._finals.append(replace(r, contact=replace(r.contact, windows=[])))
         if self._live is not None:
-            self._live.step(self._now, new, self.pipeline.in_contact(),
+            self._live.step(self._now, new, self.pipeline.in_contact()
+                            if self._workers is None else self._workers.in_contact,
                             self.pipeline.last_temperature)
         yield from new
 

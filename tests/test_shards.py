@@ -293,3 +293,36 @@ def test_board_workers_check_their_boards_and_ports_before_the_first_frame():
                                         r".*/dev/no-such-port"):
         BoardWorkers(pipe, [([0, 1], UrlSource(())),
                             ([2], UrlSource(("serial:///dev/no-such-port?board=2",)))])
+
+
+def test_skin_with_workers_reads_each_serial_board_in_its_own_worker(tmp_path):
+    """skin run --port A --port B --workers 2: each worker opens its port; every touch found."""
+    from skin.bench.soak import soak_scenes
+    from skin.drivers.sim import PtySerialDevice
+    from skin.formats.layout import layout_toml
+    from skin.runner import Skin
+
+    layout, scenes = soak_scenes(512, 25.0, seed=5)  # touches at 2, 11.3 and 20.7 s per board
+    path = tmp_path / "two_boards.toml"
+    path.write_text(layout_toml(layout))
+    devs = [PtySerialDevice(SkinSimulator(s), speed=4.0) for s in scenes]
+    try:
+        ports = [f"serial://{d.port}?board={d.simulator.board.id}" for d in devs]
+        with Skin(port=ports, layout=str(path), workers=2, duration=24.0, out=None,
+                  map=False, sinks=[]) as skin:
+            skin.open()
+            assert len(skin._workers.shards) == 2
+            for d in devs:
+                d.start()
+            got = [r for r in skin.results() if r.contact.final]
+            summary = skin.finish()
+    finally:
+        for d in devs:
+            d.close()
+    touches = sorted((sorted(layout.index(i) for i in t.taxels), t.start)
+                     for s in scenes for t in s.touches if t.start < 22.0)
+    found = sorted((sorted(r.contact.taxels), r.contact.onset) for r in got)
+    assert len(found) == len(touches) == 6
+    for (taxels, onset), (want, start) in zip(found, touches, strict=True):
+        assert taxels == want and abs(onset - start) < 0.3
+    assert summary["contacts"] == 6 and summary["gaps"] == 0 and summary["crc_errors"] == 0
