@@ -111,9 +111,11 @@ class Setup:
     view_mode : str
         ``material`` or ``temperature``.
     workers : int
-        Processes for onset detection (`skin.stream.shards`): 1 runs the whole pipeline in
-        this process; more shard the skin's boards across that many processes, this one
-        included (the same results).
+        1 runs the whole pipeline in this process. More: with at least as many serial ports
+        (one board each) and no ``record``, each of that many worker processes opens its own
+        boards' ports and decodes, assembles, calibrates and detects onsets
+        (`skin.stream.board_workers`); otherwise onset detection alone is sharded across that
+        many processes, this one included (`skin.stream.shards`). The same results.
     origin : dict
         Field name -> where its value came from (``default`` when absent).
     """

@@ -113,8 +113,9 @@ def add_setup_options(run: argparse.ArgumentParser) -> None:
     run.add_argument("--force", action="store_true",
                      help="overwrite the outputs of an earlier run in --out")
     run.add_argument("--workers", type=int, metavar="N",
-                     help="processes for onset detection, this one included, the skin's "
-                          "boards sharded across them (default 1; the same results)")
+                     help="worker processes: with N or more serial --port (one board each), "
+                          "each worker reads and processes its own boards; otherwise onset "
+                          "detection is sharded across them (default 1; the same results)")
 
 
 def main(args: argparse.Namespace) -> int:
