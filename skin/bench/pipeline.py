@@ -67,7 +67,8 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
         ``duration`` (the boards' wire bytes go to a temporary folder, before timing).
     workers : int
         1: one process decodes and runs the whole chain. More: the boards are shared out to
-        that many worker processes (`skin.stream.board_workers`), each decoding, assembling,
+        that many worker processes (`skin.stream.board_workers`; as many as boards, ``shards``,
+        when the skin has fewer), each decoding, assembling,
         calibrating and detecting onsets on its own boards, and this process joins, tracks,
         refines and classifies; ``worker_seconds`` gives each worker's seconds per stage and
         its CPU, ``parent_cpu_s`` this process's.
@@ -214,7 +215,7 @@ def _board_workers(pipe: Any, folder: str, workers: int, block: int) -> dict:
                 "onset": float(per["onset"].sum())},
             "worker_seconds": {**{k: [round(float(x), 3) for x in v] for k, v in per.items()},
                                "cpu": [round(float(x), 3) for x in seconds[:, -1]]},
-            "parent_cpu_s": round(cpu, 3), "wall_s": round(wall, 3),
+            "shards": len(shards), "parent_cpu_s": round(cpu, 3), "wall_s": round(wall, 3),
             "cpu_s": round(cpu + float(seconds[:, -1].sum()), 3),
             "workers_peak_memory_mb": [round(p, 1) for p in peaks]}
 
@@ -230,7 +231,8 @@ def workers_on_paper(one: dict, two: dict, workers: int) -> dict:
     one, two : dict
         `run`'s rows of the same skin and stream with 1 and with 2 workers (same run).
     workers : int
-        Workers to extrapolate to, each with a core of its own, and one core for this process.
+        Workers to extrapolate to (at most one per board), each with a core of its own, and
+        one core for this process.
 
     Returns
     -------
@@ -243,6 +245,7 @@ def workers_on_paper(one: dict, two: dict, workers: int) -> dict:
         pace); ``two_cores``: the best two cores of their own can give the 2-worker run (all
         its CPU seconds spread over two cores).
     """
+    workers = min(workers, one["boards"])  # a worker has whole boards
     t_one = one["cpu_s"]
     parent = two["parent_cpu_s"]
     work = sum(two["worker_seconds"]["cpu"])

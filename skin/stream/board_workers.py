@@ -354,15 +354,14 @@ def sub_calibration(calibration: Calibration, taxels: np.ndarray) -> Calibration
 
 
 def shard_boards(layout: Layout, workers: int) -> list[list[int]]:
-    """Split the layout's boards into ``workers`` shards of whole boards, balanced by taxels.
+    """Split the layout's boards into shards of whole boards, balanced by taxels.
 
-    (`skin.stream.shards.shard_taxels`.)
+    As many shards as ``workers``, or as boards when there are fewer
+    (`skin.stream.shards.shard_taxels`).
     """
-    if len(layout.boards) < workers:
-        raise SkinError(f"{workers} workers need at least as many boards; the skin has "
-                        f"{len(layout.boards)}")
     boards = np.array([t.board for t in layout.taxels])
-    return [sorted(set(boards[s].tolist())) for s in shard_taxels(layout, workers)]
+    shards = shard_taxels(layout, min(workers, len(layout.boards)))
+    return [sorted(set(boards[s].tolist())) for s in shards]
 
 
 class _Shard:
