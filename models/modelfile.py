@@ -114,4 +114,9 @@ def training_summary(data: Any, duration: float) -> dict[str, Any]:
     if data.ambient is not None:
         summary["ambient"] = [round(float(data.ambient.min()), 2),
                               round(float(data.ambient.max()), 2)]
+    from skin.models.nuisance import object_spread
+
+    spread = object_spread(data)
+    if spread is not None:  # K the objects varied about ambient (a measured column)
+        summary["object_temperature_spread"] = round(spread, 2)
     return summary

@@ -240,8 +240,11 @@ class Skin:
         if s.model:
             from skin.models.learned import LearnedClassifier
 
-            self.classifier: Any = LearnedClassifier(s.model, threshold=s.threshold)
+            self.classifier: Any = LearnedClassifier(
+                s.model, threshold=s.threshold, object_range=s.object_temperature_range)
             known = set(self.classifier.classes)
+            if self.classifier.coverage_warning:
+                self.progress.message(f"warning: {s.model}: {self.classifier.coverage_warning}")
             self.progress.message(
                 f"classifier: {self.classifier.method} ({len(self.classifier.classes)} classes, "
                 f"{self.classifier.samples / self.classifier.fs:g} s window)")

@@ -29,7 +29,8 @@ GROUPS: dict[str, tuple[str, ...]] = {
     "source": ("port", "reconnect", "first_frame_timeout", "firmware_sim", "scene", "duration",
                "speed", "contact"),
     "skin": ("layout", "calibration", "workers"),
-    "classifier": ("model", "classifier", "threshold", "expect", "window", "provisional"),
+    "classifier": ("model", "classifier", "threshold", "expect", "window", "provisional",
+                   "object_temperature_range"),
     "output": ("out", "force", "sinks", "publish", "record", "map", "arm", "view", "video",
                "view_mode"),
 }
@@ -82,6 +83,11 @@ class Setup:
         ``joint`` or ``histogram`` (without ``model``).
     threshold : float
         Probability needed to name a material (else its family, else "unknown").
+    object_temperature_range : float
+        K objects may be colder or warmer than a model file's training data: its confidence
+        is bounded by the physics over that range (`skin.models.nuisance`); 0 (default)
+        trusts the training data's objects to be the world's. Learned models only (the joint
+        classifier has its own prior on the object's temperature).
     expect : list of str
         Materials the classifier must know (a simulation's scene adds its own).
     window : float
@@ -131,6 +137,7 @@ class Setup:
     model: str | None = None
     classifier: str = "joint"
     threshold: float = 0.5
+    object_temperature_range: float = 0.0
     expect: list[str] = field(default_factory=list)
     window: float = 2.5
     provisional: list[float] = field(default_factory=list)
@@ -293,6 +300,7 @@ _CHECKS: dict[str, Callable[[Any], Any]] = {
     "model": _optional_text,
     "classifier": _choice("joint", "histogram"),
     "threshold": _probability,
+    "object_temperature_range": _non_negative,
     "expect": _texts,
     "window": _positive,
     "provisional": _numbers,

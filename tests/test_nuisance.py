@@ -138,3 +138,27 @@ def test_evaluate_reports_the_bounded_figures_and_refuses_a_bad_range(tmp_path,
                               "--object-temperature-range", "8"])
     with pytest.raises(SkinError, match="--train/--test"):
         evaluate.main(args)
+
+
+def test_a_model_file_at_run_time_is_bounded_and_warns(ambient_and_cold):
+    from skin.models.learned import LearnedClassifier
+    from skin.setup import Setup
+
+    train, test = ambient_and_cold
+    est = make_method("svm-pca", fs=train.fs).fit(contact_matrix(train, 1.5), train.label)
+    doc = {"estimator": est, "method": "svm-pca", "training": {"trials": len(train)},
+           "features": {"duration": 1.5, "fs": train.fs, "channels": 1}}
+    x = contact_matrix(test, 1.5)
+    plain = LearnedClassifier(doc, threshold=0.5)
+    assert plain.coverage_warning is None
+    bounded = LearnedClassifier(doc, threshold=0.5, object_range=8.0)
+    assert "did not record" in bounded.coverage_warning
+    p0, p1 = plain._predict(x), bounded._predict(x)
+    right = est.classes_[p1.argmax(axis=1)] == test.label
+    assert np.mean((p0.max(axis=1) >= 0.95) & (est.classes_[p0.argmax(axis=1)] != test.label)) > 0.5
+    assert np.mean((p1.max(axis=1) >= 0.95) & ~right) <= 0.03
+    doc["training"]["object_temperature_spread"] = 10.0
+    assert LearnedClassifier(doc, object_range=8.0).coverage_warning is None
+    assert Setup().updated({"object_temperature_range": 8}, "test").object_temperature_range == 8
+    with pytest.raises(SkinError, match="object_temperature_range"):
+        Setup().updated({"object_temperature_range": -1}, "test")
