@@ -245,6 +245,26 @@ def uncovered(object_range: float, trained_spread: float | None) -> str | None:
     return None
 
 
+def other_sensors(trained: str | None, used: list[str]) -> str | None:
+    """Return a warning when a run's sensors are not the one the model was trained with.
+
+    ``trained``: the model file's training sensor (None: not recorded); ``used``: the
+    layout's boards' sensor names (``""`` or ``"paper"``: the paper's).
+    """
+    names = sorted({u or "paper" for u in used})
+    if trained is None:
+        if names == ["paper"]:
+            return None
+        return (f"the layout's boards use sensor(s) {', '.join(names)}, and the model file "
+                f"does not record the sensor its training data came from (skin train "
+                f"--sensor): its confidence does not account for another sensor")
+    other = [n for n in names if n != trained]
+    if not other:
+        return None
+    return (f"the model was trained on sensor {trained!r}, the layout's boards use "
+            f"{', '.join(other)}: its confidence does not account for another sensor")
+
+
 class NuisanceBounded(ClassifierMixin, BaseEstimator):
     """Any classifier with its confidence bounded over a declared object temperature range.
 

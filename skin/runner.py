@@ -243,8 +243,13 @@ class Skin:
             self.classifier: Any = LearnedClassifier(
                 s.model, threshold=s.threshold, object_range=s.object_temperature_range)
             known = set(self.classifier.classes)
-            if self.classifier.coverage_warning:
-                self.progress.message(f"warning: {s.model}: {self.classifier.coverage_warning}")
+            from skin.models.nuisance import other_sensors
+
+            for warning in (self.classifier.coverage_warning, other_sensors(
+                    self.classifier.doc.get("training", {}).get("sensor"),
+                    [b.sensor for b in self.layout.boards.values()])):
+                if warning:
+                    self.progress.message(f"warning: {s.model}: {warning}")
             self.progress.message(
                 f"classifier: {self.classifier.method} ({len(self.classifier.classes)} classes, "
                 f"{self.classifier.samples / self.classifier.fs:g} s window)")

@@ -162,3 +162,18 @@ def test_a_model_file_at_run_time_is_bounded_and_warns(ambient_and_cold):
     assert Setup().updated({"object_temperature_range": 8}, "test").object_temperature_range == 8
     with pytest.raises(SkinError, match="object_temperature_range"):
         Setup().updated({"object_temperature_range": -1}, "test")
+
+
+def test_a_run_on_another_sensor_than_the_training_one_is_named(ambient_and_cold):
+    from skin.models.modelfile import training_summary
+    from skin.models.nuisance import other_sensors
+
+    train, _ = ambient_and_cold
+    assert "sensor" not in training_summary(train, 1.0)
+    assert training_summary(train, 1.0, sensor="low-cost")["sensor"] == "low-cost"
+    with pytest.raises(SkinError):
+        training_summary(train, 1.0, sensor="no-such-sensor")
+    assert other_sensors(None, ["", "paper"]) is None
+    assert "does not record" in other_sensors(None, ["low-cost"])
+    assert other_sensors("low-cost", ["low-cost"]) is None
+    assert "'paper'" in other_sensors("paper", ["", "low-cost"])
