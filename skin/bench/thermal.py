@@ -195,7 +195,7 @@ def inverse(durations: tuple[float, ...] = (0.25, 0.5, 1.0, 2.5), trials: int = 
     pre = data.primary[:, data.onset[0] - 10: data.onset[0]].mean(axis=1)
     rows, per_material = [], []
     estimators = ("paper (eqs. 10-11, median)", "least squares (MAP)",
-                  "least squares + onset (MAP)", "least squares, profile interval")
+                  "least squares + onset (MAP)", "least squares (profile)")
     total, done = len(estimators) * len(durations), 0
     for d in durations:
         n = round(d * data.fs)
@@ -209,7 +209,7 @@ def inverse(durations: tuple[float, ...] = (0.25, 0.5, 1.0, 2.5), trials: int = 
                 std = None
             else:
                 fit = fit_contact(tt, y, pre, data.ambient, fit_onset="onset" in name,
-                                  interval="interval" in name)
+                                  interval="profile" in name)
                 est, ok = fit.effusivity, np.ones(len(data), dtype=bool)
                 std = fit.log10_effusivity_std
             wall = time.perf_counter() - t0
