@@ -31,10 +31,12 @@ with this bound; `LearnedClassifier` applies it to a model file at run time.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from skin._optional import require
-from skin.models.contact_fit import LOG_E, grid_responses
+from skin.models.contact_fit import LOG_E, _cached_responses
 from skin.models.physics import SensorConstants
 
 require("sklearn", "ml")
@@ -58,18 +60,24 @@ TOLERANCE = 0.25
 RANKING = 0.1
 
 
+@functools.lru_cache(maxsize=16)
+def _class_table(classes: tuple[str, ...]) -> tuple[np.ndarray, tuple]:
+    """Log10 effusivity spans and own temperatures of ``classes`` (the table read once)."""
+    from skin.models.materials import load_materials
+
+    table = load_materials()
+    spans = np.array([table[c].log_effusivity_range if c in table else (LOG_E[0], LOG_E[-1])
+                      for c in classes])
+    own = tuple(table[c].temperature if c in table else None for c in classes)
+    return spans, own
+
+
 def class_log_e(classes: list[str]) -> np.ndarray:
     """Each class's (min, max) log10 effusivity from the materials table, (n_classes, 2).
 
     A class the table does not know spans the whole grid (it cannot be ruled out).
     """
-    from skin.models.materials import load_materials
-
-    table = load_materials()
-    out = np.empty((len(classes), 2))
-    for i, c in enumerate(classes):
-        out[i] = table[c].log_effusivity_range if c in table else (LOG_E[0], LOG_E[-1])
-    return out
+    return _class_table(tuple(classes))[0].copy()
 
 
 def class_offsets(classes: list[str], ambient: np.ndarray, low: float, high: float
@@ -79,17 +87,13 @@ def class_offsets(classes: list[str], ambient: np.ndarray, low: float, high: flo
     ``low``/``high`` bound an ordinary object; a heat-generating material (skin) holds its own
     temperature range whatever the room.
     """
-    from skin.models.materials import load_materials
-
-    table = load_materials()
     amb = np.asarray(ambient, dtype=float)[:, None]
     lo = np.full((amb.shape[0], len(classes)), float(low))
     hi = np.full_like(lo, float(high))
-    for i, c in enumerate(classes):
-        m = table.get(c)
-        if m is not None and m.temperature is not None:
-            lo[:, i] = m.temperature[0] - amb[:, 0]
-            hi[:, i] = m.temperature[1] - amb[:, 0]
+    for i, own in enumerate(_class_table(tuple(classes))[1]):
+        if own is not None:
+            lo[:, i] = own[0] - amb[:, 0]
+            hi[:, i] = own[1] - amb[:, 0]
     return lo, hi
 
 
@@ -130,7 +134,7 @@ def class_misfits(x: np.ndarray, classes: list[str], channels: int = 1, fs: floa
     amb, t0, w = split_contact_rows(x, channels)
     n, _, m = w.shape
     sensor = SensorConstants() if sensor is None else sensor
-    phi = grid_responses(m, fs, sensor)  # (g, m), g = (log e, log h, shift)
+    phi = _cached_responses(m, fs, sensor)  # (g, m), g = (log e, log h, shift)
     present = np.all(np.isfinite(w), axis=2) & np.isfinite(t0)
     d = np.where(present[:, :, None], w - np.nan_to_num(t0)[:, :, None], 0.0)
     a = np.where(present, t0 - amb[:, None], 0.0)
