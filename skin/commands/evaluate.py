@@ -147,6 +147,7 @@ def evaluate(data, method: str, duration: float, folds: int, groups: bool,
         top, right = np.concatenate(top), np.concatenate(right)
         out["selective"] = selective(top, right)
         out["calibration_error"] = round(calibration_error(top, right), 4)
+        out["confident_wrong"] = round(confident_wrong(top, right), 4)
     return out
 
 
@@ -336,6 +337,7 @@ def saved_model(doc: dict, test, durations: list[float]) -> list[dict]:
             top, right = proba[seen].max(axis=1), pred[seen] == test.label[seen]
             r["selective"] = selective(top, right)
             r["calibration_error"] = round(calibration_error(top, right), 4)
+            r["confident_wrong"] = round(confident_wrong(top, right), 4)
         out.append(r)
     return out
 
