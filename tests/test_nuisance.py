@@ -162,6 +162,12 @@ def test_a_model_file_at_run_time_is_bounded_and_warns(ambient_and_cold):
     assert Setup().updated({"object_temperature_range": 8}, "test").object_temperature_range == 8
     with pytest.raises(SkinError, match="object_temperature_range"):
         Setup().updated({"object_temperature_range": -1}, "test")
+    from skin.formats.skin_file import parse_skin_file
+
+    setup = parse_skin_file("[classifier]\nobject_temperature_range = 8\n", "s.toml")
+    assert setup.object_temperature_range == 8.0
+    with pytest.raises(SkinError, match=r"s\.toml:2: object_temperature_range"):
+        parse_skin_file("[classifier]\nobject_temperature_range = -8\n", "s.toml")
 
 
 def test_a_run_on_another_sensor_than_the_training_one_is_named(ambient_and_cold):
