@@ -249,6 +249,18 @@ def uncovered(object_range: float, trained_spread: float | None) -> str | None:
     return None
 
 
+def scene_object_range(scene, materials: dict) -> float:
+    """K the scene's objects sit off its ambient (0 when all are at it).
+
+    Objects of a heat-generating material hold their own temperature and do not count (the
+    bound keeps their table range whatever the setting).
+    """
+    off = [abs(o.temperature - scene.ambient) for o in scene.objects.values()
+           if o.temperature is not None
+           and getattr(materials.get(o.material), "temperature", None) is None]
+    return float(max(off, default=0.0))
+
+
 def other_sensors(trained: str | None, used: list[str]) -> str | None:
     """Return a warning when a run's sensors are not the one the model was trained with.
 

@@ -239,9 +239,16 @@ class Skin:
         want = self.expected_materials()
         if s.model:
             from skin.models.learned import LearnedClassifier
+            from skin.models.nuisance import scene_object_range
 
+            object_range = s.object_temperature_range
+            if s.where("object_temperature_range") == "default" and self.scene is not None:
+                object_range = scene_object_range(self.scene, self.materials)
+                if object_range > 0:
+                    self.progress.message(f"object temperature range +-{object_range:g} K "
+                                          f"(the scene's objects)")
             self.classifier: Any = LearnedClassifier(
-                s.model, threshold=s.threshold, object_range=s.object_temperature_range)
+                s.model, threshold=s.threshold, object_range=object_range)
             known = set(self.classifier.classes)
             from skin.models.nuisance import other_sensors
 

@@ -85,8 +85,9 @@ class Setup:
         Probability needed to name a material (else its family, else "unknown").
     object_temperature_range : float
         K objects may be colder or warmer than a model file's training data: its confidence
-        is bounded by the physics over that range (`skin.models.nuisance`); 0 (default)
-        trusts the training data's objects to be the world's. Learned models only (the joint
+        is bounded by the physics over that range (`skin.models.nuisance`); 0 trusts the
+        training data's objects to be the world's. Default: a simulated scene's largest
+        object offset from its ambient, else 0. Learned models only (the joint
         classifier has its own prior on the object's temperature).
     expect : list of str
         Materials the classifier must know (a simulation's scene adds its own).

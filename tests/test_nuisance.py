@@ -183,3 +183,15 @@ def test_a_run_on_another_sensor_than_the_training_one_is_named(ambient_and_cold
     assert "does not record" in other_sensors(None, ["low-cost"])
     assert other_sensors("low-cost", ["low-cost"]) is None
     assert "'paper'" in other_sensors("paper", ["", "low-cost"])
+
+
+def test_a_scene_declares_its_objects_temperature_range():
+    from skin.formats.scene import load_scene
+    from skin.models.nuisance import scene_object_range
+
+    scene = load_scene("default")
+    assert scene_object_range(scene, MATS) == 0.0  # a forearm holds its own temperature
+    obj = next(iter(scene.objects.values()))
+    cold = {**scene.objects, "cold": type(obj)("cold", "aluminium", scene.ambient - 6.0)}
+    assert scene_object_range(type("S", (), {"objects": cold, "ambient": scene.ambient})(),
+                              MATS) == 6.0
