@@ -205,3 +205,30 @@ def test_the_profile_interval_is_narrow_only_where_the_priors_pin_the_effusivity
     assert np.all((iv[:, 0] <= np.log10(e)) & (np.log10(e) <= iv[:, 1]))
     assert iv[0, 1] - iv[0, 0] < 0.8
     assert iv[1, 1] > np.log10(fit.effusivity[1]) + 2 * fit.log10_effusivity_std[1]
+
+
+def test_the_profile_median_weighs_the_flat_metal_valley():
+    """Issue 20 item 4: on the trial generator the optimum reads metals 0.4-0.7 decades low
+    (the object prior's balance in a flat valley); the profile's median does not."""
+    from skin.models.materials import load_materials
+    from skin.models.trials import Protocol, simulate_trials
+
+    mats = load_materials()
+    data = simulate_trials([mats[m] for m in ("aluminium", "steel", "pine")],
+                           Protocol(trials=10), seed=9)
+    n = 500  # 2.5 s
+    idx = data.onset[:, None] + 1 + np.arange(n)[None, :]
+    y = np.take_along_axis(data.primary, idx, axis=1)
+    pre = data.primary[:, data.onset[0] - 10:data.onset[0]].mean(axis=1)
+    fit = fit_contact((np.arange(n) + 1) / data.fs, y, pre, data.ambient, interval=True)
+    truth = np.log10(data.extra["true_effusivity"])
+    metal = data.label != "pine"
+    map_bias = np.median(np.log10(fit.effusivity[metal]) - truth[metal])
+    median_bias = np.median(fit.log10_effusivity_median[metal] - truth[metal])
+    assert map_bias < -0.3  # the defect
+    assert abs(median_bias) < 0.2
+    pine = ~metal
+    assert np.median(np.abs(fit.log10_effusivity_median[pine] - truth[pine])) < 0.2
+    iv = fit.log10_effusivity_interval
+    assert np.all((iv[:, 0] <= fit.log10_effusivity_median)
+                  & (fit.log10_effusivity_median <= iv[:, 1]))

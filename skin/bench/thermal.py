@@ -178,7 +178,8 @@ def inverse(durations: tuple[float, ...] = (0.25, 0.5, 1.0, 2.5), trials: int = 
         estimator says "out of range" or "unknown" otherwise), median and 90th percentile
         absolute log10 error, cost; for the fits also the share flagged converged, the median
         reported std and the share of trials whose error is within 2 reported std (for the
-        profile-interval row: whose truth lies in the interval, and its median width).
+        profile row, whose estimate is the profile's median: whose truth lies in the
+        interval, and its median width).
     materials : list of dict
         One per estimator and material at the longest duration: the signed median log10
         error (the bias) and, for the fits, the 2-std coverage.
@@ -212,6 +213,8 @@ def inverse(durations: tuple[float, ...] = (0.25, 0.5, 1.0, 2.5), trials: int = 
                                   interval="profile" in name)
                 est, ok = fit.effusivity, np.ones(len(data), dtype=bool)
                 std = fit.log10_effusivity_std
+                if fit.log10_effusivity_median is not None:
+                    est = 10.0 ** fit.log10_effusivity_median  # the profile's median
             wall = time.perf_counter() - t0
             signed = np.log10(np.where(ok, est, 1.0) / truth)
             covered = None if std is None else np.abs(signed) <= 2 * std

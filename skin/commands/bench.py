@@ -208,8 +208,8 @@ def main_thermal(args: argparse.Namespace) -> int:
         print(f"{r['estimator']:<28} {r['duration']:>6g} {r['valid']:>6.2f} {med:>18} "
               f"{p90:>6} {conv:>9} {cover:>8} {r['time_per_trial_ms']:>9.3f}")
     last = per_material[0]["duration"] if per_material else None
-    print("(in 2 std: for the (profile) row, the share of true values inside its "
-          "interval, median width " + ", ".join(
+    print("(least squares (profile): the median of the profile posterior; in 2 std: the "
+          "share of true values inside its interval, median width " + ", ".join(
               f"{r['median_interval_width']:.2f}" for r in inverse
               if "median_interval_width" in r) + " decades)")
     print(f"\nbias per material at {last:g} s: median signed dlog10 e (valid trials); "
