@@ -117,7 +117,8 @@ class LearnedClassifier:
                 pred = self.estimator.predict(x)  # no probabilities: each taxel votes
                 p = np.array([[0.999 if c == lab else 0.001 / max(len(self.classes) - 1, 1)
                                for c in self.classes] for lab in pred])
-        return bound(p, x, self.classes, self.object_range, self.channels, self.fs)
+        return bound(p, x, self.classes, self.object_range, self.channels, self.fs,
+                     voted=not hasattr(self.estimator, "predict_proba"))
 
     def classify(self, contact: Contact) -> MaterialEstimate:
         """Label a contact from all its taxels' evidence (the family when that is all)."""

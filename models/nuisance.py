@@ -169,7 +169,7 @@ def class_misfits(x: np.ndarray, classes: list[str], channels: int = 1, fs: floa
 
 def bound_probabilities(p: np.ndarray, trained: np.ndarray, declared: np.ndarray,
                         samples: np.ndarray, slack: float = SLACK,
-                        noise: float = NOISE_FLOOR) -> np.ndarray:
+                        noise: float = NOISE_FLOOR, voted: bool = False) -> np.ndarray:
     """Share the answer's probability with its aliases (module docstring).
 
     Parameters
@@ -182,6 +182,10 @@ def bound_probabilities(p: np.ndarray, trained: np.ndarray, declared: np.ndarray
         Chi-square above the best fit within which a class explains the trace as well.
     noise : float
         K: the least reading noise assumed (the fit's own residual RMS is used above it).
+    voted : bool
+        ``p`` are votes, not probabilities (a model without ``predict_proba``): a vote says
+        nothing of how sure the model was among the classes that fit at the training
+        temperature, so every class that fits within the range is an alias.
 
     Returns
     -------
@@ -197,7 +201,7 @@ def bound_probabilities(p: np.ndarray, trained: np.ndarray, declared: np.ndarray
     margin = (slack * var)[:, None]
     fits = declared <= best[:, None] + margin
     as_trained = trained <= trained.min(axis=1, keepdims=True) + margin
-    group = fits & ~as_trained  # explained only thanks to the declared range
+    group = fits if voted else fits & ~as_trained  # explained only thanks to the range
     top = np.argmax(p, axis=1)
     rows = np.arange(p.shape[0])
     # as well as the answer explains it at the training temperature, only thanks to the range
@@ -331,12 +335,13 @@ class NuisanceBounded(ClassifierMixin, BaseEstimator):
 
         check_is_fitted(self, "estimator_")
         x = np.asarray(X, dtype=float)
-        if hasattr(self.estimator_, "predict_proba"):
-            p = self.estimator_.predict_proba(x)
-        else:
+        voted = not hasattr(self.estimator_, "predict_proba")
+        if voted:
             p = votes(self.estimator_.predict(x), self.classes_)
+        else:
+            p = self.estimator_.predict_proba(x)
         return bound(p, x, [str(c) for c in self.classes_], self.object_temperature_range,
-                     self.channels, self.fs, self.sensor)
+                     self.channels, self.fs, self.sensor, voted=voted)
 
     def predict(self, X: np.ndarray) -> np.ndarray:
         """Most probable class after the bound."""
@@ -344,10 +349,10 @@ class NuisanceBounded(ClassifierMixin, BaseEstimator):
 
 
 def bound(p: np.ndarray, x: np.ndarray, classes: list[str], object_range: float,
-          channels: int = 1, fs: float = 200.0, sensor: SensorConstants | None = None
-          ) -> np.ndarray:
+          channels: int = 1, fs: float = 200.0, sensor: SensorConstants | None = None,
+          voted: bool = False) -> np.ndarray:
     """`bound_probabilities` of rows ``x`` for a declared range (``p`` itself for 0)."""
     if object_range <= 0 or len(p) == 0:
         return np.asarray(p, dtype=float)
     trained, declared, samples = class_misfits(x, classes, channels, fs, sensor, object_range)
-    return bound_probabilities(p, trained, declared, samples)
+    return bound_probabilities(p, trained, declared, samples, voted=voted)

@@ -215,11 +215,12 @@ def confident_wrong(top: np.ndarray, right: np.ndarray, level: float = 0.95) -> 
 
 
 def bounded_figures(proba: np.ndarray, x: np.ndarray, truth: np.ndarray, classes: list[str],
-                    object_range: float, channels: int, fs: float) -> dict:
+                    object_range: float, channels: int, fs: float, voted: bool = False
+                    ) -> dict:
     """Return the figures of ``proba`` bounded over ``object_range`` K (skin.models.nuisance)."""
     from skin.models.nuisance import bound
 
-    q = bound(proba, x, classes, object_range, channels, fs)
+    q = bound(proba, x, classes, object_range, channels, fs, voted=voted)
     pred = np.asarray(classes)[np.argmax(q, axis=1)]
     top, right = q.max(axis=1), pred == truth
     return {"object_temperature_range": object_range,
@@ -284,7 +285,8 @@ def train_test(train, test, method: str, duration: float, object_range: float = 
         p = proba if proba is not None else votes(pred, model.classes_)
         out["bounded"] = bounded_figures(
             p[seen], x_test[seen], test.label[seen], [str(c) for c in model.classes_],
-            object_range, train.n_channels if reads_channels(method) else 1, train.fs)
+            object_range, train.n_channels if reads_channels(method) else 1, train.fs,
+            voted=proba is None)
     return out
 
 
