@@ -15,15 +15,20 @@ temperature enters linearly, so its best value within a box is closed form): for
 (the materials table's effusivity range) the least sum of squares over the grid, once with
 the object at the training temperature and once anywhere in the declared range.
 
-`bound_probabilities` turns a model's probabilities into bounded ones: a class is an *alias*
-of the model's answer when, with the object somewhere in the range, it explains the trace
-as well as the answer explains it at the training temperature (within ``tolerance``), while
-at the training temperature it did not (those the model was trained to tell apart). The
-answer and its aliases share their summed probability equally: the physics cannot rank them,
-and the model's ranking assumed what the setup says may be false. Repeated until the answer
-has no new alias (at most the number of classes times). A family named by
+`bound_probabilities` turns a model's probabilities into bounded ones. A class is an *alias*
+of the model's answer when it explains the trace only thanks to the range: either it fits
+within two standard deviations (4 chi^2, the noise from the best fit's residual) of the best
+fit with the object anywhere in the range but not of the best at the training temperature,
+or it fits, within the range, as well as the answer fits at the training temperature (25 %)
+while the range improves its own fit by more than that. Classes that already fit at the
+training temperature are left to the model: it was trained to tell them apart (and so a
+range of 0, or one tending to 0, changes nothing). The answer and its aliases share their
+summed probability (0.9 of the mean, 0.1 of their own: the model's ranking, so its answer,
+stays, its confidence goes): the physics cannot rank them, and the model's ranking assumed
+what the setup says may be false. A family named by
 `skin.models.materials.hierarchical_answer` keeps its summed probability when its aliases all
-belong to it. With a range of 0 nothing changes.
+belong to it. A model that only votes shares its vote with every class that fits within the
+range (a vote says nothing among the classes that fit at the training temperature).
 
 `NuisanceBounded` wraps any scikit-learn classifier (``predict_proba`` or only ``predict``)
 with this bound; `LearnedClassifier` applies it to a model file at run time.
@@ -43,9 +48,6 @@ require("sklearn", "ml")
 
 from sklearn.base import BaseEstimator, ClassifierMixin  # noqa: E402
 
-#: K: the object temperature range a setup declares when it says nothing (0: objects are at
-#: the training data's temperature, the model's probabilities are used as they are).
-DEFAULT_OBJECT_TEMPERATURE_RANGE = 0.0
 #: Chi-square within which a class "explains the trace as well" as the best (4: two standard
 #: deviations of one parameter), with the reading noise taken from the best fit's residual.
 SLACK = 4.0
