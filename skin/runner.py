@@ -239,7 +239,7 @@ class Skin:
         want = self.expected_materials()
         if s.model:
             from skin.models.learned import LearnedClassifier
-            from skin.models.nuisance import scene_object_range
+            from skin.models.nuisance import other_sensors, scene_object_range
 
             object_range = s.object_temperature_range
             if s.where("object_temperature_range") == "default" and self.scene is not None:
@@ -250,8 +250,6 @@ class Skin:
             self.classifier: Any = LearnedClassifier(
                 s.model, threshold=s.threshold, object_range=object_range)
             known = set(self.classifier.classes)
-            from skin.models.nuisance import other_sensors
-
             for warning in (self.classifier.coverage_warning, other_sensors(
                     self.classifier.doc.get("training", {}).get("sensor"),
                     [b.sensor for b in self.layout.boards.values()])):
