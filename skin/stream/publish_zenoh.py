@@ -78,12 +78,21 @@ class ZenohPublisher(Publisher):
         ``peer`` (Zenoh's default) or ``client``.
     url : str
         The URL it was opened with, for messages.
+    robot_pose : array (4, 4), optional
+        The robot's base in the shared map's frame: sent as ``robot_pose`` with each contact.
+    link_poses : dict of str to array (4, 4), optional
+        Each link's pose in the robot's base frame (its chain standing still): the contact's
+        link's is sent as ``link_pose`` (`skin.world.map_store`).
     """
 
     def __init__(self, layout: Layout, prefix: str = "thermoskin", robot: str = "skin",
                  listen: list[str] | None = None, connect: list[str] | None = None,
-                 mode: str | None = None, url: str = "") -> None:
+                 mode: str | None = None, url: str = "", robot_pose: Any = None,
+                 link_poses: dict[str, Any] | None = None) -> None:
         super().__init__(layout, robot)
+        self.robot_pose = None if robot_pose is None else np.asarray(robot_pose).tolist()
+        self.link_poses = {k: np.round(np.asarray(v), 9).tolist()
+                           for k, v in (link_poses or {}).items()}
         zenoh = require("zenoh", "publishing over Zenoh")
         self.url = url or f"zenoh://{prefix}"
         self.keys = {t: f"{prefix}/{robot}/{t}" for t in TOPICS}
@@ -114,8 +123,12 @@ class ZenohPublisher(Publisher):
     def publish_contact(self, result: ContactResult) -> None:
         """Send a contact result."""
         if not self._closed:
-            self._pub["contacts"].put(json.dumps(contact_payload(result, self.layout,
-                                                                 self.robot)).encode())
+            msg = contact_payload(result, self.layout, self.robot)
+            if msg["link"] in self.link_poses:
+                msg["link_pose"] = self.link_poses[msg["link"]]
+            if self.robot_pose is not None:
+                msg["robot_pose"] = self.robot_pose
+            self._pub["contacts"].put(json.dumps(msg).encode())
 
     def publish_health(self, payload: dict[str, Any]) -> None:
         """Send a health payload."""
