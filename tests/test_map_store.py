@@ -1,0 +1,150 @@
+"""The shared map's store (skin.world.map_store): placing, fusing, persisting, box queries."""
+
+import math
+import sqlite3
+
+import numpy as np
+import pytest
+
+from skin.errors import SkinError
+from skin.world.kinematics import default_chain, transform
+from skin.world.map_store import (
+    MapInputError,
+    MapStore,
+    MapStoreError,
+    parse_box,
+    place,
+    posterior_of,
+)
+
+
+def contact(k=1, robot="a", probs=None, centroid=(0.0, 0.0, 0.0), **extra):
+    msg = {"schema": "thermoskin.contact", "version": 1, "robot": robot, "contact": k,
+           "onset": 1.0 + k, "host_onset": 1.7e9 + k, "final": True, "decided_at": 2.0 + k,
+           "probabilities": {"aluminium": 0.9, "pine": 0.1} if probs is None else probs,
+           "link": "forearm", "centroid": list(centroid), "host_decided_at": 1.7e9 + k + 1}
+    msg.update(extra)
+    return msg
+
+
+def test_position_is_robot_pose_times_link_pose_times_centroid():
+    robot = transform((1.0, 2.0, 0.5), (0.0, 0.0, math.pi / 2))
+    link = transform((0.1, 0.0, 0.3), (0.2, 0.0, 0.0))
+    msg = contact(centroid=(0.05, 0.01, 0.02), robot_pose=robot.tolist(), link_pose=link.tolist())
+    p = place(msg, 0.01)
+    want = robot @ link @ np.array([0.05, 0.01, 0.02, 1.0])
+    assert np.allclose(p.position, want[:3])
+    assert p.cell == tuple(math.floor(v / 0.01) for v in want[:3])
+    # without poses: the default arm standing still, the robot at the map's origin
+    q = place(contact(centroid=(0.05, 0.01, 0.02)), 0.01)
+    want = default_chain().poses()["forearm"] @ np.array([0.05, 0.01, 0.02, 1.0])
+    assert np.allclose(q.position, want[:3])
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"schema": "thermoskin.health"}, "not a thermoskin.contact"),
+    ({"robot": ""}, "'robot'"),
+    ({"contact": "7"}, "'contact'"),
+    ({"centroid": [0, 1]}, "'centroid'"),
+    ({"centroid": [0, float("nan"), 1]}, "'centroid'"),
+    ({"host_onset": None, "onset": None}, "'onset'"),
+    ({"link": "tentacle"}, "link 'tentacle' has no pose"),
+    ({"link_pose": [[1, 0], [0, 1]]}, "'link_pose'"),
+    ({"robot_pose": (2 * np.eye(4)).tolist()}, "not a rigid transform"),
+    ({"probabilities": {"aluminium": 1.5}}, "probability of 'aluminium'"),
+    ({"probabilities": [0.5]}, "'probabilities'"),
+])
+def test_malformed_contacts_are_named(change, words):
+    with pytest.raises(MapInputError, match=words):
+        place(contact(**change), 0.01)
+
+
+def test_a_contact_counts_once_and_a_final_result_replaces_the_provisional(tmp_path):
+    store = MapStore(tmp_path / "m.sqlite")
+    assert len(store.add(contact(1)).stored) == 1
+    assert store.add(contact(1)).duplicates == 1  # re-sent after a reconnect
+    assert store.stats()["contacts"] == 1
+    # provisional, then its final answer: counted once, with the final evidence
+    store.add(contact(2, probs={"pine": 0.9, "aluminium": 0.1}, final=False, decided_at=3.0))
+    r = store.add(contact(2, probs={"aluminium": 0.9, "pine": 0.1}, final=True, decided_at=4.0))
+    assert r.replaced == 1
+    (v,) = store.query((-1, -1, -1, 2, 2, 2))
+    assert v.contacts == 2 and v.label == "aluminium"
+    assert v.posterior["aluminium"] == pytest.approx(0.81 / (0.81 + 0.01))
+    # an older provisional arriving late changes nothing
+    assert store.add(contact(2, probs={"pine": 1.0}, final=False, decided_at=3.5)).duplicates == 1
+    assert store.stats() == {"voxels": 1, "contacts": 2, "robots": {"a": 2}, "voxel": 0.01,
+                             "index": "rtree"}
+    # the same contact id from another robot, or another onset, is another contact
+    store.add(contact(1, robot="b"))
+    store.add(contact(1, host_onset=1.8e9))
+    assert store.stats()["contacts"] == 4
+    assert store.acks("a") == [[1, 1.7e9 + 1, True], [2, 1.7e9 + 2, True], [1, 1.8e9, True]]
+    assert store.query((-1, -1, -1, 2, 2, 2))[0].robots == ["a", "b"]
+
+
+def test_posterior_names_material_family_or_unknown(tmp_path):
+    store = MapStore(tmp_path / "m.sqlite", threshold=0.5)
+    at = {"centroid": (0.0, 0.0, 0.0)}
+    store.add(contact(1, probs={"aluminium": 0.45, "steel": 0.45, "pine": 0.1}, **at))
+    (v,) = store.query((-1, -1, -1, 2, 2, 2))
+    assert v.label == "unknown" and v.family == "metal"
+    assert v.family_confidence == pytest.approx(0.9, abs=1e-3)
+    # no probabilities at all: counted, but unknown
+    store.add(contact(2, probs={}, centroid=(0.0, 0.0, 0.5)))
+    far = store.query((-1, -1, -1, 2, 2, 2), family="unknown")
+    assert [x.contacts for x in far] == [1] and far[0].posterior == {}
+    assert posterior_of({}, 0) == {}
+    # a material one contact did not name counts at the floor, not as certain absence
+    p = posterior_of({"glass": (math.log(0.5), 1), "pine": (math.log(0.5) * 2, 2)}, 2)
+    assert p["pine"] > p["glass"] > 0
+
+
+def test_box_query_matches_a_brute_force_filter(tmp_path):
+    store = MapStore(tmp_path / "m.sqlite", voxel=0.05)
+    rng = np.random.default_rng(3)
+    pts = rng.uniform(-1, 1, (300, 3))
+    for k, pt in enumerate(pts):
+        store.add(contact(k, link_pose=np.eye(4).tolist(), centroid=pt))
+    box = (-0.3, -0.5, -0.2, 0.4, 0.25, 0.6)
+    got = {v.cell for v in store.query(box)}
+    cells = {tuple(math.floor(x / 0.05) for x in pt) for pt in pts}
+    lo = [math.floor(b / 0.05) for b in box[:3]]
+    hi = [math.floor(b / 0.05) for b in box[3:]]
+    want = {c for c in cells if all(lo[i] <= c[i] <= hi[i] for i in range(3))}
+    assert got == want and len(want) > 5
+    assert len(store.query(box, limit=3)) == 3
+    assert {v.cell for v in store.query(box[3:] + box[:3])} == want  # corners in any order
+    assert store.query((5, 5, 5, 6, 6, 6)) == []
+
+
+def test_the_map_persists_and_keeps_its_voxel_size(tmp_path):
+    path = tmp_path / "m.sqlite"
+    with MapStore(path, voxel=0.02) as store:
+        store.add(contact(1))
+    with MapStore(path) as again:
+        assert again.voxel == 0.02 and again.stats()["contacts"] == 1
+    with pytest.raises(MapStoreError, match=r"0\.02 m voxels, not 0\.01"):
+        MapStore(path, voxel=0.01)
+    bad = tmp_path / "other.sqlite"
+    bad.write_bytes(b"this is not a database" * 100)
+    with pytest.raises(MapStoreError, match="not a map database"):
+        MapStore(bad)
+    other = tmp_path / "foreign.sqlite"
+    db = sqlite3.connect(other)
+    db.execute("CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL)")
+    db.execute("INSERT INTO meta VALUES ('format', 'someone.else/3')")
+    db.commit()
+    db.close()
+    with pytest.raises(MapStoreError, match=r"someone\.else/3"):
+        MapStore(other)
+
+
+@pytest.mark.parametrize("text", ["1,2,3", "a,b,c,d,e,f", "0,0,0,1,1,inf", "1,2,3,4,5,6,7"])
+def test_bad_boxes_are_named(text):
+    with pytest.raises(SkinError, match="x0,y0,z0,x1,y1,z1"):
+        parse_box(text)
+
+
+def test_box_corners_are_ordered():
+    assert parse_box("1,0,2,0,1,1") == (0.0, 0.0, 1.0, 1.0, 1.0, 2.0)
