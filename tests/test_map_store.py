@@ -1,5 +1,6 @@
 """The shared map's store (skin.world.map_store): placing, fusing, persisting, box queries."""
 
+import json
 import math
 import sqlite3
 
@@ -148,3 +149,43 @@ def test_bad_boxes_are_named(text):
 
 def test_box_corners_are_ordered():
     assert parse_box("1,0,2,0,1,1") == (0.0, 0.0, 1.0, 1.0, 1.0, 2.0)
+
+
+def test_each_voxel_is_named_by_the_per_voxel_rule(tmp_path):
+    from skin.models.materials import hierarchical_answer
+
+    store = MapStore(tmp_path / "m.sqlite", voxel=0.1)
+    rng = np.random.default_rng(5)
+    names = ["aluminium", "steel", "glass", "pine", "oak", "foam"]
+    for k in range(200):
+        p = rng.dirichlet(np.full(len(names), 0.3))
+        named = {m: round(float(x), 4) for m, x in zip(names, p, strict=True) if rng.random() < 0.8}
+        store.add(contact(k, probs=named, link_pose=np.eye(4).tolist(),
+                          centroid=rng.uniform(0, 0.3, 3)))
+    voxels = store.query((0, 0, 0, 0.3, 0.3, 0.3))
+    assert sum(v.contacts for v in voxels) == 200
+    for v in voxels:
+        informed, text = store.db.execute(
+            "SELECT informed, evidence FROM voxels WHERE ix=? AND iy=? AND iz=?",
+            v.cell).fetchone()
+        ev = {m: tuple(x) for m, x in json.loads(text).items()}
+        want = posterior_of(ev, informed)
+        assert v.posterior == pytest.approx(want, abs=1e-6)
+        if want:
+            label, conf, fam, fam_conf = hierarchical_answer(want, 0.5)
+            assert (v.label, v.family) == (label, fam)
+            assert (v.confidence, v.family_confidence) == pytest.approx((conf, fam_conf))
+        else:
+            assert v.label == v.family == "unknown"
+
+
+def test_rows_as_json_text_equal_the_voxels(tmp_path):
+    store = MapStore(tmp_path / "m.sqlite")
+    for k in range(20):
+        store.add(contact(k, centroid=(0.01 * k, 0.0, 0.0), probs={"glass": 0.7, "oak": 0.3}))
+    box = (-1, -1, -1, 1, 1, 1)
+    text = store.rows_json(store.rows(box))
+    assert json.loads(text) == [json.loads(json.dumps(v.as_dict())) for v in store.query(box)]
+    assert [v.label for v in store.query(box, material="glass")] == ["glass"] * len(
+        store.query(box))
+    assert store.query(box, family="metal") == []

@@ -40,8 +40,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--mode", choices=("peer", "client"), default=None, help="Zenoh session mode")
     s.add_argument("--voxel", type=float, default=None,
                    help="voxel side of a new map, m (default 0.01)")
-    s.add_argument("--threshold", type=float, default=0.5,
-                   help="posterior a material (else its family) needs to be named")
+    s.add_argument("--threshold", type=float, default=None,
+                   help="posterior a material (else its family) needs to be named, of a new "
+                        "map (default 0.5)")
     s.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
     s.add_argument("--status", type=float, default=10.0,
                    help="seconds between status lines (0: none)")

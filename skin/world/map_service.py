@@ -63,21 +63,21 @@ class MapService:
         ``peer`` or ``client``.
     voxel : float, optional
         Voxel side of a new map, m.
-    threshold : float
-        Posterior a material, else a family, needs to be named.
+    threshold : float, optional
+        Posterior a material, else a family, needs to be named (a new map's; default 0.5).
     """
 
     def __init__(self, db: str | Path, prefix: str = "thermoskin",
                  listen: list[str] | None = None, connect: list[str] | None = None,
                  mode: str | None = None, voxel: float | None = None,
-                 threshold: float = 0.5) -> None:
+                 threshold: float | None = None) -> None:
         from skin.stream.publish_zenoh import open_session
 
         if str(db) == ":memory:":
             raise SkinError("the map service needs a database file, not :memory:")
         self.prefix = prefix.strip("/") or "thermoskin"
         self.store = MapStore(db, voxel=voxel, threshold=threshold)
-        self.reader = MapStore(db, threshold=threshold)  # queries read beside the writer (WAL)
+        self.reader = MapStore(db)  # queries read beside the writer (WAL)
         self._read_lock = threading.Lock()
         self.malformed = 0
         self.received = 0
@@ -173,11 +173,11 @@ class MapService:
             limit = params.get("limit")
             if limit is not None and (not limit.isdigit() or int(limit) < 1):
                 raise SkinError(f"limit={limit!r}: a positive integer expected")
-            voxels = self.reader.query(params["box"], material=params.get("material"),
-                                       family=params.get("family"),
-                                       limit=None if limit is None else int(limit))
-            return _payload("thermoskin.map_voxels", voxel=self.reader.voxel,
-                            count=len(voxels), voxels=[v.as_dict() for v in voxels])
+            rows = self.reader.rows(params["box"], material=params.get("material"),
+                                    family=params.get("family"),
+                                    limit=None if limit is None else int(limit))
+            head = _payload("thermoskin.map_voxels", voxel=self.reader.voxel, count=len(rows))
+            return head[:-1] + b',"voxels":' + self.reader.rows_json(rows).encode() + b"}"
         if what == "acks":
             robot = params.get("robot")
             if not robot:

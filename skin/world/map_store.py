@@ -12,7 +12,8 @@ its chain standing still); without them the robot stands at the map's origin and
 looked up in the default arm (`skin.world.kinematics.default_chain`) at its default angles. A
 contact whose link has no pose is refused (`MapInputError`) rather than placed somewhere wrong.
 
-Each voxel keeps, per material, the sum of ``log max(p, FLOOR)`` of the contacts'
+Each voxel keeps (column ``evidence``, a JSON object of material: [sum, count]), per
+material, the sum of ``log max(p, FLOOR)`` of the contacts'
 ``probabilities`` and how many contacts named it; the posterior is the softmax of those sums
 (each contact a likelihood under a uniform prior, contacts treated as independent), named with
 `skin.models.materials.hierarchical_answer`: the material if its posterior reaches
@@ -178,12 +179,11 @@ _SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS voxels (
     id INTEGER PRIMARY KEY, ix INTEGER NOT NULL, iy INTEGER NOT NULL, iz INTEGER NOT NULL,
-    contacts INTEGER NOT NULL, evidence INTEGER NOT NULL,
+    contacts INTEGER NOT NULL, informed INTEGER NOT NULL, evidence TEXT NOT NULL,
     first_seen REAL NOT NULL, last_seen REAL NOT NULL, robots TEXT NOT NULL,
+    label TEXT NOT NULL, confidence REAL NOT NULL, family TEXT NOT NULL,
+    family_confidence REAL NOT NULL, posterior TEXT NOT NULL,
     UNIQUE (ix, iy, iz));
-CREATE TABLE IF NOT EXISTS evidence (
-    voxel INTEGER NOT NULL, material TEXT NOT NULL, logp REAL NOT NULL, n INTEGER NOT NULL,
-    PRIMARY KEY (voxel, material)) WITHOUT ROWID;
 CREATE TABLE IF NOT EXISTS contacts (
     robot TEXT NOT NULL, contact INTEGER NOT NULL, onset REAL NOT NULL, final INTEGER NOT NULL,
     decided_at REAL NOT NULL, voxel INTEGER NOT NULL, logp TEXT NOT NULL,
@@ -213,7 +213,7 @@ class Voxel:
         return {"cell": list(self.cell), "center": [round(v, 5) for v in self.center],
                 "label": self.label, "confidence": round(self.confidence, 4),
                 "family": self.family, "family_confidence": round(self.family_confidence, 4),
-                "posterior": {k: round(v, 4) for k, v in self.posterior.items()},
+                "posterior": self.posterior,
                 "contacts": self.contacts, "first_seen": self.first_seen,
                 "last_seen": self.last_seen, "robots": self.robots}
 
@@ -248,21 +248,22 @@ class MapStore:
     voxel : float, optional
         Voxel side, m; a new map's default is 0.01. An existing map keeps its own and refuses
         a different one.
-    threshold : float
-        Posterior a material (else a family) needs to be named.
+    threshold : float, optional
+        Posterior a material (else a family) needs to be named; a new map's default is 0.5,
+        kept with the map like the voxel size (each voxel is named as it is written).
     synchronous : str
         SQLite's ``synchronous`` (``FULL``: a commit is on disk when it returns; ``NORMAL``:
         it survives the process being killed, not a power cut).
     """
 
-    def __init__(self, path: str | Path, voxel: float | None = None, threshold: float = 0.5,
-                 synchronous: str = "FULL") -> None:
+    def __init__(self, path: str | Path, voxel: float | None = None,
+                 threshold: float | None = None, synchronous: str = "FULL") -> None:
         if voxel is not None and not (voxel > 0 and math.isfinite(voxel)):
             raise MapStoreError(f"voxel size {voxel!r}: a positive number of metres expected")
-        if not 0.0 < threshold <= 1.0:
+        if threshold is not None and not 0.0 < threshold <= 1.0:
             raise MapStoreError(f"threshold {threshold!r}: a probability in (0, 1] expected")
         self.path = str(path)
-        self.threshold = float(threshold)
+        self.threshold = 0.5 if threshold is None else float(threshold)
         try:
             self.db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None)
             self.db.execute("PRAGMA journal_mode=WAL")
@@ -277,6 +278,11 @@ class MapStore:
             self.voxel = float(meta["voxel"])
             if voxel is not None and not math.isclose(voxel, self.voxel):
                 raise MapStoreError(f"{self.path}: a map of {self.voxel} m voxels, not {voxel}")
+            stored = float(meta.get("threshold", self.threshold))
+            if threshold is not None and not math.isclose(threshold, stored):
+                raise MapStoreError(f"{self.path}: a map naming materials at posterior "
+                                    f"{stored}, not {threshold}")
+            self.threshold = stored
         else:
             self.voxel = 0.01 if voxel is None else float(voxel)
         self.rtree = self._create(meta)
@@ -295,7 +301,8 @@ class MapStore:
                 self.db.execute(stmt)
         if not meta:
             self.db.executemany("INSERT INTO meta VALUES (?, ?)",
-                                [("format", FORMAT), ("voxel", repr(self.voxel))])
+                                [("format", FORMAT), ("voxel", repr(self.voxel)),
+                                 ("threshold", repr(self.threshold))])
         try:
             self.db.execute("CREATE VIRTUAL TABLE IF NOT EXISTS voxel_box USING "
                             "rtree_i32(id, x0, x1, y0, y1, z0, z1)")
@@ -359,8 +366,10 @@ class MapStore:
                               (ix, iy, iz)).fetchone()
         seen = c.onset if c.onset > 1e8 else now  # device time only: the time it arrived
         if row is None:
-            cur = self.db.execute("INSERT INTO voxels (ix, iy, iz, contacts, evidence, "
-                                  "first_seen, last_seen, robots) VALUES (?, ?, ?, 0, 0, ?, ?, ?)",
+            cur = self.db.execute("INSERT INTO voxels (ix, iy, iz, contacts, informed, evidence, "
+                                  "first_seen, last_seen, robots, label, confidence, family, "
+                                  "family_confidence, posterior) VALUES (?, ?, ?, 0, 0, '{}', "
+                                  "?, ?, ?, 'unknown', 0, 'unknown', 0, '{}')",
                                   (ix, iy, iz, seen, seen, c.robot))
             vid = int(cur.lastrowid)  # type: ignore[arg-type]
             if self.rtree:
@@ -377,12 +386,26 @@ class MapStore:
         return int(vid)
 
     def _fuse(self, voxel: int, logp: Mapping[str, float], sign: int) -> None:
-        self.db.execute("UPDATE voxels SET contacts=contacts+?, evidence=evidence+? WHERE id=?",
-                        (sign, sign * (1 if logp else 0), voxel))
+        """Add (``sign`` +1) or take back (-1) a contact's evidence; name the voxel anew."""
+        from skin.models.materials import hierarchical_answer
+
+        text, informed = self.db.execute("SELECT evidence, informed FROM voxels WHERE id=?",
+                                         (voxel,)).fetchone()
+        evidence = json.loads(text)
         for name, value in logp.items():
-            self.db.execute("INSERT INTO evidence VALUES (?, ?, ?, ?) ON CONFLICT(voxel, "
-                            "material) DO UPDATE SET logp=logp+excluded.logp, n=n+excluded.n",
-                            (voxel, name, sign * value, sign))
+            s, n = evidence.get(name, (0.0, 0))
+            evidence[name] = [s + sign * value, n + sign]
+        informed += sign * (1 if logp else 0)
+        posterior = posterior_of({k: tuple(v) for k, v in evidence.items()}, informed)
+        if posterior:
+            answer = hierarchical_answer(posterior, self.threshold, self._materials)
+        else:
+            answer = ("unknown", 0.0, "unknown", 0.0)
+        self.db.execute("UPDATE voxels SET contacts=contacts+?, informed=?, evidence=?, "
+                        "label=?, confidence=?, family=?, family_confidence=?, posterior=? "
+                        "WHERE id=?",
+                        (sign, informed, json.dumps(evidence), *answer,
+                         json.dumps({k: round(v, 6) for k, v in posterior.items()}), voxel))
 
     # ---- reading ----
 
@@ -420,71 +443,70 @@ class MapStore:
         limit : int, optional
             At most this many voxels (in key order).
         """
+        v = self.voxel
+        return [Voxel(cell=(ix, iy, iz), center=((ix + 0.5) * v, (iy + 0.5) * v, (iz + 0.5) * v),
+                      label=label, confidence=conf, family=fam, family_confidence=fam_conf,
+                      posterior=json.loads(posterior), contacts=contacts, first_seen=first,
+                      last_seen=last, robots=robots.split(","))
+                for (ix, iy, iz, contacts, first, last, robots, label, conf, fam, fam_conf,
+                     posterior) in self.rows(box, material, family, limit)]
+
+    def rows(self, box: str | Sequence[float], material: str | None = None,
+             family: str | None = None, limit: int | None = None) -> list[tuple]:
+        """Return `query`'s voxels as rows (the posterior as JSON text), in key order.
+
+        Each row: ix, iy, iz, contacts, first_seen, last_seen, robots (comma separated),
+        label, confidence, family, family_confidence, posterior.
+        """
         b = parse_box(box)
         x0, y0, z0, x1, y1, z1 = self.cells(b)
         if self.rtree:
-            sql = ("SELECT v.id, v.ix, v.iy, v.iz, v.contacts, v.evidence, v.first_seen, "
-                   "v.last_seen, v.robots FROM voxel_box b JOIN voxels v ON v.id = b.id "
-                   "WHERE b.x1 >= ? AND b.x0 <= ? AND b.y1 >= ? AND b.y0 <= ? "
-                   "AND b.z1 >= ? AND b.z0 <= ?")
-            args: tuple[int, ...] = (x0, x1, y0, y1, z0, z1)
+            within = ("SELECT id FROM voxel_box WHERE x1 >= ? AND x0 <= ? AND y1 >= ? "
+                      "AND y0 <= ? AND z1 >= ? AND z0 <= ?")
         else:
-            sql = ("SELECT id, ix, iy, iz, contacts, evidence, first_seen, last_seen, robots "
-                   "FROM voxels WHERE ix BETWEEN ? AND ? AND iy BETWEEN ? AND ? "
-                   "AND iz BETWEEN ? AND ?")
-            args = (x0, x1, y0, y1, z0, z1)
-        rows = self.db.execute(sql, args).fetchall()
-        evidence: dict[int, dict[str, tuple[float, int]]] = {}
-        if rows:
-            ids = [r[0] for r in rows]
-            for start in range(0, len(ids), 30000):
-                chunk = ids[start:start + 30000]
-                marks = ",".join("?" * len(chunk))
-                for vid, name, logp, n in self.db.execute(
-                        f"SELECT voxel, material, logp, n FROM evidence WHERE voxel IN ({marks})",
-                        chunk):
-                    evidence.setdefault(vid, {})[name] = (logp, n)
-        out = []
-        for vid, ix, iy, iz, contacts, n_evid, first, last, robots in sorted(
-                rows, key=lambda r: (r[1], r[2], r[3])):
-            vox = self._voxel_answer((ix, iy, iz), contacts, n_evid, first, last, robots,
-                                     evidence.get(vid, {}))
-            if material is not None and vox.label != material:
-                continue
-            if family is not None and vox.family != family:
-                continue
-            out.append(vox)
-            if limit is not None and len(out) >= limit:
-                break
-        return out
+            within = ("SELECT id FROM voxels WHERE ix BETWEEN ? AND ? AND iy BETWEEN ? AND ? "
+                      "AND iz BETWEEN ? AND ?")
+        where, args = [], [x0, x1, y0, y1, z0, z1]
+        if material is not None:
+            where.append("v.label = ?")
+            args.append(material)
+        if family is not None:
+            where.append("v.family = ?")
+            args.append(family)
+        rows = sorted(self.db.execute(
+            "SELECT v.ix, v.iy, v.iz, v.contacts, v.first_seen, v.last_seen, v.robots, v.label, "
+            "v.confidence, v.family, v.family_confidence, v.posterior FROM "
+            f"({within}) AS b CROSS JOIN voxels AS v ON v.id = b.id"
+            + (f" WHERE {' AND '.join(where)}" if where else ""), args).fetchall())
+        return rows if limit is None else rows[:limit]
 
-    def _voxel_answer(self, cell: tuple[int, int, int], contacts: int, n_evid: int,
-                      first: float, last: float, robots: str,
-                      evidence: Mapping[str, tuple[float, int]]) -> Voxel:
-        from skin.models.materials import hierarchical_answer
-
-        posterior = posterior_of(evidence, n_evid)
-        if posterior:
-            label, conf, fam, fam_conf = hierarchical_answer(posterior, self.threshold,
-                                                             self._materials)
-        else:
-            label, conf, fam, fam_conf = "unknown", 0.0, "unknown", 0.0
+    def rows_json(self, rows: list[tuple]) -> str:
+        """Return rows of `rows` as a JSON array of `Voxel.as_dict` objects, built as text."""
         v = self.voxel
-        return Voxel(cell=cell, center=tuple((k + 0.5) * v for k in cell),  # type: ignore[arg-type]
-                     label=label, confidence=conf, family=fam, family_confidence=fam_conf,
-                     posterior=posterior, contacts=contacts, first_seen=first, last_seen=last,
-                     robots=robots.split(","))
+        dumps = json.dumps
+        parts = [
+            f'{{"cell":[{ix},{iy},{iz}],"center":[{round((ix + 0.5) * v, 5)!r},'
+            f'{round((iy + 0.5) * v, 5)!r},{round((iz + 0.5) * v, 5)!r}],'
+            f'"label":{dumps(label)},"confidence":{round(conf, 4)!r},"family":{dumps(fam)},'
+            f'"family_confidence":{round(fam_conf, 4)!r},"posterior":{posterior},'
+            f'"contacts":{contacts},"first_seen":{first!r},"last_seen":{last!r},'
+            f'"robots":{dumps(robots.split(","))}}}'
+            for (ix, iy, iz, contacts, first, last, robots, label, conf, fam, fam_conf,
+                 posterior) in rows]
+        return "[" + ",".join(parts) + "]"
 
 
 def posterior_of(evidence: Mapping[str, tuple[float, int]], n_evid: int) -> dict[str, float]:
-    """Posterior over materials from per-material (summed log p, count) of ``n_evid`` contacts.
+    """Return the posterior over materials from (summed log p, count) of ``n_evid`` contacts.
 
     A contact that did not name a material counts it at `FLOOR`. Empty when no contact gave
     probabilities.
     """
     if n_evid <= 0 or not evidence:
         return {}
-    names = sorted(evidence)
+    names = sorted(m for m in evidence if evidence[m][1] > 0)
+    if not names:
+        return {}
     logs = np.array([evidence[m][0] + (n_evid - evidence[m][1]) * _LOG_FLOOR for m in names])
     logs -= logs.max()
     p = np.exp(logs)
