@@ -13,6 +13,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from skin.bench.map import free_port, start_service
@@ -198,3 +199,41 @@ def test_skin_map_serve_refuses_a_bad_setup(tmp_path):
     bad = subprocess.run([str(SKIN), "map", "serve", "--db", str(tmp_path / "x.sqlite"),
                           "--duration", "1"], capture_output=True, text=True, timeout=30)
     assert bad.returncode == 2 and "not a map database" in bad.stderr
+
+
+def test_skin_run_feeds_the_map_under_its_skin_file_name_and_pose(tmp_path):
+    from skin.formats.layout import load_layout
+    from skin.stream.publish import contact_geometry
+    from skin.world.kinematics import default_chain, transform
+    from skin.world.shared_map import SharedMap
+
+    port = free_port()
+    service = start_service(tmp_path / "map.sqlite", port, "t")
+    (tmp_path / "skin.toml").write_text(
+        '[output]\nrobot = "west"\nrobot_pose = [2.0, 1.0, 0.0, 0.0, 0.0, 1.5707963]\n'
+        f'publish = ["zenoh://t?connect=tcp/127.0.0.1:{port}"]\n')
+    try:
+        run = subprocess.run([str(SKIN), "run", "--config", str(tmp_path / "skin.toml"),
+                              "--duration", "8", "--speed", "0", "--out", str(tmp_path / "run"),
+                              "--json", "--no-map"], capture_output=True, text=True, timeout=120)
+        assert run.returncode == 0, run.stderr
+        events = [json.loads(line) for line in
+                  (tmp_path / "run" / "events.jsonl").read_text().splitlines()]
+        final = [e for e in events if e["final"]]
+        assert final
+        with SharedMap(f"zenoh://t?connect=tcp/127.0.0.1:{port}") as shared:
+            acks = wait_for(lambda: len(shared.acks("west")) == len(final) and
+                            shared.acks("west"))
+            assert sorted(a[0] for a in acks) == sorted(e["contact"] for e in final)
+            # where each contact lands: robot pose @ link pose @ centroid
+            layout = load_layout(tmp_path / "run" / "layout.toml")
+            robot = transform((2.0, 1.0, 0.0), (0.0, 0.0, 1.5707963))
+            links = default_chain().poses()
+            for e in final:
+                g = contact_geometry(layout, e["taxels"])
+                p = robot @ links[g["link"]] @ np.array([*g["centroid"], 1.0])
+                near = shared.query((*(p[:3] - 0.006), *(p[:3] + 0.006)))
+                assert any("west" in v["robots"] for v in near), (e["contact"], p)
+    finally:
+        service.terminate()
+        service.wait(timeout=20)

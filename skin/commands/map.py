@@ -46,6 +46,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
     s.add_argument("--status", type=float, default=10.0,
                    help="seconds between status lines (0: none)")
+    s.add_argument("--json", action="store_true",
+                   help="print one JSON summary on stdout at the end and nothing else")
     s.set_defaults(func=serve)
 
     for name, helptext in (("query", "print the voxels in a box with their labels"),
@@ -79,11 +81,12 @@ def serve(args: argparse.Namespace) -> int:
         stop["now"] = True
 
     signal.signal(signal.SIGTERM, on_signal)
+    say = (lambda line: None) if args.json else (lambda line: print(line, flush=True))
     with MapService(args.db, prefix=args.prefix, listen=args.listen, connect=args.connect,
                     mode=args.mode, voxel=args.voxel, threshold=args.threshold) as service:
-        print(f"map service: {args.db} ({service.store.voxel:g} m voxels, "
-              f"{service.store.stats()['voxels']} voxels) on {service.prefix}/*/contacts, "
-              f"queries on {service.prefix}/map/**", flush=True)
+        say(f"map service: {args.db} ({service.store.voxel:g} m voxels, "
+            f"{service.store.stats()['voxels']} voxels) on {service.prefix}/*/contacts, "
+            f"queries on {service.prefix}/map/**")
         print("ready", file=sys.stderr, flush=True)  # for scripts waiting on the service
         started = next_status = time.monotonic()
         try:
@@ -93,14 +96,22 @@ def serve(args: argparse.Namespace) -> int:
                     break
                 if args.status > 0 and now >= next_status:
                     if now > started:
-                        print(f"received {service.received}  malformed {service.malformed}  "
-                              f"duplicates {service.duplicates}", flush=True)
+                        say(f"received {service.received}  malformed {service.malformed}  "
+                            f"duplicates {service.duplicates}")
                     next_status = now + args.status
                 time.sleep(0.05)
         except KeyboardInterrupt:
             pass
-    print(f"stopped: received {service.received}, malformed {service.malformed}, "
-          f"duplicates {service.duplicates}", flush=True)
+    if args.json:
+        from skin.world.map_store import MapStore
+
+        with MapStore(args.db) as store:
+            print(json.dumps({"db": args.db, "received": service.received,
+                              "malformed": service.malformed,
+                              "duplicates": service.duplicates, **store.stats()}))
+    else:
+        say(f"stopped: received {service.received}, malformed {service.malformed}, "
+            f"duplicates {service.duplicates}")
     return 0
 
 
