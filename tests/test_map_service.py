@@ -5,6 +5,7 @@ Three publisher processes (the real ZenohPublisher, `python -m skin.bench.map`) 
 publisher reconnecting to it; a publisher process re-sending contacts; malformed payloads.
 """
 
+import importlib.util
 import json
 import os
 import signal
@@ -86,6 +87,16 @@ def test_three_robots_one_service_and_queries(tmp_path):
         bad = subprocess.run([str(SKIN), "map", "query", "--map", url, "--box", "0,0,1"],
                              capture_output=True, text=True, timeout=30)
         assert bad.returncode == 2 and "box '0,0,1': six" in bad.stderr
+        # the shared map drawn around the arm (robot r0 stands at the map's origin)
+        if importlib.util.find_spec("pyvista") is not None:
+            png = tmp_path / "view.png"
+            out = subprocess.run([str(SKIN), "view", "--map", url, "--out", str(png), "--json"],
+                                 capture_output=True, text=True, timeout=120)
+            assert out.returncode == 0, out.stderr
+            drawn = json.loads(out.stdout)
+            mine = [v for v in everything if v["robots"] == ["r0"]]
+            assert drawn["contacts"] == sum(v["contacts"] for v in mine) == 25
+            assert drawn["voxels"] == len(mine) and png.stat().st_size > 10_000
     finally:
         service.terminate()
         service.wait(timeout=20)

@@ -24,8 +24,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     view = sub.add_parser("view", help="show the world material map (contacts as coloured "
                                        "points around the arm)", description=__doc__)
     view.add_argument("--map", required=True, metavar="SOURCE",
-                      help="a `skin run` output folder, an MCAP recording (.mcap), or a saved "
-                           "world map (.npz, .jsonl)")
+                      help="a `skin run` output folder, an MCAP recording (.mcap), a saved "
+                           "world map (.npz, .jsonl), or a shared map: zenoh://PREFIX[?connect="
+                           "...] (`skin map serve`) or its database (.sqlite)")
+    view.add_argument("--box", default="-1.5,-1.5,-0.5,1.5,1.5,2",
+                      help="of a shared map, the voxels drawn: x0,y0,z0,x1,y1,z1, m, in the "
+                           "map's frame (default around the arm at the map's origin)")
     view.add_argument("--out", metavar="PNG", help="write the view to this PNG (off screen) "
                                                    "instead of opening a window")
     view.add_argument("--poses", metavar="FILE",
@@ -54,6 +58,8 @@ def main(args: argparse.Namespace) -> int:
     from skin.world.kinematics import as_pose_source, default_chain, load_chain, load_poses
     from skin.world.map import CHAIN_FILE, WorldMap
 
+    if args.map.startswith("zenoh://") or args.map.lower().endswith((".sqlite", ".db")):
+        return _shared(args)
     source = Path(args.map)
     if not source.exists():
         raise SkinError(f"--map {args.map}: no such file or folder")
@@ -106,4 +112,47 @@ def main(args: argparse.Namespace) -> int:
     print(f"world map: {len(world)} points from {world.contacts()} contacts ({per})"
           + ("" if written is None else f" -> {written}")
           + (f"; saved {args.save}" if args.save else ""))
+    return 0
+
+
+def _shared(args: argparse.Namespace) -> int:
+    """Draw the voxels of a shared map (`skin.world.shared_map`) in a box around the arm."""
+    import numpy as np
+
+    from skin.formats.layout import load_layout
+    from skin.models import load_materials
+    from skin.viz.world_view import render_world_map
+    from skin.world.kinematics import default_chain, load_chain
+    from skin.world.map import WorldMap
+    from skin.world.map_store import parse_box
+    from skin.world.shared_map import SharedMap
+
+    box = parse_box(args.box)
+    with SharedMap(args.map) as shared:
+        voxels = shared.query(box)
+    n = len(voxels)
+    arrays = {"points": np.array([v["center"] for v in voxels], dtype=float).reshape(n, 3),
+              "normals": np.zeros((n, 3)), "contact": np.arange(n, dtype=np.int64),
+              "taxel": np.full(n, -1, dtype=np.int64), "link": np.full(n, "", dtype="<U1"),
+              "label": np.array([v["label"] for v in voxels], dtype=str).reshape(n),
+              "confidence": np.array([v["confidence"] for v in voxels], dtype=float),
+              "time": np.array([v["last_seen"] for v in voxels], dtype=float)}
+    world = WorldMap()
+    world._parts, world._arrays = [arrays], arrays
+    layout = load_layout(args.layout or "arm")
+    chain = load_chain(args.chain) if args.chain else default_chain()
+    colours = {m.name: m.colour for m in load_materials().values()}
+    title = f"shared map: {n} voxels ({args.map})"
+    written = render_world_map(world, layout, colours, poses=chain.poses(), path=args.out,
+                               title=title)
+    counts = world.counts()
+    if args.json:
+        print(json.dumps({"source": args.map, "box": list(box), "voxels": n,
+                          "contacts": sum(v["contacts"] for v in voxels),
+                          "per_material": counts,
+                          "out": None if written is None else str(written)}))
+        return 0
+    per = ", ".join(f"{name} {k}" for name, k in counts.items()) or "none"
+    print(f"shared map: {n} voxels in {args.box} ({per})"
+          + ("" if written is None else f" -> {written}"))
     return 0
