@@ -189,3 +189,24 @@ def test_rows_as_json_text_equal_the_voxels(tmp_path):
     assert [v.label for v in store.query(box, material="glass")] == ["glass"] * len(
         store.query(box))
     assert store.query(box, family="metal") == []
+
+
+def test_query_json_by_sqlite_equals_the_python_rows(tmp_path):
+    store = MapStore(tmp_path / "m.sqlite", voxel=0.02)
+    for k in range(40):
+        store.add(contact(k, robot="ab"[k % 2], centroid=(0.013 * k, -0.01 * k, 0.0),
+                          probs={"glass": 0.6, "oak": 0.3, "steel": 0.1}))
+    box = (-1, -1, -1, 1, 1, 1)
+    want = [json.loads(json.dumps(v.as_dict())) for v in store.query(box)]
+    assert store.json_sql  # SQLite >= 3.38 has its JSON functions built in
+    for use_sql in (True, False):
+        store.json_sql = use_sql
+        got = json.loads(store.query_json(box))
+        assert len(got) == len(want) > 10
+        for g, w in zip(got, want, strict=True):
+            assert g.keys() == w.keys()
+            for key in w:
+                assert g[key] == pytest.approx(w[key]), (use_sql, key)
+        assert len(json.loads(store.query_json(box, limit=4))) == 4
+        assert json.loads(store.query_json(box, family="metal")) == []
+        assert json.loads(store.query_json((5, 5, 5, 6, 6, 6))) == []

@@ -12,8 +12,10 @@ Lost = published minus held by the map (asked over Zenoh, ``map/acks``).
 
 Query part: a map of ``voxels`` voxels (1 cm) built synthetically with the store's own tables
 (uniform in a 20 x 20 x 2.5 m hall, 11 materials' evidence each), then ``repeats`` random 1 m^3
-boxes through `skin.world.map_store.MapStore.query` (the service's code path without the
-network), against a full scan of the voxel table in the same run as the baseline.
+boxes through `skin.world.map_store.MapStore.query_json` (the service's reply without the
+network), `MapStore.query` (Python objects) and over Zenoh from ``skin map serve`` (a
+`skin.world.shared_map.SharedMap` client), against a full scan of the voxel table for the last
+box in the same run as the baseline.
 """
 
 from __future__ import annotations
@@ -312,13 +314,18 @@ def query_time(voxels: int = 1_000_000, repeats: int = 20, seed: int = 0,
     built = time.perf_counter() - built
     store = MapStore(path)
     rng = random.Random(seed)
-    times, found = [], []
+    times, objects, found = [], [], []
     for _ in range(repeats):
         x, y, z = rng.uniform(0, 19), rng.uniform(0, 19), rng.uniform(0, 1.5)
+        box = (x, y, z, x + 1, y + 1, z + 1)
         t = time.perf_counter()
-        got = store.query((x, y, z, x + 1, y + 1, z + 1))
+        text = store.query_json(box)  # the service's reply, built
         times.append(time.perf_counter() - t)
-        found.append(len(got))
+        found.append(len(json.loads(text)))
+        x, y, z = rng.uniform(0, 19), rng.uniform(0, 19), rng.uniform(0, 1.5)
+        t = time.perf_counter()  # another box: neither finds the other's pages in the cache
+        store.query((x, y, z, x + 1, y + 1, z + 1))  # the Python objects (MapStore.query)
+        objects.append(time.perf_counter() - t)
     t = time.perf_counter()  # the baseline: the last box by a full pass over the table
     c = store.cells((x, y, z, x + 1, y + 1, z + 1))
     scanned = store.db.execute("SELECT count(*) FROM voxels NOT INDEXED WHERE ix BETWEEN ? AND ? "
@@ -330,10 +337,12 @@ def query_time(voxels: int = 1_000_000, repeats: int = 20, seed: int = 0,
     store.close()
     zenoh_times = _over_zenoh(path, seed, repeats)
     times.sort()
+    objects.sort()
     return {"voxels": n, "index": index, "build_s": round(built, 1), "repeats": repeats,
             "voxels_per_box_median": sorted(found)[len(found) // 2],
             "query_p50_ms": round(times[len(times) // 2] * 1e3, 2),
             "query_max_ms": round(times[-1] * 1e3, 2),
+            "objects_query_p50_ms": round(objects[len(objects) // 2] * 1e3, 2),
             "zenoh_query_p50_ms": round(zenoh_times[len(zenoh_times) // 2] * 1e3, 2)
             if zenoh_times else None,
             "zenoh_query_max_ms": round(zenoh_times[-1] * 1e3, 2) if zenoh_times else None,

@@ -173,11 +173,11 @@ class MapService:
             limit = params.get("limit")
             if limit is not None and (not limit.isdigit() or int(limit) < 1):
                 raise SkinError(f"limit={limit!r}: a positive integer expected")
-            rows = self.reader.rows(params["box"], material=params.get("material"),
-                                    family=params.get("family"),
-                                    limit=None if limit is None else int(limit))
-            head = _payload("thermoskin.map_voxels", voxel=self.reader.voxel, count=len(rows))
-            return head[:-1] + b',"voxels":' + self.reader.rows_json(rows).encode() + b"}"
+            text = self.reader.query_json(params["box"], material=params.get("material"),
+                                          family=params.get("family"),
+                                          limit=None if limit is None else int(limit))
+            head = _payload("thermoskin.map_voxels", voxel=self.reader.voxel)
+            return head[:-1] + b',"voxels":' + text.encode() + b"}"
         if what == "acks":
             robot = params.get("robot")
             if not robot:

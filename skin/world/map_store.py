@@ -286,6 +286,11 @@ class MapStore:
         else:
             self.voxel = 0.01 if voxel is None else float(voxel)
         self.rtree = self._create(meta)
+        try:  # SQLite's JSON functions (built in since 3.38, an option before)
+            self.db.execute("SELECT json_group_array(json('{}'))").fetchone()
+            self.json_sql = True
+        except sqlite3.OperationalError:
+            self.json_sql = False
         from skin.models.materials import load_materials
 
         self._materials = load_materials()
@@ -451,13 +456,30 @@ class MapStore:
                 for (ix, iy, iz, contacts, first, last, robots, label, conf, fam, fam_conf,
                      posterior) in self.rows(box, material, family, limit)]
 
-    def rows(self, box: str | Sequence[float], material: str | None = None,
-             family: str | None = None, limit: int | None = None) -> list[tuple]:
-        """Return `query`'s voxels as rows (the posterior as JSON text), in key order.
+    def query_json(self, box: str | Sequence[float], material: str | None = None,
+                   family: str | None = None, limit: int | None = None) -> str:
+        """Return `query`'s voxels as a JSON array of `Voxel.as_dict` objects (text).
 
-        Each row: ix, iy, iz, contacts, first_seen, last_seen, robots (comma separated),
-        label, confidence, family, family_confidence, posterior.
+        Built by SQLite's JSON functions when it has them (what the service replies with),
+        else from `rows` in Python.
         """
+        if not self.json_sql:
+            return self.rows_json(self.rows(box, material, family, limit))
+        inner, args = self._select(box, material, family)
+        sql = ("SELECT json_group_array(json_object('cell', json_array(ix, iy, iz), 'center', "
+               "json_array(round((ix + 0.5) * ?, 5), round((iy + 0.5) * ?, 5), "
+               "round((iz + 0.5) * ?, 5)), 'label', label, 'confidence', round(confidence, 4), "
+               "'family', family, 'family_confidence', round(family_confidence, 4), "
+               "'posterior', json(posterior), 'contacts', contacts, 'first_seen', first_seen, "
+               "'last_seen', last_seen, 'robots', json('[\"' || replace(robots, ',', '\",\"') "
+               f"|| '\"]'))) FROM ({inner} ORDER BY v.ix, v.iy, v.iz"
+               + ("" if limit is None else f" LIMIT {int(limit)}") + ")")
+        (text,) = self.db.execute(sql, [self.voxel] * 3 + args).fetchone()
+        return text
+
+    def _select(self, box: str | Sequence[float], material: str | None,
+                family: str | None) -> tuple[str, list[Any]]:
+        """Return the SELECT of the voxel rows in a box (named so) and its arguments."""
         b = parse_box(box)
         x0, y0, z0, x1, y1, z1 = self.cells(b)
         if self.rtree:
@@ -473,11 +495,20 @@ class MapStore:
         if family is not None:
             where.append("v.family = ?")
             args.append(family)
-        rows = sorted(self.db.execute(
-            "SELECT v.ix, v.iy, v.iz, v.contacts, v.first_seen, v.last_seen, v.robots, v.label, "
-            "v.confidence, v.family, v.family_confidence, v.posterior FROM "
-            f"({within}) AS b CROSS JOIN voxels AS v ON v.id = b.id"
-            + (f" WHERE {' AND '.join(where)}" if where else ""), args).fetchall())
+        return ("SELECT v.ix, v.iy, v.iz, v.contacts, v.first_seen, v.last_seen, v.robots, "
+                "v.label, v.confidence, v.family, v.family_confidence, v.posterior FROM "
+                f"({within}) AS b CROSS JOIN voxels AS v ON v.id = b.id"
+                + (f" WHERE {' AND '.join(where)}" if where else ""), args)
+
+    def rows(self, box: str | Sequence[float], material: str | None = None,
+             family: str | None = None, limit: int | None = None) -> list[tuple]:
+        """Return `query`'s voxels as rows (the posterior as JSON text), in key order.
+
+        Each row: ix, iy, iz, contacts, first_seen, last_seen, robots (comma separated),
+        label, confidence, family, family_confidence, posterior.
+        """
+        inner, args = self._select(box, material, family)
+        rows = sorted(self.db.execute(inner, args).fetchall())
         return rows if limit is None else rows[:limit]
 
     def rows_json(self, rows: list[tuple]) -> str:

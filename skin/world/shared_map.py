@@ -65,10 +65,11 @@ class SharedMap:
             from skin.world.map_store import parse_box
 
             if what == "voxels":
-                voxels = self._store.query(parse_box(params["box"]), params.get("material"),
-                                           params.get("family"), params.get("limit"))
+                voxels = json.loads(self._store.query_json(
+                    parse_box(params["box"]), params.get("material"), params.get("family"),
+                    params.get("limit")))
                 return {"schema": "thermoskin.map_voxels", "voxel": self._store.voxel,
-                        "count": len(voxels), "voxels": [v.as_dict() for v in voxels]}
+                        "voxels": voxels}
             if what == "acks":
                 rows = self._store.acks(params["robot"], params.get("since"))
                 return {"schema": "thermoskin.map_acks", "robot": params["robot"],
