@@ -248,3 +248,38 @@ def test_skin_run_feeds_the_map_under_its_skin_file_name_and_pose(tmp_path):
     finally:
         service.terminate()
         service.wait(timeout=20)
+
+
+def test_a_publisher_with_resend_loses_nothing_across_a_service_restart(tmp_path):
+    import sqlite3
+
+    port = free_port()
+    db = tmp_path / "map.sqlite"
+    service = start_service(db, port, "t")
+    pub = publisher(port, "arm", "--count", "200", "--spacing", "0.02", "--resend", "0.5")
+    try:
+        time.sleep(2.0)
+        service.send_signal(signal.SIGKILL)  # down for about a second while it publishes
+        service.wait(timeout=10)
+        time.sleep(1.0)
+        service = start_service(db, port, "t")
+        result = finished(pub, timeout=60)
+        assert result["published"] == 200 and result["resent"] > 0
+        assert result["unacknowledged_at_close"] == 0
+        held = sqlite3.connect(db).execute(
+            "SELECT count(*), count(DISTINCT contact) FROM contacts WHERE robot='arm'").fetchone()
+        assert held == (200, 200)  # every contact, each once
+    finally:
+        if pub.poll() is None:
+            pub.kill()
+        service.terminate()
+        service.wait(timeout=20)
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "soon"])
+def test_a_bad_resend_is_named(value):
+    from skin.errors import SkinError
+    from skin.stream.publish import check_publisher_url
+
+    with pytest.raises(SkinError, match="resend= wants a positive number"):
+        check_publisher_url(f"zenoh://lab?resend={value}")

@@ -47,7 +47,7 @@ def free_port() -> int:
 def publish(prefix: str, robot: str, connect: str, taxels: int = 1000, rate: float = 6.0,
             seconds: float | None = 10.0, count: int | None = None, first: int = 0,
             epoch: float | None = None, seed: int = 0, pose: str | None = None,
-            spacing: float = 0.0) -> dict[str, Any]:
+            spacing: float = 0.0, resend: float | None = None) -> dict[str, Any]:
     """Publish synthetic contacts of one robot through the real Zenoh publisher.
 
     Parameters
@@ -71,6 +71,8 @@ def publish(prefix: str, robot: str, connect: str, taxels: int = 1000, rate: flo
         The robot's base in the map frame, ``x,y,z,roll,pitch,yaw`` (m, rad).
     spacing : float
         Seconds between contacts (instead of ``rate``).
+    resend : float, optional
+        The publisher's ``resend=`` (re-send what the map has not acknowledged).
 
     Returns
     -------
@@ -90,7 +92,8 @@ def publish(prefix: str, robot: str, connect: str, taxels: int = 1000, rate: flo
         v = [float(x) for x in pose.split(",")]
         robot_pose = transform(v[:3], v[3:])
     materials = ["aluminium", "steel", "glass", "pine", "polypropylene", "foam"]
-    pub = open_publisher(f"zenoh://{prefix}?robot={robot}&connect={connect}", layout,
+    url = f"zenoh://{prefix}?robot={robot}&connect={connect}"
+    pub = open_publisher(url + (f"&resend={resend}" if resend else ""), layout,
                          robot_pose=robot_pose)
     epoch = time.time() if epoch is None else epoch
     per_second = taxels * rate / 60.0
@@ -127,7 +130,9 @@ def publish(prefix: str, robot: str, connect: str, taxels: int = 1000, rate: flo
             next_at += spacing if spacing > 0 else arrivals.expovariate(per_second)
     finally:
         pub.close()
-    return {"robot": robot, "published": sent, "first": first, "last": k - 1}
+    return {"robot": robot, "published": sent, "first": first, "last": k - 1,
+            "resent": pub.sent["resent"],
+            "unacknowledged_at_close": pub.sent["unacknowledged_at_close"]}
 
 
 def _main(argv: list[str] | None = None) -> int:
@@ -145,6 +150,7 @@ def _main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--pose", default=None)
     p.add_argument("--spacing", type=float, default=0.0)
+    p.add_argument("--resend", type=float, default=None)
     p.add_argument("--wait", type=float, default=0.5,
                    help="seconds to let the session connect before the first contact")
     a = p.parse_args(argv)
@@ -152,7 +158,7 @@ def _main(argv: list[str] | None = None) -> int:
 
     time.sleep(a.wait)
     out = publish(a.prefix, a.robot, a.connect, a.taxels, a.rate, a.seconds, a.count, a.first,
-                  a.epoch, a.seed, a.pose, a.spacing)
+                  a.epoch, a.seed, a.pose, a.spacing, a.resend)
     print(json.dumps(out), flush=True)
     return 0
 

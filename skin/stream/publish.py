@@ -10,7 +10,9 @@ URL                            publisher
 ``zenoh://[PREFIX][?...]``     `skin.stream.publish_zenoh.ZenohPublisher` (eclipse-zenoh):
                                ``<PREFIX>/<robot>/temperature``, ``/contacts``, ``/health``;
                                query: ``robot=``, ``listen=``/``connect=`` endpoints (comma
-                               separated, e.g. ``tcp/127.0.0.1:7447``), ``mode=`` peer|client
+                               separated, e.g. ``tcp/127.0.0.1:7447``), ``mode=`` peer|client,
+                               ``resend=S``: re-send contacts a shared map service has not
+                               acknowledged within S seconds
 ``foxglove://HOST:PORT``       `skin.stream.publish_foxglove.FoxglovePublisher`: a Foxglove
                                WebSocket server (foxglove-sdk)
 =============================  ==============================================================
@@ -221,7 +223,7 @@ def _query(url: str) -> tuple[Any, dict[str, str]]:
     return parts, query
 
 
-_OPTIONS = {"zenoh": {"robot", "listen", "connect", "mode"}, "foxglove": {"robot"}}
+_OPTIONS = {"zenoh": {"robot", "listen", "connect", "mode", "resend"}, "foxglove": {"robot"}}
 _PACKAGES = {"zenoh": ("zenoh", "publishing over Zenoh"),
              "foxglove": ("foxglove", "the Foxglove server")}
 
@@ -249,6 +251,13 @@ def check_publisher_url(url: str) -> None:
             parts.port  # noqa: B018 (parsing it is the check)
         except ValueError:
             raise SkinError(f"{url}: the port is not a number from 0 to 65535") from None
+    if "resend" in query:
+        try:
+            ok = float(query["resend"]) > 0
+        except ValueError:
+            ok = False
+        if not ok:
+            raise SkinError(f"{url}: resend= wants a positive number of seconds")
     require(*_PACKAGES[parts.scheme])
 
 
@@ -293,7 +302,8 @@ def open_publisher(url: str, layout: Layout, robot: str | None = None,
         links = arm.poses() if set(layout.links) <= set(arm.links) else None
         return ZenohPublisher(layout, prefix=prefix, robot=name, listen=endpoints("listen"),
                               connect=endpoints("connect"), mode=query.get("mode"), url=url,
-                              robot_pose=robot_pose, link_poses=links)
+                              robot_pose=robot_pose, link_poses=links,
+                              resend=float(query["resend"]) if "resend" in query else None)
     if parts.scheme == "foxglove":
         from skin.stream.publish_foxglove import FoxglovePublisher
 
