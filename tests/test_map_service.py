@@ -283,3 +283,24 @@ def test_a_bad_resend_is_named(value):
 
     with pytest.raises(SkinError, match="resend= wants a positive number"):
         check_publisher_url(f"zenoh://lab?resend={value}")
+
+
+def test_a_reply_says_when_the_box_holds_more_voxels_than_it_carries(tmp_path, monkeypatch):
+    from skin.world import map_service
+    from skin.world.map_store import MapStore
+
+    with MapStore(tmp_path / "map.sqlite") as store:
+        for k in range(10):
+            store.add({"schema": "thermoskin.contact", "robot": "a", "contact": k,
+                       "onset": float(k), "probabilities": {"glass": 0.9, "oak": 0.1},
+                       "link_pose": np.eye(4).tolist(), "centroid": [0.02 * k, 0.0, 0.0]})
+    monkeypatch.setattr(map_service, "MAX_VOXELS", 4)
+    port = free_port()
+    with map_service.MapService(tmp_path / "map.sqlite", prefix="t",
+                                listen=[f"tcp/127.0.0.1:{port}"]) as service:
+        full = json.loads(service.answer("voxels", {"box": "-1,-1,-1,1,1,1"}))
+        assert (full["count"], full["truncated"], len(full["voxels"])) == (4, True, 4)
+        some = json.loads(service.answer("voxels", {"box": "-1,-1,-1,1,1,1", "limit": "3"}))
+        assert (some["count"], some["truncated"], len(some["voxels"])) == (3, False, 3)
+        small = json.loads(service.answer("voxels", {"box": "-0.01,-1,-1,0.05,1,1"}))
+        assert (small["count"], small["truncated"]) == (3, False)

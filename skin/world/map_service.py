@@ -10,7 +10,10 @@ selector                                        reply (one JSON document)
 ==============================================  ===============================================
 ``<prefix>/map/voxels?box=x0,y0,z0,x1,y1,z1``   ``thermoskin.map_voxels``: ``voxels`` (each
 ``[;material=M][;family=F][;limit=N]``          with cell, center, label, confidence, family,
-                                                posterior, contacts, first/last seen, robots)
+                                                posterior, contacts, first/last seen, robots),
+                                                ``count``, ``truncated`` (more than
+                                                `MAX_VOXELS` in the box: the first in key
+                                                order)
 ``<prefix>/map/acks?robot=R[;since=T]``         ``thermoskin.map_acks``: ``contacts``, rows of
                                                 ``[contact, onset, final]`` stored for robot R
                                                 (``since``: stored at or after Unix time T)
@@ -41,6 +44,8 @@ from skin.world.map_store import MapInputError, MapStore, Placed, place
 
 log = logging.getLogger(__name__)
 VERSION = 1
+#: Most voxels one reply carries; a larger box's reply says ``"truncated": true``.
+MAX_VOXELS = 200_000
 
 
 def _payload(schema: str, **fields: Any) -> bytes:
@@ -173,10 +178,16 @@ class MapService:
             limit = params.get("limit")
             if limit is not None and (not limit.isdigit() or int(limit) < 1):
                 raise SkinError(f"limit={limit!r}: a positive integer expected")
-            text = self.reader.query_json(params["box"], material=params.get("material"),
-                                          family=params.get("family"),
-                                          limit=None if limit is None else int(limit))
-            head = _payload("thermoskin.map_voxels", voxel=self.reader.voxel)
+            cap = min(MAX_VOXELS, int(limit)) if limit is not None else MAX_VOXELS
+            ask = {"material": params.get("material"), "family": params.get("family")}
+            text = self.reader.query_json(params["box"], limit=cap + 1, **ask)
+            count = text.count('{"cell":')  # one per voxel (a key inside a string is escaped)
+            truncated = count > cap and limit is None
+            if count > cap:
+                text = self.reader.query_json(params["box"], limit=cap, **ask)
+                count = cap
+            head = _payload("thermoskin.map_voxels", voxel=self.reader.voxel, count=count,
+                            truncated=truncated)
             return head[:-1] + b',"voxels":' + text.encode() + b"}"
         if what == "acks":
             robot = params.get("robot")

@@ -106,8 +106,12 @@ class SharedMap:
         from skin.world.map_store import parse_box
 
         b = parse_box(box)  # checked here, before anything is sent
-        return self._get("voxels", {"box": ",".join(repr(v) for v in b), "material": material,
-                                    "family": family, "limit": limit})["voxels"]
+        reply = self._get("voxels", {"box": ",".join(repr(v) for v in b), "material": material,
+                                     "family": family, "limit": limit})
+        if reply.get("truncated"):
+            raise SkinError(f"box {','.join(f'{v:g}' for v in b)} holds more than "
+                            f"{reply['count']} voxels: ask a smaller box or give a limit")
+        return reply["voxels"]
 
     def acks(self, robot: str, since: float | None = None) -> list[list[Any]]:
         """Return ``[contact, onset, final]`` of every contact of ``robot`` the map holds."""
