@@ -264,6 +264,8 @@ class MapStore:
             raise MapStoreError(f"threshold {threshold!r}: a probability in (0, 1] expected")
         self.path = str(path)
         self.threshold = 0.5 if threshold is None else float(threshold)
+        if self.path != ":memory:" and not Path(self.path).parent.is_dir():
+            raise MapStoreError(f"{self.path}: no such folder {Path(self.path).parent}")
         try:
             self.db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None)
             self.db.execute("PRAGMA journal_mode=WAL")
