@@ -139,6 +139,8 @@ def test_the_map_persists_and_keeps_its_voxel_size(tmp_path):
     db.close()
     with pytest.raises(MapStoreError, match=r"someone\.else/3"):
         MapStore(other)
+    with pytest.raises(MapStoreError, match="no such folder"):
+        MapStore(tmp_path / "missing" / "m.sqlite")
 
 
 @pytest.mark.parametrize("text", ["1,2,3", "a,b,c,d,e,f", "0,0,0,1,1,inf", "1,2,3,4,5,6,7"])
