@@ -34,6 +34,7 @@ from __future__ import annotations
 import json
 import logging
 import queue
+import sqlite3
 import threading
 import time
 from pathlib import Path
@@ -87,6 +88,7 @@ class MapService:
         self.malformed = 0
         self.received = 0
         self.duplicates = 0
+        self.store_errors = 0
         self._inbox: queue.SimpleQueue = queue.SimpleQueue()
         self._stop = threading.Event()
         self._session = open_session(listen, connect, mode)
@@ -112,7 +114,12 @@ class MapService:
                     batch.append(self._inbox.get_nowait())
                 except queue.Empty:
                     break
-            self._store(batch)
+            try:
+                self._store(batch)
+            except sqlite3.Error as exc:  # a full disk, a locked file: nothing acknowledged
+                self.store_errors += 1
+                log.error("could not store %d contact payloads (not acknowledged): %s",
+                          len(batch), exc)
 
     def _store(self, batch: list[tuple[str, bytes]]) -> None:
         placed: list[Placed] = []
@@ -202,7 +209,7 @@ class MapService:
         if what == "stats":
             return _payload("thermoskin.map_stats", **self.reader.stats(),
                             received=self.received, malformed=self.malformed,
-                            duplicates=self.duplicates)
+                            duplicates=self.duplicates, store_errors=self.store_errors)
         raise SkinError(f"unknown map key {what!r} (keys: voxels, acks, stats)")
 
     def close(self) -> None:
