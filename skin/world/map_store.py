@@ -12,14 +12,15 @@ its chain standing still); without them the robot stands at the map's origin and
 looked up in the default arm (`skin.world.kinematics.default_chain`) at its default angles. A
 contact whose link has no pose is refused (`MapInputError`) rather than placed somewhere wrong.
 
-Each voxel keeps (column ``evidence``, a JSON object of material: [sum, count]), per
-material, the sum of ``log max(p, FLOOR)`` of the contacts'
-``probabilities`` and how many contacts named it; the posterior is the softmax of those sums
-(each contact a likelihood under a uniform prior, contacts treated as independent), named with
-`skin.models.materials.hierarchical_answer`: the material if its posterior reaches
-``threshold``, else its family, else ``"unknown"`` (as a voxel with no probabilities at all).
-Besides, first and last seen (the contacts' host onset, Unix s), the contact count and the
-robots that touched it.
+Each voxel keeps, per material, the sum of ``log max(p, FLOOR)`` of its contacts'
+``probabilities`` and how many contacts named it (column ``evidence``, JSON material: [sum,
+count]); a contact that did not name a material counts it at `FLOOR`. The posterior is the
+softmax of those sums (each contact a likelihood under a uniform prior, contacts treated as
+independent: repeated touches of one object make it confident quickly), named with
+`skin.models.materials.hierarchical_answer` when the voxel is written: the material if its
+posterior reaches ``threshold``, else its family, else ``"unknown"`` (as a voxel no contact
+gave probabilities for). Besides, first and last seen (the contacts' host onset, Unix s), the
+contact count and the robots that touched it.
 
 A contact is counted once: its key is (robot, contact id, onset: host time if given, else
 device time), so a contact re-sent after a reconnect is a duplicate; a final result replaces
