@@ -45,6 +45,8 @@ def test_position_is_robot_pose_times_link_pose_times_centroid():
 @pytest.mark.parametrize("change, words", [
     ({"schema": "thermoskin.health"}, "not a thermoskin.contact"),
     ({"robot": ""}, "'robot'"),
+    ({"robot": "a/b"}, "'robot'"),
+    ({"link_pose": [["x"] * 4] * 4}, "'link_pose'"),
     ({"contact": "7"}, "'contact'"),
     ({"centroid": [0, 1]}, "'centroid'"),
     ({"centroid": [0, float("nan"), 1]}, "'centroid'"),

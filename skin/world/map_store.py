@@ -87,7 +87,10 @@ class AddResult:
 
 
 def _pose(value: Any, where: str) -> np.ndarray:
-    m = np.asarray(value, dtype=float)
+    try:
+        m = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        m = np.zeros(0)
     if m.shape != (4, 4) or not np.all(np.isfinite(m)):
         raise MapInputError(f"{where}: must be a 4x4 matrix of finite numbers")
     r = m[:3, :3]
@@ -130,8 +133,10 @@ def place(msg: Mapping[str, Any], voxel: float) -> Placed:
     if msg.get("schema") != "thermoskin.contact":
         raise MapInputError(f"not a thermoskin.contact payload (schema {msg.get('schema')!r})")
     robot = msg.get("robot")
-    if not isinstance(robot, str) or not robot:
-        raise MapInputError("field 'robot' must be a non-empty string")
+    if not isinstance(robot, str) or not robot or not all(c.isalnum() or c in "-_"
+                                                          for c in robot):
+        raise MapInputError(f"field 'robot' must be a name of letters, digits, - and _ "
+                            f"(got {robot!r})")
     contact = msg.get("contact")
     if isinstance(contact, bool) or not isinstance(contact, int):
         raise MapInputError(f"field 'contact' must be an integer (got {contact!r})")
