@@ -74,6 +74,15 @@ def test_a_contact_counts_once_and_a_final_result_replaces_the_provisional(tmp_p
     (v,) = store.query((-1, -1, -1, 2, 2, 2))
     assert v.contacts == 2 and v.label == "aluminium"
     assert v.posterior["aluminium"] == pytest.approx(0.81 / (0.81 + 0.01))
+    # a provisional placed elsewhere, then its final answer: the first voxel is empty again
+    store.add(contact(9, final=False, decided_at=3.0, centroid=(0.5, 0.5, 0.5),
+                      link_pose=np.eye(4).tolist()))
+    assert len(store.query((0.4, 0.4, 0.4, 0.6, 0.6, 0.6))) == 1
+    store.add(contact(9, final=True, decided_at=4.0, centroid=(0.7, 0.5, 0.5),
+                      link_pose=np.eye(4).tolist()))
+    assert [v.cell for v in store.query((0.4, 0.4, 0.4, 0.8, 0.6, 0.6))] == [(70, 50, 50)]
+    store.db.execute("DELETE FROM contacts WHERE contact=9")  # (back to the case below)
+    store.db.execute("DELETE FROM voxels WHERE ix >= 50")
     # an older provisional arriving late changes nothing
     assert store.add(contact(2, probs={"pine": 1.0}, final=False, decided_at=3.5)).duplicates == 1
     assert store.stats() == {"voxels": 1, "contacts": 2, "robots": {"a": 2}, "voxel": 0.01,

@@ -496,7 +496,7 @@ class MapStore:
         else:
             within = ("SELECT id FROM voxels WHERE ix BETWEEN ? AND ? AND iy BETWEEN ? AND ? "
                       "AND iz BETWEEN ? AND ?")
-        where, args = [], [x0, x1, y0, y1, z0, z1]
+        where, args = ["v.contacts > 0"], [x0, x1, y0, y1, z0, z1]  # 0: a provisional moved
         if material is not None:
             where.append("v.label = ?")
             args.append(material)
@@ -505,8 +505,8 @@ class MapStore:
             args.append(family)
         return ("SELECT v.ix, v.iy, v.iz, v.contacts, v.first_seen, v.last_seen, v.robots, "
                 "v.label, v.confidence, v.family, v.family_confidence, v.posterior FROM "
-                f"({within}) AS b CROSS JOIN voxels AS v ON v.id = b.id"
-                + (f" WHERE {' AND '.join(where)}" if where else ""), args)
+                f"({within}) AS b CROSS JOIN voxels AS v ON v.id = b.id "
+                f"WHERE {' AND '.join(where)}", args)
 
     def rows(self, box: str | Sequence[float], material: str | None = None,
              family: str | None = None, limit: int | None = None) -> list[tuple]:
