@@ -5,6 +5,7 @@ Three publisher processes (the real ZenohPublisher, `python -m skin.bench.map`) 
 publisher reconnecting to it; a publisher process re-sending contacts; malformed payloads.
 """
 
+import contextlib
 import importlib.util
 import json
 import os
@@ -37,6 +38,15 @@ def finished(proc, timeout=30):
     return json.loads(out.strip().splitlines()[-1])
 
 
+@contextlib.contextmanager
+def in_process_service(db, port):
+    """The map service in this process (the subprocess tests run `skin map serve` itself)."""
+    from skin.world.map_service import MapService
+
+    with MapService(db, prefix="t", listen=[f"tcp/127.0.0.1:{port}"]) as service:
+        yield service
+
+
 def wait_for(predicate, timeout=10.0):
     end = time.monotonic() + timeout
     while time.monotonic() < end:
@@ -51,9 +61,8 @@ def test_three_robots_one_service_and_queries(tmp_path):
     from skin.world.shared_map import SharedMap
 
     port = free_port()
-    service = start_service(tmp_path / "map.sqlite", port, "t")
     url = f"zenoh://t?connect=tcp/127.0.0.1:{port}"
-    try:
+    with in_process_service(tmp_path / "map.sqlite", port):
         procs = [publisher(port, f"r{i}", "--count", "25", "--spacing", "0.01", "--seed", str(i),
                            "--pose", f"{3.0 * i},0,0,0,0,{0.5 * i}") for i in range(3)]
         sent = [finished(p) for p in procs]
@@ -97,9 +106,6 @@ def test_three_robots_one_service_and_queries(tmp_path):
             mine = [v for v in everything if v["robots"] == ["r0"]]
             assert drawn["contacts"] == sum(v["contacts"] for v in mine) == 25
             assert drawn["voxels"] == len(mine) and png.stat().st_size > 10_000
-    finally:
-        service.terminate()
-        service.wait(timeout=20)
 
 
 def test_malformed_payloads_are_counted_and_skipped(tmp_path):
@@ -181,9 +187,8 @@ def test_a_publisher_resending_after_a_restart_is_counted_once(tmp_path):
     from skin.world.shared_map import SharedMap
 
     port = free_port()
-    service = start_service(tmp_path / "map.sqlite", port, "t")
     epoch = str(time.time())
-    try:
+    with in_process_service(tmp_path / "map.sqlite", port):
         first = publisher(port, "arm", "--count", "30", "--spacing", "0.005", "--epoch", epoch)
         assert finished(first)["last"] == 29
         # the robot's process restarts and re-sends its last 10 contacts, then goes on
@@ -195,9 +200,6 @@ def test_a_publisher_resending_after_a_restart_is_counted_once(tmp_path):
             assert [r[0] for r in rows] == list(range(50))
             stats = wait_for(lambda: (s := shared.stats())["duplicates"] == 10 and s)
             assert stats["contacts"] == 50 and stats["received"] == 60
-    finally:
-        service.terminate()
-        service.wait(timeout=20)
 
 
 def test_skin_map_serve_refuses_a_bad_setup(tmp_path):
@@ -219,11 +221,10 @@ def test_skin_run_feeds_the_map_under_its_skin_file_name_and_pose(tmp_path):
     from skin.world.shared_map import SharedMap
 
     port = free_port()
-    service = start_service(tmp_path / "map.sqlite", port, "t")
     (tmp_path / "skin.toml").write_text(
         '[output]\nrobot = "west"\nrobot_pose = [2.0, 1.0, 0.0, 0.0, 0.0, 1.5707963]\n'
         f'publish = ["zenoh://t?connect=tcp/127.0.0.1:{port}"]\n')
-    try:
+    with in_process_service(tmp_path / "map.sqlite", port):
         run = subprocess.run([str(SKIN), "run", "--config", str(tmp_path / "skin.toml"),
                               "--duration", "8", "--speed", "0", "--out", str(tmp_path / "run"),
                               "--json", "--no-map"], capture_output=True, text=True, timeout=120)
@@ -245,9 +246,6 @@ def test_skin_run_feeds_the_map_under_its_skin_file_name_and_pose(tmp_path):
                 p = robot @ links[g["link"]] @ np.array([*g["centroid"], 1.0])
                 near = shared.query((*(p[:3] - 0.006), *(p[:3] + 0.006)))
                 assert any("west" in v["robots"] for v in near), (e["contact"], p)
-    finally:
-        service.terminate()
-        service.wait(timeout=20)
 
 
 def test_a_publisher_with_resend_loses_nothing_across_a_service_restart(tmp_path):
