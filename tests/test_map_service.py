@@ -96,14 +96,16 @@ def test_three_robots_one_service_and_queries(tmp_path):
         bad = subprocess.run([str(SKIN), "map", "query", "--map", url, "--box", "0,0,1"],
                              capture_output=True, text=True, timeout=30)
         assert bad.returncode == 2 and "box '0,0,1': six" in bad.stderr
-        # the shared map drawn around the arm (robot r0 stands at the map's origin)
+        # the shared map drawn around robot r1's arm, at its pose (x = 3 m, yaw 0.5 rad)
         if importlib.util.find_spec("pyvista") is not None:
             png = tmp_path / "view.png"
-            out = subprocess.run([str(SKIN), "view", "--map", url, "--out", str(png), "--json"],
-                                 capture_output=True, text=True, timeout=120)
+            out = subprocess.run([str(SKIN), "view", "--map", url, "--robot", "r1", "--out",
+                                  str(png), "--json"], capture_output=True, text=True,
+                                 timeout=120)
             assert out.returncode == 0, out.stderr
             drawn = json.loads(out.stdout)
-            mine = [v for v in everything if v["robots"] == ["r0"]]
+            assert drawn["robot"] == "r1" and drawn["box"][0] == pytest.approx(1.5)
+            mine = [v for v in everything if v["robots"] == ["r1"]]
             assert drawn["contacts"] == sum(v["contacts"] for v in mine) == 25
             assert drawn["voxels"] == len(mine) and png.stat().st_size > 10_000
 

@@ -82,17 +82,21 @@ def test_a_contact_counts_once_and_a_final_result_replaces_the_provisional(tmp_p
                       link_pose=np.eye(4).tolist()))
     assert [v.cell for v in store.query((0.4, 0.4, 0.4, 0.8, 0.6, 0.6))] == [(70, 50, 50)]
     store.db.execute("DELETE FROM contacts WHERE contact=9")  # (back to the case below)
+    store.db.execute("DELETE FROM voxel_box WHERE id IN (SELECT id FROM voxels WHERE ix >= 50)")
     store.db.execute("DELETE FROM voxels WHERE ix >= 50")
     # an older provisional arriving late changes nothing
     assert store.add(contact(2, probs={"pine": 1.0}, final=False, decided_at=3.5)).duplicates == 1
     assert store.stats() == {"voxels": 1, "contacts": 2, "robots": {"a": 2}, "voxel": 0.01,
-                             "index": "rtree"}
+                             "index": "rtree", "robot_poses": {"a": None}}
     # the same contact id from another robot, or another onset, is another contact
-    store.add(contact(1, robot="b"))
+    pose = transform((1.0, 2.0, 0.0), (0.0, 0.0, 0.3))
+    store.add(contact(1, robot="b", robot_pose=pose.tolist()))
+    store.add(contact(7, robot="b"))  # without a pose: the last one given is kept
+    assert np.allclose(store.robot_poses()["b"], pose)
     store.add(contact(1, host_onset=1.8e9))
-    assert store.stats()["contacts"] == 4
+    assert store.stats()["contacts"] == 5
     assert store.acks("a") == [[1, 1.7e9 + 1, True], [2, 1.7e9 + 2, True], [1, 1.8e9, True]]
-    assert store.query((-1, -1, -1, 2, 2, 2))[0].robots == ["a", "b"]
+    assert store.query((-1, -1, -1, 2, 2, 2))[0].robots == ["a", "b"]  # b's 7: default pose
 
 
 def test_posterior_names_material_family_or_unknown(tmp_path):

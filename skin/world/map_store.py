@@ -75,6 +75,7 @@ class Placed:
     position: tuple[float, float, float]
     logp: dict[str, float]
     host_decided_at: float | None = None
+    robot_pose: list[list[float]] | None = None
 
 
 @dataclass
@@ -158,8 +159,8 @@ def place(msg: Mapping[str, Any], voxel: float) -> Placed:
             raise MapInputError(f"link {link!r} has no pose: the payload has no 'link_pose' "
                                 "and the default arm has no such link")
         link_pose = found
-    robot_pose = (_pose(msg["robot_pose"], "field 'robot_pose'")
-                  if msg.get("robot_pose") is not None else np.eye(4))
+    given = msg.get("robot_pose") is not None
+    robot_pose = _pose(msg["robot_pose"], "field 'robot_pose'") if given else np.eye(4)
     world = robot_pose @ link_pose @ np.append(c, 1.0)
     cell = tuple(math.floor(float(v) / voxel) for v in world[:3])
     if any(abs(k) >= 2**31 - 1 for k in cell):
@@ -178,7 +179,8 @@ def place(msg: Mapping[str, Any], voxel: float) -> Placed:
                   final=bool(msg.get("final", True)),
                   decided_at=0.0 if decided is None else decided, cell=cell,  # type: ignore[arg-type]
                   position=tuple(float(v) for v in world[:3]),  # type: ignore[arg-type]
-                  logp=logp, host_decided_at=_number(msg, "host_decided_at", optional=True))
+                  logp=logp, host_decided_at=_number(msg, "host_decided_at", optional=True),
+                  robot_pose=robot_pose.tolist() if given else None)
 
 
 _SCHEMA = """
@@ -195,6 +197,8 @@ CREATE TABLE IF NOT EXISTS contacts (
     decided_at REAL NOT NULL, voxel INTEGER NOT NULL, logp TEXT NOT NULL,
     host_decided_at REAL, stored_at REAL NOT NULL,
     PRIMARY KEY (robot, contact, onset)) WITHOUT ROWID;
+CREATE TABLE IF NOT EXISTS robots (
+    robot TEXT PRIMARY KEY, pose TEXT, last_seen REAL NOT NULL) WITHOUT ROWID;
 """
 
 
@@ -349,6 +353,10 @@ class MapStore:
         db.execute("BEGIN IMMEDIATE")
         try:
             for c in contacts:
+                db.execute("INSERT INTO robots VALUES (?, ?, ?) ON CONFLICT(robot) DO UPDATE "
+                           "SET pose=coalesce(excluded.pose, pose), last_seen=excluded.last_seen",
+                           (c.robot, None if c.robot_pose is None else json.dumps(c.robot_pose),
+                            now))
                 old = db.execute("SELECT final, decided_at, voxel, logp FROM contacts WHERE "
                                  "robot=? AND contact=? AND onset=?",
                                  (c.robot, c.contact, c.onset)).fetchone()
@@ -423,11 +431,17 @@ class MapStore:
     # ---- reading ----
 
     def stats(self) -> dict[str, Any]:
-        """Voxels, contacts (per robot) and the voxel size."""
+        """Return voxels, contacts (per robot), robot poses, the voxel size and the index."""
         robots = dict(self.db.execute("SELECT robot, count(*) FROM contacts GROUP BY robot"))
         return {"voxels": self.db.execute("SELECT count(*) FROM voxels").fetchone()[0],
-                "contacts": sum(robots.values()), "robots": robots, "voxel": self.voxel,
+                "contacts": sum(robots.values()), "robots": robots,
+                "robot_poses": self.robot_poses(), "voxel": self.voxel,
                 "index": "rtree" if self.rtree else "btree"}
+
+    def robot_poses(self) -> dict[str, list[list[float]] | None]:
+        """Return each robot's last pose in the map frame (4x4; None if it never sent one)."""
+        return {r: None if p is None else json.loads(p)
+                for r, p in self.db.execute("SELECT robot, pose FROM robots ORDER BY robot")}
 
     def acks(self, robot: str, since: float | None = None) -> list[list[float]]:
         """Return the stored contacts of a robot as ``[contact, onset, final]`` rows."""
