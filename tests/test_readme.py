@@ -132,6 +132,7 @@ SKIPPED = {
     "skin bench publish": "publishers (optional extras)",
     "skin map": "a map service and robots on other machines (tests/test_map_service.py)",
     "skin bench map": "a map service, three robots and a 1 M-voxel map: minutes",
+    '--map "zenoh://': "a map service on another machine (tests/test_map_service.py)",
     "--firmware-sim": "the compiled firmware (tests/test_firmware_emulated.py runs it)",
     "xarm7": "the robots extra (URDF meshes)",
     "skin devices": "probes the machine's ports (tests/test_devices.py)",
