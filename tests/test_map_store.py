@@ -83,6 +83,7 @@ def test_a_contact_counts_once_and_a_final_result_replaces_the_provisional(tmp_p
     assert [v.cell for v in store.query((0.4, 0.4, 0.4, 0.8, 0.6, 0.6))] == [(70, 50, 50)]
     store.db.execute("DELETE FROM contacts WHERE contact=9")  # (back to the case below)
     store.db.execute("DELETE FROM voxel_box WHERE id IN (SELECT id FROM voxels WHERE ix >= 50)")
+    store.db.execute("DELETE FROM evidence WHERE voxel IN (SELECT id FROM voxels WHERE ix >= 50)")
     store.db.execute("DELETE FROM voxels WHERE ix >= 50")
     # an older provisional arriving late changes nothing
     assert store.add(contact(2, probs={"pine": 1.0}, final=False, decided_at=3.5)).duplicates == 1
@@ -183,7 +184,8 @@ def test_each_voxel_is_named_by_the_per_voxel_rule(tmp_path):
     assert sum(v.contacts for v in voxels) == 200
     for v in voxels:
         informed, text = store.db.execute(
-            "SELECT informed, evidence FROM voxels WHERE ix=? AND iy=? AND iz=?",
+            "SELECT informed, evidence FROM voxels JOIN evidence ON voxel = id "
+            "WHERE ix=? AND iy=? AND iz=?",
             v.cell).fetchone()
         ev = {m: tuple(x) for m, x in json.loads(text).items()}
         want = posterior_of(ev, informed)

@@ -290,11 +290,12 @@ def build_synthetic(path: Path, voxels: int, seed: int = 0, progress: bool = Tru
         part = cells[start:start + chunk]
         ids = range(start + 1, start + 1 + len(part))
         db.execute("BEGIN")
-        db.executemany("INSERT INTO voxels VALUES (?, ?, ?, ?, 1, 1, ?, ?, ?, 'synthetic', ?, "
+        db.executemany("INSERT INTO voxels VALUES (?, ?, ?, ?, 1, 1, ?, ?, 'synthetic', ?, "
                        "?, ?, ?, ?)",
-                       [(i, int(x), int(y), int(z), evidence[i % len(materials)], now, now,
-                         *answers[i % len(materials)])
+                       [(i, int(x), int(y), int(z), now, now, *answers[i % len(materials)])
                         for i, (x, y, z) in zip(ids, part, strict=True)])
+        db.executemany("INSERT INTO evidence VALUES (?, ?)",
+                       [(i, evidence[i % len(materials)]) for i in ids])
         if store.rtree:
             db.executemany("INSERT INTO voxel_box VALUES (?, ?, ?, ?, ?, ?, ?)",
                            [(i, int(x), int(x), int(y), int(y), int(z), int(z))

@@ -13,10 +13,11 @@ looked up in the default arm (`skin.world.kinematics.default_chain`) at its defa
 contact whose link has no pose is refused (`MapInputError`) rather than placed somewhere wrong.
 
 Each voxel keeps, per material, the sum of ``log max(p, FLOOR)`` of its contacts'
-``probabilities`` and how many contacts named it (column ``evidence``, JSON material: [sum,
-count]); a contact that did not name a material counts it at `FLOOR`. The posterior is the
-softmax of those sums (each contact a likelihood under a uniform prior, contacts treated as
-independent: repeated touches of one object make it confident quickly), named with
+``probabilities`` and how many contacts named it (table ``evidence``, JSON material: [sum,
+count], apart from the voxel rows queries read); a contact that did not name a material
+counts it at `FLOOR`. The posterior is the softmax of those sums (each contact a likelihood
+under a uniform prior, contacts treated as independent: repeated touches of one object make it
+confident quickly), named with
 `skin.models.materials.hierarchical_answer` when the voxel is written: the material if its
 posterior reaches ``threshold``, else its family, else ``"unknown"`` (as a voxel no contact
 gave probabilities for). Besides, first and last seen (the contacts' host onset, Unix s), the
@@ -187,11 +188,12 @@ _SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS voxels (
     id INTEGER PRIMARY KEY, ix INTEGER NOT NULL, iy INTEGER NOT NULL, iz INTEGER NOT NULL,
-    contacts INTEGER NOT NULL, informed INTEGER NOT NULL, evidence TEXT NOT NULL,
+    contacts INTEGER NOT NULL, informed INTEGER NOT NULL,
     first_seen REAL NOT NULL, last_seen REAL NOT NULL, robots TEXT NOT NULL,
     label TEXT NOT NULL, confidence REAL NOT NULL, family TEXT NOT NULL,
     family_confidence REAL NOT NULL, posterior TEXT NOT NULL,
     UNIQUE (ix, iy, iz));
+CREATE TABLE IF NOT EXISTS evidence (voxel INTEGER PRIMARY KEY, evidence TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS contacts (
     robot TEXT NOT NULL, contact INTEGER NOT NULL, onset REAL NOT NULL, final INTEGER NOT NULL,
     decided_at REAL NOT NULL, voxel INTEGER NOT NULL, logp TEXT NOT NULL,
@@ -387,12 +389,13 @@ class MapStore:
                               (ix, iy, iz)).fetchone()
         seen = c.onset if c.onset > 1e8 else now  # device time only: the time it arrived
         if row is None:
-            cur = self.db.execute("INSERT INTO voxels (ix, iy, iz, contacts, informed, evidence, "
+            cur = self.db.execute("INSERT INTO voxels (ix, iy, iz, contacts, informed, "
                                   "first_seen, last_seen, robots, label, confidence, family, "
-                                  "family_confidence, posterior) VALUES (?, ?, ?, 0, 0, '{}', "
+                                  "family_confidence, posterior) VALUES (?, ?, ?, 0, 0, "
                                   "?, ?, ?, 'unknown', 0, 'unknown', 0, '{}')",
                                   (ix, iy, iz, seen, seen, c.robot))
             vid = int(cur.lastrowid)  # type: ignore[arg-type]
+            self.db.execute("INSERT INTO evidence VALUES (?, '{}')", (vid,))
             if self.rtree:
                 self.db.execute("INSERT INTO voxel_box VALUES (?, ?, ?, ?, ?, ?, ?)",
                                 (vid, ix, ix, iy, iy, iz, iz))
@@ -410,8 +413,9 @@ class MapStore:
         """Add (``sign`` +1) or take back (-1) a contact's evidence; name the voxel anew."""
         from skin.models.materials import hierarchical_answer
 
-        text, informed = self.db.execute("SELECT evidence, informed FROM voxels WHERE id=?",
-                                         (voxel,)).fetchone()
+        text, informed = self.db.execute(
+            "SELECT e.evidence, v.informed FROM voxels AS v JOIN evidence AS e ON e.voxel = v.id "
+            "WHERE v.id=?", (voxel,)).fetchone()
         evidence = json.loads(text)
         for name, value in logp.items():
             s, n = evidence.get(name, (0.0, 0))
@@ -422,10 +426,12 @@ class MapStore:
             answer = hierarchical_answer(posterior, self.threshold, self._materials)
         else:
             answer = ("unknown", 0.0, "unknown", 0.0)
-        self.db.execute("UPDATE voxels SET contacts=contacts+?, informed=?, evidence=?, "
+        self.db.execute("UPDATE evidence SET evidence=? WHERE voxel=?",
+                        (json.dumps(evidence), voxel))
+        self.db.execute("UPDATE voxels SET contacts=contacts+?, informed=?, "
                         "label=?, confidence=?, family=?, family_confidence=?, posterior=? "
                         "WHERE id=?",
-                        (sign, informed, json.dumps(evidence), *answer,
+                        (sign, informed, *answer,
                          json.dumps({k: round(v, 6) for k, v in posterior.items()}), voxel))
 
     # ---- reading ----
