@@ -43,6 +43,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--threshold", type=float, default=None,
                    help="posterior a material (else its family) needs to be named, of a new "
                         "map (default 0.5)")
+    s.add_argument("--synchronous", choices=("full", "normal"), default="full",
+                   help="full: each acknowledged contact is on disk (fsync); normal: kept "
+                        "across a killed service, not a power cut, without fsync stalls")
     s.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
     s.add_argument("--status", type=float, default=10.0,
                    help="seconds between status lines (0: none)")
@@ -83,7 +86,8 @@ def serve(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGTERM, on_signal)
     say = (lambda line: None) if args.json else (lambda line: print(line, flush=True))
     with MapService(args.db, prefix=args.prefix, listen=args.listen, connect=args.connect,
-                    mode=args.mode, voxel=args.voxel, threshold=args.threshold) as service:
+                    mode=args.mode, voxel=args.voxel, threshold=args.threshold,
+                    synchronous=args.synchronous) as service:
         say(f"map service: {args.db} ({service.store.voxel:g} m voxels, "
             f"{service.store.stats()['voxels']} voxels) on {service.prefix}/*/contacts, "
             f"queries on {service.prefix}/map/**")

@@ -71,18 +71,21 @@ class MapService:
         Voxel side of a new map, m.
     threshold : float, optional
         Posterior a material, else a family, needs to be named (a new map's; default 0.5).
+    synchronous : str
+        ``FULL``: a contact is on disk (fsync) before it is acknowledged; ``NORMAL``: it
+        survives the service being killed, not a power cut, and spares the fsync's stalls.
     """
 
     def __init__(self, db: str | Path, prefix: str = "thermoskin",
                  listen: list[str] | None = None, connect: list[str] | None = None,
                  mode: str | None = None, voxel: float | None = None,
-                 threshold: float | None = None) -> None:
+                 threshold: float | None = None, synchronous: str = "FULL") -> None:
         from skin.stream.publish_zenoh import open_session
 
         if str(db) == ":memory:":
             raise SkinError("the map service needs a database file, not :memory:")
         self.prefix = prefix.strip("/") or "thermoskin"
-        self.store = MapStore(db, voxel=voxel, threshold=threshold)
+        self.store = MapStore(db, voxel=voxel, threshold=threshold, synchronous=synchronous)
         self.reader = MapStore(db)  # queries read beside the writer (WAL)
         self._read_lock = threading.Lock()
         self.malformed = 0

@@ -274,6 +274,8 @@ class MapStore:
             raise MapStoreError(f"voxel size {voxel!r}: a positive number of metres expected")
         if threshold is not None and not 0.0 < threshold <= 1.0:
             raise MapStoreError(f"threshold {threshold!r}: a probability in (0, 1] expected")
+        if str(synchronous).upper() not in ("OFF", "NORMAL", "FULL", "EXTRA"):
+            raise MapStoreError(f"synchronous {synchronous!r}: OFF, NORMAL, FULL or EXTRA")
         self.path = str(path)
         self.threshold = 0.5 if threshold is None else float(threshold)
         if self.path != ":memory:" and not Path(self.path).parent.is_dir():
@@ -281,7 +283,7 @@ class MapStore:
         try:
             self.db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None)
             self.db.execute("PRAGMA journal_mode=WAL")
-            self.db.execute(f"PRAGMA synchronous={synchronous}")
+            self.db.execute(f"PRAGMA synchronous={str(synchronous).upper()}")
             meta = self._meta()
         except sqlite3.DatabaseError as exc:
             raise MapStoreError(f"{self.path}: not a map database ({exc})") from None
