@@ -180,7 +180,7 @@ def start_service(db: Path, port: int, prefix: str = "bench", *extra: str
 
 
 def live(robots: int = 3, taxels: int = 1000, minutes: float = 1.0, rate: float = 6.0,
-         progress: bool = True) -> dict[str, Any]:
+         progress: bool = True, synchronous: str = "full") -> dict[str, Any]:
     """Run the live part (see the module docstring); return its figures."""
     from skin.stream.publish_zenoh import open_session
     from skin.world.shared_map import SharedMap
@@ -188,7 +188,7 @@ def live(robots: int = 3, taxels: int = 1000, minutes: float = 1.0, rate: float 
     prefix = "bench"
     port = free_port()
     folder = Path(tempfile.mkdtemp(prefix="skin-bench-map-"))
-    service = start_service(folder / "map.sqlite", port, prefix)
+    service = start_service(folder / "map.sqlite", port, prefix, "--synchronous", synchronous)
     endpoint = f"tcp/127.0.0.1:{port}"
     arrived: dict[tuple[str, int, float], float] = {}
     lock = threading.Lock()
@@ -254,7 +254,7 @@ def live(robots: int = 3, taxels: int = 1000, minutes: float = 1.0, rate: float 
         return round(latency[min(len(latency) - 1, int(q * len(latency)))] * 1e3, 2) \
             if latency else None
 
-    return {"robots": robots, "taxels": taxels, "minutes": minutes,
+    return {"robots": robots, "taxels": taxels, "minutes": minutes, "synchronous": synchronous,
             "rate_per_taxel_minute": rate, "published": total, "held": sum(held.values()),
             "lost": total - sum(held.values()), "per_robot": {"published": published,
                                                               "held": held},

@@ -26,6 +26,8 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
     m.add_argument("--repeats", type=int, default=20, help="timed 1 m^3 box queries (20)")
     m.add_argument("--db", default=None,
                    help="keep (or reuse) the synthetic map in this file (default: temporary)")
+    m.add_argument("--synchronous", choices=("full", "normal"), default="full",
+                   help="the service's SQLite synchronous setting (full)")
     m.add_argument("--skip", choices=("live", "query"), default=None,
                    help="leave out one part")
     m.add_argument("--json", action="store_true", help="print one JSON document")
@@ -45,7 +47,7 @@ def main_map(args: argparse.Namespace) -> int:
     if args.skip != "live":
         require("zenoh", "the shared map service")
         doc["live"] = bench.live(args.robots, args.taxels, args.minutes, args.rate,
-                                 progress=not args.json)
+                                 progress=not args.json, synchronous=args.synchronous)
     if args.skip != "query":
         doc["query"] = bench.query_time(args.voxels, args.repeats,
                                         db=Path(args.db) if args.db else None,
@@ -56,7 +58,8 @@ def main_map(args: argparse.Namespace) -> int:
     if "live" in doc:
         live = doc["live"]
         print(f"{live['robots']} robots x {live['taxels']} taxels x {live['minutes']:g} min at "
-              f"{live['rate_per_taxel_minute']:g} contacts per taxel-minute: published "
+              f"{live['rate_per_taxel_minute']:g} contacts per taxel-minute (synchronous "
+              f"{live['synchronous']}): published "
               f"{live['published']}, held by the map {live['held']}, lost {live['lost']} "
               "(target 0)")
         print(f"decision -> visible to queries (ack arrival): p50 {live['p50_visible_ms']} ms, "
