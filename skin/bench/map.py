@@ -25,6 +25,7 @@ import json
 import math
 import os
 import random
+import shutil
 import socket
 import subprocess
 import sys
@@ -247,6 +248,7 @@ def live(robots: int = 3, taxels: int = 1000, minutes: float = 1.0, rate: float 
         if at is not None and decided is not None:
             latency.append(at - decided)
     db.close()
+    shutil.rmtree(folder, ignore_errors=True)
     latency.sort()
     total = sum(published.values())
 
@@ -312,9 +314,18 @@ def build_synthetic(path: Path, voxels: int, seed: int = 0, progress: bool = Tru
 def query_time(voxels: int = 1_000_000, repeats: int = 20, seed: int = 0,
                db: Path | None = None, progress: bool = True) -> dict[str, Any]:
     """Time 1 m^3 box queries over a synthetic map (see the module docstring)."""
+    path = db or Path(tempfile.mkdtemp(prefix="skin-bench-map-")) / "big.sqlite"
+    try:
+        return _query_time(path, voxels, repeats, seed, progress)
+    finally:
+        if db is None:
+            shutil.rmtree(path.parent, ignore_errors=True)
+
+
+def _query_time(path: Path, voxels: int, repeats: int, seed: int, progress: bool
+                ) -> dict[str, Any]:
     from skin.world.map_store import MapStore
 
-    path = db or Path(tempfile.mkdtemp(prefix="skin-bench-map-")) / "big.sqlite"
     built = time.perf_counter()
     if not path.exists():
         build_synthetic(path, voxels, seed, progress)
