@@ -115,6 +115,9 @@ class Protocol:
         recording run (default (0, 0): objects rest at ambient; ``(-8, 8)`` gives cold and
         warm objects, a piece of wood from outdoors or from a sunny window sill).
         Heat-generating materials keep their own temperature.
+    object_memory : float
+        Share of a touch's surface warming that the next touch of the object meets (after its
+        diffusive decay); 0: every touch meets the object at its resting temperature.
     """
 
     trials: int = 500
@@ -135,6 +138,7 @@ class Protocol:
     reheat_time_constant: float = 62.5
     object_offset: tuple[float, float] | float = (0.0, 0.0)
     channels: tuple[str, ...] = ("heated",)
+    object_memory: float = 0.5
 
 
 def parse_channel(spec: str) -> tuple[bool, float | None]:
@@ -401,7 +405,7 @@ def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorDescrip
         # release after the hold, then reheat; the object keeps some of the heat it took
         end = float(contact_reading(hold[j], t0, tobj, e_o, s, h[j], amb[j]))
         surf = float((s.effusivity * t0 + e_o * tobj) / (s.effusivity + e_o))
-        warm = (surf - base) * np.sqrt(hold[j] / (hold[j] + after[j])) * 0.5
+        warm = (surf - base) * np.sqrt(hold[j] / (hold[j] + after[j])) * p.object_memory
         excess = max(warm, 0.0)
         sensor_now = full - (full - end) * np.exp(-after[j] / tau)
 

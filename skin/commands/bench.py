@@ -150,8 +150,55 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     spread.add_argument("--seed", type=int, default=0, help="seed")
     spread.add_argument("--json", action="store_true", help="print one JSON document")
     spread.set_defaults(func=main_spread)
+    nui = kinds.add_parser("nuisance", help="what each nuisance of the synthetic benchmark "
+                                            "costs the classifiers (one fixed at a time)")
+    nui.add_argument("--variants", default=None,
+                     help="comma-separated (default all): " + ", ".join(
+                         ["protocol", "sensor_start", "object_temperature", "taxel_constants",
+                          "conductance", "onset", "adc_noise"]))
+    nui.add_argument("--methods", default="default,svm-pca,ceiling",
+                     help="methods of skin evaluate, and 'ceiling' (default,svm-pca,ceiling)")
+    nui.add_argument("--durations", default="0.5,1.5", help="contact durations, s (0.5,1.5)")
+    nui.add_argument("--trials", type=int, default=100, help="trials per material (100)")
+    nui.add_argument("--seed", type=int, default=7, help="seed of the datasets (7)")
+    nui.add_argument("--sensor", default=None, help="sensor preset (default: the paper's)")
+    nui.add_argument("--json", action="store_true", help="print one JSON document")
+    nui.set_defaults(func=main_nuisance)
     bench_drivers.add_parsers(kinds)
     bench_view.add_parsers(kinds)
+
+
+def main_nuisance(args: argparse.Namespace) -> int:
+    """``skin bench nuisance``: the synthetic benchmark with one nuisance fixed at a time."""
+    from skin import bench
+    from skin.bench.nuisance import VARIANTS, nuisance_table
+    from skin.errors import SkinError
+
+    variants = list(VARIANTS) if args.variants is None else \
+        [v.strip() for v in args.variants.split(",") if v.strip()]
+    bad = [v for v in variants if v not in VARIANTS]
+    if bad or args.trials < 3:
+        raise SkinError(f"unknown variant(s) {', '.join(bad)}; known: {', '.join(VARIANTS)}"
+                        if bad else "--trials must be at least 3 (3-fold cross-validation)")
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    durations = [float(d) for d in args.durations.split(",") if d.strip()]
+    progress = Progress()
+    rows = nuisance_table(variants, methods, durations, args.trials, args.seed, args.sensor,
+                          progress=progress.message)
+    progress.done()
+    if args.json:
+        print(json.dumps({"machine": bench.machine(), "seed": args.seed,
+                          "sensor": args.sensor or "paper", "variants": VARIANTS,
+                          "rows": rows}))
+        return 0
+    print(f"accuracy, 3-fold, {args.trials} trials per material, seed {args.seed}, sensor "
+          f"{args.sensor or 'paper'}; each row fixes one nuisance:")
+    cols = [(m, d) for d in durations for m in methods]
+    print(f"{'fixed':<20}" + "".join(f"{m[:9]:>10} {d:<4g}" for m, d in cols))
+    for v in variants:
+        acc = {(r["method"], r["duration"]): r["accuracy"] for r in rows if r["variant"] == v}
+        print(f"{v:<20}" + "".join(f"{acc[c]:>15.3f}" for c in cols))
+    return 0
 
 
 def main_thermal(args: argparse.Namespace) -> int:
