@@ -5,11 +5,11 @@ classifier's answer for a one-taxel contact rests on its prior on the object's t
 With a fixed broad prior (10 K) most one-taxel contacts come out "unknown"; the learned prior
 (`skin.models.joint.ObjectTemperaturePrior`) narrows it as far as the run's multi-taxel
 contacts, which pin their objects' temperatures, justify. `run` plays random scenes of short
-touches on the arm - a share of them by one taxel only, and optionally a share of the objects
-cold or warm - through the pipeline with both priors, and reports for one-taxel and
-multi-taxel contacts: material and family accuracy, "unknown", how many answers came at
-p >= 0.9 and how many of those were right, and the calibration error of the answers'
-probabilities.
+touches on the arm - a share of them by one taxel only, human skin among the objects, and
+optionally a share of the objects cold or warm - through the pipeline with both priors, and
+reports for one-taxel and multi-taxel contacts: material and family accuracy, "unknown",
+how many answers came at p >= 0.9 and how many of those were right, and the calibration
+error of the answers' probabilities.
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ def random_scene(touches: int = 60, single: float = 0.4, off: float = 0.0,
 
     A share ``single`` touch with one taxel, the others with one or two neighbours too; a
     share ``off`` of the touches is of an object ``offset`` K colder or warmer than the room.
+    Human skin (at 32 C, its own warmth) is one of the objects.
     """
     from skin.formats.layout import load_layout
     from skin.models import load_materials
@@ -41,12 +42,15 @@ def random_scene(touches: int = 60, single: float = 0.4, off: float = 0.0,
         for sign, word in ((-1, "cold"), (1, "warm")):
             lines += ["[[objects]]", f'name = "{word} {m}"', f'material = "{m}"',
                       f"temperature = {25.0 + sign * offset}"]
+    lines += ["[[objects]]", 'name = "human_skin"', 'material = "human_skin"',
+              "temperature = 32.0"]
+    objects = [*mats, "human_skin"]
     for k in range(touches):
         i = int(rng.integers(len(layout)))
         n_more = 0 if rng.uniform() < single else int(rng.integers(1, 3))
         ids = [int(layout.ids[j]) for j in (i, *rng.permutation(near[i])[:n_more])]
-        m = mats[int(rng.integers(len(mats)))]
-        if rng.uniform() < off:
+        m = objects[int(rng.integers(len(objects)))]
+        if m != "human_skin" and rng.uniform() < off:
             m = f"{'cold' if rng.uniform() < 0.5 else 'warm'} {m}"
         lines += ["[[touches]]", f'object = "{m}"', f"taxels = {ids}",
                   f"start = {1.0 + 3.0 * k}", f"duration = {float(rng.uniform(0.4, 2.5)):.3f}"]
