@@ -341,7 +341,12 @@ def simulate_trials(
                                     else h).ravel(),
                "true_sensor_depth": constants[:, 0],
                "true_sensor_diffusivity": constants[:, 1],
-               "true_sensor_conductivity": constants[:, 2], **extra_truth},
+               "true_sensor_conductivity": constants[:, 2],
+               # whether a reading is the closed form of the taxel's constants (the paper's
+               # chain: constant heater, no lag, no smoothing), which the ceiling assumes
+               "true_closed_form": np.full(total, base.heater == "constant" and base.lag == 0
+                                           and base.smoothing == "none"),
+               **extra_truth},
         source=f"simulated ({model}, seed {seed}"
                + ("" if sensor is None else f", sensor {base.name}") + ")",
     )

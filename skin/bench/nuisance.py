@@ -68,12 +68,20 @@ def nuisance_table(variants: Sequence[str], methods: Sequence[str],
         One row per (variant, method, duration): ``variant``, ``method``, ``duration``,
         ``accuracy``, ``accuracy_std`` and ``predict_ms_per_trial``.
     """
-    from skin.bench.ceiling import known_nuisance_ceiling
+    from skin.bench.ceiling import check_ceiling, known_nuisance_ceiling
     from skin.commands.evaluate import evaluate
+    from skin.errors import SkinError
 
     rows = []
     for v in variants:
         data = variant_data(v, trials, seed, sensor)
+        if "ceiling" in methods:
+            try:
+                check_ceiling(data)
+            except SkinError:  # another sensor's reading chain: no ceiling, say so
+                methods = [m for m in methods if m != "ceiling"]
+                if progress is not None:
+                    progress("no ceiling: the sensor does not read the paper's closed form")
         for d in durations:
             for m in methods:
                 if progress is not None:

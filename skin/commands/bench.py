@@ -239,6 +239,7 @@ def main_nuisance(args: argparse.Namespace) -> int:
         return 0
     print(f"accuracy, 3-fold, {args.trials} trials per material, seed {args.seed}, sensor "
           f"{args.sensor or 'paper'}; each row fixes one nuisance:")
+    methods = [m for m in methods if any(r["method"] == m for r in rows)]
     cols = [(m, d) for d in durations for m in methods]
     print(f"{'fixed':<20}" + "".join(f"{m[:9]:>10} {d:<4g}" for m, d in cols))
     for v in variants:

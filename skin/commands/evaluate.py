@@ -364,6 +364,10 @@ def main(args: argparse.Namespace) -> int:
     if args.cv < 2:
         raise SkinError("--cv must be at least 2")
     merge = _parse_merge(args.merge, data.classes)
+    if args.ceiling:  # before the work starts
+        from skin.bench.ceiling import check_ceiling
+
+        check_ceiling(test if test is not None else data)
     progress = Progress()
     started = time.monotonic()
     results = []
