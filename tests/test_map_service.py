@@ -304,3 +304,41 @@ def test_a_reply_says_when_the_box_holds_more_voxels_than_it_carries(tmp_path, m
         assert (some["count"], some["truncated"], len(some["voxels"])) == (3, False, 3)
         small = json.loads(service.answer("voxels", {"box": "-0.01,-1,-1,0.05,1,1"}))
         assert (small["count"], small["truncated"]) == (3, False)
+
+
+def test_a_moving_robot_is_placed_with_the_pose_that_held_at_each_onset(tmp_path):
+    from skin.stream.publish_zenoh import open_session
+    from skin.world.robot_poses import pose_payload
+    from skin.world.shared_map import SharedMap
+
+    port = free_port()
+    url = f"zenoh://t?connect=tcp/127.0.0.1:{port}"
+    with in_process_service(tmp_path / "map.sqlite", port) as service:
+        session = open_session(connect=[f"tcp/127.0.0.1:{port}"])
+        try:
+            time.sleep(0.5)
+            t0 = 1.7e9
+            # the robot drives along x: 0 m until t0 + 10, 5 m after, 9 m after t0 + 20
+            for dt, x in ((0.0, 0.0), (10.0, 5.0), (20.0, 9.0)):
+                session.put("t/mover/pose", pose_payload("mover", [x, 0, 0, 0, 0, 0], t0 + dt))
+            session.put("t/mover/pose", b'{"schema": "thermoskin.pose", "robot": "mover"}')
+            session.put("t/mover/pose", pose_payload("other", [0, 0, 0, 0, 0, 0], t0))
+            base = {"schema": "thermoskin.contact", "version": 1, "robot": "mover",
+                    "final": True, "decided_at": 1.5, "probabilities": {"glass": 0.9},
+                    "link": "forearm", "centroid": [0, 0, 0],
+                    # a static pose in the contact: the localisation wins
+                    "robot_pose": np.eye(4).tolist()}
+            for k, dt in enumerate((5.0, 15.0, 25.0, -3.0)):
+                session.put("t/mover/contacts", json.dumps(
+                    dict(base, contact=k, onset=dt, host_onset=t0 + dt)))
+            with SharedMap(url) as shared:
+                assert wait_for(lambda: len(shared.acks("mover")) == 4)
+                stats = shared.stats()
+                assert stats["pose_updates"] == 3 and stats["malformed"] == 2
+                # forearm at the default arm's pose, shifted by the robot's x at the onset
+                near = {x: sum(v["contacts"] for v in shared.query(
+                    (x - 1.5, -1.5, -1.5, x + 1.5, 1.5, 1.5))) for x in (0.0, 5.0, 9.0)}
+                assert near == {0.0: 2, 5.0: 1, 9.0: 1}, near
+        finally:
+            session.close()
+    assert service.pose_updates == 3

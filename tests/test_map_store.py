@@ -229,3 +229,22 @@ def test_query_json_by_sqlite_equals_the_python_rows(tmp_path):
         assert len(json.loads(store.query_json(box, limit=4))) == 4
         assert json.loads(store.query_json(box, family="metal")) == []
         assert json.loads(store.query_json((5, 5, 5, 6, 6, 6))) == []
+
+
+def test_robot_poses_answer_the_pose_at_a_time_and_stay_bounded():
+    from skin.world.robot_poses import RobotPoses, parse_pose, pose_payload
+
+    poses = RobotPoses(keep=3)
+    for t, x in ((3.0, 3.0), (1.0, 1.0), (2.0, 2.0), (4.0, 4.0)):  # out of order
+        poses.add("r", t, transform((x, 0, 0)))
+    assert "r" in poses and "s" not in poses and poses.at("s", 1.0) is None
+    assert [poses.at("r", t)[0][3] for t in (0.0, 2.5, 3.0, 9.0)] == [2.0, 2.0, 3.0, 4.0]
+    robot, t, m = parse_pose(json.loads(pose_payload("r", [1, 2, 3, 0, 0, math.pi / 2], 5.0)))
+    assert robot == "r" and t == 5.0
+    assert np.allclose(m, transform((1, 2, 3), (0, 0, math.pi / 2)))
+    for bad, words in (({"pose": [1, 2, 3]}, "'pose'"), ({"host_time": "now"}, "'host_time'"),
+                       ({"pose": (2 * np.eye(4)).tolist()}, "not a rigid transform"),
+                       ({"schema": "thermoskin.contact"}, "not a thermoskin.pose")):
+        msg = dict(json.loads(pose_payload("r", [0] * 6, 1.0)), **bad)
+        with pytest.raises(MapInputError, match=words):
+            parse_pose(msg)

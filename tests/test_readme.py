@@ -121,6 +121,9 @@ CI_SIZES = [
     (("skin", "evaluate-onset"), ["--taxels", "2", "--minutes", "1"]),
     (("skin", "bench", "spread"), ["--touches", "8"]),
     (("skin", "bench", "soak"), ["--hours", "0.01", "--taxels", "256"]),
+    (("skin", "bench", "nuisance"), ["--trials", "6", "--durations", "0.5", "--variants",
+                                     "onset", "--methods", "svm-pca"]),
+    (("skin", "bench", "object-prior"), ["--touches", "10"]),
 ]
 #: Lines not run, with the reason (hardware, a window, another machine, other extras).
 SKIPPED = {

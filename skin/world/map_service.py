@@ -21,6 +21,11 @@ selector                                        reply (one JSON document)
                                                 robot, malformed payloads, voxel size
 ==============================================  ===============================================
 
+Robots that move publish their base pose on ``<prefix>/<robot>/pose``
+(`skin.world.robot_poses`): a contact is then placed with the pose that held at its
+``host_onset`` (the static ``robot_pose`` a contact carries is the fallback for a robot that
+publishes none). Pose updates and contacts are handled in the order they arrive.
+
 A bad selector gets an error reply naming the problem. Acknowledgements are also pushed: after
 each committed batch, ``<prefix>/map/acks/<robot>`` carries ``thermoskin.map_ack`` with
 ``contacts`` (``[contact, onset]`` rows of that robot just stored or already held) and
@@ -42,6 +47,7 @@ from typing import Any
 
 from skin.errors import SkinError
 from skin.world.map_store import MapInputError, MapStore, Placed, place
+from skin.world.robot_poses import RobotPoses, parse_pose
 
 log = logging.getLogger(__name__)
 VERSION = 1
@@ -92,6 +98,8 @@ class MapService:
         self.received = 0
         self.duplicates = 0
         self.store_errors = 0
+        self.poses = RobotPoses()
+        self.pose_updates = 0
         self._inbox: queue.SimpleQueue = queue.SimpleQueue()
         self._stop = threading.Event()
         self._session = open_session(listen, connect, mode)
@@ -100,6 +108,9 @@ class MapService:
         self._writer.start()
         self._sub = self._session.declare_subscriber(
             f"{self.prefix}/*/contacts",
+            lambda s: self._inbox.put((str(s.key_expr), s.payload.to_bytes())))
+        self._pose_sub = self._session.declare_subscriber(
+            f"{self.prefix}/*/pose",
             lambda s: self._inbox.put((str(s.key_expr), s.payload.to_bytes())))
         self._queryable = self._session.declare_queryable(f"{self.prefix}/map/**", self._answer)
 
@@ -127,9 +138,16 @@ class MapService:
     def _store(self, batch: list[tuple[str, bytes]]) -> None:
         placed: list[Placed] = []
         for key, data in batch:
+            if key.endswith("/pose"):
+                self._pose_update(key, data)
+                continue
             self.received += 1
             try:
                 msg = json.loads(data)
+                robot = key.split("/")[-2]
+                onset = msg.get("host_onset") if isinstance(msg, dict) else None
+                if robot in self.poses and isinstance(onset, int | float):
+                    msg["robot_pose"] = self.poses.at(robot, float(onset))
                 p = place(msg, self.store.voxel)
                 if key.split("/")[-2] != p.robot:
                     raise MapInputError(f"robot {p.robot!r} published on another robot's key")
@@ -153,6 +171,18 @@ class MapService:
                     f"{self.prefix}/map/acks/{robot}")
             pub.put(_payload("thermoskin.map_ack", robot=robot, contacts=rows,
                              stored_at=round(stored_at, 6)))
+
+    def _pose_update(self, key: str, data: bytes) -> None:
+        try:
+            robot, host_time, pose = parse_pose(json.loads(data))
+            if key.split("/")[-2] != robot:
+                raise MapInputError(f"robot {robot!r} published on another robot's key")
+        except (ValueError, MapInputError) as exc:
+            self.malformed += 1
+            log.warning("%s: skipped a malformed pose payload: %s", key, exc)
+            return
+        self.poses.add(robot, host_time, pose)
+        self.pose_updates += 1
 
     # ---- queries ----
 
@@ -212,6 +242,7 @@ class MapService:
         if what == "stats":
             return _payload("thermoskin.map_stats", **self.reader.stats(),
                             received=self.received, malformed=self.malformed,
+                            pose_updates=self.pose_updates,
                             duplicates=self.duplicates, store_errors=self.store_errors)
         raise SkinError(f"unknown map key {what!r} (keys: voxels, acks, stats)")
 
@@ -220,6 +251,7 @@ class MapService:
         if self._stop.is_set():
             return
         self._sub.undeclare()
+        self._pose_sub.undeclare()
         self._queryable.undeclare()
         self._stop.set()
         self._writer.join()

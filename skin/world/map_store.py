@@ -88,7 +88,8 @@ class AddResult:
     duplicates: int = 0
 
 
-def _pose(value: Any, where: str) -> np.ndarray:
+def check_pose(value: Any, where: str) -> np.ndarray:
+    """Return a 4x4 rigid transform, or raise `MapInputError` naming ``where``."""
     try:
         m = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
@@ -153,7 +154,7 @@ def place(msg: Mapping[str, Any], voxel: float) -> Placed:
         raise MapInputError(f"field 'centroid' must be 3 finite numbers (got {centroid!r})")
     link = msg.get("link")
     if "link_pose" in msg and msg["link_pose"] is not None:
-        link_pose = _pose(msg["link_pose"], "field 'link_pose'")
+        link_pose = check_pose(msg["link_pose"], "field 'link_pose'")
     else:
         found = _default_link_pose(link) if isinstance(link, str) else None
         if found is None:
@@ -161,7 +162,7 @@ def place(msg: Mapping[str, Any], voxel: float) -> Placed:
                                 "and the default arm has no such link")
         link_pose = found
     given = msg.get("robot_pose") is not None
-    robot_pose = _pose(msg["robot_pose"], "field 'robot_pose'") if given else np.eye(4)
+    robot_pose = check_pose(msg["robot_pose"], "field 'robot_pose'") if given else np.eye(4)
     world = robot_pose @ link_pose @ np.append(c, 1.0)
     cell = tuple(math.floor(float(v) / voxel) for v in world[:3])
     if any(abs(k) >= 2**31 - 1 for k in cell):
