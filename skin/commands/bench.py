@@ -152,6 +152,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     spread.set_defaults(func=main_spread)
     bench_drivers.add_parsers(kinds)
     bench_view.add_parsers(kinds)
+    from skin.bench import onset_shape
+
+    onset_shape.add_parser(kinds)
 
 
 def main_thermal(args: argparse.Namespace) -> int:
