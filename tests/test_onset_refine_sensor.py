@@ -35,8 +35,9 @@ def test_the_sensor_response_dates_a_slow_sensor_contact(name: str) -> None:
     assert abs(plain - t_on) > 3 * abs(own - t_on)
 
 
-def test_the_paper_sensor_keeps_eq_5_and_the_span() -> None:
-    paper = load_sensor("paper")
+@pytest.mark.parametrize("name", ["paper", "fast-film"])
+def test_a_fast_sensor_keeps_eq_5_and_the_span(name: str) -> None:
+    paper = load_sensor(name)  # fast-film's 8 ms moving average is below the grid's scale
     assert refine_span(paper) == (0.6, 0.6)
     assert refine_span(None) == (0.6, 0.6)
     t = np.linspace(30.0, 31.2, 241)
