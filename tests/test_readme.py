@@ -33,7 +33,7 @@ USERS_OWN = {
 }
 #: Options whose value is a file the command reads, and those it writes.
 READS = {"--data", "--train", "--test", "--from", "--model", "--poses", "--calibration",
-         "--scene", "--arm", "--map"}
+         "--scene", "--arm", "--map", "--labels"}
 WRITES = {"-o", "--out", "--record", "--video", "--plot", "--log-file"}
 SHIPPED = {"default", "arm", "xarm7"}  # shipped scene, layout and arm names
 
