@@ -49,3 +49,14 @@ def test_shape_separability_reports_its_figures() -> None:
     for name in ("energy", "versus"):
         assert out[name]["free_alarms_per_taxel_hour"] <= 0.1 + 1e-9
         assert set(out[name]["detected_within_s"]) == {"1", "2", "4"}
+
+
+def test_skin_bench_onset_shape_prints_one_json_document(capsys) -> None:
+    import json
+
+    from skin.cli import main
+
+    assert main(["bench", "onset-shape", "--sensor", "fast-film", "--minutes", "0.5",
+                 "--taxels", "2", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["sensor"] == "fast-film" and "energy" in doc and "versus" in doc

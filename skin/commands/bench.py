@@ -57,7 +57,7 @@ import json
 import time
 from pathlib import Path
 
-from skin.commands import bench_drivers, bench_view
+from skin.commands import bench_drivers, bench_onset_shape, bench_view
 from skin.progress import Progress
 
 
@@ -152,9 +152,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     spread.set_defaults(func=main_spread)
     bench_drivers.add_parsers(kinds)
     bench_view.add_parsers(kinds)
-    from skin.bench import onset_shape
-
-    onset_shape.add_parser(kinds)
+    bench_onset_shape.add_parsers(kinds)
 
 
 def main_thermal(args: argparse.Namespace) -> int:
