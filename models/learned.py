@@ -33,10 +33,16 @@ class LearnedClassifier:
         A model file path, or the dictionary `skin.models.modelfile.load_model` returns.
     threshold : float
         Fused probability needed to name a material.
+    object_range : float
+        K objects may be colder or warmer than the training data's: each taxel's
+        probabilities are bounded by the physics over that range (`skin.models.nuisance`)
+        before they are fused; 0 uses them as they are.
     """
 
-    def __init__(self, model: str | Path | dict, threshold: float = 0.0) -> None:
+    def __init__(self, model: str | Path | dict, threshold: float = 0.0,
+                 object_range: float = 0.0) -> None:
         from skin.models.modelfile import load_model
+        from skin.models.nuisance import uncovered
 
         self.doc = model if isinstance(model, dict) else load_model(model)
         self.estimator = self.doc["estimator"]
@@ -46,6 +52,10 @@ class LearnedClassifier:
         self.channels = int(self.doc["features"].get("channels", 1))
         self.threshold = threshold
         self.method = f"learned:{self.doc['method']}"
+        self.object_range = float(object_range)
+        spread = self.doc.get("training", {}).get("object_temperature_spread")
+        #: why the bound is needed, when the training data did not vary the range (or None)
+        self.coverage_warning = uncovered(self.object_range, spread)
 
     @property
     def lengths(self) -> list[int]:
@@ -97,14 +107,18 @@ class LearnedClassifier:
         return np.concatenate([[contact.ambient], row.ravel()])[None, :]
 
     def _predict(self, x: np.ndarray) -> np.ndarray:
+        from skin.models.nuisance import bound
         from skin.threads import limited_threads
 
         with limited_threads():
             if hasattr(self.estimator, "predict_proba"):
-                return self.estimator.predict_proba(x)
-            pred = self.estimator.predict(x)  # no probabilities: each taxel votes with certainty
-        return np.array([[0.999 if c == lab else 0.001 / max(len(self.classes) - 1, 1)
-                          for c in self.classes] for lab in pred])
+                p = self.estimator.predict_proba(x)
+            else:
+                pred = self.estimator.predict(x)  # no probabilities: each taxel votes
+                p = np.array([[0.999 if c == lab else 0.001 / max(len(self.classes) - 1, 1)
+                               for c in self.classes] for lab in pred])
+        return bound(p, x, self.classes, self.object_range, self.channels, self.fs,
+                     voted=not hasattr(self.estimator, "predict_proba"))
 
     def classify(self, contact: Contact) -> MaterialEstimate:
         """Label a contact from all its taxels' evidence (the family when that is all)."""

@@ -105,8 +105,13 @@ def load_model(path: str | Path) -> dict[str, Any]:
     return doc
 
 
-def training_summary(data: Any, duration: float) -> dict[str, Any]:
-    """Summarise a `skin.formats.dataset.TrialSet` for the model file."""
+def training_summary(data: Any, duration: float, sensor: str | None = None) -> dict[str, Any]:
+    """Summarise a `skin.formats.dataset.TrialSet` for the model file.
+
+    ``sensor``: the sensor (preset or file) the data came from, when the trainer says so;
+    with ``object_temperature_spread`` (K the objects varied, from a measured column) it is
+    what `skin.models.nuisance` (`uncovered`, `other_sensors`) checks a run's setup against.
+    """
     labels, counts = np.unique(data.label, return_counts=True)
     summary: dict[str, Any] = {
         "source": data.source, "trials": len(data), "duration": float(duration),
@@ -114,4 +119,13 @@ def training_summary(data: Any, duration: float) -> dict[str, Any]:
     if data.ambient is not None:
         summary["ambient"] = [round(float(data.ambient.min()), 2),
                               round(float(data.ambient.max()), 2)]
+    from skin.models.nuisance import object_spread
+
+    spread = object_spread(data)
+    if spread is not None:  # K the objects varied about ambient (a measured column)
+        summary["object_temperature_spread"] = round(spread, 2)
+    if sensor is not None:
+        from skin.models.sensors import load_sensor
+
+        summary["sensor"] = load_sensor(sensor).name  # a bad name fails before training
     return summary

@@ -239,9 +239,22 @@ class Skin:
         want = self.expected_materials()
         if s.model:
             from skin.models.learned import LearnedClassifier
+            from skin.models.nuisance import other_sensors, scene_object_range
 
-            self.classifier: Any = LearnedClassifier(s.model, threshold=s.threshold)
+            object_range = s.object_temperature_range
+            if s.where("object_temperature_range") == "default" and self.scene is not None:
+                object_range = scene_object_range(self.scene, self.materials)
+                if object_range > 0:
+                    self.progress.message(f"object temperature range +-{object_range:g} K "
+                                          f"(the scene's objects)")
+            self.classifier: Any = LearnedClassifier(
+                s.model, threshold=s.threshold, object_range=object_range)
             known = set(self.classifier.classes)
+            for warning in (self.classifier.coverage_warning, other_sensors(
+                    self.classifier.doc.get("training", {}).get("sensor"),
+                    [b.sensor for b in self.layout.boards.values()])):
+                if warning:
+                    self.progress.message(f"warning: {s.model}: {warning}")
             self.progress.message(
                 f"classifier: {self.classifier.method} ({len(self.classifier.classes)} classes, "
                 f"{self.classifier.samples / self.classifier.fs:g} s window)")
@@ -377,8 +390,14 @@ class Skin:
             from skin.stream.publish import open_publisher
 
             chain = self._urdf_chain()
+            pose = None
+            if s.robot_pose:
+                from skin.world.kinematics import transform
+
+                pose = transform(s.robot_pose[:3], s.robot_pose[3:])
             for url in s.publish:
-                pub = open_publisher(url, self.layout, chain=chain).attach(self.pipeline)
+                pub = open_publisher(url, self.layout, robot=s.robot, chain=chain,
+                                     robot_pose=pose).attach(self.pipeline)
                 self._closers.append(pub)
                 self.publishers.append(pub)
 

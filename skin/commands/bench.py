@@ -48,6 +48,10 @@ subscriber in another process at the skin's real rate (`skin.bench.publish`).
 +-10 % of the paper's, a few contacts with a reference material) and reports how well
 `skin.models.sensor_fit.fit_sensor_constants` recovers them, against the nominal constants,
 with the fit time per taxel.
+
+``skin bench map`` runs the shared map service with several robots publishing contacts and
+reports lost contacts, the time from a contact's decision to its query visibility, and a
+1 m^3 box query over a 1 M-voxel map (`skin.bench.map`).
 """
 
 from __future__ import annotations
@@ -57,7 +61,7 @@ import json
 import time
 from pathlib import Path
 
-from skin.commands import bench_drivers, bench_view
+from skin.commands import bench_drivers, bench_map, bench_view
 from skin.progress import Progress
 
 
@@ -155,6 +159,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     spread.set_defaults(func=main_spread)
     bench_drivers.add_parsers(kinds)
     bench_view.add_parsers(kinds)
+    bench_map.add_parsers(kinds)
 
 
 def main_thermal(args: argparse.Namespace) -> int:
@@ -211,8 +216,12 @@ def main_thermal(args: argparse.Namespace) -> int:
         print(f"{r['estimator']:<28} {r['duration']:>6g} {r['valid']:>6.2f} {med:>18} "
               f"{p90:>6} {conv:>9} {cover:>8} {r['time_per_trial_ms']:>9.3f}")
     last = per_material[0]["duration"] if per_material else None
+    print("(least squares (profile): the median of the profile posterior; in 2 std: the "
+          "share of true values inside its interval, median width " + ", ".join(
+              f"{r['median_interval_width']:.2f}" for r in inverse
+              if "median_interval_width" in r) + " decades)")
     print(f"\nbias per material at {last:g} s: median signed dlog10 e (valid trials); "
-          f"fits: share within 2 reported std")
+          f"fits: share within 2 reported std (profile interval: inside it)")
     ests = list(dict.fromkeys(r["estimator"] for r in per_material))
     print(f"{'material':<12} {'e':>8} " + " ".join(f"{e[:22]:>22}" for e in ests))
     for m in dict.fromkeys(r["material"] for r in per_material):

@@ -4,7 +4,10 @@
 holds: trials, channels (heated and passive), classes, onsets to detect. ``skin dataset
 import FILE.csv -o FILE.npz`` reads the CSV layout of `skin.formats.trial_csv` (one row per
 sample of one channel) and writes a version 2 dataset; trials that break a rule are left out
-and listed with their index, line and reason.
+and listed with their index, line and reason. ``skin dataset import run.mcap --labels
+touches.csv -o FILE.npz`` cuts the labelled contacts out of a recording
+(`skin.formats.recorded_contacts`; label files: `skin.formats.touch_labels`); contacts and
+labels that do not pair up are listed.
 """
 
 from __future__ import annotations
@@ -25,9 +28,23 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     check.add_argument("path", help="trial dataset (.npz, version 1 or 2)")
     check.add_argument("--json", action="store_true", help="print one JSON document")
     check.set_defaults(func=main_check)
-    imp = kinds.add_parser("import", help="CSV (one row per sample) -> version 2 .npz")
-    imp.add_argument("path", help="CSV file (see the README's layout)")
+    imp = kinds.add_parser("import", help="CSV (one row per sample), or a recording and its "
+                                          "labels -> version 2 .npz")
+    imp.add_argument("path", help="CSV file (see the README's layout) or MCAP recording "
+                                  "(skin run --record)")
     imp.add_argument("-o", "--out", required=True, help="dataset to write (.npz)")
+    imp.add_argument("--labels", metavar="FILE.csv",
+                     help="a recording's touches: time,material[,taxels][,group] (needed for "
+                          "a recording; `skin simulate labels` writes a scene's)")
+    imp.add_argument("--pre", type=float, default=0.5,
+                     help="recording: seconds kept before each onset (default 0.5)")
+    imp.add_argument("--duration", type=float, default=3.0,
+                     help="recording: seconds kept after each onset (default 3)")
+    imp.add_argument("--tolerance", type=float, default=0.5,
+                     help="recording: largest gap between a contact's onset and its label, s "
+                          "(default 0.5)")
+    imp.add_argument("--channels", type=int, default=None,
+                     help="recording: taxels kept per contact (default: the most any has)")
     imp.add_argument("--json", action="store_true", help="print one JSON document")
     imp.set_defaults(func=main_import)
 
@@ -65,19 +82,42 @@ def main_check(args: argparse.Namespace) -> int:
 
 
 def main_import(args: argparse.Namespace) -> int:
-    """Import a CSV file."""
-    from skin.formats.trial_csv import read_trials_csv
+    """Import a CSV file, or the labelled contacts of a recording."""
+    from pathlib import Path
 
-    data, rejected = read_trials_csv(args.path)
+    from skin.errors import SkinError
+
+    if Path(args.path).suffix.lower() == ".mcap":
+        from skin.formats.recorded_contacts import contacts_from_recording
+        from skin.formats.touch_labels import read_touch_labels
+
+        if args.labels is None:
+            raise SkinError(f"{args.path}: a recording needs --labels FILE.csv (the touches: "
+                            f"time,material[,taxels][,group])")
+        labels = read_touch_labels(args.labels)
+        if not Path(args.path).is_file():
+            raise SkinError(f"{args.path}: no such file")
+        data, skipped = contacts_from_recording(
+            args.path, labels, pre=args.pre, duration=args.duration,
+            tolerance=args.tolerance, channels=args.channels)
+        rejected = [{"kind": s.kind, "what": s.ident, "reason": s.reason} for s in skipped]
+        messages = [f"skipped {s}" for s in skipped]
+    else:
+        from skin.formats.trial_csv import read_trials_csv
+
+        if args.labels is not None:
+            raise SkinError("--labels is for a recording (.mcap); a CSV carries its labels")
+        data, bad = read_trials_csv(args.path)
+        rejected = [{"index": r.index, "trial": r.trial, "line": r.line, "reason": r.reason}
+                    for r in bad]
+        messages = [f"rejected {r}" for r in bad]
     path = data.save(args.out)
-    doc = summarise(data) | {"out": str(path), "rejected": [
-        {"index": r.index, "trial": r.trial, "line": r.line, "reason": r.reason}
-        for r in rejected]}
+    doc = summarise(data) | {"out": str(path), "rejected": rejected}
     if args.json:
         print(json.dumps(doc))
         return 0
-    for r in rejected:
-        print(f"rejected {r}", file=sys.stderr)
+    for line in messages:
+        print(line, file=sys.stderr)
     _print(doc)
-    print(f"wrote {path}" + (f" ({len(rejected)} trial(s) rejected)" if rejected else ""))
+    print(f"wrote {path}" + (f" ({len(rejected)} left out)" if rejected else ""))
     return 0

@@ -55,6 +55,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                          "skin.bench.ceiling): the accuracy no method can be expected to beat")
     ev.add_argument("--plot", metavar="DIR",
                     help="draw accuracy against duration and the confusion matrices into DIR")
+    ev.add_argument("--object-temperature-range", type=float, default=0.0, metavar="K",
+                    help="objects may be up to K colder or warmer than the training data's: "
+                         "with --train/--test, also report each method with its confidence "
+                         "bounded by the physics over that range (skin.models.nuisance; "
+                         "default 0: not reported)")
     ev.add_argument("--json", action="store_true", help="print one JSON document")
     ev.set_defaults(func=main)
 
@@ -142,6 +147,7 @@ def evaluate(data, method: str, duration: float, folds: int, groups: bool,
         top, right = np.concatenate(top), np.concatenate(right)
         out["selective"] = selective(top, right)
         out["calibration_error"] = round(calibration_error(top, right), 4)
+        out["confident_wrong"] = round(confident_wrong(top, right), 4)
     return out
 
 
@@ -203,15 +209,38 @@ def selective(top: np.ndarray, right: np.ndarray,
     return rows
 
 
-def train_test(train, test, method: str, duration: float) -> dict:
+def confident_wrong(top: np.ndarray, right: np.ndarray, level: float = 0.95) -> float:
+    """Return the share of all answers given at probability >= ``level`` and wrong."""
+    return float(np.mean((np.asarray(top) >= level) & ~np.asarray(right, dtype=bool)))
+
+
+def bounded_figures(proba: np.ndarray, x: np.ndarray, truth: np.ndarray, classes: list[str],
+                    object_range: float, channels: int, fs: float, voted: bool = False
+                    ) -> dict:
+    """Return the figures of ``proba`` bounded over ``object_range`` K (skin.models.nuisance)."""
+    from skin.models.nuisance import bound
+
+    q = bound(proba, x, classes, object_range, channels, fs, voted=voted)
+    pred = np.asarray(classes)[np.argmax(q, axis=1)]
+    top, right = q.max(axis=1), pred == truth
+    return {"object_temperature_range": object_range,
+            "accuracy": round(float(np.mean(right)), 4),
+            "calibration_error": round(calibration_error(top, right), 4),
+            "confident_wrong": round(confident_wrong(top, right), 4),
+            "selective": selective(top, right)}
+
+
+def train_test(train, test, method: str, duration: float, object_range: float = 0.0) -> dict:
     """Train ``method`` on one dataset and test it on another; return the figures.
 
     Test classes absent from the training data are left out of the accuracy and reported
-    under ``unseen`` with the labels they were given.
+    under ``unseen`` with the labels they were given. With ``object_range`` > 0 the figures
+    of the confidence bounded over that many K (`skin.models.nuisance`) are added under
+    ``bounded`` (a method without probabilities is bounded from its votes).
     """
     from sklearn.metrics import confusion_matrix
 
-    from skin.models.classifiers import make_method, method_matrix
+    from skin.models.classifiers import make_method, method_matrix, reads_channels
 
     if train.n_channels != test.n_channels:
         raise SkinError(f"{test.source}: {test.n_channels} channel(s) per trial, the training "
@@ -249,6 +278,15 @@ def train_test(train, test, method: str, duration: float) -> dict:
         top, right = proba[seen].max(axis=1), pred[seen] == test.label[seen]
         out["selective"] = selective(top, right)
         out["calibration_error"] = round(calibration_error(top, right), 4)
+        out["confident_wrong"] = round(confident_wrong(top, right), 4)
+    if object_range > 0 and seen.any():
+        from skin.models.nuisance import votes
+
+        p = proba if proba is not None else votes(pred, model.classes_)
+        out["bounded"] = bounded_figures(
+            p[seen], x_test[seen], test.label[seen], [str(c) for c in model.classes_],
+            object_range, train.n_channels if reads_channels(method) else 1, train.fs,
+            voted=proba is None)
     return out
 
 
@@ -301,6 +339,7 @@ def saved_model(doc: dict, test, durations: list[float]) -> list[dict]:
             top, right = proba[seen].max(axis=1), pred[seen] == test.label[seen]
             r["selective"] = selective(top, right)
             r["calibration_error"] = round(calibration_error(top, right), 4)
+            r["confident_wrong"] = round(confident_wrong(top, right), 4)
         out.append(r)
     return out
 
@@ -363,8 +402,20 @@ def main(args: argparse.Namespace) -> int:
         raise SkinError(f"--durations must be numbers, got {args.durations!r}") from None
     if args.cv < 2:
         raise SkinError("--cv must be at least 2")
+    if not (np.isfinite(args.object_temperature_range) and args.object_temperature_range >= 0):
+        raise SkinError(f"--object-temperature-range must be a finite K >= 0, got "
+                        f"{args.object_temperature_range:g}")
+    if args.object_temperature_range > 0 and test is None:
+        raise SkinError("--object-temperature-range goes with --train/--test (a "
+                        "cross-validation's folds share their objects' temperatures)")
     merge = _parse_merge(args.merge, data.classes)
     progress = Progress()
+    if args.object_temperature_range > 0:
+        from skin.models.nuisance import object_spread, uncovered
+
+        warning = uncovered(args.object_temperature_range, object_spread(data))
+        if warning:
+            progress.message(f"warning: {args.train}: {warning}")
     started = time.monotonic()
     results = []
     total = len(methods) * len(durations)
@@ -382,7 +433,7 @@ def main(args: argparse.Namespace) -> int:
             if test is None:
                 results.append(evaluate(data, m, d, args.cv, args.groups, args.seed))
             else:
-                results.append(train_test(data, test, m, d))
+                results.append(train_test(data, test, m, d, args.object_temperature_range))
             spent.append((d, time.monotonic() - t0))
             if merge:
                 results[-1]["merged_accuracy"] = round(merged_accuracy(results[-1], merge), 4)
@@ -438,7 +489,15 @@ def main(args: argparse.Namespace) -> int:
         if "family_accuracy" in r:
             print(f"{'':<14} {'':>10}   family accuracy {r['family_accuracy']:.3f}")
         if "calibration_error" in r:
-            print(f"{'':<14} {'':>10}   calibration error {r['calibration_error']:.3f}")
+            print(f"{'':<14} {'':>10}   calibration error {r['calibration_error']:.3f}"
+                  + (f", wrong at p >= 0.95: {r['confident_wrong']:.1%} of answers"
+                     if "confident_wrong" in r else ""))
+        if "bounded" in r:
+            b = r["bounded"]
+            print(f"{'':<14} {'':>10}   bounded over +-{b['object_temperature_range']:g} K: "
+                  f"accuracy {b['accuracy']:.3f}, calibration error "
+                  f"{b['calibration_error']:.3f}, wrong at p >= 0.95: "
+                  f"{b['confident_wrong']:.1%} of answers")
         for sel in r.get("selective", []):
             if sel["threshold"] in (0.8, 0.95) and sel["accuracy"] is not None:
                 print(f"{'':<14} {'':>10}   unknown below p = {sel['threshold']:g}: "

@@ -68,6 +68,11 @@ def add_setup_options(run: argparse.ArgumentParser) -> None:
     run.add_argument("--threshold", type=float, metavar="P",
                      help="probability needed to name a material (else its family, else "
                           "\"unknown\"), for --model and the joint classifier (default 0.5)")
+    run.add_argument("--object-temperature-range", type=float, metavar="K",
+                     help="with --model: objects may be K colder or warmer than the model's "
+                          "training data; its confidence is bounded by the physics over that "
+                          "range (default: a simulated scene's largest object offset from its "
+                          "ambient, else 0)")
     run.add_argument("--classifier", choices=("joint", "histogram"),
                      help="without --model: the joint model that weighs a contact's taxels "
                           "with one object (default), or the paper's effusivity histogram")

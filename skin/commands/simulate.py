@@ -77,6 +77,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     truth.add_argument("--json", action="store_true", help="print one JSON summary")
     truth.set_defaults(func=main_calibration)
 
+    labels = kinds.add_parser("labels", help="a scene's touches as a label file (time, material, "
+                                             "taxels), for `skin dataset import`")
+    labels.add_argument("--scene", default="default", help="scene (default: default)")
+    labels.add_argument("--duration", type=float, default=None,
+                        help="only touches starting before this many seconds (default: all)")
+    labels.add_argument("-o", "--out", required=True, help="label file to write (CSV)")
+    labels.add_argument("--json", action="store_true", help="print one JSON summary")
+    labels.set_defaults(func=main_labels)
+
 
 def main_calibration(args: argparse.Namespace) -> int:
     """Write the calibration file of a simulated skin's true constants."""
@@ -91,6 +100,23 @@ def main_calibration(args: argparse.Namespace) -> int:
     else:
         print(f"wrote {path}: the true thermal constants of {len(scene.layout)} taxels "
               f"(scene {scene.name}, taxel spread {scene.taxel_spread:g})")
+    return 0
+
+
+def main_labels(args: argparse.Namespace) -> int:
+    """Write the label file of a scene's touches."""
+    from skin.formats.scene import load_scene
+    from skin.formats.touch_labels import scene_labels, write_touch_labels
+
+    scene = load_scene(args.scene)
+    labels = scene_labels(scene, args.duration)
+    if not labels:
+        raise SkinError(f"scene {scene.name} has no touch starting before {args.duration} s")
+    path = write_touch_labels(args.out, labels)
+    if args.json:
+        print(json.dumps({"path": str(path), "scene": scene.name, "labels": len(labels)}))
+    else:
+        print(f"wrote {path}: {len(labels)} touches of scene {scene.name}")
     return 0
 
 

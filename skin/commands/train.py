@@ -27,6 +27,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     tr.add_argument("--anytime", default=None, metavar="D1,D2,...",
                     help="train one model per contact duration (s), e.g. 0.25,0.5,1,2.5: the "
                          "pipeline then answers from the longest window each taxel has")
+    tr.add_argument("--sensor", default=None, metavar="PRESET|FILE",
+                    help="the sensor the training data was recorded (or simulated) with, "
+                         "recorded in the model file: `skin run` warns when its layout's "
+                         "boards use another (default: not recorded)")
     tr.add_argument("-o", "--out", required=True, help="model file to write (.skops)")
     tr.add_argument("--json", action="store_true", help="print one JSON summary")
     tr.set_defaults(func=main)
@@ -99,7 +103,7 @@ def main(args: argparse.Namespace) -> int:
                         f"{exc}") from None
     fit_time = time.perf_counter() - started
     path = save_model(args.out, estimator, method, duration, data.fs,
-                      training_summary(data, duration), channels=channels)
+                      training_summary(data, duration, sensor=args.sensor), channels=channels)
     summary = {"out": str(path), "method": method, "duration": duration,
                "classes": [str(c) for c in estimator.classes_], "trials": len(data),
                "fit_seconds": round(fit_time, 3)}
