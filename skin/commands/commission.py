@@ -11,6 +11,13 @@ into the calibration file (updated if it exists; `skin.models.commission`), and 
 sample jitter and a spectrum summary. `skin run --calibration` and `skin evaluate-onset
 --calibration` then set the onset detector's thresholds from each taxel's own noise. A stretch
 that is too short or not quiet is refused with what to record instead.
+
+With ``--touches aluminium,pine`` it fits each taxel's sensor response (diffusivity and
+conductivity, the depth kept: a semi-infinite body shows depth^2 / diffusivity and the
+effusivity) from touches of those references at room temperature, at least 3 of each held
+2.5 s (`skin.models.commission`): touches found by the pipeline's detector, named by the
+reference they fit best, each touch's onset, baseline and contact conductance fitted with
+the constants. A taxel with too few touches gets its board's pooled fit.
 """
 
 from __future__ import annotations
@@ -39,9 +46,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     cmd.add_argument("--touches", metavar="MATERIALS", default=None,
                      help="instead of the noise, fit each taxel's sensor response from touches "
                           "of these reference materials at room temperature in the recording, "
-                          "e.g. aluminium,pine (at least 3 touches of each of 2, held 2.5 s); "
-                          "experimental: with onsets detected from 10-bit readings the fit was "
-                          "not closer to the true constants than the nominal ones (CHANGELOG)")
+                          "e.g. aluminium,pine (at least 3 touches of each of 2, held 2.5 s, "
+                          "with 0.4 s of quiet before each); each touch's onset is fitted with "
+                          "the constants")
     cmd.add_argument("--room", type=float, default=None, metavar="C",
                      help="room temperature of the references, deg C (default: the "
                           "recording's ambient sensor)")
