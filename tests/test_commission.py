@@ -225,3 +225,54 @@ def test_touches_pool_per_board_when_a_taxel_has_too_few():
                                                            rel=0.01)
     with pytest.raises(CommissioningError, match="at least 3 touches"):
         fit_responses(touches[:2], layout, mats, nominal, 25.0)
+
+
+def test_labelled_touches_are_fitted_without_the_detector(tmp_path):
+    """A label file with the touches' times: the labelled taxels get their own fit."""
+    from skin.drivers.sim import SkinSimulator
+    from skin.formats.scene import load_scene
+    from skin.models import load_materials
+    from skin.models.commission import commission_response, read_touch_labels
+
+    scene = load_scene("reference-touches")
+    labels = tmp_path / "touches.csv"
+    rows = ["time,taxels,material", "# the shipped scene's touches"]
+    rows += [f"{tc.start + 0.01},0 1,{scene.objects[tc.object].material}"
+             for tc in scene.touches]  # 10 ms late: the fit dates the onsets itself
+    labels.write_text("\n".join(rows) + "\n")
+    table = load_materials()
+    parsed = read_touch_labels(labels, scene.layout, table)
+    assert len(parsed) == 6 and parsed[0].taxels == (0, 1) and parsed[0].line == 3
+    sim = SkinSimulator(scene)
+    y = sim.temperatures()
+    y = y + np.random.default_rng(1).normal(0.0, 0.02, y.shape)
+    t = np.arange(y.shape[0]) / sim.sample_rate
+    _, sensors = CalibrationFile().apply(scene.layout)
+    mats = {m: table[m] for m in ("aluminium", "pine")}
+    fits, counts = commission_response(t, y, scene.layout, mats, sensors, 25.0, labels=parsed)
+    assert counts == {"detected": 12, "left_out": 0, "ambiguous": 0}
+    assert [int(f.columns[0]) for f in fits] == [0, 1] and all(f.scope == "taxel" for f in fits)
+    truth = sim.taxel_sensor
+    for f in fits:
+        k = int(f.columns[0])
+        want = truth.depth[k] ** 2 / truth.diffusivity[k]
+        assert f.fit.sensor.depth**2 / f.fit.sensor.diffusivity == pytest.approx(want, rel=0.03)
+        assert np.all(np.abs(f.fit.onset_shift + 0.01) < 0.01)
+
+
+@pytest.mark.parametrize("body, problem", [
+    ("time,taxels\n", ":1: the header must be time,taxels,material"),
+    ("time,taxels,material\n3.0,0,pine\nsoon,0,pine\n", ":3: time 'soon' is not a number"),
+    ("time,taxels,material\n3.0,0 999,pine\n", ":2: taxel 999 is not in layout"),
+    ("time,taxels,material\n3.0,all,unobtainium\n", ":2: unknown material 'unobtainium'"),
+    ("time,taxels,material\n", "no label"),
+])
+def test_bad_touch_labels_name_the_file_and_line(tmp_path, capsys, body, problem):
+    labels = tmp_path / "touches.csv"
+    labels.write_text(body)
+    out = tmp_path / "cal.json"
+    assert skin_main(["commission", "--port", "sim://reference-touches?speed=0", "--labels",
+                      str(labels), "-o", str(out)]) != 0
+    err = capsys.readouterr().err
+    assert str(labels) in err and problem in err
+    assert not out.exists()

@@ -49,6 +49,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                           "e.g. aluminium,pine (at least 3 touches of each of 2, held 2.5 s, "
                           "with 0.4 s of quiet before each); each touch's onset is fitted with "
                           "the constants")
+    cmd.add_argument("--labels", metavar="CSV", default=None,
+                     help="the reference touches' times instead of detecting them: CSV "
+                          "time,taxels,material (taxel ids separated by spaces or ';', or "
+                          "'all'); the materials are the file's")
     cmd.add_argument("--room", type=float, default=None, metavar="C",
                      help="room temperature of the references, deg C (default: the "
                           "recording's ambient sensor)")
@@ -107,6 +111,17 @@ def main(args: argparse.Namespace) -> int:
 
         _reference_names(args.touches, load_materials())
     layout = _layout(args.port, args.layout, load_layout)
+    if args.labels:  # checked before the recording is read
+        from skin.models import load_materials
+        from skin.models.commission import read_touch_labels
+
+        args.label_list = read_touch_labels(args.labels, layout, load_materials())
+        names = list(dict.fromkeys(lab.material for lab in args.label_list))
+        given = {m.strip() for m in (args.touches or "").split(",") if m.strip()}
+        if given and set(names) - given:
+            raise SkinError(f"{args.labels}: material {sorted(set(names) - given)[0]} is not "
+                            f"in --touches {args.touches}")
+        args.touches = ",".join(names)
     out = Path(args.out)
     cal_file = load_calibration(out) if out.exists() else CalibrationFile()
     progress = Progress()
@@ -160,7 +175,8 @@ def _touches(args: argparse.Namespace, layout: object, cal_file: object, out: ob
     _, sensors = cal_file.apply(layout)
     progress.message(f"fitting the response from touches of {', '.join(names)}")
     fits, counts = commission_response(times, temps, layout, {m: table[m] for m in names},
-                                       sensors, room, noise=noise_sigma(cal_file, layout))
+                                       sensors, room, noise=noise_sigma(cal_file, layout),
+                                       labels=getattr(args, "label_list", None))
     for f in fits:
         for k in f.columns:
             cal_file.taxels.setdefault(int(layout.ids[k]), {}).update(
