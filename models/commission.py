@@ -165,6 +165,8 @@ class ReferenceTouch:
     t, y : numpy.ndarray
         Time since the onset and reading, from `TOUCH_BEFORE` s before the onset to
         `TOUCH_SECONDS` after it.
+    room : float, optional
+        The reference's temperature, deg C (default: the room's, as given to the fit).
     """
 
     column: int
@@ -173,6 +175,7 @@ class ReferenceTouch:
     material: str
     t: np.ndarray
     y: np.ndarray
+    room: float | None = None  # the reference's temperature when not the recording's room
 
 
 @dataclass(frozen=True)
@@ -352,6 +355,55 @@ def labelled_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
     return out, short
 
 
+def dataset_touches(trials: object, layout: object) -> tuple[list[ReferenceTouch], int]:
+    """Take reference touches from a trial dataset (version 2: `skin.formats.dataset`).
+
+    Each trial's heated, present channels with a taxel id of the layout give one touch of
+    the trial's labelled material, dated by its ``onset``, at its ``object_temperature``
+    (else its ``ambient``); the window is `find_touches`'s. Trials without an onset, or too
+    short around it (`TOUCH_BEFORE` s before, `TOUCH_SECONDS` after), are left out (counted).
+
+    Raises
+    ------
+    CommissioningError
+        If the dataset has no taxel ids or no room temperature, or if no channel's taxel id
+        is in the layout.
+    """
+    if trials.taxel is None or trials.ambient is None:
+        raise CommissioningError(f"{trials.source}: commissioning needs each trial's taxel ids "
+                                 f"and ambient temperature (dataset version 2 'taxel' and "
+                                 f"'ambient')")
+    temp = trials.temperature if trials.temperature.ndim == 3 else trials.temperature[:, None]
+    taxel = np.asarray(trials.taxel).reshape(len(trials), -1)
+    heated = (np.ones(taxel.shape, dtype=bool) if trials.heated is None
+              else np.asarray(trials.heated).reshape(taxel.shape))
+    obj = (trials.ambient if trials.object_temperature is None
+           else np.where(np.isfinite(trials.object_temperature), trials.object_temperature,
+                         trials.ambient))
+    ids = {int(t): i for i, t in enumerate(layout.ids)}
+    n_before = round(TOUCH_BEFORE * trials.fs)
+    n_after = round(TOUCH_SECONDS * trials.fs)
+    lag = (np.arange(n_before + n_after) - n_before) / trials.fs
+    out, short, known = [], 0, 0
+    for i in range(len(trials)):
+        on = int(trials.onset[i])
+        for c in range(temp.shape[1]):
+            if not heated[i, c] or int(taxel[i, c]) not in ids:
+                continue
+            known += 1
+            y = temp[i, c, max(on - n_before, 0):on + n_after]
+            if on < n_before or y.size < n_before + n_after or not np.all(np.isfinite(y)):
+                short += 1
+                continue
+            out.append(ReferenceTouch(ids[int(taxel[i, c])], 0.0,
+                                      float(np.median(y[:n_before])), str(trials.label[i]),
+                                      lag, y.copy(), float(obj[i])))
+    if not known:
+        raise CommissioningError(f"{trials.source}: no heated channel has a taxel id of layout "
+                                 f"{layout.name}: give --layout, or record the taxel ids")
+    return out, short
+
+
 def assign_materials(touches: list, materials: dict, sensors: list, room: float,
                      ) -> tuple[list[ReferenceTouch], list[tuple[int, float]]]:
     """Name each touch's reference: the material whose contact response fits it best.
@@ -458,7 +510,8 @@ def _fit_group(tcs: list[ReferenceTouch], materials: dict, nominal: object,
     kw = dict(nominal=nominal, onset_search=ONSET_SEARCH,
               conductance_range=([m.conductance_range[0] for m in mats],
                                  [CONDUCTANCE_MAX] * len(mats)))
-    args = (t, y, [tc.initial for tc in tcs], np.full(len(tcs), room),
+    args = (t, y, [tc.initial for tc in tcs],
+            [room if tc.room is None else tc.room for tc in tcs],
             [m.effusivity for m in mats])
     names = sorted({tc.material for tc in tcs})
     shared = fit_sensor_constants(*args, **kw,

@@ -276,3 +276,40 @@ def test_bad_touch_labels_name_the_file_and_line(tmp_path, capsys, body, problem
     err = capsys.readouterr().err
     assert str(labels) in err and problem in err
     assert not out.exists()
+
+
+def test_skin_commission_fits_the_response_from_a_trial_dataset(tmp_path, capsys):
+    """--data: labelled reference contacts with onsets and taxel ids (dataset version 2)."""
+    from skin.drivers.sim import SkinSimulator
+    from skin.formats.dataset import TrialSet
+    from skin.formats.scene import load_scene
+
+    scene = load_scene("reference-touches")
+    sim = SkinSimulator(scene)
+    y = sim.temperatures()
+    y = y + np.random.default_rng(2).normal(0.0, 0.02, y.shape)
+    fs = sim.sample_rate
+    temps, labels, taxels = [], [], []
+    for tc in scene.touches:
+        k0 = round(tc.start * fs)
+        for k in (0, 1):
+            temps.append(y[k0 - 200:k0 + 580, k])
+            labels.append(scene.objects[tc.object].material)
+            taxels.append(k)
+    n = len(temps)
+    data = TrialSet(np.array(temps)[:, None, :], fs, np.array(labels), np.full(n, 200),
+                    ambient=np.full(n, 25.0), group=np.zeros(n, dtype=int),
+                    taxel=np.array(taxels)[:, None])
+    path = data.save(tmp_path / "refs.npz")
+    cal = tmp_path / "cal.json"
+    assert skin_main(["commission", "--data", str(path), "-o", str(cal), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["fitted"] == doc["per_taxel"] == 2 and doc["detected"] == 12
+    _, fitted = load_calibration(cal).apply(scene.layout)
+    truth = sim.taxel_sensor
+    for k in (0, 1):
+        assert fitted[k].depth**2 / fitted[k].diffusivity == pytest.approx(
+            truth.depth[k] ** 2 / truth.diffusivity[k], rel=0.03)
+    assert skin_main(["commission", "--data", str(path), "--touches", "aluminium,pine", "-o",
+                      str(cal)]) != 0
+    assert "no --labels or --touches" in capsys.readouterr().err

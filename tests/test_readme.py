@@ -145,6 +145,7 @@ SKIPPED = {
     "skin commission --port": "the user's own quiet recording (tests/test_commission.py)",
     "--touches aluminium,pine": "1-3 min of fitting (tests/test_commission.py runs it)",
     "--calibration ref.json": "the file of the --touches line (skipped above)",
+    "skin commission --data": "the user's own dataset (tests/test_commission.py)",
 }
 
 

@@ -36,7 +36,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register ``skin commission``."""
     cmd = sub.add_parser("commission", help="each taxel's noise from a quiet stretch, into the "
                                             "calibration file", description=__doc__)
-    cmd.add_argument("--port", required=True, metavar="URL",
+    source = cmd.add_mutually_exclusive_group(required=True)
+    source.add_argument("--data", metavar="NPZ", default=None,
+                        help="fit each taxel's sensor response from a trial dataset (version 2, "
+                             "README 'Trial datasets') of labelled reference contacts with "
+                             "their onsets, taxel ids and 0.4 s before each onset")
+    source.add_argument("--port", metavar="URL",
                      help="where the quiet stretch comes from: replay://quiet.mcap?speed=0, a "
                           "device URL, or sim://SCENE?speed=0")
     cmd.add_argument("--seconds", type=float, default=60.0,
@@ -110,6 +115,8 @@ def main(args: argparse.Namespace) -> int:
         from skin.models import load_materials
 
         _reference_names(args.touches, load_materials())
+    if args.data:
+        return _dataset(args, load_layout(args.layout or "arm"), Progress())
     layout = _layout(args.port, args.layout, load_layout)
     if args.labels:  # checked before the recording is read
         from skin.models import load_materials
@@ -177,6 +184,46 @@ def _touches(args: argparse.Namespace, layout: object, cal_file: object, out: ob
     fits, counts = commission_response(times, temps, layout, {m: table[m] for m in names},
                                        sensors, room, noise=noise_sigma(cal_file, layout),
                                        labels=getattr(args, "label_list", None))
+    return _write_response(args, layout, cal_file, out, fits, counts,
+                           f"touches of {', '.join(names)} at {room:.2f} C in {args.port}",
+                           room, started, progress)
+
+
+def _dataset(args: argparse.Namespace, layout: object, progress: Progress) -> int:
+    """Fit the sensor response from a trial dataset's labelled reference contacts."""
+    from pathlib import Path
+
+    from skin.formats.calibration_file import CalibrationFile, load_calibration
+    from skin.formats.dataset import load_trials
+    from skin.models import load_materials
+    from skin.models.commission import dataset_touches, described, fit_responses
+
+    if args.labels or args.touches:
+        raise SkinError("--data names its touches' materials and onsets: no --labels or "
+                        "--touches with it")
+    started = time.monotonic()
+    trials = load_trials(args.data)
+    table = load_materials()
+    names = list(dict.fromkeys(str(m) for m in trials.label))
+    _reference_names(",".join(names), table)
+    out = Path(args.out)
+    cal_file = load_calibration(out) if out.exists() else CalibrationFile()
+    _, sensors = cal_file.apply(layout)
+    progress.message(f"fitting the response from {len(trials)} trials of {', '.join(names)}")
+    touches, short = dataset_touches(trials, layout)
+    room = float(np.nanmedian(trials.ambient))
+    fits = fit_responses(touches, layout, {m: table[m] for m in names},
+                         described(layout, sensors), room)
+    counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": 0}
+    return _write_response(args, layout, cal_file, out, fits, counts,
+                           f"{len(touches)} contacts of {', '.join(names)} in {args.data}",
+                           room, started, progress)
+
+
+def _write_response(args: argparse.Namespace, layout: object, cal_file: object, out: object,
+                    fits: list, counts: dict, reference: str, room: float, started: float,
+                    progress: Progress) -> int:
+    """Write the fitted responses into the calibration file and report them."""
     for f in fits:
         for k in f.columns:
             cal_file.taxels.setdefault(int(layout.ids[k]), {}).update(
@@ -184,8 +231,7 @@ def _touches(args: argparse.Namespace, layout: object, cal_file: object, out: ob
                 depth=f.fit.sensor.depth, thermal_rms=round(f.fit.rms, 5),
                 thermal_contacts=f.touches, thermal_converged=f.fit.converged,
                 thermal_scope=f.scope)
-    cal_file.references["thermal"] = (f"touches of {', '.join(names)} at {room:.2f} C in "
-                                      f"{args.port}")
+    cal_file.references["thermal"] = reference
     cal_file.save(out)
     progress.done()
     fitted = sum(len(f.columns) for f in fits)
