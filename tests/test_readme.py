@@ -30,6 +30,9 @@ USERS_OWN = {
     "trials.csv": "trials recorded elsewhere, imported",
     "refs.csv": "the user's thermistor readings in reference baths",
     "quiet.mcap": "a quiet minute of the user's own skin, recorded",
+    "refs.mcap": "the user's reference touches, recorded",
+    "touches.csv": "the user's labels of those touches",
+    "refs.npz": "the user's reference contacts logged elsewhere (dataset v2)",
 }
 #: Options whose value is a file the command reads, and those it writes.
 READS = {"--data", "--train", "--test", "--from", "--model", "--poses", "--calibration",
