@@ -313,3 +313,16 @@ def test_skin_commission_fits_the_response_from_a_trial_dataset(tmp_path, capsys
     assert skin_main(["commission", "--data", str(path), "--touches", "aluminium,pine", "-o",
                       str(cal)]) != 0
     assert "no --labels or --touches" in capsys.readouterr().err
+
+
+def test_bench_spread_classifies_with_a_given_calibration(tmp_path, capsys):
+    """--calibration: a fourth run; the true constants given as the file match the truth."""
+    truth = tmp_path / "truth.json"
+    assert skin_main(["simulate", "calibration", "--scene", "reference-touches", "-o",
+                      str(truth)]) == 0
+    capsys.readouterr()
+    assert skin_main(["bench", "spread", "--touches", "4", "--seed", "7", "--calibration",
+                      str(truth), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["commissioned"]["touches"] == 4 and doc["commissioned_gap"] == 0.0
+    assert doc["commissioned"]["correct"] == doc["calibrated"]["correct"]
