@@ -197,7 +197,8 @@ def test_bench_thermal_quick_prints_work_precision_json():
     inv = doc["inverse"]
     assert {r["estimator"] for r in inv} == {"paper (eqs. 10-11, median)",
                                             "least squares (MAP)",
-                                            "least squares + onset (MAP)"}
+                                            "least squares + onset (MAP)",
+                                            "least squares (profile)"}
     assert {r["duration"] for r in inv} == {0.25, 2.5}
 
 
