@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -246,89 +247,8 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
     return out, short
 
 
-@dataclass(frozen=True)
-class TouchLabel:
-    """One labelled reference touch: when it began, which taxels, which material.
-
-    Attributes
-    ----------
-    time : float
-        Onset, s, on the recording's time axis (the fit refines it within `ONSET_SEARCH`).
-    taxels : tuple of int
-        Taxel ids touched.
-    material : str
-        The reference material.
-    line : int
-        Line of the label file, for messages.
-    """
-
-    time: float
-    taxels: tuple[int, ...]
-    material: str
-    line: int
-
-
-def read_touch_labels(path: object, layout: object, materials: dict) -> list[TouchLabel]:
-    """Read a label file of reference touches: CSV ``time,taxels,material``.
-
-    ``time`` in s on the recording's axis; ``taxels``: ids separated by spaces or ``;``, or
-    ``all``; ``material``: a name of the materials table. Lines starting with ``#`` are
-    comments.
-
-    Raises
-    ------
-    CommissioningError
-        Naming the file and line of the first bad label (missing column, a time that is not
-        a number, an unknown taxel id or material), or if the file holds no label.
-    """
-    import csv
-    from pathlib import Path
-
-    path = Path(path)
-    if not path.exists():
-        raise CommissioningError(f"{path}: no such label file")
-    ids = {int(t) for t in layout.ids}
-    out: list[TouchLabel] = []
-    with path.open(newline="") as fh:
-        rows = [(no, row) for no, row in enumerate(csv.reader(fh), 1)
-                if row and not row[0].lstrip().startswith("#")]
-    if not rows or [c.strip() for c in rows[0][1]][:3] != ["time", "taxels", "material"]:
-        raise CommissioningError(f"{path}:1: the header must be time,taxels,material")
-    for no, row in rows[1:]:
-        where = f"{path}:{no}"
-        if len(row) < 3:
-            raise CommissioningError(f"{where}: expected time,taxels,material; got {row}")
-        try:
-            time = float(row[0])
-        except ValueError:
-            raise CommissioningError(f"{where}: time {row[0]!r} is not a number") from None
-        if not np.isfinite(time):
-            raise CommissioningError(f"{where}: time {row[0]!r} is not finite")
-        field = row[1].strip()
-        if field == "all":
-            taxels = tuple(int(t) for t in layout.ids)
-        else:
-            try:
-                taxels = tuple(int(v) for v in field.replace(";", " ").split())
-            except ValueError:
-                raise CommissioningError(f"{where}: taxels {field!r} must be ids separated by "
-                                         f"spaces or ';', or 'all'") from None
-            unknown = [t for t in taxels if t not in ids]
-            if unknown or not taxels:
-                raise CommissioningError(f"{where}: taxel {unknown[0] if unknown else field!r}"
-                                         f" is not in layout {layout.name}")
-        material = row[2].strip()
-        if material not in materials:
-            raise CommissioningError(f"{where}: unknown material {material!r} (known: "
-                                     f"{', '.join(sorted(materials))})")
-        out.append(TouchLabel(time, taxels, material, no))
-    if not out:
-        raise CommissioningError(f"{path}: no label (a header and one line per touch)")
-    return out
-
-
 def labelled_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
-                     labels: list[TouchLabel]) -> tuple[list[ReferenceTouch], int]:
+                     labels: list[Any]) -> tuple[list[ReferenceTouch], int]:
     """Cut each labelled touch's window (as `find_touches`) from the recording.
 
     The initial temperature is the median of the `TOUCH_BEFORE` s before the label's time;
@@ -343,7 +263,7 @@ def labelled_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
     for lab in labels:
         first = int(np.searchsorted(t, lab.time, side="right")) - n_before
         window = slice(first, first + n_before + n_after)
-        for tid in lab.taxels:
+        for tid in lab.taxels or tuple(int(i) for i in layout.ids):  # not said: every taxel
             k = layout.index(tid)
             if first < 0 or first + n_before + n_after > t.size or not np.all(
                     np.isfinite(y[window, k])):
@@ -542,11 +462,12 @@ def described(layout: object, sensors: list) -> list:
 def commission_response(times: np.ndarray, temperature: np.ndarray, layout: object,
                         materials: dict, sensors: list, room: float,
                         noise: np.ndarray | None = None,
-                        labels: list[TouchLabel] | None = None,
+                        labels: list[Any] | None = None,
                         ) -> tuple[list[ResponseFit], dict]:
     """Detect, date, name and fit reference touches (see `fit_responses`).
 
-    With ``labels`` (`read_touch_labels`) the touches are those labelled, not detected.
+    With ``labels`` (`skin.formats.touch_labels.read_touch_labels`) the touches are those
+    labelled, not detected.
 
     The detector's onsets (refined with the taxels' current constants) only start the fit:
     it dates each touch's onset again, within `ONSET_SEARCH`, with the constants it fits.

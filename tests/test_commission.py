@@ -231,17 +231,18 @@ def test_labelled_touches_are_fitted_without_the_detector(tmp_path):
     """A label file with the touches' times: the labelled taxels get their own fit."""
     from skin.drivers.sim import SkinSimulator
     from skin.formats.scene import load_scene
+    from skin.formats.touch_labels import read_touch_labels
     from skin.models import load_materials
-    from skin.models.commission import commission_response, read_touch_labels
+    from skin.models.commission import commission_response
 
     scene = load_scene("reference-touches")
     labels = tmp_path / "touches.csv"
-    rows = ["time,taxels,material", "# the shipped scene's touches"]
-    rows += [f"{tc.start + 0.01},0 1,{scene.objects[tc.object].material}"
+    rows = ["time,material,taxels", "# the shipped scene's touches"]
+    rows += [f"{tc.start + 0.01},{scene.objects[tc.object].material},0 1"
              for tc in scene.touches]  # 10 ms late: the fit dates the onsets itself
     labels.write_text("\n".join(rows) + "\n")
     table = load_materials()
-    parsed = read_touch_labels(labels, scene.layout, table)
+    parsed = read_touch_labels(labels, table, scene.layout)
     assert len(parsed) == 6 and parsed[0].taxels == (0, 1) and parsed[0].line == 3
     sim = SkinSimulator(scene)
     y = sim.temperatures()
@@ -261,11 +262,12 @@ def test_labelled_touches_are_fitted_without_the_detector(tmp_path):
 
 
 @pytest.mark.parametrize("body, problem", [
-    ("time,taxels\n", ":1: the header must be time,taxels,material"),
-    ("time,taxels,material\n3.0,0,pine\nsoon,0,pine\n", ":3: time 'soon' is not a number"),
-    ("time,taxels,material\n3.0,0 999,pine\n", ":2: taxel 999 is not in layout"),
-    ("time,taxels,material\n3.0,all,unobtainium\n", ":2: unknown material 'unobtainium'"),
+    ("time,taxels\n", ": line 1: missing column(s) material"),
+    ("time,taxels,material\n3.0,0,pine\nsoon,0,pine\n", ": line 3: time 'soon' is not a number"),
+    ("time,taxels,material\n3.0,0 999,pine\n", ": line 2: taxel 999 is not in layout"),
+    ("time,taxels,material\n3.0,all,unobtainium\n", ": line 2: material 'unobtainium' is not"),
     ("time,taxels,material\n", "no label"),
+    ("", "empty"),
 ])
 def test_bad_touch_labels_name_the_file_and_line(tmp_path, capsys, body, problem):
     labels = tmp_path / "touches.csv"

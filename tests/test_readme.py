@@ -31,7 +31,7 @@ USERS_OWN = {
     "refs.csv": "the user's thermistor readings in reference baths",
     "quiet.mcap": "a quiet minute of the user's own skin, recorded",
     "refs.mcap": "the user's reference touches, recorded",
-    "touches.csv": "the user's labels of those touches",
+    "ref_touches.csv": "the user's labels of those touches",
     "refs.npz": "the user's reference contacts logged elsewhere (dataset v2)",
 }
 #: Options whose value is a file the command reads, and those it writes.

@@ -55,9 +55,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                           "with 0.4 s of quiet before each); each touch's onset is fitted with "
                           "the constants")
     cmd.add_argument("--labels", metavar="CSV", default=None,
-                     help="the reference touches' times instead of detecting them: CSV "
-                          "time,taxels,material (taxel ids separated by spaces or ';', or "
-                          "'all'); the materials are the file's")
+                     help="the reference touches' times instead of detecting them: a label "
+                          "file time,material[,taxels][,group] (taxel ids separated by spaces "
+                          "or ';', 'all' or empty: every taxel); the materials are the file's")
     cmd.add_argument("--room", type=float, default=None, metavar="C",
                      help="room temperature of the references, deg C (default: the "
                           "recording's ambient sensor)")
@@ -119,10 +119,9 @@ def main(args: argparse.Namespace) -> int:
         return _dataset(args, load_layout(args.layout or "arm"), Progress())
     layout = _layout(args.port, args.layout, load_layout)
     if args.labels:  # checked before the recording is read
-        from skin.models import load_materials
-        from skin.models.commission import read_touch_labels
+        from skin.formats.touch_labels import read_touch_labels
 
-        args.label_list = read_touch_labels(args.labels, layout, load_materials())
+        args.label_list = read_touch_labels(args.labels, layout=layout)
         names = list(dict.fromkeys(lab.material for lab in args.label_list))
         given = {m.strip() for m in (args.touches or "").split(",") if m.strip()}
         if given and set(names) - given:
