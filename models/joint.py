@@ -106,9 +106,22 @@ class JointContactModel:
         numpy.ndarray
             (n_classes,) log evidence.
         """
-        log_ev, _ = self._posterior(t, temperature, t_sensor, ambient, sensors)
-        top = log_ev.max(axis=1, keepdims=True)  # log-mean-exp over the h grid
-        return top[:, 0] + np.log(np.mean(np.exp(log_ev - top), axis=1))
+        return self.log_evidence_by_std(t, temperature, t_sensor, ambient, sensors,
+                                        [self.object_std])[0]
+
+    def log_evidence_by_std(self, t: np.ndarray, temperature: np.ndarray,
+                            t_sensor: np.ndarray, ambient: float,
+                            sensors: Sequence[SensorConstants] | None,
+                            stds: Sequence[float]) -> np.ndarray:
+        """Log evidence of each material for each prior std of the object's temperature.
+
+        The arguments are those of `log_evidence`; ``stds`` (K) replace ``object_std``
+        (heat-generating materials keep their own prior). Returns (len(stds), n_classes),
+        up to one constant shared by all entries.
+        """
+        log_ev, _ = self._posterior(t, temperature, t_sensor, ambient, sensors, stds)
+        top = log_ev.max(axis=-1, keepdims=True)  # log-mean-exp over the h grid
+        return top[..., 0] + np.log(np.mean(np.exp(log_ev - top), axis=-1))
 
     def probabilities(self, t: np.ndarray, temperature: np.ndarray, t_sensor: np.ndarray,
                       ambient: float, sensors: Sequence[SensorConstants] | None = None,
@@ -135,8 +148,12 @@ class JointContactModel:
 
     def _posterior(self, t: np.ndarray, temperature: np.ndarray, t_sensor: np.ndarray,
                    ambient: float, sensors: Sequence[SensorConstants] | None,
-                   ) -> tuple[np.ndarray, np.ndarray]:
-        """Log evidence and posterior mean of T_obj, both (classes, h x onset shifts)."""
+                   stds: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Log evidence and posterior mean of T_obj, both (classes, h x onset shifts).
+
+        With ``stds`` (prior stds of the object's temperature, K) both get a leading axis, one
+        entry per std.
+        """
         t = np.asarray(t, dtype=float)
         y = np.atleast_2d(np.asarray(temperature, dtype=float))
         t0 = np.atleast_1d(np.asarray(t_sensor, dtype=float))
@@ -186,9 +203,12 @@ class JointContactModel:
         # the object's prior: about ambient, or a heat-generating material's own temperature
         mu = np.array([0.0 if m.temperature is None else m.resting_temperature(ambient) - ambient
                        for m in self.materials])[:, None]
-        tau2 = np.array([self.object_std if m.temperature is None
-                         else max(0.5 * (m.temperature[1] - m.temperature[0]), 0.5)
-                         for m in self.materials])[:, None] ** 2
+        own = np.array([m.temperature is not None for m in self.materials])[:, None]
+        own_std = np.array([0.0 if m.temperature is None
+                            else max(0.5 * (m.temperature[1] - m.temperature[0]), 0.5)
+                            for m in self.materials])[:, None]
+        tau = np.asarray([self.object_std] if stds is None else stds, dtype=float)
+        tau2 = np.where(own[None], own_std[None], tau[:, None, None]) ** 2  # (K, classes, 1)
         s2 = self.noise**2
         a = pp.sum(axis=-1)
         b = dp.sum(axis=-1) + pp @ t0
@@ -197,7 +217,10 @@ class JointContactModel:
         rhs = b / s2 + mu / tau2
         mean = rhs / precision
         quad = zz / s2 + mu**2 / tau2 - rhs**2 / precision
-        return -0.5 * quad - 0.5 * np.log(tau2 * precision), mean + ambient
+        log_ev = -0.5 * quad - 0.5 * np.log(tau2 * precision)
+        if stds is None:
+            return log_ev[0], mean[0] + ambient
+        return log_ev, mean + ambient
 
 
 
@@ -207,6 +230,64 @@ class JointContactModel:
 CONDUCTANCE_RANGE = (0.026 / 150e-6, 0.026 / 0.1e-6)
 #: How much earlier than the detected onset a contact may have begun, s (the pipeline's).
 ONSET_SHIFTS = tuple(np.round(np.arange(0.0, 0.081, 0.01), 3))
+
+
+#: Prior stds of an object's temperature about ambient that `ObjectTemperaturePrior` weighs,
+#: K: log-spaced from objects long at rest in the room to a 10 K spread (the model's default).
+OBJECT_STDS = tuple(float(v) for v in np.geomspace(0.1, 10.0, 9))
+
+
+class ObjectTemperaturePrior:
+    """How far from ambient the objects a skin touches sit, learned from its own contacts.
+
+    One heated taxel cannot tell a cold object from a more conductive one: its answer rests on
+    the prior on the object's temperature, and a broad prior (10 K) leaves it "unknown". A
+    contact seen by several taxels at different starting temperatures pins the object's
+    temperature, so the skin's multi-taxel contacts show how far objects sit from ambient
+    where it works. The prior is hierarchical: the object's temperature about ambient is
+    Gaussian with a std from ``stds`` (log-uniform hyperprior), whose posterior each pinned
+    contact updates by its evidence (the material marginalised with equal weights, so a
+    contact that does not pin the temperature leaves it as it was); and the next object may be
+    unlike every one seen so far, with probability 1 / (n + 1) after n (a Dirichlet process
+    with concentration 1), in which case the broadest std applies. With no contact seen it is
+    the broad prior.
+
+    Parameters
+    ----------
+    stds : sequence of float
+        Candidate stds, K (default `OBJECT_STDS`); the largest is the new object's.
+    """
+
+    def __init__(self, stds: Sequence[float] = OBJECT_STDS) -> None:
+        self.stds = np.asarray(stds, dtype=float)
+        if self.stds.ndim != 1 or self.stds.size == 0 or np.any(self.stds <= 0):
+            raise ValueError("stds must be a non-empty sequence of positive K")
+        self.log_posterior = np.zeros(self.stds.size)  # log-uniform hyperprior
+        self.contacts = 0.0
+
+    def weights(self) -> np.ndarray:
+        """Weight of each std in the prior of the next contact (they sum to 1)."""
+        post = np.exp(self.log_posterior - self.log_posterior.max())
+        new = 1.0 / (self.contacts + 1.0)
+        w = (1.0 - new) * post / post.sum()
+        w[np.argmax(self.stds)] += new
+        return w
+
+    def std(self) -> float:
+        """Return the prior's standard deviation, K (of the mixture)."""
+        return float(np.sqrt(self.weights() @ self.stds**2))
+
+    def update(self, log_evidence_by_std: np.ndarray, weight: float = 1.0) -> None:
+        """Add a pinned contact's evidence, (len(stds), n_classes) (`log_evidence_by_std`).
+
+        ``weight`` (0-1) is how surely it is an object at rest in the room (not one that holds
+        its own temperature).
+        """
+        ev = np.asarray(log_evidence_by_std, dtype=float)
+        marginal = np.logaddexp.reduce(ev, axis=1) - np.log(ev.shape[1])
+        self.log_posterior = self.log_posterior + weight * marginal
+        self.log_posterior -= self.log_posterior.max()
+        self.contacts += weight
 
 
 class JointClassifier:
@@ -231,6 +312,14 @@ class JointClassifier:
     sensors : dict, optional
         Taxel id -> calibrated `SensorConstants` (`skin.formats.calibration_file`); taxels not in it
         use their board's constants.
+    object_prior : str
+        ``"learned"`` (default): the prior on the object's temperature is learned from this
+        run's contacts of two or more taxels (`ObjectTemperaturePrior`), so that one-taxel
+        contacts are named as far as the objects seen so far justify; ``"fixed"``: always
+        ``object_std`` (10 K), which leaves most one-taxel contacts "unknown". The learned
+        prior trusts the objects seen: a cold object touched by one taxel after many at
+        ambient is taken for a more conductive one at ambient (one heated trace cannot tell
+        them apart); a second taxel on it pins its temperature either way.
     **model_options
         Passed to `JointContactModel` (``noise``, ``object_std``, ``h_points``,
         ``onset_shifts``; by default the contact may have begun up to 80 ms before the
@@ -242,7 +331,8 @@ class JointClassifier:
 
     def __init__(self, layout, materials: dict[str, Material] | None = None,
                  threshold: float = 0.5, min_duration: float = 0.1, max_duration: float = 2.5,
-                 fs: float = 200.0, sensors: dict | None = None, **model_options) -> None:
+                 fs: float = 200.0, sensors: dict | None = None, object_prior: str = "learned",
+                 **model_options) -> None:
         from skin.models.materials import load_materials
 
         table = materials if materials is not None else load_materials()
@@ -252,6 +342,12 @@ class JointClassifier:
         model_options.setdefault("h_points", 9)
         self.model = JointContactModel([m for m in table.values() if m.classify],
                                        **model_options)
+        if object_prior not in ("learned", "fixed"):
+            raise ValueError(f"object_prior must be 'learned' or 'fixed', got {object_prior!r}")
+        self.object_prior = object_prior
+        # the candidates below the model's own (broad) std, which a new kind of object gets
+        broad = self.model.object_std
+        self.prior = ObjectTemperaturePrior([*(v for v in OBJECT_STDS if v < broad), broad])
         self.threshold = threshold
         self.min_duration = min_duration
         self.max_duration = max_duration
@@ -280,7 +376,21 @@ class JointClassifier:
         y = np.array([np.interp(grid, w.time[ok], w.temperature[ok]) for w, ok in usable])
         t0 = np.array([w.initial for w, _ in usable])
         sensors = [self._sensors[w.taxel] for w, _ in usable]
-        p = self.model.probabilities(grid, y, t0, contact.ambient, sensors)
+        if self.object_prior == "fixed":
+            log_ev = self.model.log_evidence(grid, y, t0, contact.ambient, sensors)
+        else:
+            by_std = self.model.log_evidence_by_std(grid, y, t0, contact.ambient, sensors,
+                                                    self.prior.stds)
+            log_w = np.log(np.maximum(self.prior.weights(), 1e-300))
+            log_ev = np.logaddexp.reduce(log_w[:, None] + by_std, axis=0)
+        p = np.exp(log_ev - log_ev.max())
+        p /= p.sum()
+        if self.object_prior == "learned" and len(usable) >= 2 and contact.final:
+            # the taxels pin the object's temperature: what it says about the next objects,
+            # weighed by how surely this object sits in the room (not one of its own warmth)
+            at_rest = sum(float(v) for m, v in zip(self.model.materials, p, strict=True)
+                          if m.temperature is None)
+            self.prior.update(by_std, at_rest)
         probs = {c: float(v) for c, v in zip(self.model.classes, p, strict=True)}
         label, confidence, family, family_confidence = hierarchical_answer(
             probs, self.threshold, self.table)

@@ -115,6 +115,9 @@ class Protocol:
         recording run (default (0, 0): objects rest at ambient; ``(-8, 8)`` gives cold and
         warm objects, a piece of wood from outdoors or from a sunny window sill).
         Heat-generating materials keep their own temperature.
+    object_memory : float
+        Share of a touch's surface warming that the next touch of the object meets (after its
+        diffusive decay); 0: every touch meets the object at its resting temperature.
     """
 
     trials: int = 500
@@ -135,6 +138,7 @@ class Protocol:
     reheat_time_constant: float = 62.5
     object_offset: tuple[float, float] | float = (0.0, 0.0)
     channels: tuple[str, ...] = ("heated",)
+    object_memory: float = 0.5
 
 
 def parse_channel(spec: str) -> tuple[bool, float | None]:
@@ -337,7 +341,12 @@ def simulate_trials(
                                     else h).ravel(),
                "true_sensor_depth": constants[:, 0],
                "true_sensor_diffusivity": constants[:, 1],
-               "true_sensor_conductivity": constants[:, 2], **extra_truth},
+               "true_sensor_conductivity": constants[:, 2],
+               # whether a reading is the closed form of the taxel's constants (the paper's
+               # chain: constant heater, no lag, no smoothing), which the ceiling assumes
+               "true_closed_form": np.full(total, base.heater == "constant" and base.lag == 0
+                                           and base.smoothing == "none"),
+               **extra_truth},
         source=f"simulated ({model}, seed {seed}"
                + ("" if sensor is None else f", sensor {base.name}") + ")",
     )
@@ -401,7 +410,7 @@ def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorDescrip
         # release after the hold, then reheat; the object keeps some of the heat it took
         end = float(contact_reading(hold[j], t0, tobj, e_o, s, h[j], amb[j]))
         surf = float((s.effusivity * t0 + e_o * tobj) / (s.effusivity + e_o))
-        warm = (surf - base) * np.sqrt(hold[j] / (hold[j] + after[j])) * 0.5
+        warm = (surf - base) * np.sqrt(hold[j] / (hold[j] + after[j])) * p.object_memory
         excess = max(warm, 0.0)
         sensor_now = full - (full - end) * np.exp(-after[j] / tau)
 

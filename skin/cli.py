@@ -19,6 +19,7 @@ from skin.commands import (
     devices,
     evaluate,
     evaluate_onset,
+    map,
     plot,
     record,
     run,
@@ -31,7 +32,8 @@ from skin.commands import (
 from skin.errors import SkinError
 
 COMMANDS = (run, simulate, calibrate, train, evaluate, evaluate_onset, bench, plot, record, devices,
-            view, sensors, config, completion, commission, dataset, subscribe)
+            view, sensors, config, completion, commission, dataset, subscribe,
+            map)
 
 
 def build_parser() -> argparse.ArgumentParser:

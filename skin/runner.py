@@ -390,8 +390,14 @@ class Skin:
             from skin.stream.publish import open_publisher
 
             chain = self._urdf_chain()
+            pose = None
+            if s.robot_pose:
+                from skin.world.kinematics import transform
+
+                pose = transform(s.robot_pose[:3], s.robot_pose[3:])
             for url in s.publish:
-                pub = open_publisher(url, self.layout, chain=chain).attach(self.pipeline)
+                pub = open_publisher(url, self.layout, robot=s.robot, chain=chain,
+                                     robot_pose=pose).attach(self.pipeline)
                 self._closers.append(pub)
                 self.publishers.append(pub)
 

@@ -32,7 +32,7 @@ GROUPS: dict[str, tuple[str, ...]] = {
     "classifier": ("model", "classifier", "threshold", "expect", "window", "provisional",
                    "object_temperature_range"),
     "output": ("out", "force", "sinks", "publish", "record", "map", "arm", "view", "video",
-               "view_mode"),
+               "view_mode", "robot", "robot_pose"),
 }
 """The tables of a skin file and the fields each holds (every field is in one table)."""
 
@@ -117,6 +117,12 @@ class Setup:
         Movie of the arm view (.gif, .mp4).
     view_mode : str
         ``material`` or ``temperature``.
+    robot : str
+        The robot's name: the key segment of its Zenoh topics (``zenoh://`` URLs' ``robot=``
+        wins) and its name in a shared map (`skin.world.map_service`).
+    robot_pose : list of float
+        The robot's base in a shared map's frame, ``[x, y, z, roll, pitch, yaw]`` (m, rad),
+        sent with each contact over Zenoh; empty: not given (the map's origin).
     workers : int
         Processes for onset detection (`skin.stream.shards`): 1 runs the whole pipeline in
         this process; more shard the skin's boards across that many processes, this one
@@ -153,6 +159,8 @@ class Setup:
     video: str | None = None
     view_mode: str = "material"
     workers: int = 1
+    robot: str = "skin"
+    robot_pose: list[float] = field(default_factory=list)
     origin: dict[str, str] = field(default_factory=dict, compare=False)
 
     def updated(self, values: Mapping[str, Any], origin: str | Mapping[str, str]) -> Setup:
@@ -272,6 +280,27 @@ def _numbers(value: Any) -> list[float]:
     return [_positive(v) for v in value]
 
 
+def _name(value: Any) -> str:
+    if not isinstance(value, str) or not value or not all(c.isalnum() or c in "-_"
+                                                          for c in value):
+        raise ValueError(f"must be a name of letters, digits, - and _, got {value!r}")
+    return value
+
+
+def _pose(value: Any) -> list[float]:
+    if isinstance(value, str):
+        try:
+            value = [float(v) for v in value.split(",") if v.strip()]
+        except ValueError:
+            raise ValueError(f"must be x,y,z,roll,pitch,yaw, got {value!r}") from None
+    if not isinstance(value, list | tuple) or len(value) not in (0, 6):
+        raise ValueError(f"must be 6 numbers [x, y, z, roll, pitch, yaw] (m, rad), got {value!r}")
+    numbers = [_number(v) for v in value]
+    if not all(math.isfinite(v) for v in numbers):
+        raise ValueError(f"must be finite numbers, got {value!r}")
+    return numbers
+
+
 def _flag(value: Any) -> bool:
     if not isinstance(value, bool):
         raise TypeError(f"must be true or false, got {value!r}")
@@ -316,4 +345,6 @@ _CHECKS: dict[str, Callable[[Any], Any]] = {
     "video": _optional_text,
     "view_mode": _choice("material", "temperature"),
     "workers": _count,
+    "robot": _name,
+    "robot_pose": _pose,
 }

@@ -365,3 +365,32 @@ def test_ceiling_knows_the_nuisances_and_beats_the_learners_early():
         known_nuisance_ceiling(recorded, 1.0)
     with pytest.raises(SkinError, match="does not fit"):
         known_nuisance_ceiling(ds, 10.0)
+
+
+def test_ceiling_told_less_and_the_benchmark_with_one_nuisance_fixed():
+    from skin.bench.ceiling import known_nuisance_ceiling
+    from skin.bench.nuisance import VARIANTS, variant_data
+
+    mats = [MATS[m] for m in ("aluminium", "glass", "pine", "cardboard")]
+    same = simulate_trials(mats, Protocol(trials=12, run_length=6, taxel_spread=0.0), seed=5)
+    known = known_nuisance_ceiling(same, 1.0)
+    # taxels at the nominal constants: not being told them changes nothing
+    assert known_nuisance_ceiling(same, 1.0, ("taxel_constants",))["accuracy"] == \
+        known["accuracy"]
+    told_less = known_nuisance_ceiling(same, 1.0, ("object_temperature",))
+    assert told_less["method"] == "ceiling (object_temperature unknown)"
+    assert told_less["accuracy"] <= known["accuracy"]
+    with pytest.raises(ValueError, match="unknown nuisance"):
+        known_nuisance_ceiling(same, 1.0, ("room",))
+    # object_memory = 0: every touch meets the object at rest (ambient)
+    rest = simulate_trials(mats, Protocol(trials=12, run_length=6, object_memory=0.0), seed=5)
+    assert np.allclose(rest.extra["true_object_temperature"], rest.ambient)
+    assert not np.allclose(simulate_trials(mats, Protocol(trials=12, run_length=6), seed=5)
+                           .extra["true_object_temperature"], rest.ambient)
+    full = variant_data("sensor_start", 4, 5)
+    t0 = full.extra["true_sensor_temperature"]
+    per_taxel = [np.ptp(t0[full.taxel[:, 0] == k]) for k in np.unique(full.taxel[:, 0])]
+    assert max(per_taxel) < 0.5  # fully reheated: one start per taxel (room drift only)
+    assert set(VARIANTS) >= {"protocol", "taxel_constants", "conductance"}
+    with pytest.raises(ValueError, match="unknown variant"):
+        variant_data("weather", 4, 5)

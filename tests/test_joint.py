@@ -111,3 +111,63 @@ def test_onset_shifts_by_running_sums_match_shifted_single_evaluations_and_the_g
     # samples a hair off the grid: the lags no longer coincide and the gather path runs
     jitter = np.random.default_rng(2).uniform(0, 1e-8, T.size)
     assert np.allclose(model.log_evidence(T + jitter, y, t0, 25.0, sensors), fast, atol=1e-4)
+
+
+def test_evidence_by_prior_std_matches_one_model_per_std():
+    mats = [MATS[m] for m in ("glass", "pine", "human_skin")]
+    t0 = np.array([33.0, 39.0])
+    y = np.array([_reading("pine", v, 25.0) for v in t0])
+    by_std = JointContactModel(mats).log_evidence_by_std(T, y, t0, 25.0, None, [0.3, 10.0])
+    for k, std in enumerate((0.3, 10.0)):
+        one = JointContactModel(mats, object_std=std).log_evidence(T, y, t0, 25.0)
+        assert np.allclose(by_std[k], one)
+
+
+def test_learned_object_prior_narrows_on_pinned_contacts_at_ambient_not_on_cold_ones():
+    from skin.models.joint import OBJECT_STDS, ObjectTemperaturePrior
+
+    model = JointContactModel([MATS[m] for m in ("glass", "pine", "brick", "cardboard")])
+    t0 = np.array([31.0, 40.0])  # two taxels at different temperatures pin the object's
+
+    def pinned(material, t_obj):
+        y = np.array([_reading(material, v, t_obj) for v in t0])
+        return model.log_evidence_by_std(T, y, t0, 25.0, None, OBJECT_STDS)
+
+    room, cold = ObjectTemperaturePrior(), ObjectTemperaturePrior()
+    assert room.std() == pytest.approx(10.0)  # nothing seen: the broad prior
+    for i, m in enumerate(("glass", "pine", "brick", "cardboard") * 2):
+        room.update(pinned(m, 25.0))
+        cold.update(pinned(m, 25.0 + (-8.0 if i % 2 else 8.0)))
+    assert abs(room.weights().sum() - 1.0) < 1e-12
+    assert room.weights()[-1] == pytest.approx(1.0 / 9.0, abs=1e-3)  # a new kind of object
+    assert room.std() < 3.5 and cold.std() > 7.0
+    # a contact that does not pin the object's temperature teaches nothing
+    flat = ObjectTemperaturePrior()
+    flat.update(np.zeros((len(OBJECT_STDS), 4)), weight=0.0)
+    assert np.allclose(flat.weights(), ObjectTemperaturePrior().weights())
+    # one taxel on glass at ambient: named under the learned prior, not under the broad one
+    one = _reading("glass", 36.0, 25.0)[None]
+    by_std = model.log_evidence_by_std(T, one, np.array([36.0]), 25.0, None, OBJECT_STDS)
+
+    def answer(prior):
+        ev = np.logaddexp.reduce(np.log(prior.weights() + 1e-300)[:, None] + by_std, axis=0)
+        p = np.exp(ev - ev.max())
+        return p / p.sum()
+
+    broad = answer(ObjectTemperaturePrior())
+    assert answer(room)[0] > 0.99 and answer(room)[0] > broad[0]
+    assert answer(cold)[0] < answer(room)[0]
+    with pytest.raises(ValueError, match="positive"):
+        ObjectTemperaturePrior([0.0, 1.0])
+
+
+def test_object_prior_bench_one_taxel_contacts_named_at_ambient():
+    from skin.bench.object_prior import play, random_scene
+
+    scene = random_scene(touches=16, single=0.5, seed=1)
+    fixed, learned = play(scene, "fixed"), play(scene, "learned")
+    assert fixed["learned_prior_std"] == pytest.approx(10.0)
+    assert learned["learned_prior_std"] < 5.0
+    one_f, one_l = fixed["one taxel"], learned["one taxel"]
+    assert one_l["contacts"] == one_f["contacts"] > 0
+    assert one_l["family"] > one_f["family"] and one_l["unknown"] < one_f["unknown"]

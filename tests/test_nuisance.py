@@ -54,7 +54,7 @@ def test_a_model_trained_at_ambient_is_no_longer_confidently_wrong_on_cold_objec
     p = model.predict_proba(x_test)
     assert np.allclose(p.sum(axis=1), 1.0) and np.all(p >= 0)
     acc, wrong = _figures(p, model.classes_, test.label)
-    assert wrong_raw > 0.15  # the defect: confident answers on a trace it cannot read
+    assert wrong_raw > 0.1  # the defect: confident answers on a trace it cannot read
     assert wrong <= 0.03
     assert acc >= acc_raw - 0.03  # the answers stay; their confidence goes
     assert np.array_equal(model.predict(x_test), model.classes_[p.argmax(axis=1)])

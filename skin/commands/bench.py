@@ -48,6 +48,10 @@ subscriber in another process at the skin's real rate (`skin.bench.publish`).
 +-10 % of the paper's, a few contacts with a reference material) and reports how well
 `skin.models.sensor_fit.fit_sensor_constants` recovers them, against the nominal constants,
 with the fit time per taxel.
+
+``skin bench map`` runs the shared map service with several robots publishing contacts and
+reports lost contacts, the time from a contact's decision to its query visibility, and a
+1 m^3 box query over a 1 M-voxel map (`skin.bench.map`).
 """
 
 from __future__ import annotations
@@ -57,7 +61,7 @@ import json
 import time
 from pathlib import Path
 
-from skin.commands import bench_drivers, bench_view
+from skin.commands import bench_drivers, bench_map, bench_view
 from skin.progress import Progress
 
 
@@ -150,8 +154,103 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     spread.add_argument("--seed", type=int, default=0, help="seed")
     spread.add_argument("--json", action="store_true", help="print one JSON document")
     spread.set_defaults(func=main_spread)
+    nui = kinds.add_parser("nuisance", help="what each nuisance of the synthetic benchmark "
+                                            "costs the classifiers (one fixed at a time)")
+    nui.add_argument("--variants", default=None,
+                     help="comma-separated (default all): " + ", ".join(
+                         ["protocol", "sensor_start", "object_temperature", "taxel_constants",
+                          "conductance", "onset", "adc_noise"]))
+    nui.add_argument("--methods", default="default,svm-pca,ceiling",
+                     help="methods of skin evaluate, and 'ceiling' (default,svm-pca,ceiling)")
+    nui.add_argument("--durations", default="0.5,1.5", help="contact durations, s (0.5,1.5)")
+    nui.add_argument("--trials", type=int, default=100, help="trials per material (100)")
+    nui.add_argument("--seed", type=int, default=7, help="seed of the datasets (7)")
+    nui.add_argument("--sensor", default=None, help="sensor preset (default: the paper's)")
+    nui.add_argument("--json", action="store_true", help="print one JSON document")
+    nui.set_defaults(func=main_nuisance)
+    op = kinds.add_parser("object-prior", help="one-taxel contacts with the fixed and the "
+                                                "learned prior on the object's temperature")
+    op.add_argument("--touches", type=int, default=100, help="touches per scene (100)")
+    op.add_argument("--single", type=float, default=0.4,
+                    help="share of touches by one taxel only (0.4)")
+    op.add_argument("--off", default="0,0.3",
+                    help="shares of cold or warm objects, one scene each (0,0.3)")
+    op.add_argument("--offset", type=float, default=8.0,
+                    help="how far cold and warm objects sit from ambient, K (8)")
+    op.add_argument("--seed", type=int, default=0, help="seed of the scenes (0)")
+    op.add_argument("--json", action="store_true", help="print one JSON document")
+    op.set_defaults(func=main_object_prior)
     bench_drivers.add_parsers(kinds)
     bench_view.add_parsers(kinds)
+    bench_map.add_parsers(kinds)
+
+
+def main_object_prior(args: argparse.Namespace) -> int:
+    """``skin bench object-prior``: the joint classifier's fixed and learned object prior."""
+    from skin import bench
+    from skin.bench.object_prior import run
+    from skin.errors import SkinError
+
+    offs = tuple(float(v) for v in args.off.split(",") if v.strip())
+    if args.touches < 1 or not 0 <= args.single <= 1 or any(not 0 <= v <= 1 for v in offs):
+        raise SkinError("--touches must be at least 1, --single and --off shares within 0-1")
+    progress = Progress()
+    started = time.monotonic()
+    rows = run(args.touches, args.single, offs, args.offset, args.seed,
+               progress=lambda d, n: progress.bar(d, n, "runs", started))
+    progress.done()
+    if args.json:
+        print(json.dumps({"machine": bench.machine(), "seed": args.seed, "rows": rows}))
+        return 0
+    print(f"{args.touches} touches of 0.4-2.5 s on the arm, {args.single:.0%} by one taxel, "
+          f"seed {args.seed}; sure = answers at p >= 0.9")
+    print(f"{'off-ambient':>11} {'prior':<8} {'contacts':<15} {'n':>3} {'material':>8} "
+          f"{'family':>6} {'unknown':>7} {'sure':>4} {'right':>5} {'ECE':>5} {'std K':>6}")
+    for r in rows:
+        for key in ("one taxel", "several taxels"):
+            c = r[key]
+            if not c["contacts"]:
+                continue
+            right = "-" if c["sure_right"] is None else f"{c['sure_right']:.2f}"
+            print(f"{r['off_ambient_share']:>11.0%} {r['object_prior']:<8} {key:<15} "
+                  f"{c['contacts']:>3} {c['material']:>8.3f} {c['family']:>6.3f} "
+                  f"{c['unknown']:>7.3f} {c['sure']:>4} {right:>5} "
+                  f"{c['calibration_error']:>5.3f} {r['learned_prior_std']:>6.2f}")
+    return 0
+
+
+def main_nuisance(args: argparse.Namespace) -> int:
+    """``skin bench nuisance``: the synthetic benchmark with one nuisance fixed at a time."""
+    from skin import bench
+    from skin.bench.nuisance import VARIANTS, nuisance_table
+    from skin.errors import SkinError
+
+    variants = list(VARIANTS) if args.variants is None else \
+        [v.strip() for v in args.variants.split(",") if v.strip()]
+    bad = [v for v in variants if v not in VARIANTS]
+    if bad or args.trials < 3:
+        raise SkinError(f"unknown variant(s) {', '.join(bad)}; known: {', '.join(VARIANTS)}"
+                        if bad else "--trials must be at least 3 (3-fold cross-validation)")
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    durations = [float(d) for d in args.durations.split(",") if d.strip()]
+    progress = Progress()
+    rows = nuisance_table(variants, methods, durations, args.trials, args.seed, args.sensor,
+                          progress=progress.message)
+    progress.done()
+    if args.json:
+        print(json.dumps({"machine": bench.machine(), "seed": args.seed,
+                          "sensor": args.sensor or "paper", "variants": VARIANTS,
+                          "rows": rows}))
+        return 0
+    print(f"accuracy, 3-fold, {args.trials} trials per material, seed {args.seed}, sensor "
+          f"{args.sensor or 'paper'}; each row fixes one nuisance:")
+    methods = [m for m in methods if any(r["method"] == m for r in rows)]
+    cols = [(m, d) for d in durations for m in methods]
+    print(f"{'fixed':<20}" + "".join(f"{m[:9]:>10} {d:<4g}" for m, d in cols))
+    for v in variants:
+        acc = {(r["method"], r["duration"]): r["accuracy"] for r in rows if r["variant"] == v}
+        print(f"{v:<20}" + "".join(f"{acc[c]:>15.3f}" for c in cols))
+    return 0
 
 
 def main_thermal(args: argparse.Namespace) -> int:

@@ -409,6 +409,10 @@ def main(args: argparse.Namespace) -> int:
         raise SkinError("--object-temperature-range goes with --train/--test (a "
                         "cross-validation's folds share their objects' temperatures)")
     merge = _parse_merge(args.merge, data.classes)
+    if args.ceiling:  # before the work starts
+        from skin.bench.ceiling import check_ceiling
+
+        check_ceiling(test if test is not None else data)
     progress = Progress()
     if args.object_temperature_range > 0:
         from skin.models.nuisance import object_spread, uncovered

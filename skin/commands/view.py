@@ -24,8 +24,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     view = sub.add_parser("view", help="show the world material map (contacts as coloured "
                                        "points around the arm)", description=__doc__)
     view.add_argument("--map", required=True, metavar="SOURCE",
-                      help="a `skin run` output folder, an MCAP recording (.mcap), or a saved "
-                           "world map (.npz, .jsonl)")
+                      help="a `skin run` output folder, an MCAP recording (.mcap), a saved "
+                           "world map (.npz, .jsonl), or a shared map: zenoh://PREFIX[?connect="
+                           "...] (`skin map serve`) or its database (.sqlite)")
+    view.add_argument("--box", default=None,
+                      help="of a shared map, the voxels drawn: x0,y0,z0,x1,y1,z1, m, in the "
+                           "map's frame (default: 1.5 m around the robot drawn)")
+    view.add_argument("--robot", default=None,
+                      help="of a shared map, the robot whose arm is drawn at its pose (default: "
+                           "the one with the most contacts)")
     view.add_argument("--out", metavar="PNG", help="write the view to this PNG (off screen) "
                                                    "instead of opening a window")
     view.add_argument("--poses", metavar="FILE",
@@ -54,6 +61,8 @@ def main(args: argparse.Namespace) -> int:
     from skin.world.kinematics import as_pose_source, default_chain, load_chain, load_poses
     from skin.world.map import CHAIN_FILE, WorldMap
 
+    if args.map.startswith("zenoh://") or args.map.lower().endswith((".sqlite", ".db")):
+        return _shared(args)
     source = Path(args.map)
     if not source.exists():
         raise SkinError(f"--map {args.map}: no such file or folder")
@@ -106,4 +115,57 @@ def main(args: argparse.Namespace) -> int:
     print(f"world map: {len(world)} points from {world.contacts()} contacts ({per})"
           + ("" if written is None else f" -> {written}")
           + (f"; saved {args.save}" if args.save else ""))
+    return 0
+
+
+def _shared(args: argparse.Namespace) -> int:
+    """Draw the voxels of a shared map (`skin.world.shared_map`) in a box around the arm."""
+    import numpy as np
+
+    from skin.formats.layout import load_layout
+    from skin.models import load_materials
+    from skin.viz.world_view import render_world_map
+    from skin.world.kinematics import default_chain, load_chain
+    from skin.world.map import WorldMap
+    from skin.world.map_store import parse_box
+    from skin.world.shared_map import SharedMap
+
+    given = parse_box(args.box) if args.box is not None else None  # checked before any session
+    with SharedMap(args.map) as shared:
+        info = shared.stats()
+        robots = info["robots"]
+        robot = args.robot or (max(robots, key=robots.__getitem__) if robots else None)
+        if robot is not None and robot not in info.get("robot_poses", {}):
+            raise SkinError(f"--robot {robot}: not in the map (robots: "
+                            f"{', '.join(sorted(robots)) or 'none'})")
+        pose = (info.get("robot_poses", {}).get(robot) if robot else None)
+        base = np.eye(4) if pose is None else np.asarray(pose, dtype=float)
+        x, y, z = base[:3, 3]
+        box = given or (x - 1.5, y - 1.5, z - 0.5, x + 1.5, y + 1.5, z + 2.0)
+        voxels = shared.query(box)
+    n = len(voxels)
+    arrays = {"points": np.array([v["center"] for v in voxels], dtype=float).reshape(n, 3),
+              "normals": np.zeros((n, 3)), "contact": np.arange(n, dtype=np.int64),
+              "taxel": np.full(n, -1, dtype=np.int64), "link": np.full(n, "", dtype="<U1"),
+              "label": np.array([v["label"] for v in voxels], dtype=str).reshape(n),
+              "confidence": np.array([v["confidence"] for v in voxels], dtype=float),
+              "time": np.array([v["last_seen"] for v in voxels], dtype=float)}
+    world = WorldMap()
+    world._parts, world._arrays = [arrays], arrays
+    layout = load_layout(args.layout or "arm")
+    chain = load_chain(args.chain) if args.chain else default_chain()
+    colours = {m.name: m.colour for m in load_materials().values()}
+    title = f"shared map: {n} voxels, arm of {robot or 'no robot'} ({args.map})"
+    arm = {link: base @ m for link, m in chain.poses().items()}
+    written = render_world_map(world, layout, colours, poses=arm, path=args.out, title=title)
+    counts = world.counts()
+    if args.json:
+        print(json.dumps({"source": args.map, "box": list(box), "robot": robot, "voxels": n,
+                          "contacts": sum(v["contacts"] for v in voxels),
+                          "per_material": counts,
+                          "out": None if written is None else str(written)}))
+        return 0
+    per = ", ".join(f"{name} {k}" for name, k in counts.items()) or "none"
+    print(f"shared map: {n} voxels in {','.join(f'{v:g}' for v in box)} around {robot} ({per})"
+          + ("" if written is None else f" -> {written}"))
     return 0

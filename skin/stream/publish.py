@@ -10,7 +10,9 @@ URL                            publisher
 ``zenoh://[PREFIX][?...]``     `skin.stream.publish_zenoh.ZenohPublisher` (eclipse-zenoh):
                                ``<PREFIX>/<robot>/temperature``, ``/contacts``, ``/health``;
                                query: ``robot=``, ``listen=``/``connect=`` endpoints (comma
-                               separated, e.g. ``tcp/127.0.0.1:7447``), ``mode=`` peer|client
+                               separated, e.g. ``tcp/127.0.0.1:7447``), ``mode=`` peer|client,
+                               ``resend=S``: re-send contacts a shared map service has not
+                               acknowledged within S seconds
 ``foxglove://HOST:PORT``       `skin.stream.publish_foxglove.FoxglovePublisher`: a Foxglove
                                WebSocket server (foxglove-sdk)
 =============================  ==============================================================
@@ -25,7 +27,10 @@ subscriber needs nothing but this description):
   s, per sample, from the clock maps), ``dtype`` (``"<f4"``). `decode_payload` reads it.
 - ``thermoskin.contact``: JSON, an ``events.jsonl`` record (`skin.stream.sinks.event_record`:
   label, family and probabilities when the classifier gives them, device and host times) plus
-  ``link`` and the contact's ``centroid`` (m) and outward ``normal`` in that link's frame.
+  ``link`` and the contact's ``centroid`` (m) and outward ``normal`` in that link's frame;
+  over Zenoh also ``link_pose`` (the link in the robot's base frame, its chain standing still,
+  when the publisher knows the chain) and ``robot_pose`` (the base in a shared map's frame,
+  when the setup gives one), 4x4 row-major lists, for the shared map (`skin.world.map_store`).
 - ``thermoskin.health``: JSON, about once a second: frames, samples, gaps, contacts decided,
   taxels in contact and flagged, and the host time it was sent.
 """
@@ -218,7 +223,7 @@ def _query(url: str) -> tuple[Any, dict[str, str]]:
     return parts, query
 
 
-_OPTIONS = {"zenoh": {"robot", "listen", "connect", "mode"}, "foxglove": {"robot"}}
+_OPTIONS = {"zenoh": {"robot", "listen", "connect", "mode", "resend"}, "foxglove": {"robot"}}
 _PACKAGES = {"zenoh": ("zenoh", "publishing over Zenoh"),
              "foxglove": ("foxglove", "the Foxglove server")}
 
@@ -246,11 +251,18 @@ def check_publisher_url(url: str) -> None:
             parts.port  # noqa: B018 (parsing it is the check)
         except ValueError:
             raise SkinError(f"{url}: the port is not a number from 0 to 65535") from None
+    if "resend" in query:
+        try:
+            ok = float(query["resend"]) > 0
+        except ValueError:
+            ok = False
+        if not ok:
+            raise SkinError(f"{url}: resend= wants a positive number of seconds")
     require(*_PACKAGES[parts.scheme])
 
 
 def open_publisher(url: str, layout: Layout, robot: str | None = None,
-                   chain: Any = None) -> Publisher:
+                   chain: Any = None, robot_pose: Any = None) -> Publisher:
     """Open the publisher a URL names (see the module docstring).
 
     Parameters
@@ -264,6 +276,8 @@ def open_publisher(url: str, layout: Layout, robot: str | None = None,
     chain : skin.world.kinematics.Chain, optional
         The arm's links and joints (a URDF's), for the views that draw it; the default arm's
         when the layout's links are its.
+    robot_pose : array (4, 4), optional
+        The robot's base in the shared map's frame (Zenoh contacts carry it).
 
     Raises
     ------
@@ -282,8 +296,14 @@ def open_publisher(url: str, layout: Layout, robot: str | None = None,
         def endpoints(key: str) -> list[str]:
             return [e for e in query.get(key, "").split(",") if e]
 
+        from skin.world.kinematics import default_chain
+
+        arm = chain if chain is not None else default_chain()
+        links = arm.poses() if set(layout.links) <= set(arm.links) else None
         return ZenohPublisher(layout, prefix=prefix, robot=name, listen=endpoints("listen"),
-                              connect=endpoints("connect"), mode=query.get("mode"), url=url)
+                              connect=endpoints("connect"), mode=query.get("mode"), url=url,
+                              robot_pose=robot_pose, link_poses=links,
+                              resend=float(query["resend"]) if "resend" in query else None)
     if parts.scheme == "foxglove":
         from skin.stream.publish_foxglove import FoxglovePublisher
 
