@@ -23,7 +23,9 @@ more than a contact-free taxel can in that time) or too short is refused with wh
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -130,11 +132,19 @@ def quiet_figures(times: np.ndarray, temperature: np.ndarray,
 
 #: Least touches of each material, and least materials, that pin a sensor response.
 MIN_TOUCHES, MIN_MATERIALS = 3, 2
-#: Seconds of each touch fitted (the touch must last this long).
+#: Seconds of each touch fitted after its onset (the touch must last this long).
 TOUCH_SECONDS = 2.5
-#: The first part of each touch left out of the fit, s: the onset is dated to some 20-60 ms,
-#: an error that weighs most where the response is steepest.
-TOUCH_SKIP = 0.2
+#: Seconds before the detected onset fitted too: they pin the baseline, so that the fit can
+#: date the onset itself (`ONSET_SEARCH`).
+TOUCH_BEFORE = 0.4
+#: How far each touch's onset may move from the detected one in the fit, s. `refine_onset`
+#: dates reference touches to some -20..+80 ms with the nominal constants (10-bit readings;
+#: up to +140 ms for soft contacts); a late onset left fixed passes for a faster sensor with a
+#: softer contact (response-time error 0.11 both before and after such a fit, seed 11).
+ONSET_SEARCH = 0.25
+#: A release and a new onset of the same taxel closer than this are one touch, s (a heater
+#: switched off at contact can make the detector see a release early in a touch).
+MERGE_GAP = 0.5
 #: Upper bound of a touch's fitted conductance, W/(m^2 K): a firm touch may be near perfect.
 CONDUCTANCE_MAX = 1e6
 
@@ -154,7 +164,10 @@ class ReferenceTouch:
     material : str
         The reference the touch fits best (`assign_materials`).
     t, y : numpy.ndarray
-        Time since the onset and reading of the `TOUCH_SECONDS` after it.
+        Time since the onset and reading, from `TOUCH_BEFORE` s before the onset to
+        `TOUCH_SECONDS` after it.
+    room : float, optional
+        The reference's temperature, deg C (default: the room's, as given to the fit).
     """
 
     column: int
@@ -163,6 +176,7 @@ class ReferenceTouch:
     material: str
     t: np.ndarray
     y: np.ndarray
+    room: float | None = None  # the reference's temperature when not the recording's room
 
 
 @dataclass(frozen=True)
@@ -181,11 +195,14 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
                  ) -> tuple[list[tuple[int, float, float, np.ndarray, np.ndarray]], int]:
     """Detect touches with the pipeline's onset detector and date them with `refine_onset`.
 
+    A release followed within `MERGE_GAP` by a new onset of the same taxel is one touch.
+
     Returns
     -------
     touches : list of tuple
         (column, onset, initial temperature, time since onset, readings) of each falling
-        touch lasting at least `TOUCH_SECONDS` with every sample of that window present.
+        touch lasting at least `TOUCH_SECONDS` with every sample of its window present; the
+        window runs from `TOUCH_BEFORE` s before the onset to `TOUCH_SECONDS` after it.
     short : int
         Touches left out: too short, rising (a warm object) or with missing samples.
     """
@@ -194,40 +211,125 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
 
     t = np.asarray(times, dtype=float)
     y = np.asarray(temperature, dtype=float)
-    n = round((TOUCH_SECONDS - TOUCH_SKIP) / float(np.median(np.diff(t))))
+    step = float(np.median(np.diff(t)))
+    n_before, n_after = round(TOUCH_BEFORE / step), round(TOUCH_SECONDS / step)
     detector = _detector_for(layout, noise)
     events, _ = detector.process(t, y, detector.initial_state())
-    open_: dict[int, object] = {}
-    out, short = [], 0
+    spans: dict[int, list] = {}  # per taxel: [onset event, release time] of each touch
     for ev in events:
+        held = spans.setdefault(ev.taxel, [])
         if ev.kind == "onset":
-            open_[ev.taxel] = ev
-            continue
-        on = open_.pop(ev.taxel, None)
-        if on is None:
-            continue
-        k = ev.taxel
-        if on.direction != -1 or ev.time - on.time < TOUCH_SECONDS:
-            short += 1
-            continue
-        near = (t >= on.time - 1.0) & (t <= ev.time)
-        onset, initial = refine_onset(t[near], y[near, k], on.time, on.baseline, on.slope,
-                                      sensors[k].depth, sensors[k].diffusivity)
-        first = int(np.searchsorted(t, onset + TOUCH_SKIP, side="right"))
-        window = slice(first, first + n)
-        if first + n > t.size or t[first + n - 1] > ev.time or not np.all(
-                np.isfinite(y[window, k])):
-            short += 1
-            continue
-        out.append((k, float(onset), float(initial), t[window] - onset, y[window, k].copy()))
-    return out, short + len(open_)
+            if held and held[-1][1] is not None and ev.time - held[-1][1] < MERGE_GAP \
+                    and ev.direction == held[-1][0].direction:
+                held[-1][1] = None  # the same touch goes on
+            elif not held or held[-1][1] is not None:
+                held.append([ev, None])
+        elif held and held[-1][1] is None:
+            held[-1][1] = ev.time
+    out, short = [], 0
+    for k, held in sorted(spans.items()):
+        for on, off in held:
+            if off is None or on.direction != -1 or off - on.time < TOUCH_SECONDS:
+                short += 1
+                continue
+            near = (t >= on.time - 1.0) & (t <= off)
+            onset, initial = refine_onset(t[near], y[near, k], on.time, on.baseline, on.slope,
+                                          sensors[k].depth, sensors[k].diffusivity)
+            first = int(np.searchsorted(t, onset, side="right")) - n_before
+            window = slice(first, first + n_before + n_after)
+            if (first < 0 or first + n_before + n_after > t.size
+                    or t[first + n_before + n_after - 1] > off
+                    or not np.all(np.isfinite(y[window, k]))):
+                short += 1
+                continue
+            out.append((k, float(onset), float(initial), t[window] - onset,
+                        y[window, k].copy()))
+    return out, short
+
+
+def labelled_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
+                     labels: list[Any]) -> tuple[list[ReferenceTouch], int]:
+    """Cut each labelled touch's window (as `find_touches`) from the recording.
+
+    The initial temperature is the median of the `TOUCH_BEFORE` s before the label's time;
+    the fit dates the onset within `ONSET_SEARCH`. A touch whose window runs past the
+    recording or has a missing sample is left out (counted).
+    """
+    t = np.asarray(times, dtype=float)
+    y = np.asarray(temperature, dtype=float)
+    step = float(np.median(np.diff(t)))
+    n_before, n_after = round(TOUCH_BEFORE / step), round(TOUCH_SECONDS / step)
+    out, short = [], 0
+    for lab in labels:
+        first = int(np.searchsorted(t, lab.time, side="right")) - n_before
+        window = slice(first, first + n_before + n_after)
+        for tid in lab.taxels or tuple(int(i) for i in layout.ids):  # not said: every taxel
+            k = layout.index(tid)
+            if first < 0 or first + n_before + n_after > t.size or not np.all(
+                    np.isfinite(y[window, k])):
+                short += 1
+                continue
+            yy = y[window, k].copy()
+            out.append(ReferenceTouch(k, lab.time, float(np.median(yy[:n_before])),
+                                      lab.material, t[window] - lab.time, yy))
+    return out, short
+
+
+def dataset_touches(trials: object, layout: object) -> tuple[list[ReferenceTouch], int]:
+    """Take reference touches from a trial dataset (version 2: `skin.formats.dataset`).
+
+    Each trial's heated, present channels with a taxel id of the layout give one touch of
+    the trial's labelled material, dated by its ``onset``, at its ``object_temperature``
+    (else its ``ambient``); the window is `find_touches`'s. Trials without an onset, or too
+    short around it (`TOUCH_BEFORE` s before, `TOUCH_SECONDS` after), are left out (counted).
+
+    Raises
+    ------
+    CommissioningError
+        If the dataset has no taxel ids or no room temperature, or if no channel's taxel id
+        is in the layout.
+    """
+    if trials.taxel is None or trials.ambient is None:
+        raise CommissioningError(f"{trials.source}: commissioning needs each trial's taxel ids "
+                                 f"and ambient temperature (dataset version 2 'taxel' and "
+                                 f"'ambient')")
+    temp = trials.temperature if trials.temperature.ndim == 3 else trials.temperature[:, None]
+    taxel = np.asarray(trials.taxel).reshape(len(trials), -1)
+    heated = (np.ones(taxel.shape, dtype=bool) if trials.heated is None
+              else np.asarray(trials.heated).reshape(taxel.shape))
+    obj = (trials.ambient if trials.object_temperature is None
+           else np.where(np.isfinite(trials.object_temperature), trials.object_temperature,
+                         trials.ambient))
+    ids = {int(t): i for i, t in enumerate(layout.ids)}
+    n_before = round(TOUCH_BEFORE * trials.fs)
+    n_after = round(TOUCH_SECONDS * trials.fs)
+    lag = (np.arange(n_before + n_after) - n_before) / trials.fs
+    out, short, known = [], 0, 0
+    for i in range(len(trials)):
+        on = int(trials.onset[i])
+        for c in range(temp.shape[1]):
+            if not heated[i, c] or int(taxel[i, c]) not in ids:
+                continue
+            known += 1
+            y = temp[i, c, max(on - n_before, 0):on + n_after]
+            if on < n_before or y.size < n_before + n_after or not np.all(np.isfinite(y)):
+                short += 1
+                continue
+            out.append(ReferenceTouch(ids[int(taxel[i, c])], 0.0,
+                                      float(np.median(y[:n_before])), str(trials.label[i]),
+                                      lag, y.copy(), float(obj[i])))
+    if not known:
+        raise CommissioningError(f"{trials.source}: no heated channel has a taxel id of layout "
+                                 f"{layout.name}: give --layout, or record the taxel ids")
+    return out, short
 
 
 def assign_materials(touches: list, materials: dict, sensors: list, room: float,
                      ) -> tuple[list[ReferenceTouch], list[tuple[int, float]]]:
     """Name each touch's reference: the material whose contact response fits it best.
 
-    Each candidate's response (nominal sensor, `contact_trace`) is tried over its contact
+    Each candidate's response (nominal sensor, `skin.models.sensor_fit.reference_reading`: with
+    a sensor description, its heater mode and smoothing) is tried over its contact
     conductance range; a touch whose best fit is not at least twice as close as the runner-up
     is ambiguous and left out (the references must differ clearly in effusivity).
 
@@ -237,17 +339,19 @@ def assign_materials(touches: list, materials: dict, sensors: list, room: float,
     ambiguous : list of tuple
         (column, onset) of the touches left out.
     """
-    from skin.models.physics import contact_trace
+    from skin.models.sensor_fit import reference_reading
 
     names = list(materials)
     assigned, ambiguous = [], []
     for k, onset, initial, tt, yy in touches:
+        after = tt > 0
         rms = []
         for name in names:
             m = materials[name]
             h = np.logspace(*np.log10(m.conductance_range), 24)[:, None]
-            model = contact_trace(tt[None, :], initial, room, m.effusivity, sensors[k], h)
-            rms.append(float(np.sqrt(np.mean((model - yy) ** 2, axis=1)).min()))
+            model = reference_reading(tt[None, :], initial, room, m.effusivity, sensors[k], h)
+            rms.append(float(np.sqrt(np.mean((model[:, after] - yy[after]) ** 2,
+                                             axis=1)).min()))
         order = np.argsort(rms)
         if len(names) > 1 and rms[order[1]] < 2.0 * rms[order[0]]:
             ambiguous.append((k, onset))
@@ -275,8 +379,6 @@ def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict
     CommissioningError
         If no taxel and no board has enough touches: the message says what to record.
     """
-    from skin.models.sensor_fit import fit_sensor_constants
-
     by_taxel: dict[int, list[ReferenceTouch]] = {}
     for tc in touches:
         by_taxel.setdefault(tc.column, []).append(tc)
@@ -300,14 +402,7 @@ def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict
             f"temperature, on every taxel (or, pooled per board, on each board)")
     out = []
     for cols, scope, tcs in groups:
-        first = int(cols[0])
-        mats = [materials[tc.material] for tc in tcs]
-        fit = fit_sensor_constants(
-            np.array([tc.t for tc in tcs]), np.array([tc.y for tc in tcs]),
-            [tc.initial for tc in tcs], np.full(len(tcs), room),
-            [m.effusivity for m in mats], nominal=sensors[first],
-            conductance_range=([m.conductance_range[0] for m in mats],
-                               [CONDUCTANCE_MAX] * len(mats)))
+        fit = _fit_group(tcs, materials, sensors[int(cols[0])], room)
         counts: dict[str, int] = {}
         for tc in tcs:
             counts[tc.material] = counts.get(tc.material, 0) + 1
@@ -315,14 +410,67 @@ def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict
     return out
 
 
+def _fit_group(tcs: list[ReferenceTouch], materials: dict, nominal: object,
+               room: float) -> object:
+    """Fit one taxel's (or board's) touches: one conductance per material or one per touch.
+
+    Both are fitted, each touch's onset with them; the one per material is kept unless one
+    per touch lowers the residual by more than the Bayesian information criterion asks for
+    its extra parameters. Touches of one material held alike share one conductance, and
+    then a free one per touch lets a late onset, a faster sensor and a softer contact pass
+    for each other (measured, seed 7: response-time error p90 0.09 free, 0.02 shared); a
+    skin touched more or less firmly needs one per touch (light touches drawn from the
+    material's range: 0.06 per touch, 0.14 shared).
+    """
+    from skin.models.sensor_fit import fit_sensor_constants
+
+    mats = [materials[tc.material] for tc in tcs]
+    t = np.array([tc.t for tc in tcs])
+    y = np.array([tc.y for tc in tcs])
+    kw = dict(nominal=nominal, onset_search=ONSET_SEARCH,
+              conductance_range=([m.conductance_range[0] for m in mats],
+                                 [CONDUCTANCE_MAX] * len(mats)))
+    args = (t, y, [tc.initial for tc in tcs],
+            [room if tc.room is None else tc.room for tc in tcs],
+            [m.effusivity for m in mats])
+    names = sorted({tc.material for tc in tcs})
+    shared = fit_sensor_constants(*args, **kw,
+                                  conductance_groups=[names.index(tc.material) for tc in tcs])
+    each = fit_sensor_constants(*args, **kw)
+    n = y.size
+
+    def bic(fit: object, conductances: int) -> float:
+        return n * np.log(max(fit.rms, 1e-12) ** 2) + (2 + conductances + 3 * len(tcs)) * np.log(n)
+
+    return each if bic(each, len(tcs)) < bic(shared, len(names)) else shared
+
+
+def described(layout: object, sensors: list) -> list:
+    """Return each taxel's sensor description with its own thermal constants.
+
+    The description (heater mode, lag, smoothing: `skin sensors`) is the taxel's board's;
+    depth, diffusivity and conductivity come from ``sensors``.
+    """
+    from skin.models.sensors import SensorDescription
+
+    boards = {bid: SensorDescription.from_board(b) for bid, b in layout.boards.items()}
+    return [dataclasses.replace(boards[tx.board], depth=s.depth, diffusivity=s.diffusivity,
+                                conductivity=s.conductivity)
+            for tx, s in zip(layout.taxels, sensors, strict=True)]
+
+
 def commission_response(times: np.ndarray, temperature: np.ndarray, layout: object,
                         materials: dict, sensors: list, room: float,
-                        noise: np.ndarray | None = None, passes: int = 2,
+                        noise: np.ndarray | None = None,
+                        labels: list[Any] | None = None,
                         ) -> tuple[list[ResponseFit], dict]:
     """Detect, date, name and fit reference touches (see `fit_responses`).
 
-    The onsets are dated with the taxels' current constants (`refine_onset` fits their
-    response); each further pass re-dates them with the constants just fitted and fits again.
+    With ``labels`` (`skin.formats.touch_labels.read_touch_labels`) the touches are those
+    labelled, not detected.
+
+    The detector's onsets (refined with the taxels' current constants) only start the fit:
+    it dates each touch's onset again, within `ONSET_SEARCH`, with the constants it fits.
 
     Returns
     -------
@@ -330,20 +478,12 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
     counts : dict
         Touches ``detected``, ``left_out`` (short, warm or incomplete) and ``ambiguous``.
     """
-    import dataclasses
-
-    current = list(sensors)
-    fits: list[ResponseFit] = []
-    counts: dict = {}
-    for _ in range(passes):
-        touches, short = find_touches(times, temperature, layout, current, noise)
-        assigned, ambiguous = assign_materials(touches, materials, current, room)
-        counts = {"detected": len(touches) + short, "left_out": short,
-                  "ambiguous": len(ambiguous)}
-        fits = fit_responses(assigned, layout, materials, sensors, room)
-        current = list(sensors)
-        for f in fits:
-            for k in f.columns:
-                current[k] = dataclasses.replace(sensors[k], diffusivity=f.fit.sensor.diffusivity,
-                                                 conductivity=f.fit.sensor.conductivity)
-    return fits, counts
+    sensors = described(layout, sensors)
+    if labels is not None:
+        touches, short = labelled_touches(times, temperature, layout, labels)
+        counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": 0}
+        return fit_responses(touches, layout, materials, sensors, room), counts
+    touches, short = find_touches(times, temperature, layout, sensors, noise)
+    assigned, ambiguous = assign_materials(touches, materials, sensors, room)
+    counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": len(ambiguous)}
+    return fit_responses(assigned, layout, materials, sensors, room), counts

@@ -128,10 +128,13 @@ def test_evaluate_onset_commissioned_on_another_unit(capsys):
 
 
 def test_skin_commission_fits_each_taxels_response_from_reference_touches(tmp_path, capsys):
-    """Every taxel of the shipped scene gets its own fit, written to the calibration file.
+    """Every taxel of the shipped scene gets its own fit, closer to the truth than nominal.
 
-    (Through sim:// with the 10-bit ADC the fitted constants are not yet closer to the truth
-    than the nominal ones: see the next test and the notes.)"""
+    Through sim:// (10-bit ADC) with onsets detected by the pipeline: measured response-time
+    error median 0.129 nominal -> 0.009 fitted (seed 7, the scene's)."""
+    from skin.drivers.sim import SkinSimulator
+    from skin.formats.scene import load_scene
+
     cal = tmp_path / "cal.json"
     assert skin_main(["commission", "--port", "sim://reference-touches?speed=0", "--touches",
                       "aluminium,pine", "-o", str(cal), "--json"]) == 0
@@ -141,32 +144,47 @@ def test_skin_commission_fits_each_taxels_response_from_reference_touches(tmp_pa
     entry = json.loads(cal.read_text())["taxels"]["0"]
     assert entry["thermal_scope"] == "taxel" and entry["thermal_contacts"] == 6
     assert "pine" in json.loads(cal.read_text())["references"]["thermal"]
+    scene = load_scene("reference-touches")
+    truth = SkinSimulator(scene).taxel_sensor
+    _, fitted = load_calibration(cal).apply(scene.layout)
+    want = truth.depth**2 / truth.diffusivity
+    got = np.array([s.depth**2 / s.diffusivity for s in fitted])
+    s0 = CalibrationFile().apply(scene.layout)[1][0]
+    nominal = np.median(np.abs(s0.depth**2 / s0.diffusivity / want - 1))
+    assert np.median(np.abs(got / want - 1)) < min(0.03, 0.25 * nominal)
+    eff = np.array([s.effusivity for s in fitted])
+    assert np.median(np.abs(eff / truth.effusivity - 1)) < 0.02
 
 
-def test_detected_reference_touches_bring_the_response_time_closer_to_the_truth():
-    """+-10 % spread, noise-free ADC: detected, dated, named and fitted beats nominal."""
+def test_soft_reference_touches_are_dated_and_fitted():
+    """Finite contact conductances (light touches), readings without the ADC: the fit dates
+    each onset itself (the detector's refined onsets are tens of ms late) and the response
+    time comes closer to the truth than nominal (measured here, seed 7: 0.129 -> 0.092;
+    through sim:// with the ADC, seed 11: 0.098 -> 0.059). Soft contacts pin the response
+    less well than firm ones (0.129 -> 0.002)."""
     from skin.drivers.sim import SkinSimulator
     from skin.formats.scene import load_scene
     from skin.models import load_materials
     from skin.models.commission import commission_response
 
     scene = load_scene("reference-touches")
-    sim = SkinSimulator(scene)
+    sim = SkinSimulator(scene, contact="finite")
     y = sim.temperatures()
     y = y + np.random.default_rng(0).normal(0.0, 0.02, y.shape)
     t = np.arange(y.shape[0]) / sim.sample_rate
     _, sensors = CalibrationFile().apply(scene.layout)
     mats = {m: load_materials()[m] for m in ("aluminium", "pine")}
-    fits, counts = commission_response(t, y, scene.layout, mats, sensors, scene.ambient,
-                                       passes=1)
-    assert counts["detected"] == 72 * 6 and sum(len(f.columns) for f in fits) == 72
+    fits, counts = commission_response(t, y, scene.layout, mats, sensors, scene.ambient)
+    assert counts["detected"] >= 72 * 6 - 8 and sum(len(f.columns) for f in fits) >= 68
     truth = sim.taxel_sensor
     want = truth.depth**2 / truth.diffusivity
-    got = np.empty(72)
+    got = np.full(72, np.nan)
     for f in fits:
         got[f.columns] = f.fit.sensor.depth**2 / f.fit.sensor.diffusivity
+    ok = np.isfinite(got)
     nominal = sensors[0].depth**2 / sensors[0].diffusivity
-    assert np.median(np.abs(got / want - 1)) < 0.7 * np.median(np.abs(nominal / want - 1))
+    assert np.median(np.abs(got[ok] / want[ok] - 1)) < 0.8 * np.median(
+        np.abs(nominal / want[ok] - 1))
 
 
 def test_touches_that_cannot_pin_the_response_say_what_to_record(tmp_path, capsys):
@@ -191,7 +209,7 @@ def test_touches_pool_per_board_when_a_taxel_has_too_few():
     layout = _load("arm")
     mats = {m: load_materials()[m] for m in ("aluminium", "pine")}
     true = SensorConstants(diffusivity=SensorConstants().diffusivity * 1.08)
-    t = np.arange(1, 401) / 200.0
+    t = np.arange(-80, 501) / 200.0  # the fit dates each onset: it needs samples before it
     touches = []
     for k, n in ((0, 2), (1, 1)):
         for name, m in mats.items():
@@ -207,3 +225,106 @@ def test_touches_pool_per_board_when_a_taxel_has_too_few():
                                                            rel=0.01)
     with pytest.raises(CommissioningError, match="at least 3 touches"):
         fit_responses(touches[:2], layout, mats, nominal, 25.0)
+
+
+def test_labelled_touches_are_fitted_without_the_detector(tmp_path):
+    """A label file with the touches' times: the labelled taxels get their own fit."""
+    from skin.drivers.sim import SkinSimulator
+    from skin.formats.scene import load_scene
+    from skin.formats.touch_labels import read_touch_labels
+    from skin.models import load_materials
+    from skin.models.commission import commission_response
+
+    scene = load_scene("reference-touches")
+    labels = tmp_path / "touches.csv"
+    rows = ["time,material,taxels", "# the shipped scene's touches"]
+    rows += [f"{tc.start + 0.01},{scene.objects[tc.object].material},0 1"
+             for tc in scene.touches]  # 10 ms late: the fit dates the onsets itself
+    labels.write_text("\n".join(rows) + "\n")
+    table = load_materials()
+    parsed = read_touch_labels(labels, table, scene.layout)
+    assert len(parsed) == 6 and parsed[0].taxels == (0, 1) and parsed[0].line == 3
+    sim = SkinSimulator(scene)
+    y = sim.temperatures()
+    y = y + np.random.default_rng(1).normal(0.0, 0.02, y.shape)
+    t = np.arange(y.shape[0]) / sim.sample_rate
+    _, sensors = CalibrationFile().apply(scene.layout)
+    mats = {m: table[m] for m in ("aluminium", "pine")}
+    fits, counts = commission_response(t, y, scene.layout, mats, sensors, 25.0, labels=parsed)
+    assert counts == {"detected": 12, "left_out": 0, "ambiguous": 0}
+    assert [int(f.columns[0]) for f in fits] == [0, 1] and all(f.scope == "taxel" for f in fits)
+    truth = sim.taxel_sensor
+    for f in fits:
+        k = int(f.columns[0])
+        want = truth.depth[k] ** 2 / truth.diffusivity[k]
+        assert f.fit.sensor.depth**2 / f.fit.sensor.diffusivity == pytest.approx(want, rel=0.03)
+        assert np.all(np.abs(f.fit.onset_shift + 0.01) < 0.01)
+
+
+@pytest.mark.parametrize("body, problem", [
+    ("time,taxels\n", ": line 1: missing column(s) material"),
+    ("time,taxels,material\n3.0,0,pine\nsoon,0,pine\n", ": line 3: time 'soon' is not a number"),
+    ("time,taxels,material\n3.0,0 999,pine\n", ": line 2: taxel 999 is not in layout"),
+    ("time,taxels,material\n3.0,all,unobtainium\n", ": line 2: material 'unobtainium' is not"),
+    ("time,taxels,material\n", "no label"),
+    ("", "empty"),
+])
+def test_bad_touch_labels_name_the_file_and_line(tmp_path, capsys, body, problem):
+    labels = tmp_path / "touches.csv"
+    labels.write_text(body)
+    out = tmp_path / "cal.json"
+    assert skin_main(["commission", "--port", "sim://reference-touches?speed=0", "--labels",
+                      str(labels), "-o", str(out)]) != 0
+    err = capsys.readouterr().err
+    assert str(labels) in err and problem in err
+    assert not out.exists()
+
+
+def test_skin_commission_fits_the_response_from_a_trial_dataset(tmp_path, capsys):
+    """--data: labelled reference contacts with onsets and taxel ids (dataset version 2)."""
+    from skin.drivers.sim import SkinSimulator
+    from skin.formats.dataset import TrialSet
+    from skin.formats.scene import load_scene
+
+    scene = load_scene("reference-touches")
+    sim = SkinSimulator(scene)
+    y = sim.temperatures()
+    y = y + np.random.default_rng(2).normal(0.0, 0.02, y.shape)
+    fs = sim.sample_rate
+    temps, labels, taxels = [], [], []
+    for tc in scene.touches:
+        k0 = round(tc.start * fs)
+        for k in (0, 1):
+            temps.append(y[k0 - 200:k0 + 580, k])
+            labels.append(scene.objects[tc.object].material)
+            taxels.append(k)
+    n = len(temps)
+    data = TrialSet(np.array(temps)[:, None, :], fs, np.array(labels), np.full(n, 200),
+                    ambient=np.full(n, 25.0), group=np.zeros(n, dtype=int),
+                    taxel=np.array(taxels)[:, None])
+    path = data.save(tmp_path / "refs.npz")
+    cal = tmp_path / "cal.json"
+    assert skin_main(["commission", "--data", str(path), "-o", str(cal), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["fitted"] == doc["per_taxel"] == 2 and doc["detected"] == 12
+    _, fitted = load_calibration(cal).apply(scene.layout)
+    truth = sim.taxel_sensor
+    for k in (0, 1):
+        assert fitted[k].depth**2 / fitted[k].diffusivity == pytest.approx(
+            truth.depth[k] ** 2 / truth.diffusivity[k], rel=0.03)
+    assert skin_main(["commission", "--data", str(path), "--touches", "aluminium,pine", "-o",
+                      str(cal)]) != 0
+    assert "no --labels or --touches" in capsys.readouterr().err
+
+
+def test_bench_spread_classifies_with_a_given_calibration(tmp_path, capsys):
+    """--calibration: a fourth run; the true constants given as the file match the truth."""
+    truth = tmp_path / "truth.json"
+    assert skin_main(["simulate", "calibration", "--scene", "reference-touches", "-o",
+                      str(truth)]) == 0
+    capsys.readouterr()
+    assert skin_main(["bench", "spread", "--touches", "4", "--seed", "7", "--calibration",
+                      str(truth), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["commissioned"]["touches"] == 4 and doc["commissioned_gap"] == 0.0
+    assert doc["commissioned"]["correct"] == doc["calibrated"]["correct"]

@@ -30,6 +30,9 @@ USERS_OWN = {
     "trials.csv": "trials recorded elsewhere, imported",
     "refs.csv": "the user's thermistor readings in reference baths",
     "quiet.mcap": "a quiet minute of the user's own skin, recorded",
+    "refs.mcap": "the user's reference touches, recorded",
+    "ref_touches.csv": "the user's labels of those touches",
+    "refs.npz": "the user's reference contacts logged elsewhere (dataset v2)",
 }
 #: Options whose value is a file the command reads, and those it writes.
 READS = {"--data", "--train", "--test", "--from", "--model", "--poses", "--calibration",
@@ -146,7 +149,9 @@ SKIPPED = {
     "skin calibrate thermistors --data refs.csv": "the user's own reference readings",
     "skin dataset import trials.csv": "the user's own recordings",
     "skin commission --port": "the user's own quiet recording (tests/test_commission.py)",
-    "--touches aluminium,pine": "20-40 s of fitting (tests/test_commission.py runs it)",
+    "--touches aluminium,pine": "1-3 min of fitting (tests/test_commission.py runs it)",
+    "--calibration ref.json": "the file of the --touches line (skipped above)",
+    "skin commission --data": "the user's own dataset (tests/test_commission.py)",
 }
 
 

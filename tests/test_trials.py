@@ -200,6 +200,8 @@ def test_bench_thermal_quick_prints_work_precision_json():
                                             "least squares + onset (MAP)",
                                             "least squares (profile)"}
     assert {r["duration"] for r in inv} == {0.25, 2.5}
+    profile = [r for r in inv if r["estimator"] == "least squares (profile)"]
+    assert all(0 < r["median_interval_width"] <= 5.0 for r in profile)
 
 
 def test_multilayer_path_labels_the_taxel_and_ambient_it_simulated():

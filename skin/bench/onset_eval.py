@@ -18,7 +18,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from skin.stream.onset import OnsetDetector, OnsetEvent
-from skin.stream.onset_refine import refine_onset
+from skin.stream.onset_refine import refine_onset, refine_span
 from skin.summary import median_p95
 
 #: A detection may start this much before the true onset and still belong to the contact, s.
@@ -31,7 +31,8 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
                     depth: float = 8e-5, diffusivity: float = 2.796e-9,
                     progress: Callable[[int, int], None] | None = None,
                     directions: Sequence[int] | None = None,
-                    detector: OnsetDetector | None = None) -> dict:
+                    detector: OnsetDetector | None = None,
+                    sensor: object | None = None) -> dict:
     """Measure the detector's detection rate, false alarms, delay, onset error and cost.
 
     Parameters
@@ -60,6 +61,9 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
         falls) or +1 if warmer (it rises); adds ``by_direction``.
     detector : OnsetDetector, optional
         The detector judged (default: the paper sensor's).
+    sensor : skin.models.sensors.SensorDescription, optional
+        The stream's sensor: the refinement fits its own response (loop, lag, smoothing) over
+        a span stretched with its response time (`skin.stream.onset_refine.refine_span`).
 
     Returns
     -------
@@ -112,6 +116,7 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
         else:
             found[(ev.taxel, hit)] = ev
     started = time.perf_counter()
+    search, horizon = refine_span(sensor)
     delay: dict[tuple[int, int], float] = {}
     error: dict[tuple[int, int], float] = {}
     floor = []
@@ -124,9 +129,10 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
         # the samples the pipeline would refine on: up to the release, if one was detected
         end = next((r.time for r in releases.get(taxel, []) if r.detected_at > ev.detected_at),
                    np.inf)
-        lo, hi = np.searchsorted(times, [ev.time - 0.6, min(ev.time + 0.6, end)], side="right")
+        lo, hi = np.searchsorted(times, [ev.time - search, min(ev.time + horizon, end)],
+                                 side="right")
         refined, _ = refine_onset(times[lo:hi], y[lo:hi, taxel], ev.time, ev.baseline,
-                                  ev.slope, depth, diffusivity)
+                                  ev.slope, depth, diffusivity, sensor=sensor)
         delay[(taxel, i)] = ev.detected_at - on
         error[(taxel, i)] = refined - on
         if (taxel, i) in visible:

@@ -8,7 +8,10 @@ many short touches on the arm three times through the pipeline with the joint cl
 2. ``spread``: each taxel's constants spread by ``spread`` (`SkinSimulator` with the scene's
    ``taxel_spread``), classified with the nominal constants (no calibration file);
 3. ``calibrated``: the same skin, classified with a calibration file holding each taxel's
-   true constants (`SkinSimulator.true_calibration`: what a perfect commissioning fits).
+   true constants (`SkinSimulator.true_calibration`: what a perfect commissioning fits);
+4. ``commissioned`` (with a calibration file given): the same skin classified with that
+   file's constants, for example those `skin commission --touches` fitted on the same unit
+   (the scene ``reference-touches`` with the same seed and sensor).
 
 It reports each run's accuracy, detections and the classification time, so that the gap
 between 2 and 3 is what ``skin run --calibration`` can win back.
@@ -55,8 +58,12 @@ def random_scene(touches: int = 120, spread: float = 0.10, seed: int = 0,
     return parse_scene("\n".join(lines) + "\n", "spread-scene.toml")
 
 
-def play(scene: Scene, calibrated: bool) -> dict:
-    """Run the scene through the pipeline; return accuracy and detections."""
+def play(scene: Scene, calibrated: object) -> dict:
+    """Run the scene through the pipeline; return accuracy and detections.
+
+    ``calibrated``: False (nominal constants), True (the simulation's true constants) or a
+    `skin.formats.calibration_file.CalibrationFile` whose constants are used.
+    """
     from skin.drivers.sim import SkinSimulator
     from skin.models import JointClassifier, load_materials
     from skin.stream.pipeline import Pipeline
@@ -64,8 +71,10 @@ def play(scene: Scene, calibrated: bool) -> dict:
     sim = SkinSimulator(scene)
     layout = scene.layout
     calibration, sensors = None, None
-    if calibrated:
+    if calibrated is True:
         calibration, sensors = sim.true_calibration().apply(layout)
+    elif calibrated:
+        calibration, sensors = calibrated.apply(layout)
     classifier = JointClassifier(
         layout, load_materials(), sensors=None if sensors is None else
         {int(t.id): s for t, s in zip(layout.taxels, sensors, strict=True)})
@@ -88,14 +97,22 @@ def play(scene: Scene, calibrated: bool) -> dict:
 
 
 def run(touches: int = 120, spread: float = 0.10, seed: int = 0, sensor: str = "",
-        progress=None) -> dict:
-    """Play the three runs of the module docstring; return their figures."""
+        progress=None, commissioned: object = None) -> dict:
+    """Play the runs of the module docstring; return their figures.
+
+    ``commissioned``: a `skin.formats.calibration_file.CalibrationFile` for the fourth run.
+    """
     out = {"touches": touches, "taxel_spread": spread, "seed": seed, "sensor": sensor or "paper"}
-    plan = (("nominal", 0.0, False), ("spread", spread, False), ("calibrated", spread, True))
+    plan = [("nominal", 0.0, False), ("spread", spread, False), ("calibrated", spread, True)]
+    if commissioned is not None:
+        plan.append(("commissioned", spread, commissioned))
     for i, (name, s, cal) in enumerate(plan):
         out[name] = play(random_scene(touches, s, seed, sensor), cal)
         if progress is not None:
             progress(i + 1, len(plan))
     out["calibration_gain"] = round(out["calibrated"]["accuracy"] - out["spread"]["accuracy"], 4)
     out["spread_loss"] = round(out["nominal"]["accuracy"] - out["spread"]["accuracy"], 4)
+    if commissioned is not None:
+        out["commissioned_gap"] = round(out["calibrated"]["accuracy"]
+                                        - out["commissioned"]["accuracy"], 4)
     return out

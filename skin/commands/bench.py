@@ -61,7 +61,7 @@ import json
 import time
 from pathlib import Path
 
-from skin.commands import bench_drivers, bench_map, bench_view
+from skin.commands import bench_drivers, bench_map, bench_onset_shape, bench_view
 from skin.progress import Progress
 
 
@@ -152,6 +152,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         help="relative spread of each taxel's constants (0.10)")
     spread.add_argument("--sensor", default="", help="sensor preset (default: the paper's)")
     spread.add_argument("--seed", type=int, default=0, help="seed")
+    spread.add_argument("--calibration", metavar="FILE", default=None,
+                        help="a fourth run classified with this file's constants (e.g. from "
+                             "`skin commission --touches` on the same unit: same seed)")
     spread.add_argument("--json", action="store_true", help="print one JSON document")
     spread.set_defaults(func=main_spread)
     nui = kinds.add_parser("nuisance", help="what each nuisance of the synthetic benchmark "
@@ -183,6 +186,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     bench_drivers.add_parsers(kinds)
     bench_view.add_parsers(kinds)
     bench_map.add_parsers(kinds)
+    bench_onset_shape.add_parsers(kinds)
 
 
 def main_object_prior(args: argparse.Namespace) -> int:
@@ -425,11 +429,17 @@ def main_spread(args: argparse.Namespace) -> int:
 
     if args.touches < 1 or not 0 <= args.spread < 1:
         raise SkinError("--touches must be at least 1 and --spread within [0, 1)")
+    commissioned = None
+    if args.calibration:
+        from skin.formats.calibration_file import load_calibration
+
+        commissioned = load_calibration(args.calibration)
     progress = Progress()
     started = time.monotonic()
     doc = {"machine": bench.machine(),
            **run(args.touches, args.spread, args.seed, args.sensor,
-                 progress=lambda d, n: progress.bar(d, n, "runs", started))}
+                 progress=lambda d, n: progress.bar(d, n, "runs", started),
+                 commissioned=commissioned)}
     progress.done()
     if args.json:
         print(json.dumps(doc))
@@ -437,12 +447,16 @@ def main_spread(args: argparse.Namespace) -> int:
     print(f"{args.touches} touches on the arm, taxel constants spread +-{args.spread:.0%} "
           f"(seed {args.seed}, sensor {doc['sensor']}, {doc['machine']['cpus']} cores)")
     print(f"{'run':<12} {'accuracy':>8} {'detected':>8} {'false':>6} {'wall s':>7}")
-    for key in ("nominal", "spread", "calibrated"):
+    for key in ("nominal", "spread", "calibrated", "commissioned"):
+        if key not in doc:
+            continue
         r = doc[key]
         print(f"{key:<12} {r['accuracy']:>8.3f} {r['detected']:>8} {r['false_contacts']:>6} "
               f"{r['wall_time']:>7}")
     print(f"calibration gain {doc['calibration_gain']:+.3f}, spread loss "
           f"{doc['spread_loss']:+.3f} (accuracy)")
+    if "commissioned_gap" in doc:
+        print(f"commissioned {doc['commissioned_gap']:+.3f} below the true constants")
     return 0
 
 

@@ -11,6 +11,13 @@ into the calibration file (updated if it exists; `skin.models.commission`), and 
 sample jitter and a spectrum summary. `skin run --calibration` and `skin evaluate-onset
 --calibration` then set the onset detector's thresholds from each taxel's own noise. A stretch
 that is too short or not quiet is refused with what to record instead.
+
+With ``--touches aluminium,pine`` it fits each taxel's sensor response (diffusivity and
+conductivity, the depth kept: a semi-infinite body shows depth^2 / diffusivity and the
+effusivity) from touches of those references at room temperature, at least 3 of each held
+2.5 s (`skin.models.commission`): touches found by the pipeline's detector, named by the
+reference they fit best, each touch's onset, baseline and contact conductance fitted with
+the constants. A taxel with too few touches gets its board's pooled fit.
 """
 
 from __future__ import annotations
@@ -29,7 +36,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register ``skin commission``."""
     cmd = sub.add_parser("commission", help="each taxel's noise from a quiet stretch, into the "
                                             "calibration file", description=__doc__)
-    cmd.add_argument("--port", required=True, metavar="URL",
+    source = cmd.add_mutually_exclusive_group(required=True)
+    source.add_argument("--data", metavar="NPZ", default=None,
+                        help="fit each taxel's sensor response from a trial dataset (version 2, "
+                             "README 'Trial datasets') of labelled reference contacts with "
+                             "their onsets, taxel ids and 0.4 s before each onset")
+    source.add_argument("--port", metavar="URL",
                      help="where the quiet stretch comes from: replay://quiet.mcap?speed=0, a "
                           "device URL, or sim://SCENE?speed=0")
     cmd.add_argument("--seconds", type=float, default=60.0,
@@ -39,9 +51,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     cmd.add_argument("--touches", metavar="MATERIALS", default=None,
                      help="instead of the noise, fit each taxel's sensor response from touches "
                           "of these reference materials at room temperature in the recording, "
-                          "e.g. aluminium,pine (at least 3 touches of each of 2, held 2.5 s); "
-                          "experimental: with onsets detected from 10-bit readings the fit was "
-                          "not closer to the true constants than the nominal ones (CHANGELOG)")
+                          "e.g. aluminium,pine (at least 3 touches of each of 2, held 2.5 s, "
+                          "with 0.4 s of quiet before each); each touch's onset is fitted with "
+                          "the constants")
+    cmd.add_argument("--labels", metavar="CSV", default=None,
+                     help="the reference touches' times instead of detecting them: a label "
+                          "file time,material[,taxels][,group] (taxel ids separated by spaces "
+                          "or ';', 'all' or empty: every taxel); the materials are the file's")
     cmd.add_argument("--room", type=float, default=None, metavar="C",
                      help="room temperature of the references, deg C (default: the "
                           "recording's ambient sensor)")
@@ -99,7 +115,19 @@ def main(args: argparse.Namespace) -> int:
         from skin.models import load_materials
 
         _reference_names(args.touches, load_materials())
+    if args.data:
+        return _dataset(args, load_layout(args.layout or "arm"), Progress())
     layout = _layout(args.port, args.layout, load_layout)
+    if args.labels:  # checked before the recording is read
+        from skin.formats.touch_labels import read_touch_labels
+
+        args.label_list = read_touch_labels(args.labels, layout=layout)
+        names = list(dict.fromkeys(lab.material for lab in args.label_list))
+        given = {m.strip() for m in (args.touches or "").split(",") if m.strip()}
+        if given and set(names) - given:
+            raise SkinError(f"{args.labels}: material {sorted(set(names) - given)[0]} is not "
+                            f"in --touches {args.touches}")
+        args.touches = ",".join(names)
     out = Path(args.out)
     cal_file = load_calibration(out) if out.exists() else CalibrationFile()
     progress = Progress()
@@ -153,7 +181,48 @@ def _touches(args: argparse.Namespace, layout: object, cal_file: object, out: ob
     _, sensors = cal_file.apply(layout)
     progress.message(f"fitting the response from touches of {', '.join(names)}")
     fits, counts = commission_response(times, temps, layout, {m: table[m] for m in names},
-                                       sensors, room, noise=noise_sigma(cal_file, layout))
+                                       sensors, room, noise=noise_sigma(cal_file, layout),
+                                       labels=getattr(args, "label_list", None))
+    return _write_response(args, layout, cal_file, out, fits, counts,
+                           f"touches of {', '.join(names)} at {room:.2f} C in {args.port}",
+                           room, started, progress)
+
+
+def _dataset(args: argparse.Namespace, layout: object, progress: Progress) -> int:
+    """Fit the sensor response from a trial dataset's labelled reference contacts."""
+    from pathlib import Path
+
+    from skin.formats.calibration_file import CalibrationFile, load_calibration
+    from skin.formats.dataset import load_trials
+    from skin.models import load_materials
+    from skin.models.commission import dataset_touches, described, fit_responses
+
+    if args.labels or args.touches:
+        raise SkinError("--data names its touches' materials and onsets: no --labels or "
+                        "--touches with it")
+    started = time.monotonic()
+    trials = load_trials(args.data)
+    table = load_materials()
+    names = list(dict.fromkeys(str(m) for m in trials.label))
+    _reference_names(",".join(names), table)
+    out = Path(args.out)
+    cal_file = load_calibration(out) if out.exists() else CalibrationFile()
+    _, sensors = cal_file.apply(layout)
+    progress.message(f"fitting the response from {len(trials)} trials of {', '.join(names)}")
+    touches, short = dataset_touches(trials, layout)
+    room = float(np.nanmedian(trials.ambient))
+    fits = fit_responses(touches, layout, {m: table[m] for m in names},
+                         described(layout, sensors), room)
+    counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": 0}
+    return _write_response(args, layout, cal_file, out, fits, counts,
+                           f"{len(touches)} contacts of {', '.join(names)} in {args.data}",
+                           room, started, progress)
+
+
+def _write_response(args: argparse.Namespace, layout: object, cal_file: object, out: object,
+                    fits: list, counts: dict, reference: str, room: float, started: float,
+                    progress: Progress) -> int:
+    """Write the fitted responses into the calibration file and report them."""
     for f in fits:
         for k in f.columns:
             cal_file.taxels.setdefault(int(layout.ids[k]), {}).update(
@@ -161,8 +230,7 @@ def _touches(args: argparse.Namespace, layout: object, cal_file: object, out: ob
                 depth=f.fit.sensor.depth, thermal_rms=round(f.fit.rms, 5),
                 thermal_contacts=f.touches, thermal_converged=f.fit.converged,
                 thermal_scope=f.scope)
-    cal_file.references["thermal"] = (f"touches of {', '.join(names)} at {room:.2f} C in "
-                                      f"{args.port}")
+    cal_file.references["thermal"] = reference
     cal_file.save(out)
     progress.done()
     fitted = sum(len(f.columns) for f in fits)

@@ -181,7 +181,8 @@ def main(args: argparse.Namespace) -> int:
                              progress=lambda d, n: progress.bar(d, n, "samples", started),
                              directions=None if args.data else directions, detector=detector,
                              **({} if sensor is None else
-                                {"depth": sensor.depth, "diffusivity": sensor.diffusivity}))
+                                {"depth": sensor.depth, "diffusivity": sensor.diffusivity,
+                                 "sensor": sensor}))
     progress.done()
     flags = result.pop("detected_flags")
     delays, errors = result.pop("delay_s"), result.pop("onset_error_s")

@@ -8,9 +8,14 @@ A label file is a CSV file with a header line::
   ``events.jsonl`` and in a recording's ``/events``);
 - ``material``: a name of the materials table (``skin materials``; ``unknown`` is refused:
   leave such touches out);
-- optional ``taxels``: the taxel ids touched, separated by spaces or ``;`` (empty: any);
+- optional ``taxels``: the taxel ids touched, separated by spaces or ``;``, or ``all``
+  (empty: not said; `skin commission` then fits every taxel, `skin dataset import` pairs the
+  label with the nearest contact anywhere);
 - optional ``group``: an integer that keeps touches of one object, session or day together
   when a dataset is split for evaluation (default: one group per touch).
+
+Columns may come in any order; lines starting with ``#`` are comments. One format serves
+both `skin dataset import run.mcap --labels` and `skin commission --labels`.
 
 `read_touch_labels` checks every row and raises `TouchLabelError` naming the file, the line
 and the field; `scene_labels` writes the touches of a scene (what a simulated run touched)
@@ -23,6 +28,7 @@ import csv
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from skin.errors import SkinError
 
@@ -58,7 +64,8 @@ class TouchLabel:
     line: int = 0
 
 
-def read_touch_labels(path: str | Path, materials: dict | None = None) -> list[TouchLabel]:
+def read_touch_labels(path: str | Path, materials: dict | None = None,
+                      layout: Any = None) -> list[TouchLabel]:
     """Read a label file (module docstring), sorted by time.
 
     Parameters
@@ -67,11 +74,15 @@ def read_touch_labels(path: str | Path, materials: dict | None = None) -> list[T
         The CSV file.
     materials : dict, optional
         The materials table names are checked against; default the shipped table.
+    layout : skin.formats.layout.Layout, optional
+        When given, every taxel id must be one of its taxels, and ``all`` names them all
+        (without a layout, ``all`` is the same as empty: not said).
 
     Raises
     ------
     TouchLabelError
-        Missing file or column, an unknown material, a bad number or taxel id (with the line).
+        Missing file or column, an unknown material, a bad number or taxel id (with the line),
+        or no label at all.
     """
     from skin.models.materials import load_materials
 
@@ -80,19 +91,28 @@ def read_touch_labels(path: str | Path, materials: dict | None = None) -> list[T
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
-        raise TouchLabelError(f"{path}: cannot read ({exc.strerror})") from None
-    reader = csv.DictReader(text.splitlines())
+        raise TouchLabelError(f"{path}: cannot read the label file ({exc.strerror})") from None
+    lines = [(no, line) for no, line in enumerate(text.splitlines(), 1)
+             if line.strip() and not line.lstrip().startswith("#")]
+    if not lines:
+        raise TouchLabelError(f"{path}: empty; a label file has a header "
+                              f"(time,material[,taxels][,group]) and one line per touch")
+    numbers = [no for no, _ in lines]
+    reader = csv.DictReader(line for _, line in lines)
     fields = [f.strip() for f in (reader.fieldnames or [])]
+    head = numbers[0]
     missing = [c for c in COLUMNS[:2] if c not in fields]
     if missing:
-        raise TouchLabelError(f"{path}: line 1: missing column(s) {', '.join(missing)}; the "
+        raise TouchLabelError(f"{path}: line {head}: missing column(s) {', '.join(missing)}; the "
                               f"layout is time,material[,taxels][,group]")
     unknown = [c for c in fields if c not in COLUMNS]
     if unknown:
-        raise TouchLabelError(f"{path}: line 1: unknown column(s) {', '.join(unknown)}; the "
+        raise TouchLabelError(f"{path}: line {head}: unknown column(s) {', '.join(unknown)}; the "
                               f"layout is time,material[,taxels][,group]")
+    ids = None if layout is None else [int(t) for t in layout.ids]
     labels = []
-    for line, raw in enumerate(reader, start=2):
+    for k, raw in enumerate(reader, start=1):
+        line = numbers[k]
         row = {k.strip(): (v or "").strip() for k, v in raw.items() if k is not None}
         where = f"{path}: line {line}"
         try:
@@ -106,12 +126,19 @@ def read_touch_labels(path: str | Path, materials: dict | None = None) -> list[T
             raise TouchLabelError(f"{where}: material {material!r} is not in the materials "
                                   f"table (known: {', '.join(sorted(table))})")
         taxels: tuple[int, ...] = ()
-        if row.get("taxels"):
+        field = row.get("taxels") or ""
+        if field == "all":
+            taxels = () if ids is None else tuple(ids)
+        elif field:
             try:
-                taxels = tuple(int(t) for t in row["taxels"].replace(";", " ").split())
+                taxels = tuple(int(t) for t in field.replace(";", " ").split())
             except ValueError:
-                raise TouchLabelError(f"{where}: taxels {row['taxels']!r} are not integer ids "
-                                      f"separated by spaces or ';'") from None
+                raise TouchLabelError(f"{where}: taxels {field!r} are not integer ids "
+                                      f"separated by spaces or ';', nor 'all'") from None
+            unknown = [t for t in taxels if ids is not None and t not in ids]
+            if unknown:
+                raise TouchLabelError(f"{where}: taxel {unknown[0]} is not in layout "
+                                      f"{layout.name}")
         group = None
         if row.get("group"):
             try:
@@ -121,7 +148,7 @@ def read_touch_labels(path: str | Path, materials: dict | None = None) -> list[T
                                       f"integer") from None
         labels.append(TouchLabel(time, material, taxels, group, line))
     if not labels:
-        raise TouchLabelError(f"{path}: no labels after the header")
+        raise TouchLabelError(f"{path}: no label after the header (one line per touch)")
     return sorted(labels, key=lambda lab: lab.time)
 
 

@@ -43,6 +43,7 @@ from skin.frame import Frame
 from skin.stream.assembly import FrameAssembler, Samples
 from skin.stream.calibration import Calibration
 from skin.stream.onset import OnsetDetector
+from skin.stream.onset_refine import refine_span
 from skin.stream.tracking import ContactTracker, DecidedContact, finish_contact, refine_member
 
 if TYPE_CHECKING:
@@ -284,8 +285,11 @@ class Pipeline:
         self.assembler = FrameAssembler(layout, max_skew=max_skew)
         self.calibration = calibration or Calibration.from_layout(layout)
         self.detector = detector or _detector_for(layout, noise)
+        # the refinement fits the detector's sensor's own response, over its span
+        self.refine_sensor = getattr(self.detector, "sensor", None)
         self.tracker = ContactTracker(layout, rates.pop(), window=window,
-                                      provisional=provisional)
+                                      provisional=provisional,
+                                      search=refine_span(self.refine_sensor)[0])
         if sensors is not None:
             if len(sensors) != len(layout):
                 raise SkinError(f"{len(sensors)} sensor constants for {len(layout)} taxels")
@@ -440,7 +444,7 @@ class Pipeline:
             if refining:
                 member = head.decided.members[len(head.refined)]
                 head.refined.append(refine_member(member, self.depth, self.diffusivity,
-                                                  self.tracker.search))
+                                                  sensor=self.refine_sensor))
             else:
                 self._queue.popleft()
                 contact = finish_contact(head.decided, self.layout, head.refined,

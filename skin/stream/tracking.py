@@ -293,11 +293,16 @@ class ContactTracker:
 
 
 def refine_member(member: TaxelSamples, depth: np.ndarray, diffusivity: np.ndarray,
-                  search: float = 0.6) -> tuple[float, float]:
-    """Refined onset and initial temperature of one taxel of a decided contact."""
+                  search: float = 0.6, sensor: object | None = None) -> tuple[float, float]:
+    """Refined onset and initial temperature of one taxel of a decided contact.
+
+    ``search`` is the paper sensor's span; with a ``sensor`` description the refinement fits
+    its own response over a span stretched with its response time
+    (`skin.stream.onset_refine.refine_span`: the tracker's ``search`` should be that).
+    """
     k = member.index
     return refine_onset(member.time, member.temperature, member.coarse, member.baseline,
-                        member.slope, depth[k], diffusivity[k], search=search)
+                        member.slope, depth[k], diffusivity[k], search=search, sensor=sensor)
 
 
 def finish_contact(decided: DecidedContact, layout: Layout,
