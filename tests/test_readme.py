@@ -127,6 +127,7 @@ CI_SIZES = [
     (("skin", "bench", "nuisance"), ["--trials", "6", "--durations", "0.5", "--variants",
                                      "onset", "--methods", "svm-pca"]),
     (("skin", "bench", "object-prior"), ["--touches", "10"]),
+    (("skin", "bench", "onset-shape"), ["--minutes", "1", "--taxels", "2"]),
 ]
 #: Lines not run, with the reason (hardware, a window, another machine, other extras).
 SKIPPED = {
