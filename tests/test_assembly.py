@@ -169,3 +169,42 @@ def test_late_frames_are_counted_in_the_pipeline_and_its_health():
     pipe.process([frame(0, s, [30000, 30000]) for s in range(4)])
     assert pipe.stats.late == 4 and pipe.assembler.stats.missing == {0: 10, 1: 0}
     assert health_payload(pipe, "arm")["late"] == 4
+
+
+def test_holes_of_a_lost_board_make_no_false_contact():
+    """The default scene on two boards (even taxels on board 0, odd on 1), board 0's frames
+    lost half the time in 0.5 s holes: a free taxel read again after a hole starts again
+    rather than extrapolating its trend across it, so no hole becomes a contact."""
+    import dataclasses
+
+    from skin.drivers.sim import SkinSimulator
+    from skin.formats.scene import load_scene, match_touches
+    from skin.models import JointClassifier
+    from skin.stream.pipeline import Pipeline
+
+    scene = load_scene("default")
+    sim = SkinSimulator(scene, duration=10.0)
+    one = scene.layout
+    board = next(iter(one.boards.values()))
+    layout = Layout([dataclasses.replace(t, board=k % 2, address=k // 2)
+                     for k, t in enumerate(one.taxels)],
+                    [dataclasses.replace(board, id=b) for b in (0, 1)], source="<two boards>")
+    address = np.array([t.address for t in one.taxels])
+    frames = [dataclasses.replace(f, board=b, counts=f.counts[address[b::2]],
+                                  duty=f.duty[address[b::2]], status=None)
+              for f in sim.frames() for b in (0, 1) if not (b == 0 and f.seq % 200 < 100)]
+    pipe = Pipeline(layout, JointClassifier(layout), skew_wait=0.0)
+    results = []
+    for i in range(0, len(frames), 20):
+        results += pipe.process(frames[i : i + 20])
+    final = [r for r in results + pipe.flush() if r.contact.final]
+    assert pipe.assembler.stats.missing[0] == 1000 and pipe.stats.late == 0
+    touches = dataclasses.replace(scene, touches=tuple(t for t in scene.touches
+                                                      if t.start < 10.0))
+    matches, false = match_touches(touches, [[int(layout.ids[k]) for k in r.contact.taxels]
+                                             for r in final],
+                                   [r.contact.onset for r in final])
+    assert false == [], [(final[i].contact.onset, final[i].contact.taxels) for i in false]
+    # every touch on a board-1 taxel (read throughout) is found
+    odd = [m for m in matches if any(i % 2 for i in m.touch.taxels)]
+    assert odd and all(m.contact_index is not None for m in odd)
