@@ -174,8 +174,8 @@ def test_late_frames_are_counted_in_the_pipeline_and_its_health():
 def test_holes_of_a_lost_board_make_no_false_contact():
     """The default scene on two boards (even taxels on board 0, odd on 1), board 0's frames
     lost half the time in 0.5 s holes: a free taxel read again after a hole longer than the
-    warm-up starts again
-    rather than extrapolating its trend across it, so no hole becomes a contact."""
+    warm-up starts again rather than extrapolating its trend across it, so no hole becomes a
+    contact."""
     import dataclasses
 
     from skin.drivers.sim import SkinSimulator
