@@ -644,6 +644,7 @@ class Skin:
             "wall_time": round(wall, 3),
             "frames": pipeline.stats.frames,
             "gaps": pipeline.stats.gaps,
+            "late": pipeline.stats.late,
             "crc_errors": None if link is None else link.crc_errors,
             "malformed": None if link is None else link.malformed,
             "faults": None if health is None else health.faults,

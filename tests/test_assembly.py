@@ -88,3 +88,124 @@ def test_a_skin_of_two_boards_runs_through_the_pipeline():
     assert [(r.contact.taxels, r.estimate.label) for r in ra] == \
         [(r.contact.taxels, r.estimate.label) for r in rb]
     assert b.stats.frames == 2 * len(frames) and b.stats.samples == len(frames)
+
+
+def test_an_incomplete_sample_waits_for_the_board_behind_on_the_host_clock():
+    now = [0.0]
+    asm = FrameAssembler(two_boards(), wait=0.5, clock=lambda: now[0])
+    # board 1 far ahead (a threaded reader's burst): nothing leaves, nothing is lost
+    assert len(asm.push([frame(1, s, [s, s]) for s in range(100)])) == 0
+    now[0] = 0.4
+    out = asm.push([frame(0, s, [s, s]) for s in range(60)])
+    assert len(out) == 60 and not np.isnan(out.counts).any()
+    # board 0 dead: after `wait` host seconds its samples leave without it ...
+    now[0] = 0.51
+    out = asm.push([frame(1, 100, [1, 1])])
+    assert len(out) == 40 and np.isnan(out.counts[:, [0, 2]]).all()
+    assert asm.stats.missing == {0: 40, 1: 0} and asm.stats.late == 0
+    # ... and its frames that still come for them are counted late
+    asm.push([frame(0, s, [s, s]) for s in range(60, 70)])
+    assert asm.stats.late == 10 and asm.stats.frames == 171
+
+
+def test_the_memory_bound_lets_a_sample_leave_without_its_board():
+    asm = FrameAssembler(two_boards(), max_skew=50, wait=100.0)
+    out = asm.push([frame(1, s, [s, s]) for s in range(60)])
+    assert len(out) == 9 and asm.stats.missing == {0: 9, 1: 0}
+
+
+def test_one_board_leaves_every_sample_at_once():
+    layout = Layout([Taxel(0, 0, 0, "l", (0, 0, 0), (1, 0, 0))], [Board(id=0)])
+    asm = FrameAssembler(layout, wait=100.0)
+    assert len(asm.push([frame(0, s, [s]) for s in range(5)])) == 5
+
+
+def test_two_serial_boards_read_in_threads_lose_no_frame_when_one_lags(tmp_path):
+    """Two boards on real pseudo-terminals read by one BackgroundReader (a thread a port),
+    board 0 started 0.3 s (1.2 s of samples at 4x real time) after board 1: every frame is
+    merged, none is late, every touch is found and there is no false contact."""
+    import time
+
+    from skin.bench.soak import soak_scenes
+    from skin.drivers.sim import PtySerialDevice, SkinSimulator
+    from skin.formats.layout import layout_toml
+    from skin.runner import Skin
+
+    layout, scenes = soak_scenes(512, 25.0, seed=5)  # touches at 2, 11.3 and 20.7 s per board
+    path = tmp_path / "two_boards.toml"
+    path.write_text(layout_toml(layout))
+    devs = [PtySerialDevice(SkinSimulator(s), speed=4.0) for s in scenes]
+    try:
+        ports = [f"serial://{d.port}?board={d.simulator.board.id}" for d in devs]
+        with Skin(port=ports, layout=str(path), workers=1, duration=20.0, out=None,
+                  map=False, sinks=[]) as skin:
+            skin.open()
+            devs[1].start()
+            time.sleep(0.3)
+            devs[0].start()
+            got = [r for r in skin.results() if r.contact.final]
+            summary = skin.finish()
+            asm = skin.pipeline.assembler.stats
+    finally:
+        for d in devs:
+            d.close()
+    assert summary["late"] == 0 and asm.late == 0, asm
+    touches = sorted((sorted(layout.index(i) for i in t.taxels), t.start)
+                     for s in scenes for t in s.touches if t.start < 18.0)
+    found = sorted((sorted(r.contact.taxels), r.contact.onset) for r in got)
+    assert len(found) == len(touches) == 4, found
+    for (taxels, onset), (want, start) in zip(found, touches, strict=True):
+        assert taxels == want and abs(onset - start) < 0.3
+
+
+def test_late_frames_are_counted_in_the_pipeline_and_its_health():
+    from skin.models import HistogramClassifier
+    from skin.stream.pipeline import Pipeline
+    from skin.stream.publish import health_payload
+
+    layout = two_boards()
+    pipe = Pipeline(layout, HistogramClassifier(layout), skew_wait=0.0)  # a board behind is lost
+    pipe.process([frame(1, s, [30000, 30000]) for s in range(10)])
+    pipe.process([frame(0, s, [30000, 30000]) for s in range(4)])
+    assert pipe.stats.late == 4 and pipe.assembler.stats.missing == {0: 10, 1: 0}
+    assert health_payload(pipe, "arm")["late"] == 4
+
+
+def test_holes_of_a_lost_board_make_no_false_contact():
+    """The default scene on two boards (even taxels on board 0, odd on 1), board 0's frames
+    lost half the time in 0.5 s holes: a free taxel read again after a hole longer than the
+    warm-up starts again rather than extrapolating its trend across it, so no hole becomes a
+    contact."""
+    import dataclasses
+
+    from skin.drivers.sim import SkinSimulator
+    from skin.formats.scene import load_scene, match_touches
+    from skin.models import JointClassifier
+    from skin.stream.pipeline import Pipeline
+
+    scene = load_scene("default")
+    sim = SkinSimulator(scene, duration=10.0)
+    one = scene.layout
+    board = next(iter(one.boards.values()))
+    layout = Layout([dataclasses.replace(t, board=k % 2, address=k // 2)
+                     for k, t in enumerate(one.taxels)],
+                    [dataclasses.replace(board, id=b) for b in (0, 1)], source="<two boards>")
+    address = np.array([t.address for t in one.taxels])
+    frames = [dataclasses.replace(f, board=b, counts=f.counts[address[b::2]],
+                                  duty=f.duty[address[b::2]], status=None)
+              for f in sim.frames() for b in (0, 1) if not (b == 0 and f.seq % 200 < 100)]
+    pipe = Pipeline(layout, JointClassifier(layout), skew_wait=0.0)
+    results = []
+    for i in range(0, len(frames), 20):
+        results += pipe.process(frames[i : i + 20])
+    final = [r for r in results + pipe.flush() if r.contact.final]
+    assert pipe.assembler.stats.missing[0] == 1000 and pipe.stats.late == 0
+    touches = dataclasses.replace(scene, touches=tuple(t for t in scene.touches
+                                                      if t.start < 10.0))
+    matches, false = match_touches(touches, [[int(layout.ids[k]) for k in r.contact.taxels]
+                                             for r in final],
+                                   [r.contact.onset for r in final])
+    assert false == [], [(final[i].contact.onset, final[i].contact.taxels) for i in false]
+    # every touch on a board-1 taxel (read throughout) is found
+    odd = [m for m in matches if any(i % 2 for i in m.touch.taxels)]
+    assert odd and all(m.contact_index is not None for m in odd)

@@ -28,7 +28,7 @@ def test_skin_run_end_to_end_on_the_simulated_skin(tmp_path):
     # the scene's touches that start within 6 s: aluminium, pine, glass, forearm, neoprene
     assert summary["touches"] == 5
     assert summary["detected"] == 5 and summary["false_contacts"] == 0
-    assert summary["crc_errors"] == 0 and summary["gaps"] == 0
+    assert summary["crc_errors"] == 0 and summary["gaps"] == 0 and summary["late"] == 0
     assert summary["frames"] == 1200
     assert summary["median_onset_error"] < 0.03
     by_start = {t["start"]: t for t in summary["per_touch"]}

@@ -157,7 +157,8 @@ def _print_table(records: list[dict[str, Any]], summary: dict[str, Any], out: st
               f"{','.join(map(str, rec['taxels'])):<18} {rec['label']:<11} "
               f"{rec['confidence']:>5.2f} {rec.get('family') or '-':<14} {eff:>7} {truth:<11}")
     print(f"\n{summary['frames']} frames in {summary['wall_time']:.1f} s wall time, "
-          f"{summary['contacts']} contacts, {summary['crc_errors']} CRC errors")
+          f"{summary['contacts']} contacts, {summary['crc_errors']} CRC errors, "
+          f"{summary['gaps']} frames lost (gaps), {summary['late']} late frames dropped")
     if "touches" in summary:
         print(f"scene truth: {summary['detected']}/{summary['touches']} touches detected, "
               f"{summary['correct']}/{summary['touches']} labelled correctly "

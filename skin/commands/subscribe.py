@@ -105,6 +105,7 @@ def main(args: argparse.Namespace) -> int:
                 say(f"{msg['robot']}: {contact_line(msg)}")
             elif topic == "health":
                 say(f"{msg['robot']}: health: frames {msg['frames']}  gaps {msg['gaps']}  "
+                    f"late {msg.get('late', 0)}  "
                     f"contacts {msg['contacts']}  in contact {msg['in_contact']}")
             if out is not None:
                 out.write(json.dumps(_record(msg, key)) + "\n")

@@ -4,15 +4,22 @@ The first stage of the pipeline. Each board sends a `Frame` per sample; a skin o
 boards is sampled in step (the boards share a sync, so one sample carries one sequence number
 on every board) and the assembler puts each sample's frames together into one row of counts
 in layout order (its device and host times are those of the lowest board id present). A
-sample is complete once every board has sent its frame; a board that falls more than
-``max_skew`` samples behind another is taken as missing for that sample (its taxels' counts
-are NaN, which calibration flags), and its frame for it, should it still come, is counted
-late and dropped: samples leave in order, so the onset detector's time never runs backwards.
+sample is complete once every board has sent its frame. An incomplete sample waits for the
+boards behind on the host clock: boards read in threads or over several buses deliver in
+bursts, one board's frames well behind another's, and a frame that could still be merged
+must not be thrown away. It leaves incomplete once ``wait`` seconds have passed since its
+first frame came (a board dead or far behind), or once more than ``max_skew`` samples wait
+behind it (the memory bound). Its missing boards' taxels are NaN (calibration flags them);
+a frame that still comes for a sample already out is counted late (``stats.late``) and
+dropped: samples leave in order, so the onset detector's time never runs backwards. A
+complete sample leaves at once: with one board, or boards in step, nothing waits.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import heapq
+import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -86,18 +93,31 @@ class FrameAssembler:
     layout : Layout
         The skin: which board and channel each taxel is on.
     max_skew : int
-        How many samples a board may lag behind the others before its frame counts as missing.
+        Most samples that wait behind an incomplete one before it leaves (the memory bound:
+        at most ``max_skew + 1`` samples' frames are held).
+    wait : float
+        Host seconds an incomplete sample waits for its missing boards after its first frame
+        came; 0: none waits.
+    clock : callable
+        The host clock, s (``time.monotonic``).
     """
 
-    def __init__(self, layout: Layout, max_skew: int = 20) -> None:
+    def __init__(self, layout: Layout, max_skew: int = 2000, wait: float = 1.0,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        if max_skew < 0 or wait < 0:
+            raise ValueError(f"max_skew and wait must be >= 0, got {max_skew} and {wait}")
         self.layout = layout
-        self.max_skew = max_skew
+        self.max_skew = int(max_skew)
+        self.wait = float(wait)
+        self.clock = clock
         self._maps = {b: layout.channel_map(b) for b in layout.boards}
         self._n = len(layout)
         self._last_seq: dict[int, int] = {}  # per board: last raw sequence number
         self._newest: dict[int, int] = {}  # per board: newest unwrapped sequence number
         self._wraps: dict[int, int] = {b: 0 for b in layout.boards}
         self._pending: dict[int, dict[int, Frame]] = {}  # unwrapped seq -> board -> frame
+        self._arrived: dict[int, float] = {}  # unwrapped seq -> host time of its first frame
+        self._order: list[int] = []  # heap of the pending sequence numbers
         self._next: int | None = None  # the next sample to put out
         #: Unwrapped sequence numbers of the samples the last `push` or `flush` put out.
         self.last_seqs = np.zeros(0, dtype=np.int64)
@@ -105,7 +125,7 @@ class FrameAssembler:
                                    missing={b: 0 for b in layout.boards})
 
     def push(self, frames: Sequence[Frame]) -> Samples:
-        """Take frames (any boards, any order within ``max_skew``); return the completed samples.
+        """Take frames (any boards, any order); return the samples ready to leave (see above).
 
         Raises
         ------
@@ -143,7 +163,11 @@ class FrameAssembler:
             self.stats.late += 1
             return
         self._newest[f.board] = max(seq, self._newest.get(f.board, seq))
-        self._pending.setdefault(seq, {})[f.board] = f
+        if seq not in self._pending:
+            self._pending[seq] = {}
+            self._arrived[seq] = self.clock()
+            heapq.heappush(self._order, seq)
+        self._pending[seq][f.board] = f
         if self._next is None:
             self._next = seq
 
@@ -152,11 +176,14 @@ class FrameAssembler:
         seqs = []
         everyone = len(self._maps)
         newest = max(self._newest.values(), default=-1)
-        while self._pending:
-            seq = min(self._pending)
+        now = self.clock()
+        while self._order:
+            seq = self._order[0]
             if not (flush or len(self._pending[seq]) == everyone
-                    or newest - seq > self.max_skew):
+                    or newest - seq > self.max_skew or now - self._arrived[seq] >= self.wait):
                 break
+            heapq.heappop(self._order)
+            del self._arrived[seq]
             ready.append(self._pending.pop(seq))
             seqs.append(seq)
             self._next = seq + 1

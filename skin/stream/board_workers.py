@@ -624,7 +624,7 @@ class BoardWorkers:
         stats = self.pipeline.stats
         for block in blocks:
             results += self.pipeline.process_calibrated(block)
-        stats.frames, stats.gaps = self.frames, self.gaps
+        stats.frames, stats.gaps, stats.late = self.frames, self.gaps, self.late
         stats.flagged[:] = self.flagged
         return results
 
@@ -636,7 +636,7 @@ class BoardWorkers:
         results = self.feed(self.stop())
         results += self.pipeline.flush()
         stats = self.pipeline.stats  # the pipeline's own assembler took no frame
-        stats.frames, stats.gaps = self.frames, self.gaps
+        stats.frames, stats.gaps, stats.late = self.frames, self.gaps, self.late
         return results
 
     def close(self) -> None:

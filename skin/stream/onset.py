@@ -23,6 +23,11 @@ other sign), dated where that CUSUM left zero: a taxel still reheating from an e
 keeps rising after a warm touch ends.  `skin.stream.onset_refine.refine_onset` then dates the onset
 precisely by fitting the heated sensor's contact response to the window.
 
+A free taxel read again after a hole longer than ``warmup`` (its board's samples lost, or its
+readings flagged) starts again as a new one (``warmup`` included): its trend extrapolated
+across the hole is no baseline (a taxel recovering from a touch decelerates meanwhile, and
+the extrapolation would make that a fall), and a change that happened unseen cannot be dated.
+
 The detector is vectorised over taxels and keeps all its state in `DetectorState`: processing
 a stream in chunks of any size gives the same events as processing it whole.
 
@@ -472,6 +477,17 @@ class OnsetDetector:
         live = valid & ~new
         if not live.any():
             return
+        # a free taxel read again after a hole longer than the warm-up (its
+        # board's samples lost, or flagged) starts again as a new one: its trend extrapolated
+        # across the hole is no baseline, and what changed unseen cannot be dated
+        back = live & ~s.in_contact & (t - s.t_last > self.warmup)
+        if back.any():
+            s.level[back] = s.smooth[back] = s.slow[back] = y[back]
+            s.slope[back] = 0.0
+            s.t_level[back] = s.t_last[back] = t
+            s.cusum[back] = s.rise_cusum[back] = 0.0
+            s.slow_start[back] = np.nan
+            s.armed_at[back] = t + self.warmup
         dt = np.maximum(np.where(live, t - s.t_last, 1.0), 1e-9)
         # every smoothing gain at once: smooth, slow, level, slope (free, in contact), noise
         gain = 1 - np.exp(-dt / taus)

@@ -170,6 +170,9 @@ class PipelineStats:
         Skin-wide samples processed.
     gaps : int
         Frames missing according to sequence numbers, over all boards.
+    late : int
+        Frames that came after their sample had left without them, over all boards (dropped,
+        their taxels NaN in that sample; `skin.stream.assembly.FrameAssembler`).
     flagged : numpy.ndarray
         Per taxel: samples without a temperature (open, saturated or missing).
     onsets, releases : int
@@ -185,6 +188,7 @@ class PipelineStats:
     frames: int = 0
     samples: int = 0
     gaps: int = 0
+    late: int = 0
     flagged: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     onsets: int = 0
     releases: int = 0
@@ -231,9 +235,10 @@ class Pipeline:
         module docstring); None finishes every contact in the call that decided it.
     max_wait : float
         Device seconds after its decision by which a contact is finished whatever the budget.
-    max_skew : int
-        Samples a board may lag the others before its frame counts as missing
-        (`skin.stream.assembly.FrameAssembler`).
+    max_skew, skew_wait : int, float
+        Most samples held behind an incomplete one, and host seconds an incomplete sample
+        waits for its missing boards, before it leaves without them
+        (`skin.stream.assembly.FrameAssembler`'s ``max_skew`` and ``wait``).
     provisional : sequence of float
         Seconds after a contact's first onset at which it is also classified while still
         open (results with ``contact.final`` False; `skin.stream.tracking.ContactTracker`).
@@ -267,7 +272,8 @@ class Pipeline:
         sinks: Iterable[Sink] = (),
         budget: float | None = None,
         max_wait: float = 0.5,
-        max_skew: int = 20,
+        max_skew: int = 2000,
+        skew_wait: float = 1.0,
         provisional: Sequence[float] = (),
         noise: np.ndarray | None = None,
         workers: int = 1,
@@ -282,7 +288,7 @@ class Pipeline:
             raise ValueError(f"budget must be None or >= 0 s, got {budget}")
         self.layout = layout
         self.classifier = classifier
-        self.assembler = FrameAssembler(layout, max_skew=max_skew)
+        self.assembler = FrameAssembler(layout, max_skew=max_skew, wait=skew_wait)
         self.calibration = calibration or Calibration.from_layout(layout)
         self.detector = detector or _detector_for(layout, noise)
         # the refinement fits the detector's sensor's own response, over its span
@@ -366,6 +372,7 @@ class Pipeline:
         """Calibrate, detect and track one block of samples; queue the contacts it decides."""
         self.stats.frames = self.assembler.stats.frames
         self.stats.gaps = sum(self.assembler.stats.gaps.values())
+        self.stats.late = self.assembler.stats.late
         if len(samples) == 0:
             return
         temperature, status = self._timed("calibrate", self.calibration.temperature,
@@ -378,8 +385,8 @@ class Pipeline:
 
         The block comes from `skin.stream.board_workers` (boards read in worker processes).
 
-        The block's frames, gaps and flagged samples are the caller's to count in `stats`
-        (``stats.frames``, ``stats.gaps``, ``stats.flagged``).
+        The block's frames, gaps, late frames and flagged samples are the caller's to count in
+        `stats` (``stats.frames``, ``stats.gaps``, ``stats.late``, ``stats.flagged``).
         """
         started = time.perf_counter()
         if len(block.times):

@@ -31,8 +31,8 @@ subscriber needs nothing but this description):
   over Zenoh also ``link_pose`` (the link in the robot's base frame, its chain standing still,
   when the publisher knows the chain) and ``robot_pose`` (the base in a shared map's frame,
   when the setup gives one), 4x4 row-major lists, for the shared map (`skin.world.map_store`).
-- ``thermoskin.health``: JSON, about once a second: frames, samples, gaps, contacts decided,
-  taxels in contact and flagged, and the host time it was sent.
+- ``thermoskin.health``: JSON, about once a second: frames, samples, gaps, late frames, contacts
+  decided, taxels in contact and flagged, and the host time it was sent.
 """
 
 from __future__ import annotations
@@ -103,8 +103,9 @@ def health_payload(pipeline: Pipeline, robot: str) -> dict[str, Any]:
     stats = pipeline.stats
     return {"schema": "thermoskin.health", "version": PAYLOAD_VERSION, "robot": robot,
             "host_time": round(time.time(), 6), "frames": stats.frames,
-            "samples": stats.samples, "gaps": stats.gaps, "contacts": stats.contacts,
-            "results": stats.results, "in_contact": int(pipeline.in_contact().sum()),
+            "samples": stats.samples, "gaps": stats.gaps, "late": stats.late,
+            "contacts": stats.contacts, "results": stats.results,
+            "in_contact": int(pipeline.in_contact().sum()),
             "flagged_taxels": int((stats.flagged > 0).sum())}
 
 
