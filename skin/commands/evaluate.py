@@ -230,6 +230,38 @@ def bounded_figures(proba: np.ndarray, x: np.ndarray, truth: np.ndarray, classes
             "selective": selective(top, right)}
 
 
+def score_test_set(pred: np.ndarray, proba: np.ndarray | None, truth: np.ndarray,
+                 classes: list[str]) -> dict:
+    """Return the figures of predictions on a test set.
+
+    Accuracy, recall and the confusion matrix over the test trials whose class is among
+    ``classes`` (the model's); the others are reported under ``unseen`` with what they were
+    called; answers "unknown" counted; with probabilities, the selective accuracy, the
+    calibration error and the share of answers wrong at p >= 0.95.
+    """
+    from sklearn.metrics import confusion_matrix
+
+    seen = np.isin(truth, classes)
+    conf = confusion_matrix(truth[seen], pred[seen], labels=classes)
+    recall = conf.diagonal() / np.maximum(conf.sum(axis=1), 1)
+    unseen = {}
+    for c in sorted(set(truth[~seen].tolist())):
+        called, counts = np.unique(pred[truth == c], return_counts=True)
+        unseen[c] = {str(k): int(v) for k, v in zip(called, counts, strict=True)}
+    out = {"accuracy": round(float(np.mean(pred[seen] == truth[seen])), 4)
+           if seen.any() else None,
+           "accuracy_std": 0.0,
+           "recall": {c: round(float(r), 4) for c, r in zip(classes, recall, strict=True)},
+           "confusion": conf.tolist(), "classes": classes,
+           "unknown": int(np.sum(pred == "unknown")), "unseen": unseen}
+    if proba is not None and seen.any():
+        top, right = proba[seen].max(axis=1), pred[seen] == truth[seen]
+        out["selective"] = selective(top, right)
+        out["calibration_error"] = round(calibration_error(top, right), 4)
+        out["confident_wrong"] = round(confident_wrong(top, right), 4)
+    return out
+
+
 def train_test(train, test, method: str, duration: float, object_range: float = 0.0) -> dict:
     """Train ``method`` on one dataset and test it on another; return the figures.
 
@@ -238,8 +270,6 @@ def train_test(train, test, method: str, duration: float, object_range: float = 
     of the confidence bounded over that many K (`skin.models.nuisance`) are added under
     ``bounded`` (a method without probabilities is bounded from its votes).
     """
-    from sklearn.metrics import confusion_matrix
-
     from skin.models.classifiers import make_method, method_matrix, reads_channels
 
     if train.n_channels != test.n_channels:
@@ -257,28 +287,11 @@ def train_test(train, test, method: str, duration: float, object_range: float = 
     else:
         pred = model.predict(x_test)
     t2 = time.perf_counter()
-    seen = np.isin(test.label, train.classes)
-    classes = train.classes
-    conf = confusion_matrix(test.label[seen], pred[seen], labels=classes)
-    recall = conf.diagonal() / np.maximum(conf.sum(axis=1), 1)
-    unseen = {}
-    for c in sorted(set(test.label[~seen].tolist())):
-        called, counts = np.unique(pred[test.label == c], return_counts=True)
-        unseen[c] = {str(k): int(v) for k, v in zip(called, counts, strict=True)}
     out = {"method": method, "duration": duration,
-           "accuracy": round(float(np.mean(pred[seen] == test.label[seen])), 4)
-           if seen.any() else None,
-           "accuracy_std": 0.0,
-           "recall": {c: round(float(r), 4) for c, r in zip(classes, recall, strict=True)},
-           "confusion": conf.tolist(), "classes": classes,
-           "unknown": int(np.sum(pred == "unknown")), "unseen": unseen,
+           **score_test_set(pred, proba, test.label, train.classes),
            "fit_ms_per_trial": round(1e3 * (t1 - t0) / len(train), 4),
            "predict_ms_per_trial": round(1e3 * (t2 - t1) / len(test), 4)}
-    if proba is not None and seen.any():
-        top, right = proba[seen].max(axis=1), pred[seen] == test.label[seen]
-        out["selective"] = selective(top, right)
-        out["calibration_error"] = round(calibration_error(top, right), 4)
-        out["confident_wrong"] = round(confident_wrong(top, right), 4)
+    seen = np.isin(test.label, train.classes)
     if object_range > 0 and seen.any():
         from skin.models.nuisance import votes
 
@@ -296,8 +309,6 @@ def saved_model(doc: dict, test, durations: list[float]) -> list[dict]:
     Test classes the model does not know are reported under ``unseen`` with what they were
     called, as in `train_test`.
     """
-    from sklearn.metrics import confusion_matrix
-
     from skin.models.classifiers import method_matrix
 
     est = doc["estimator"]
@@ -321,26 +332,9 @@ def saved_model(doc: dict, test, durations: list[float]) -> list[dict]:
         pred = (np.asarray(est.classes_)[np.argmax(proba, axis=1)] if proba is not None
                 else est.predict(x)).astype(str)
         t2 = time.perf_counter()
-        seen = np.isin(test.label, classes)
-        conf = confusion_matrix(test.label[seen], pred[seen], labels=classes)
-        recall = conf.diagonal() / np.maximum(conf.sum(axis=1), 1)
-        unseen = {}
-        for c in sorted(set(test.label[~seen].tolist())):
-            called, counts = np.unique(pred[test.label == c], return_counts=True)
-            unseen[c] = {str(k): int(v) for k, v in zip(called, counts, strict=True)}
-        r = {"method": f"model:{method}", "duration": duration,
-             "accuracy": round(float(np.mean(pred[seen] == test.label[seen])), 4)
-             if seen.any() else None, "accuracy_std": 0.0,
-             "recall": {c: round(float(v), 4) for c, v in zip(classes, recall, strict=True)},
-             "confusion": conf.tolist(), "classes": classes, "unknown": 0, "unseen": unseen,
-             "fit_ms_per_trial": 0.0,
-             "predict_ms_per_trial": round(1e3 * (t2 - t1) / len(test), 4)}
-        if proba is not None and seen.any():
-            top, right = proba[seen].max(axis=1), pred[seen] == test.label[seen]
-            r["selective"] = selective(top, right)
-            r["calibration_error"] = round(calibration_error(top, right), 4)
-            r["confident_wrong"] = round(confident_wrong(top, right), 4)
-        out.append(r)
+        out.append({"method": f"model:{method}", "duration": duration,
+                    **score_test_set(pred, proba, test.label, classes), "fit_ms_per_trial": 0.0,
+                    "predict_ms_per_trial": round(1e3 * (t2 - t1) / len(test), 4)})
     return out
 
 
