@@ -45,10 +45,8 @@ from skin.frame import Frame
 from skin.stream.assembly import FrameAssembler
 from skin.stream.calibration import Calibration
 from skin.stream.onset import OnsetDetector, OnsetEvent
-from skin.stream.shards import shard_taxels, sub_detector
+from skin.stream.shards import shard_taxels, stop_workers, sub_detector
 
-#: Seconds `BoardWorkers.close` waits for a worker to end before terminating it.
-JOIN_TIMEOUT = 5.0
 #: The worker-side stages timed (CPU seconds: on a shared machine a stage's wall time counts
 #: the waits for a core), in `BoardWorkers.seconds`.
 WORKER_STAGES = ("read", "assemble", "calibrate", "onset", "send")
@@ -641,17 +639,7 @@ class BoardWorkers:
 
     def close(self) -> None:
         """Stop the workers (idempotent): ask each to end, then terminate any that hangs."""
-        for conn in self._conns:
-            try:
-                conn.send("stop")
-            except (BrokenPipeError, ConnectionResetError, OSError):
-                pass
-        for conn, proc in zip(self._conns, self._procs, strict=True):
-            proc.join(JOIN_TIMEOUT)
-            if proc.is_alive():
-                proc.terminate()
-                proc.join(JOIN_TIMEOUT)
-            conn.close()
+        stop_workers(self._conns, self._procs, "stop")
         self._conns, self._procs = [], []
 
     def __enter__(self) -> BoardWorkers:

@@ -194,17 +194,7 @@ class OnsetShards:
 
     def close(self) -> None:
         """Stop the workers (idempotent): ask each to end, then terminate any that hangs."""
-        for conn in self._conns[1:]:
-            try:
-                conn.send(None)
-            except (BrokenPipeError, ConnectionResetError, OSError):
-                pass
-        for conn, proc in zip(self._conns[1:], self._procs[1:], strict=True):
-            proc.join(JOIN_TIMEOUT)
-            if proc.is_alive():
-                proc.terminate()
-                proc.join(JOIN_TIMEOUT)
-            conn.close()
+        stop_workers(self._conns[1:], self._procs[1:], None)
         self._conns, self._procs = [], []
 
     def __del__(self) -> None:  # a pipeline dropped without close() leaves no process behind
@@ -212,3 +202,21 @@ class OnsetShards:
             self.close()
         except Exception:  # interpreter shutdown
             pass
+
+
+def stop_workers(conns: list[Any], procs: list[Any], message: Any) -> None:
+    """Send each worker ``message`` (its stop word), wait for it, terminate one that hangs.
+
+    A worker already gone (a broken pipe) is only joined; every connection is closed.
+    """
+    for conn in conns:
+        try:
+            conn.send(message)
+        except (BrokenPipeError, ConnectionResetError, OSError):
+            pass
+    for conn, proc in zip(conns, procs, strict=True):
+        proc.join(JOIN_TIMEOUT)
+        if proc.is_alive():
+            proc.terminate()
+            proc.join(JOIN_TIMEOUT)
+        conn.close()
