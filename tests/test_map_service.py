@@ -323,6 +323,9 @@ def test_a_moving_robot_is_placed_with_the_pose_that_held_at_each_onset(tmp_path
                 session.put("t/mover/pose", pose_payload("mover", [x, 0, 0, 0, 0, 0], t0 + dt))
             session.put("t/mover/pose", b'{"schema": "thermoskin.pose", "robot": "mover"}')
             session.put("t/mover/pose", pose_payload("other", [0, 0, 0, 0, 0, 0], t0))
+            # poses and contacts come on two subscriptions, in no order between them: a
+            # contact is placed with the poses that have arrived (README), so wait for them
+            assert wait_for(lambda: service.pose_updates == 3 and service.malformed == 2)
             base = {"schema": "thermoskin.contact", "version": 1, "robot": "mover",
                     "final": True, "decided_at": 1.5, "probabilities": {"glass": 0.9},
                     "link": "forearm", "centroid": [0, 0, 0],

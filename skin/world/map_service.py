@@ -24,7 +24,9 @@ selector                                        reply (one JSON document)
 Robots that move publish their base pose on ``<prefix>/<robot>/pose``
 (`skin.world.robot_poses`): a contact is then placed with the pose that held at its
 ``host_onset`` (the static ``robot_pose`` a contact carries is the fallback for a robot that
-publishes none). Pose updates and contacts are handled in the order they arrive.
+publishes none). Pose updates and contacts are handled in the order they arrive, and the two
+topics are not ordered between them: a contact is placed with the poses that have arrived
+before it (a robot's contacts that come before its first pose use its static pose).
 
 A bad selector gets an error reply naming the problem. Acknowledgements are also pushed: after
 each committed batch, ``<prefix>/map/acks/<robot>`` carries ``thermoskin.map_ack`` with
