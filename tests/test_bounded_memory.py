@@ -115,3 +115,16 @@ def test_soak_of_two_boards_loses_nothing_and_keeps_memory_flat(tmp_path):
     assert r["open_fds"]["end"] == r["open_fds"]["start"]
     assert (tmp_path / "soak.mcap").stat().st_size > 1e6
     assert len((tmp_path / "events.jsonl").read_text().splitlines()) == r["results"]
+
+
+def test_a_soak_stopped_at_its_wall_limit_reports_what_it_reached():
+    from skin.bench.soak import run
+
+    r = run(1.0, 256, every=5.0, record=False, wall_limit=4.0)
+    assert r["stopped_early"] and 0 < r["seconds_simulated"] < 3600
+    # frames still in the pseudo-terminal are not lost, every frame read is accounted for
+    assert r["lost_frames"] == 0
+    assert r["frames_sent"] == r["frames_received"] + r["in_flight"]
+    # only the touches that ended before the stop count
+    assert r["touches"] < 6 * 60 and r["contacts"] <= r["touches"] + 1
+    assert len(r["contacts_per_bin"]) == int(r["seconds_simulated"] // 60)

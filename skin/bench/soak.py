@@ -92,7 +92,8 @@ def _open_fds() -> int:
 
 def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
         record: bool = True, folder: str | Path | None = None,
-        progress: Callable[[str], None] | None = None) -> dict:
+        progress: Callable[[str], None] | None = None,
+        wall_limit: float | None = None) -> dict:
     """Run the soak (see the module docstring) and return its figures.
 
     Parameters
@@ -111,6 +112,10 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
         Where the events and the recording go (default: a temporary folder, removed after).
     progress : callable, optional
         Called with a status line at each sample.
+    wall_limit : float, optional
+        Stop reading after this many wall seconds (also on Ctrl-C) and report the simulated
+        time reached; ``stopped_early`` says so, and frames still on their way are counted as
+        ``in_flight``, not lost.
 
     Returns
     -------
@@ -123,7 +128,7 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
         shorter than two hours, as ``per`` says) and ``labels_per_bin`` (their labels,
         counted; ``same_labels_every_bin``); ``lost_frames`` (``gaps``, ``late`` and
         frames sent but not read), ``crc_errors``, ``speed`` (simulated seconds per wall
-        second), ``written_mb``.
+        second), ``written_mb``, ``stopped_early``.
     """
     import shutil
 
@@ -191,7 +196,11 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
                          f"{s['open_fds']} fds, {received} frames, {len(onsets)} contacts")
 
         per_board = [0] * len(devices)
+        stopped_early = False
         while True:
+            if wall_limit is not None and time.monotonic() - started > wall_limit:
+                stopped_early = True
+                break
             # the boards are read in turn, a frame each, as a sync keeps real boards in step
             # (the assembler takes a board more than 20 samples behind as missing); each
             # simulated board waits for its reader, so nothing is dropped at full speed
@@ -226,6 +235,12 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
                 next_sample += every
             if done:
                 break
+        if batch:  # stopped early: what was read is processed
+            for r in pipe.process(batch):
+                results += 1
+                if r.contact.final:
+                    onsets.append(r.contact.onset)
+                    labels.append(r.estimate.label)
         for r in pipe.flush():
             results += 1
             if r.contact.final:
@@ -253,7 +268,7 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
     i_base = min(int(np.searchsorted(sim_t, base_t)), rss.size - 1)
     base = rss[i_base]
     bin_s = 3600.0 if seconds >= 2 * 3600.0 else PERIOD
-    bins = int(seconds // bin_s)
+    bins = int((now if stopped_early else seconds) // bin_s)  # whole bins reached
     which = (np.array(onsets) // bin_s).astype(int)
     per_bin = [int(np.sum(which == b)) for b in range(bins)]
     # the same touches every bin: the labels given should not drift either
@@ -265,10 +280,14 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
             "taxel_samples_per_s": round(received / len(devices) * n_taxels / wall)
             if wall > 0 else None,
             "frames_sent": sent, "frames_received": received,
-            "lost_frames": int(sent - received + pipe.stats.gaps + late),
+            "lost_frames": int((0 if stopped_early else sent - received)
+                               + pipe.stats.gaps + late),
+            "in_flight": int(sent - received) if stopped_early else 0,
+            "stopped_early": stopped_early,
             "gaps": int(pipe.stats.gaps), "late": int(late),
             "crc_errors": int(crc), "results": results, "contacts": len(onsets),
-            "touches": sum(len(s.touches) for s in scenes),
+            "touches": sum(1 for s in scenes for t in s.touches
+                           if not stopped_early or t.start + t.duration < now),
             "per": "hour" if bin_s == 3600.0 else f"{PERIOD:g} s",
             "contacts_per_bin": per_bin, "labels_per_bin": labels_per_bin,
             "same_labels_every_bin": all(x == labels_per_bin[0] for x in labels_per_bin),

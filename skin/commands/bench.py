@@ -122,6 +122,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     soak.add_argument("--out", default=None,
                       help="keep the events and the recording in this folder (default: a "
                            "temporary folder, removed after)")
+    soak.add_argument("--wall-hours", type=float, default=None,
+                      help="stop after this many wall-clock hours and report the simulated "
+                           "time reached (default: run to the end)")
     soak.add_argument("--json", action="store_true", help="print one JSON document")
     soak.set_defaults(func=main_soak)
     bus = kinds.add_parser("bus", help="protocol cost and taxel limits per bus")
@@ -591,7 +594,8 @@ def main_soak(args: argparse.Namespace) -> int:
         raise SkinError("--hours, --taxels and --every must be positive")
     progress = Progress()
     r = run(args.hours, args.taxels, seed=args.seed, every=args.every, record=args.record,
-            folder=args.out, progress=progress.status)
+            folder=args.out, progress=progress.status,
+            wall_limit=None if args.wall_hours is None else args.wall_hours * 3600.0)
     progress.done()
     if args.json:
         print(json.dumps({"machine": bench.machine(), **r}))
@@ -599,7 +603,9 @@ def main_soak(args: argparse.Namespace) -> int:
     print(f"soak: {r['taxels']} taxels on {r['boards']} simulated boards, "
           f"{r['seconds_simulated'] / 3600:.3f} simulated h in {r['wall_s']:.0f} s "
           f"({r['speed']} x real time, {r['taxel_samples_per_s']} taxel-samples/s)"
-          + (", recorded" if r["recorded"] else ""))
+          + (", recorded" if r["recorded"] else "")
+          + (f"; stopped at the wall-clock limit, {args.hours:g} h asked"
+             if r["stopped_early"] else ""))
     print(f"{'sim h':>7} {'wall s':>7} {'RSS MB':>7} {'fds':>4} {'frames':>9} {'contacts':>8}")
     for s in r["samples"]:
         print(f"{s['simulated_s'] / 3600:7.3f} {s['wall_s']:7.0f} {s['rss_mb']:7.1f} "
@@ -611,7 +617,8 @@ def main_soak(args: argparse.Namespace) -> int:
           f"{100 * r['rss_growth_max']:+.1f} %); open fds {r['open_fds']['start']} -> "
           f"{r['open_fds']['end']}")
     print(f"frames sent {r['frames_sent']}, received {r['frames_received']}, lost "
-          f"{r['lost_frames']} (gaps {r['gaps']}, late {r['late']}), CRC errors {r['crc_errors']}")
+          f"{r['lost_frames']} (gaps {r['gaps']}, late {r['late']}), CRC errors {r['crc_errors']}"
+          + (f", {r['in_flight']} on their way when stopped" if r["stopped_early"] else ""))
     print(f"contacts {r['contacts']} from {r['touches']} touches, results {r['results']}; "
           f"contacts per {r['per']}: {r['contacts_per_bin']}")
     print("the same labels every " + r["per"] + ": "
