@@ -4,8 +4,11 @@
 every detected onset with `skin.stream.onset_refine.refine_onset` on the samples up to the taxel's
 detected release (as the pipeline's tracker cuts them), and matches the detections to the true
 contacts of the same taxel: a detection whose coarse onset falls between 0.1 s before a
-contact's onset and 0.1 s after its release belongs to that contact; the first one detects
-it, any further one in the same contact and any that belongs to none is a false alarm. Given
+contact's onset and 0.1 s after its release belongs to that contact, and so does one raised
+while the object touches the taxel (or within 0.1 s after release) whose coarse onset was
+dated earlier (a gust or the air's flutter just before the contact started its CUSUM); the
+first one detects it, any further one in the same contact (a split touch) and any that
+belongs to none is a false alarm. Given
 each contact's direction (a cool object: the reading falls; a warm one: it rises), the figures
 are also given for each direction apart.
 """
@@ -74,7 +77,8 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
         detected contacts) and ``onset_error_ms`` (median and p95 of the absolute values; the
         signed median too), the detector's and the refinement's cost,
         ``false_alarms_by_direction`` (``"fall"`` and ``"rise"``: the direction the detector
-        gave them), ``detected_flags``: for each contact of ``truth``, whether it was detected,
+        gave them), ``events`` (the detector's, in order; `skin.bench.onset_why` explains
+        them), ``detected_flags``: for each contact of ``truth``, whether it was detected,
         and with ``directions``, ``by_direction``: for ``"cool"`` and ``"warm"`` contacts,
         ``contacts_counted``, ``detection_rate``, ``detection_rate_all``, ``right_direction``
         (the share of the detected ones whose onset had the contact's direction), ``delay_ms``
@@ -108,9 +112,7 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
     found: dict[tuple[int, int], OnsetEvent] = {}
     false_alarms = {"fall": 0, "rise": 0}
     for ev in onsets:
-        spans = by_taxel.get(ev.taxel, [])
-        hit = next((i for i, (on, off) in enumerate(spans)
-                    if on - EARLY <= ev.time <= off + EARLY), None)
+        hit = contact_of(ev, by_taxel.get(ev.taxel, []))
         if hit is None or (ev.taxel, hit) in found:
             false_alarms["rise" if ev.direction > 0 else "fall"] += 1
         else:
@@ -152,6 +154,7 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
         "detector_us_per_taxel_sample": round(1e6 * detect_s / (n * n_taxels), 4),
         "refine_ms_per_onset": round(1e3 * refine_s / max(len(found), 1), 3),
         "detected_flags": [k in found for k in keys],
+        "events": events,
         "delay_s": [delay.get(k) for k in keys],
         "onset_error_s": [error.get(k) for k in keys],
     }
@@ -165,6 +168,22 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
                                           if got else None)
             result["by_direction"][name] = figures
     return result
+
+
+def contact_of(ev: OnsetEvent, spans: Sequence[tuple[float, float]]) -> int | None:
+    """Return which of a taxel's contacts ``(onset, release)`` the onset ``ev`` belongs to.
+
+    The one whose span (widened by `EARLY` on both sides) holds the coarse onset; failing
+    that, the one the object still touched (or left less than `EARLY` before) when the alarm
+    was raised: a coarse onset dated early by a gust or the air's flutter before the contact
+    does not make its alarm a false one. None if neither.
+    """
+    hit = next((i for i, (on, off) in enumerate(spans)
+                if on - EARLY <= ev.time <= off + EARLY), None)
+    if hit is None:
+        hit = next((i for i, (on, off) in enumerate(spans)
+                    if on <= ev.detected_at <= off + EARLY), None)
+    return hit
 
 
 def _figures(keys: Sequence[tuple[int, int]], spans: dict, found: dict, delay: dict,

@@ -33,16 +33,18 @@ With a ``sensor`` description (`skin.models.sensors`) the stream is that sensor'
 rate; disturbances scaled by its heated rise over the paper's (a gust and a heater step move
 a taxel in proportion to how far its heater holds it above ambient) and its slowest mode by
 its l^2 / alpha; its heater mode in contact; its PID loop and lag over the whole stream; its
-noise, ADC and smoothing. ``visible_after`` and ``peak_change`` are then measured on the
-noise-free reading after the loop and the lag, with "visible" at 3 of the sensor's per-sample
-noise. Such a stream comes whole (`simulate_stream`: the loop, the lag and a non-causal
-smoothing span any chunk). Without one (None), the stream is exactly the paper's as before.
+noise, ADC and smoothing. ``visible_after``, ``peak_change`` and ``five_sigma_after`` are then
+measured on the contact's own part of the noise-free reading after the loop and the lag (the
+reading minus the free one: flutter and gusts are not the contact's), with "visible" at 3 of
+the sensor's per-sample noise. Such a stream comes whole (`simulate_stream`: the loop, the lag
+and a non-causal smoothing span any chunk). Without one (None), the stream is exactly the
+paper's as before.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -80,6 +82,15 @@ class StreamContact:
         The largest change of the noise-free reading from the sensor's temperature during
         the contact, K: a contact that changes it less than a gust does (`GUST_DEPTH`) cannot
         be told from one by its size.
+    five_sigma_after : float
+        With a sensor description: when the contact's own change first reaches 5 of the
+        sensor's noise sigmas, s after onset (``inf`` if never during the contact).
+
+    With a sensor description (`simulate_stream`'s ``sensor``), ``visible_after``,
+    ``peak_change`` and ``five_sigma_after`` are measured on the contact's own part of the
+    noise-free reading: the reading minus the free reading the taxel would have had without
+    the contact, both through the sensor's loop and lag. Air flutter and gusts in the free
+    reading neither make a contact visible nor count towards its size.
     """
 
     taxel: int
@@ -90,6 +101,7 @@ class StreamContact:
     sensor_temperature: float = float("nan")
     visible_after: float = float("inf")
     peak_change: float = 0.0
+    five_sigma_after: float = float("inf")
 
     @property
     def duration(self) -> float:
@@ -118,6 +130,11 @@ class Stream:
         Every contact, in time order.
     fs : float
         Sampling rate, Hz.
+    gusts : list of (start, taxel, depth, rise, hold)
+        Every air gust (s, column, K before the sensor's scaling, s, s), in time order.
+    switches : list of (time, taxel, duty)
+        Every heater duty switch (s, column, duty), in time order (the first of each taxel
+        at 0 s).
     """
 
     times: np.ndarray
@@ -125,6 +142,8 @@ class Stream:
     ambient: np.ndarray
     contacts: list[StreamContact]
     fs: float
+    gusts: list[tuple[float, int, float, float, float]] = field(default_factory=list)
+    switches: list[tuple[float, int, float]] = field(default_factory=list)
 
     @property
     def taxel_hours(self) -> float:
@@ -199,7 +218,8 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
     truth.sort(key=lambda c: (c.onset, c.taxel))
     return Stream(np.concatenate([p.times for p in parts]),
                   np.concatenate([p.temperature for p in parts]),
-                  np.concatenate([p.ambient for p in parts]), truth, fs)
+                  np.concatenate([p.ambient for p in parts]), truth, fs, parts[0].gusts,
+                  parts[0].switches)
 
 
 def _sensor_stream(materials: Sequence[Material], n_taxels: int, duration: float,
@@ -222,24 +242,31 @@ def _sensor_stream(materials: Sequence[Material], n_taxels: int, duration: float
         return Stream(np.zeros(0), np.zeros((0, n_taxels)), np.zeros(0), [], fs)
     (part,) = parts
     reading = apply_dynamics(part.temperature, sensor, fs, axis=0)  # noise-free still
-    visible = 3.0 * sensor.noise_kelvin(ambient + sensor.heated_rise) \
-        * sensor.smoothing_noise_factor()
+    # the contacts' own part: the reading minus the free one, both after the loop and the lag
+    own = reading - apply_dynamics(part.free, sensor, fs, axis=0)
+    sigma = sensor.noise_kelvin(ambient + sensor.heated_rise) * sensor.smoothing_noise_factor()
     truth = []
     for c in part.contacts:
         k0, k1 = int(np.ceil(c.onset * fs)), min(int(np.ceil(c.release * fs)), len(reading))
         t0 = float(reading[k0 - 1, c.taxel])
-        moved = np.abs(reading[k0:k1, c.taxel] - t0)  # after the loop and the lag
-        change = moved >= visible
-        seen = float(part.times[k0:k1][np.argmax(change)] - c.onset) if change.any() \
-            else float("inf")
-        truth.append(replace(c, sensor_temperature=t0, visible_after=seen,
-                             peak_change=float(moved.max()) if moved.size else 0.0))
+        moved = np.abs(own[k0:k1, c.taxel] - own[k0 - 1, c.taxel])
+        when = part.times[k0:k1] - c.onset
+        truth.append(replace(c, sensor_temperature=t0,
+                             visible_after=_first_at(moved, when, 3.0 * sigma),
+                             peak_change=float(moved.max()) if moved.size else 0.0,
+                             five_sigma_after=_first_at(moved, when, 5.0 * sigma)))
     if sensor.noise > 0:
         reading = reading + rng.normal(0.0, sensor.noise, reading.shape)
     temperature = smooth(adc_readings(reading, rng, sensor.adc_noise, sensor.adc_bits),
                          sensor, axis=0, fs=fs)
     truth.sort(key=lambda c: (c.onset, c.taxel))
-    return Stream(part.times, temperature, part.ambient, truth, fs)
+    return Stream(part.times, temperature, part.ambient, truth, fs, part.gusts, part.switches)
+
+
+def _first_at(moved: np.ndarray, when: np.ndarray, level: float) -> float:
+    """Return the first ``when`` at which ``moved`` reaches ``level`` (``inf`` if never)."""
+    hit = moved >= level
+    return float(when[np.argmax(hit)]) if hit.any() else float("inf")
 
 
 @dataclass
@@ -254,6 +281,11 @@ class StreamChunk:
         As in `Stream`, for the chunk's samples.
     contacts : list of StreamContact
         The contacts whose first touching sample lies in the chunk, in time order.
+    gusts, switches : list
+        In the first chunk only: the stream's schedules of gusts and heater switches
+        (as `Stream`'s).
+    free : numpy.ndarray or None
+        For a described sensor only: the free reading (without the contacts), noise-free.
     """
 
     start: int
@@ -261,6 +293,9 @@ class StreamChunk:
     temperature: np.ndarray
     ambient: np.ndarray
     contacts: list[StreamContact]
+    gusts: list = field(default_factory=list)
+    switches: list = field(default_factory=list)
+    free: np.ndarray | None = None
 
 
 def _skip_normals(rng: np.random.Generator, count: int, block: int = 1 << 20) -> None:
@@ -451,7 +486,11 @@ disturbances, tau, warm, warm_margin
         # a described sensor's readout follows in `simulate_stream`, over the whole stream
         temperature = reading if described else adc_readings(reading, adc_rng, 0.5)
         found.sort(key=lambda c: (c.onset, c.taxel))
-        yield StreamChunk(a, times, temperature, amb, found)
+        first = a == 0
+        yield StreamChunk(a, times, temperature, amb, found,
+                          list(gusts) if first else [],
+                          [(k / fs, j, d) for k, j, d in switches] if first else [],
+                          free if described else None)
 
 
 def _write_contact(reading: np.ndarray, free: np.ndarray, times: np.ndarray, a: int, j: int,

@@ -59,6 +59,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--calibration", default=None, metavar="FILE",
                     help="a calibration file from `skin commission`: each taxel's measured "
                          "noise sets the detector (taxel ids = stream columns)")
+    ev.add_argument("--why", action="store_true",
+                    help="give every missed contact (the 5-sigma ones with --sensor) and every "
+                         "false alarm its cause (`skin.bench.onset_why`; simulated streams)")
     ev.add_argument("--json", action="store_true", help="print one JSON document")
     ev.set_defaults(func=main)
 
@@ -118,6 +121,30 @@ def _sensor_figures(contacts: list, flags: list, delays: list, errors: list, det
                                               if err.size else None)}
 
 
+def _why(events: list, contacts: list, stream: object, detector: object, sensor: object,
+         min_duration: float) -> dict:
+    """Return `skin.bench.onset_why.explain_outcomes` (the 5-sigma contacts with a sensor)."""
+    from skin.bench.onset_why import explain_outcomes
+    from skin.bench.streams import GUST_DEPTH
+    from skin.stream.onset import OnsetDetector
+
+    detector = OnsetDetector(1) if detector is None else detector
+    scale = 1.0
+    if sensor is not None:
+        from skin.models.sensors import load_sensor
+
+        scale = sensor.heated_rise / load_sensor("paper").heated_rise
+        sigma = float(np.median(detector.sigma))
+        counted = [c.duration >= min_duration and c.peak_change > 5 * sigma for c in contacts]
+        which = "5-sigma contacts"
+    else:
+        counted = [c.duration >= min_duration for c in contacts]
+        which = f"contacts >= {min_duration:g} s"
+    out = explain_outcomes(events, contacts, counted, stream.gusts, stream.switches,
+                           warmup=detector.warmup, gust_size=GUST_DEPTH[1] * scale)
+    return {"counted": which, "contacts": int(sum(counted)), **out}
+
+
 def main(args: argparse.Namespace) -> int:
     """Run the evaluation and print the figures (or JSON)."""
     from skin.bench import machine
@@ -131,6 +158,7 @@ def main(args: argparse.Namespace) -> int:
     started = time.monotonic()
     by_material = None
     sensor = None
+    stream = None
     if args.sensor is not None:
         from skin.models.sensors import load_sensor
 
@@ -184,6 +212,7 @@ def main(args: argparse.Namespace) -> int:
                                 {"depth": sensor.depth, "diffusivity": sensor.diffusivity,
                                  "sensor": sensor}))
     progress.done()
+    events = result.pop("events")
     flags = result.pop("detected_flags")
     delays, errors = result.pop("delay_s"), result.pop("onset_error_s")
     if detector is not None and contacts is not None:
@@ -212,6 +241,8 @@ def main(args: argparse.Namespace) -> int:
         doc["beyond_gusts"] = {"threshold_k": round(gust, 4), "contacts": len(big),
                                "detection_rate": round(sum(flags[k] for k in big)
                                                        / max(len(big), 1), 4)}
+    if args.why and contacts is not None:
+        doc["why"] = _why(events, contacts, stream, detector, sensor, args.min_duration)
     if args.json:
         print(json.dumps(doc))
         return 0
@@ -249,6 +280,12 @@ def main(args: argparse.Namespace) -> int:
                   + (f", {right:.2%} with the right direction" if right is not None else "")
                   + f"; delay median {g['delay_ms']['median']} ms; onset error median "
                   f"{g['onset_error_ms']['median']} ms, p95 {g['onset_error_ms']['p95']} ms")
+    if "why" in doc:
+        w = doc["why"]
+        print(f"why missed ({w['counted']}: {w['missed']} of {w['contacts']}): "
+              + ", ".join(f"{k} {v}" for k, v in w["misses"].items() if v))
+        print(f"why false alarms ({w['false_alarm_total']}): "
+              + ", ".join(f"{k} {v}" for k, v in w["false_alarms"].items() if v))
     if by_material:
         print("detected by material: " + ", ".join(
             f"{k} {v['detected']}/{v['contacts']}" for k, v in by_material.items()))
