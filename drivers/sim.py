@@ -227,9 +227,13 @@ class SkinSimulator:
                     reading = free.copy()
                     reading[touching] = t0[touching] + (ts[touching] - t0[touching]) * resp
                     if sensor.heater in ("off-at-contact", "on-during-contact"):
+                        # the body's drain reaches the thermistor by what the object's pull
+                        # leaves of it (`heater_term`'s response)
+                        e_o = e_obj_now[touching]
+                        share = e_o / (e_s[touching] + e_o) * resp
                         reading[touching] += heater_term(t - start[touching], t0[touching],
                                                          e_obj_now[touching], here,
-                                                         self.scene.ambient)
+                                                         self.scene.ambient, response=share)
                 else:
                     reading = free
                 out[k - first] = reading

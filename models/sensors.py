@@ -239,13 +239,21 @@ def ierfc(z: np.ndarray) -> np.ndarray:
 
 def heater_term(t: np.ndarray | float, t_sensor: np.ndarray | float,
                 e_object: np.ndarray | float, sensor: SensorDescription,
-                ambient: np.ndarray | float | None = None) -> np.ndarray | float:
+                ambient: np.ndarray | float | None = None,
+                response: np.ndarray | float = 0.0) -> np.ndarray | float:
     """Return what the heater adds to eq. 5 at the thermistor t s after contact, K.
 
     0 for a ``"constant"`` or ``"pid"`` heater (the loop acts in `apply_dynamics`).
     ``"off-at-contact"``: the heated excess drains towards ``ambient`` (default: the heated
     steady state below ``t_sensor``) with l^2 / alpha; ``"on-during-contact"``: the flux q / A
     at the contact plane, shared by the two solids by effusivity (see the module docstring).
+
+    ``response`` is the contact's own normalised response R at t (eq. 5's fraction of the step
+    from the sensor to the object reached at the thermistor, 0..1; `contact_reading` gives it):
+    a drained body pulls the thermistor only by the (1 - R) it still owes the body, as eq. 5
+    with the body's draining temperature in place of ``t_sensor`` (quasi-static: l^2 / alpha
+    is many times the contact's own response). So the reading stays between the body's
+    temperature and the object's, never below both. 0 (default): the free body's drain.
     """
     if sensor.heater in ("constant", "pid"):
         return 0.0
@@ -256,7 +264,7 @@ def heater_term(t: np.ndarray | float, t_sensor: np.ndarray | float,
         t0 = np.asarray(t_sensor, dtype=float)
         amb = t0 - sensor.heated_rise if ambient is None else np.asarray(ambient, dtype=float)
         drain = (amb - t0) * -np.expm1(-safe / sensor.reheat_time_constant)
-        return np.where(pos, drain, 0.0)
+        return np.where(pos, drain * (1.0 - np.asarray(response, dtype=float)), 0.0)
     e_s = sensor.effusivity
     share = e_s / (e_s + np.asarray(e_object, dtype=float))
     root = np.sqrt(sensor.diffusivity * safe)
@@ -294,7 +302,10 @@ def contact_reading(t: np.ndarray | float, t_sensor: np.ndarray | float,
     y = contact_trace(t, t_sensor, t_object, e_object, sensor, conductance)
     if sensor.heater in ("constant", "pid"):
         return y
-    return y + heater_term(t, t_sensor, e_object, sensor, ambient)
+    # eq. 5 is linear in the step: its unit response is the share the object holds
+    share = (contact_trace(t, 0.0, 1.0, e_object, sensor, conductance)
+             if sensor.heater == "off-at-contact" else 0.0)
+    return y + heater_term(t, t_sensor, e_object, sensor, ambient, response=share)
 
 
 def _first_order(y: np.ndarray, a: float, axis: int) -> np.ndarray:
