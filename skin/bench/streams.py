@@ -34,8 +34,8 @@ rate; disturbances scaled by its heated rise over the paper's (a gust and a heat
 a taxel in proportion to how far its heater holds it above ambient) and its slowest mode by
 its l^2 / alpha; its heater mode in contact; its PID loop and lag over the whole stream; its
 noise, ADC and smoothing. ``visible_after``, ``peak_change`` and ``five_sigma_after`` are then
-measured on the contact's own part of the noise-free reading after the loop and the lag (the
-reading minus the free one: flutter and gusts are not the contact's), with "visible" at 3 of
+measured on the contact's own part of the noise-free reading after the loop and the lag (its
+step alone through them: the flutter before it is not the contact's), with "visible" at 3 of
 the sensor's per-sample noise. Such a stream comes whole (`simulate_stream`: the loop, the lag
 and a non-causal smoothing span any chunk). Without one (None), the stream is exactly the
 paper's as before.
@@ -88,9 +88,10 @@ class StreamContact:
 
     With a sensor description (`simulate_stream`'s ``sensor``), ``visible_after``,
     ``peak_change`` and ``five_sigma_after`` are measured on the contact's own part of the
-    noise-free reading: the reading minus the free reading the taxel would have had without
-    the contact, both through the sensor's loop and lag. Air flutter and gusts in the free
-    reading neither make a contact visible nor count towards its size.
+    noise-free reading: its step from the sensor's temperature at contact through the
+    sensor's loop and lag, from rest. The air's flutter and gusts before the contact, which
+    the loop and the lag carry on into it, neither make a contact visible nor count towards
+    its size.
     """
 
     taxel: int
@@ -242,14 +243,16 @@ def _sensor_stream(materials: Sequence[Material], n_taxels: int, duration: float
         return Stream(np.zeros(0), np.zeros((0, n_taxels)), np.zeros(0), [], fs)
     (part,) = parts
     reading = apply_dynamics(part.temperature, sensor, fs, axis=0)  # noise-free still
-    # the contacts' own part: the reading minus the free one, both after the loop and the lag
-    own = reading - apply_dynamics(part.free, sensor, fs, axis=0)
     sigma = sensor.noise_kelvin(ambient + sensor.heated_rise) * sensor.smoothing_noise_factor()
     truth = []
     for c in part.contacts:
         k0, k1 = int(np.ceil(c.onset * fs)), min(int(np.ceil(c.release * fs)), len(reading))
         t0 = float(reading[k0 - 1, c.taxel])
-        moved = np.abs(own[k0:k1, c.taxel] - own[k0 - 1, c.taxel])
+        # the contact's own part: its step from the sensor's temperature alone through the
+        # loop and the lag, from rest (they are linear: what the air and the heater did
+        # before the contact goes on in the reading, and is not the contact's)
+        step = part.temperature[k0 - 1:k1, c.taxel] - part.temperature[k0 - 1, c.taxel]
+        moved = np.abs(apply_dynamics(step, sensor, fs)[1:])
         when = part.times[k0:k1] - c.onset
         truth.append(replace(c, sensor_temperature=t0,
                              visible_after=_first_at(moved, when, 3.0 * sigma),
@@ -284,8 +287,6 @@ class StreamChunk:
     gusts, switches : list
         In the first chunk only: the stream's schedules of gusts and heater switches
         (as `Stream`'s).
-    free : numpy.ndarray or None
-        For a described sensor only: the free reading (without the contacts), noise-free.
     """
 
     start: int
@@ -295,7 +296,6 @@ class StreamChunk:
     contacts: list[StreamContact]
     gusts: list = field(default_factory=list)
     switches: list = field(default_factory=list)
-    free: np.ndarray | None = None
 
 
 def _skip_normals(rng: np.random.Generator, count: int, block: int = 1 << 20) -> None:
@@ -489,8 +489,7 @@ disturbances, tau, warm, warm_margin
         first = a == 0
         yield StreamChunk(a, times, temperature, amb, found,
                           list(gusts) if first else [],
-                          [(k / fs, j, d) for k, j, d in switches] if first else [],
-                          free if described else None)
+                          [(k / fs, j, d) for k, j, d in switches] if first else [])
 
 
 def _write_contact(reading: np.ndarray, free: np.ndarray, times: np.ndarray, a: int, j: int,
