@@ -117,3 +117,15 @@ def test_heater_off_never_takes_the_reading_below_body_and_object():
     assert np.all(y >= body - 1e-9) and np.all(y <= 45.0)
     # a sensor at ambient touching an object at ambient: nothing moves
     assert np.all(contact_reading(t, 25.0, 25.0, 400.0, s, 3000.0, ambient=25.0) == 25.0)
+
+
+def test_a_lagged_sensor_may_alarm_after_release_for_its_own_touch():
+    from skin.bench.onset_eval import EARLY, release_window
+
+    assert release_window(None) == EARLY == release_window(load_sensor("paper"))
+    lagged = release_window(load_sensor("low-cost"))  # 1 s lag and a 2 Hz low-pass
+    assert 3.1 < lagged < 3.4 and 1.5 < release_window(load_sensor("pid-logger")) < 1.7
+    spans = [(10.0, 11.4)]
+    late = _onset(0, 12.5, 12.55, 2)  # the touch's fall, shown 1.1 s after it ended
+    assert contact_of(late, spans) is None and contact_of(late, spans, lagged) == 0
+    assert contact_of(_onset(0, 16.0, 16.1), spans, lagged) is None

@@ -4,8 +4,9 @@
 every detected onset with `skin.stream.onset_refine.refine_onset` on the samples up to the taxel's
 detected release (as the pipeline's tracker cuts them), and matches the detections to the true
 contacts of the same taxel: a detection whose coarse onset falls between 0.1 s before a
-contact's onset and 0.1 s after its release belongs to that contact, and so does one raised
-while the object touches the taxel (or within 0.1 s after release) whose coarse onset was
+contact's onset and 0.1 s after its release (plus the sensor's lag and smoothing delay,
+`release_window`) belongs to that contact, and so does one raised while the object touches
+the taxel (or within that window after release) whose coarse onset was
 dated earlier (a gust or the air's flutter just before the contact started its CUSUM); the
 first one detects it, any further one in the same contact (a split touch) and any that
 belongs to none is a false alarm. Given
@@ -26,6 +27,31 @@ from skin.summary import median_p95
 
 #: A detection may start this much before the true onset and still belong to the contact, s.
 EARLY = 0.1
+
+
+def release_window(sensor: object | None = None) -> float:
+    """Return how long after a release an alarm may still be the contact's own, s.
+
+    `EARLY`, plus the time the sensor's reading takes to show what happened at its face:
+    three time constants of its thermistor lag (95 % of a step) and the delay of its
+    smoothing (the centroid of the filter's impulse response). A 1 s lag shows most of a
+    brief touch after the object has left; the alarm it raises then is that touch's, not a
+    false one. `EARLY` alone for a sensor without lag or smoothing (the paper's).
+    """
+    if sensor is None:
+        return EARLY
+    from skin.models.sensors import smooth
+
+    delay = 3.0 * sensor.lag
+    if sensor.smoothing != "none":
+        n = 8 * max(sensor.smoothing_window,
+                    int(sensor.sample_rate / sensor.smoothing_cutoff)) + 1
+        impulse = np.zeros(n)
+        impulse[n // 2] = 1.0
+        h = smooth(impulse, sensor)
+        delay += max(0.0, float(np.sum(np.arange(n) * h) / np.sum(h)) - n // 2) \
+            / sensor.sample_rate
+    return EARLY + delay
 
 
 def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
@@ -66,7 +92,8 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
         The detector judged (default: the paper sensor's).
     sensor : skin.models.sensors.SensorDescription, optional
         The stream's sensor: the refinement fits its own response (loop, lag, smoothing) over
-        a span stretched with its response time (`skin.stream.onset_refine.refine_span`).
+        a span stretched with its response time (`skin.stream.onset_refine.refine_span`), and
+        an alarm may come `release_window` after a release and still be the contact's.
 
     Returns
     -------
@@ -111,8 +138,9 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
         spans.append((on, off))
     found: dict[tuple[int, int], OnsetEvent] = {}
     false_alarms = {"fall": 0, "rise": 0}
+    after = release_window(sensor)
     for ev in onsets:
-        hit = contact_of(ev, by_taxel.get(ev.taxel, []))
+        hit = contact_of(ev, by_taxel.get(ev.taxel, []), after)
         if hit is None or (ev.taxel, hit) in found:
             false_alarms["rise" if ev.direction > 0 else "fall"] += 1
         else:
@@ -170,19 +198,21 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
     return result
 
 
-def contact_of(ev: OnsetEvent, spans: Sequence[tuple[float, float]]) -> int | None:
+def contact_of(ev: OnsetEvent, spans: Sequence[tuple[float, float]],
+               after: float = EARLY) -> int | None:
     """Return which of a taxel's contacts ``(onset, release)`` the onset ``ev`` belongs to.
 
-    The one whose span (widened by `EARLY` on both sides) holds the coarse onset; failing
-    that, the one the object still touched (or left less than `EARLY` before) when the alarm
-    was raised: a coarse onset dated early by a gust or the air's flutter before the contact
-    does not make its alarm a false one. None if neither.
+    The one whose span (widened by `EARLY` before and ``after`` after, see `release_window`)
+    holds the coarse onset; failing that, the one the object still touched (or left less
+    than ``after`` before) when the alarm was raised: a coarse onset dated early by a gust or
+    the air's flutter before the contact does not make its alarm a false one. None if
+    neither.
     """
     hit = next((i for i, (on, off) in enumerate(spans)
-                if on - EARLY <= ev.time <= off + EARLY), None)
+                if on - EARLY <= ev.time <= off + after), None)
     if hit is None:
         hit = next((i for i, (on, off) in enumerate(spans)
-                    if on <= ev.detected_at <= off + EARLY), None)
+                    if on <= ev.detected_at <= off + after), None)
     return hit
 
 

@@ -12,8 +12,8 @@ Missed contacts:
   taxel before it was an onset: an earlier alarm or contact not released);
 - ``warming_up``: a release was detected less than the detector's warm-up before the onset
   (or in the contact's first 0.3 s): the CUSUMs do not accumulate then;
-- ``alarm_after_release``: the alarm came, but after the object had left (more than
-  `skin.bench.onset_eval.EARLY` after the release);
+- ``alarm_after_release``: the alarm came, but after the object had left (later than
+  `skin.bench.onset_eval.release_window` after the release);
 - ``gust``: a gust on the taxel was under way at the onset (its cooling and the contact's
   share the baseline);
 - ``heater_switch``: the heater's duty switched within `SWITCH_WINDOW` s before the onset
@@ -29,7 +29,7 @@ False alarms:
 
 - ``split``: inside a contact already detected (its reading turned, the detector released,
   then fell again: one touch reported twice);
-- ``after_release``: within `RECOVERY_WINDOW` s after a contact's release (the taxel
+- ``after_release``: within `RECOVERY_WINDOW` s after a contact's release window (the taxel
   reheating, or a contact's tail after a release the detector dated too early);
 - ``before_onset``: within 2 s before a contact's onset (what the contact started, dated too
   early to belong to it);
@@ -62,7 +62,8 @@ ALARM_CAUSES = ("split", "after_release", "before_onset", "gust", "heater_switch
 
 def explain_outcomes(events: Sequence, contacts: Sequence, counted: Sequence[bool],
                      gusts: Sequence[tuple] = (), switches: Sequence[tuple] = (),
-                     warmup: float = 0.5, gust_size: float = np.inf) -> dict:
+                     warmup: float = 0.5, gust_size: float = np.inf,
+                     after: float = EARLY) -> dict:
     """Give each missed counted contact and each false alarm its cause (module docstring).
 
     Parameters
@@ -79,6 +80,9 @@ def explain_outcomes(events: Sequence, contacts: Sequence, counted: Sequence[boo
         The detector's warm-up after a release, s.
     gust_size : float
         A change no larger than this (K) is one a gust can make.
+    after : float
+        How long after a release an alarm is still the contact's
+        (`skin.bench.onset_eval.release_window`), s.
 
     Returns
     -------
@@ -110,19 +114,19 @@ def explain_outcomes(events: Sequence, contacts: Sequence, counted: Sequence[boo
         if ev.kind != "onset":
             continue
         rows = spans.get(ev.taxel, [])
-        hit = contact_of(ev, rows)
+        hit = contact_of(ev, rows, after)
         if hit is not None and index[(ev.taxel, hit)] not in found:
             found.add(index[(ev.taxel, hit)])
             continue
         alarms[_alarm_cause(ev, rows, hit, gusts_of.get(ev.taxel, []),
-                            switches_of.get(ev.taxel, []))] += 1
+                            switches_of.get(ev.taxel, []), after)] += 1
     misses = dict.fromkeys(MISS_CAUSES, 0)
     rows_out = []
     for k, c in enumerate(contacts):
         if not counted[k] or k in found:
             continue
         cause = _miss_cause(c, by_taxel.get(c.taxel, []), gusts_of.get(c.taxel, []),
-                            switches_of.get(c.taxel, []), warmup, gust_size)
+                            switches_of.get(c.taxel, []), warmup, gust_size, after)
         misses[cause] += 1
         rows_out.append({"taxel": c.taxel, "onset": round(c.onset, 3),
                          "duration": round(c.duration, 3), "material": c.material,
@@ -133,11 +137,11 @@ def explain_outcomes(events: Sequence, contacts: Sequence, counted: Sequence[boo
 
 
 def _alarm_cause(ev: object, rows: list[tuple[float, float]], hit: int | None,
-                 gusts: list[tuple[float, float]], switches: list[float]) -> str:
+                 gusts: list[tuple[float, float]], switches: list[float], after: float) -> str:
     t = ev.time
     if hit is not None:
         return "split"
-    if any(off + EARLY < t <= off + RECOVERY_WINDOW for _, off in rows):
+    if any(off + after < t <= off + after + RECOVERY_WINDOW for _, off in rows):
         return "after_release"
     if any(on - 2.0 <= t < on for on, _ in rows):
         return "before_onset"
@@ -151,14 +155,14 @@ def _alarm_cause(ev: object, rows: list[tuple[float, float]], hit: int | None,
 
 
 def _miss_cause(c: object, events: list, gusts: list[tuple[float, float]],
-                switches: list[float], warmup: float, gust_size: float) -> str:
+                switches: list[float], warmup: float, gust_size: float, after: float) -> str:
     before = [e for e in events if e.detected_at < c.onset]
     if before and before[-1].kind == "onset":
         return "in_contact"
     if any(e.kind == "release" and c.onset - warmup < e.detected_at <= c.onset + LATE
            for e in events):
         return "warming_up"
-    if any(e.kind == "onset" and c.release + EARLY < e.detected_at <= c.release + 3.0
+    if any(e.kind == "onset" and c.release + after < e.detected_at <= c.release + after + 3.0
            for e in events):
         return "alarm_after_release"
     if any(a <= c.onset <= b for a, b in gusts):

@@ -124,6 +124,7 @@ def _sensor_figures(contacts: list, flags: list, delays: list, errors: list, det
 def _why(events: list, contacts: list, stream: object, detector: object, sensor: object,
          min_duration: float) -> dict:
     """Return `skin.bench.onset_why.explain_outcomes` (the 5-sigma contacts with a sensor)."""
+    from skin.bench.onset_eval import release_window
     from skin.bench.onset_why import explain_outcomes
     from skin.bench.streams import GUST_DEPTH
     from skin.stream.onset import OnsetDetector
@@ -141,7 +142,8 @@ def _why(events: list, contacts: list, stream: object, detector: object, sensor:
         counted = [c.duration >= min_duration for c in contacts]
         which = f"contacts >= {min_duration:g} s"
     out = explain_outcomes(events, contacts, counted, stream.gusts, stream.switches,
-                           warmup=detector.warmup, gust_size=GUST_DEPTH[1] * scale)
+                           warmup=detector.warmup, gust_size=GUST_DEPTH[1] * scale,
+                           after=release_window(sensor))
     return {"counted": which, "contacts": int(sum(counted)), **out}
 
 
