@@ -129,3 +129,18 @@ def test_a_lagged_sensor_may_alarm_after_release_for_its_own_touch():
     late = _onset(0, 12.5, 12.55, 2)  # the touch's fall, shown 1.1 s after it ended
     assert contact_of(late, spans) is None and contact_of(late, spans, lagged) == 0
     assert contact_of(_onset(0, 16.0, 16.1), spans, lagged) is None
+
+
+@pytest.mark.parametrize("name", ["pid-logger", "low-cost"])
+def test_a_slow_sensor_detector_warms_up_as_long_as_its_baseline_needs(name):
+    # its baseline's slope takes seconds to catch the trend: alarms at power-up were false
+    from skin.stream.onset import OnsetDetector
+
+    s = load_sensor(name)
+    st = simulate_stream([MATS["glass"]], n_taxels=16, duration=20.0, contacts_per_minute=0.0,
+                         seed=1, sensor=s)
+    det = OnsetDetector(16, sensor=s)
+    assert det.warmup == pytest.approx(0.5 * s.response_time / 2.516, rel=0.01)
+    assert OnsetDetector(1).warmup == 0.5  # the paper's, as before
+    events, _ = det.process(st.times, st.temperature, det.initial_state())
+    assert not [e for e in events if e.kind == "onset"]

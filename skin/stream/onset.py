@@ -49,8 +49,9 @@ follows from the taxel's noise and the sensor description (`skin.models.sensors`
   proportion to how far its heater holds it above ambient (the sensor's ``heated_rise``):
   the thresholds are at least fixed fractions of that rise (`DISTURBANCE`), per second of
   CUSUM (so they scale with the sample rate).
-- Time constants of the baseline and the slow channel stretch with the sensor's response
-  time when it is slower than the paper's (a slow sensor's contact departs slowly).
+- Time constants of the baseline and the slow channel, and the warm-up, stretch with the
+  sensor's response time when it is slower than the paper's (a slow sensor's contact
+  departs slowly, and its baseline takes as much longer to catch the reading's trend).
 - A sensor body whose slowest thermal mode (62.5 s for the paper's, scaled by l^2 / alpha) is
   faster than the paper's brings heater steps and drift to the thermistor faster: the CUSUM
   thresholds grow with the mode's speed, the slow channel's with what the mode moves within
@@ -235,9 +236,11 @@ class OnsetDetector:
         Lowest standard deviation assumed for the smoothed reading, deg C.
     noise_tau : float
         Time constant of the noise variance estimate, s.
-    warmup : float
+    warmup : float, optional
         Time after the first sample (and after a release) before onsets are reported, s; a
-        free taxel's CUSUMs do not accumulate before it.
+        free taxel's CUSUMs do not accumulate before it. Default 0.5 s, stretched with the
+        sensor's response time as the baseline's time constants are (its slope needs that
+        long to catch the reading's trend).
     release_rise : float
         Return of the smoothed temperature from its in-contact extreme that marks a release
         (a rise above the minimum after a fall, a fall below the maximum after a rise), deg C.
@@ -294,7 +297,7 @@ class OnsetDetector:
         rise_threshold: float | np.ndarray | None = None,
         noise_floor: float | np.ndarray | None = None,
         noise_tau: float = 5.0,
-        warmup: float = 0.5,
+        warmup: float | None = None,
         release_rise: float | np.ndarray | None = None,
         smooth_tau: float | None = None,
         stale: float | None = None,
@@ -362,7 +365,7 @@ class OnsetDetector:
         self.slow_threshold = scaled(slow_threshold, "slow_threshold", False)
         self.slow_begin = scaled(slow_begin, "slow_begin", False)
         self.noise_tau = noise_tau
-        self.warmup = warmup
+        self.warmup = 0.5 * stretch if warmup is None else warmup
         self.stale = 1.0 * stretch if stale is None else stale
         self.slow_tau = 3.0 * stretch if slow_tau is None else slow_tau
         self.recovery = recovery
