@@ -18,8 +18,8 @@ Missed contacts:
   share the baseline);
 - ``heater_switch``: the heater's duty switched within `SWITCH_WINDOW` s before the onset
   or during the contact;
-- ``late_5sigma``: the contact's own change reached 5 sigma only in its last 0.3 s (or
-  never: brief contacts of poor conductors);
+- ``late_5sigma``: the contact's own change reached 5 of the sensor's sigmas only in its
+  last 0.3 s (brief contacts of poor conductors; streams with a sensor description);
 - ``gust_sized``: its change stays within what a gust does (the stream's deepest gust,
   scaled to the sensor): size cannot tell it from one;
 - ``unflagged``: none of those: the detector's thresholds or its baseline, which follows a
@@ -169,7 +169,7 @@ def _miss_cause(c: object, events: list, gusts: list[tuple[float, float]],
         return "gust"
     if any(c.onset - SWITCH_WINDOW <= w <= c.release for w in switches):
         return "heater_switch"
-    if not c.five_sigma_after <= c.duration - LATE:
+    if np.isfinite(c.five_sigma_after) and c.five_sigma_after > c.duration - LATE:
         return "late_5sigma"
     if c.peak_change <= gust_size:
         return "gust_sized"
