@@ -144,3 +144,18 @@ def test_a_slow_sensor_detector_warms_up_as_long_as_its_baseline_needs(name):
     assert OnsetDetector(1).warmup == 0.5  # the paper's, as before
     events, _ = det.process(st.times, st.temperature, det.initial_state())
     assert not [e for e in events if e.kind == "onset"]
+
+
+def test_evaluate_onset_why_prints_the_causes_in_one_json_document():
+    import json
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "skin", "evaluate-onset", "--sensor", "low-cost",
+                          "--minutes", "3", "--taxels", "4", "--why", "--json"],
+                         capture_output=True, text=True, check=True)
+    doc = json.loads(out.stdout)
+    why = doc["why"]
+    assert why["counted"] == "5-sigma contacts" and why["contacts"] >= why["missed"]
+    assert why["missed"] == sum(why["misses"].values()) == len(why["missed_contacts"])
+    assert why["false_alarm_total"] == doc["false_alarms"]
