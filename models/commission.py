@@ -147,6 +147,8 @@ ONSET_SEARCH = 0.25
 MERGE_GAP = 0.5
 #: Upper bound of a touch's fitted conductance, W/(m^2 K): a firm touch may be near perfect.
 CONDUCTANCE_MAX = 1e6
+#: Why a detected touch is left out (`find_touches`).
+LEFT_OUT = ("unended", "short", "rising", "incomplete")
 
 
 @dataclass(frozen=True)
@@ -192,7 +194,8 @@ class ResponseFit:
 
 def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
                  sensors: list, noise: np.ndarray | None = None,
-                 ) -> tuple[list[tuple[int, float, float, np.ndarray, np.ndarray]], int]:
+                 ) -> tuple[list[tuple[int, float, float, np.ndarray, np.ndarray]],
+                            dict[str, int]]:
     """Detect touches with the pipeline's onset detector and date them with `refine_onset`.
 
     A release followed within `MERGE_GAP` by a new onset of the same taxel is one touch.
@@ -203,8 +206,11 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
         (column, onset, initial temperature, time since onset, readings) of each falling
         touch lasting at least `TOUCH_SECONDS` with every sample of its window present; the
         window runs from `TOUCH_BEFORE` s before the onset to `TOUCH_SECONDS` after it.
-    short : int
-        Touches left out: too short, rising (a warm object) or with missing samples.
+    left_out : dict
+        Touches left out, by reason (`LEFT_OUT`): ``unended`` (no release before the
+        recording ends: the reading never recovered), ``short`` (released less than
+        `TOUCH_SECONDS` after the onset), ``rising`` (a warm object) and ``incomplete``
+        (missing samples, or the window runs past the recording or the release).
     """
     from skin.stream.onset_refine import refine_onset
     from skin.stream.pipeline import _detector_for
@@ -226,11 +232,13 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
                 held.append([ev, None])
         elif held and held[-1][1] is None:
             held[-1][1] = ev.time
-    out, short = [], 0
+    out, left = [], dict.fromkeys(LEFT_OUT, 0)
     for k, held in sorted(spans.items()):
         for on, off in held:
-            if off is None or on.direction != -1 or off - on.time < TOUCH_SECONDS:
-                short += 1
+            why = ("rising" if on.direction != -1 else "unended" if off is None
+                   else "short" if off - on.time < TOUCH_SECONDS else "")
+            if why:
+                left[why] += 1
                 continue
             near = (t >= on.time - 1.0) & (t <= off)
             onset, initial = refine_onset(t[near], y[near, k], on.time, on.baseline, on.slope,
@@ -240,11 +248,11 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
             if (first < 0 or first + n_before + n_after > t.size
                     or t[first + n_before + n_after - 1] > off
                     or not np.all(np.isfinite(y[window, k]))):
-                short += 1
+                left["incomplete"] += 1
                 continue
             out.append((k, float(onset), float(initial), t[window] - onset,
                         y[window, k].copy()))
-    return out, short
+    return out, left
 
 
 def labelled_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
@@ -368,11 +376,15 @@ def _pins(touches: list[ReferenceTouch]) -> bool:
 
 
 def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict,
-                  sensors: list, room: float) -> list[ResponseFit]:
+                  sensors: list, room: float, left_out: dict | None = None,
+                  ) -> list[ResponseFit]:
     """Fit each taxel's response, or its board's where the taxel has too few touches.
 
     A taxel (or a board, pooling its taxels' touches) needs `MIN_TOUCHES` touches of each of
     `MIN_MATERIALS` references; the fit is `skin.models.sensor_fit.fit_sensor_constants`.
+
+    ``left_out``: the touches left out before the fit, by reason (`find_touches`, with
+    ``ambiguous``): they name what to record instead when the rest cannot pin the response.
 
     Raises
     ------
@@ -391,15 +403,17 @@ def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict
         if cols and _pins(pool):
             groups.append((np.array(cols), "board", pool))
     if not groups:
+        hold, rest = _hold_and_rest(sensors)
         found = {}
         for tc in touches:
             found[tc.material] = found.get(tc.material, 0) + 1
         raise CommissioningError(
             f"the recording cannot pin the sensor response: it holds {len(touches)} usable "
-            f"touches ({', '.join(f'{v} of {k}' for k, v in found.items()) or 'none'}); record "
-            f"at least {MIN_TOUCHES} touches of at least {MIN_MATERIALS} of "
-            f"{', '.join(materials)}, each held {TOUCH_SECONDS:g} s or more at room "
-            f"temperature, on every taxel (or, pooled per board, on each board)")
+            f"touches ({', '.join(f'{v} of {k}' for k, v in found.items()) or 'none'})"
+            f"{_left_out_said(left_out or {}, sensors)}; record at least {MIN_TOUCHES} "
+            f"touches of at least {MIN_MATERIALS} of {', '.join(materials)} at room "
+            f"temperature, each held {hold:g} s or more with {rest:g} s or more between "
+            f"them, on every taxel (or, pooled per board, on each board)")
     out = []
     for cols, scope, tcs in groups:
         fit = _fit_group(tcs, materials, sensors[int(cols[0])], room)
@@ -408,6 +422,37 @@ def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict
             counts[tc.material] = counts.get(tc.material, 0) + 1
         out.append(ResponseFit(cols, scope, len(tcs), counts, fit))
     return out
+
+
+def _hold_and_rest(sensors: list) -> tuple[float, float]:
+    """How long to hold each reference touch and to rest between them, s.
+
+    The detector dates a touch some fraction of the sensor's half-response time late and
+    `TOUCH_SECONDS` are fitted after the onset; the reading must recover between touches.
+    """
+    from skin.models.sensors import SensorDescription
+
+    slow = max((s.response_time if isinstance(s, SensorDescription)
+                else SensorDescription(depth=s.depth, diffusivity=s.diffusivity).response_time
+                for s in sensors), default=TOUCH_SECONDS)
+    return float(np.ceil(TOUCH_SECONDS + max(1.0, slow / 2))), float(np.ceil(max(5.0, 2 * slow)))
+
+
+def _left_out_said(left: dict, sensors: list) -> str:
+    """Say why touches were left out, and what to record instead for each reason."""
+    rest = _hold_and_rest(sensors)[1]
+    said = {
+        "unended": "never ended (the reading did not recover before the next touch or the "
+                   f"end: rest {rest:.0f} s or more between touches and after the last, or "
+                   "give their times with --labels)",
+        "short": f"ended less than {TOUCH_SECONDS:g} s after their detected onset (the "
+                 "detector dates the onset late on a slow sensor)",
+        "rising": "warmed the taxel (the reference must rest at room temperature)",
+        "incomplete": "had missing samples or ran past the recording's end",
+        "ambiguous": "fitted two references alike (choose references that differ in "
+                     "effusivity, such as a metal and a wood)"}
+    parts = [f"{left[k]} {said[k]}" for k in said if left.get(k)]
+    return (", and of the touches left out " + "; ".join(parts)) if parts else ""
 
 
 def _fit_group(tcs: list[ReferenceTouch], materials: dict, nominal: object,
@@ -483,7 +528,16 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
         touches, short = labelled_touches(times, temperature, layout, labels)
         counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": 0}
         return fit_responses(touches, layout, materials, sensors, room), counts
-    touches, short = find_touches(times, temperature, layout, sensors, noise)
+    touches, left = find_touches(times, temperature, layout, sensors, noise)
+    if not touches and not any(left.values()):
+        hold, rest = _hold_and_rest(sensors)
+        raise CommissioningError(
+            f"the recording cannot pin the sensor response: the onset detector found no "
+            f"touch in it; record at least {MIN_TOUCHES} touches of at least {MIN_MATERIALS} "
+            f"of {', '.join(materials)} at room temperature, each held {hold:g} s or more "
+            f"with {rest:g} s or more between them, or give their times with --labels")
     assigned, ambiguous = assign_materials(touches, materials, sensors, room)
+    short = sum(left.values())
     counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": len(ambiguous)}
-    return fit_responses(assigned, layout, materials, sensors, room), counts
+    return fit_responses(assigned, layout, materials, sensors, room,
+                         {**left, "ambiguous": len(ambiguous)}), counts

@@ -328,3 +328,53 @@ def test_bench_spread_classifies_with_a_given_calibration(tmp_path, capsys):
     doc = json.loads(capsys.readouterr().out)
     assert doc["commissioned"]["touches"] == 4 and doc["commissioned_gap"] == 0.0
     assert doc["commissioned"]["correct"] == doc["calibrated"]["correct"]
+    assert doc["design"]["touches"] == 4 and "design_gap" in doc
+
+
+def test_bench_spread_holds_every_touch_for_each_duration(tmp_path, capsys):
+    """--durations: one set of runs per hold, the same taxels and objects, held that long."""
+    from skin.bench.spread import design, random_scene
+
+    a, b = random_scene(6, seed=3, hold=0.5), random_scene(6, seed=3, hold=2.5)
+    assert [t.duration for t in a.touches] == [0.5] * 6 == [t.duration / 5 for t in b.touches]
+    assert [t.taxels for t in a.touches] == [t.taxels for t in b.touches]
+    assert [t.object for t in a.touches] == [t.object for t in b.touches]
+    assert [t.taxels for t in a.touches] == [t.taxels for t in random_scene(6, seed=3).touches]
+    truth = tmp_path / "truth.json"
+    assert skin_main(["simulate", "calibration", "--scene", "reference-touches", "-o",
+                      str(truth)]) == 0
+    _, sensors = load_calibration(truth).apply(load_layout("arm"))
+    mid = design(sensors)
+    assert len({s.depth**2 / s.diffusivity for s in sensors}) > 10
+    assert len({(s.depth, s.diffusivity, s.conductivity) for s in mid}) == 1
+    assert mid[0].diffusivity == pytest.approx(np.median([s.diffusivity for s in sensors]))
+    capsys.readouterr()
+    assert skin_main(["bench", "spread", "--touches", "2", "--durations", "0.5,1",
+                      "--calibration", str(truth), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert set(doc["by_duration"]) == {"0.5", "1"}
+    for figures in doc["by_duration"].values():
+        assert {"nominal", "spread", "calibrated", "commissioned", "design"} <= set(figures)
+        assert figures["calibrated"]["touches"] == 2
+    assert skin_main(["bench", "spread", "--durations", "0.5,soon"]) != 0
+    assert "--durations" in capsys.readouterr().err
+
+
+def test_a_sensor_too_slow_for_the_touches_is_told_how_long_to_hold_and_rest(tmp_path, capsys):
+    """The paper's protocol (3 s touches, 5 s apart) on the low-cost sensor (t50 8.6 s)."""
+    scene = tmp_path / "slow.toml"
+    lines = ['name = "slow"', 'layout = "arm"', "duration = 40.0", "ambient = 25.0",
+             "seed = 7", 'sensor = "low-cost"', "initial_temperature = [34.0, 38.9]",
+             '[[objects]]\nname = "al"\nmaterial = "aluminium"',
+             '[[objects]]\nname = "pine"\nmaterial = "pine"']
+    for k in range(4):
+        lines.append(f'[[touches]]\nobject = "{("al", "pine")[k % 2]}"\ntaxels = [0, 1, 2, 3]'
+                     f"\nstart = {3.0 + 8.0 * k}\nduration = 3.0")
+    scene.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "cal.json"
+    assert skin_main(["commission", "--port", f"sim://{scene}?speed=0", "--seconds", "40",
+                      "--touches", "aluminium,pine", "-o", str(out)]) != 0
+    err = capsys.readouterr().err
+    assert "cannot pin the sensor response" in err and "never ended" in err
+    assert "each held 7 s or more with 18 s or more between them" in err
+    assert not out.exists()
