@@ -376,5 +376,5 @@ def test_a_sensor_too_slow_for_the_touches_is_told_how_long_to_hold_and_rest(tmp
                       "--touches", "aluminium,pine", "-o", str(out)]) != 0
     err = capsys.readouterr().err
     assert "cannot pin the sensor response" in err and "never ended" in err
-    assert "each held 7 s or more with 18 s or more between them" in err
+    assert "each held 11 s or more with 17 s or more between them" in err
     assert not out.exists()
