@@ -143,6 +143,9 @@ TOUCH_BEFORE = 0.4
 #: dates reference touches to some -20..+80 ms with the nominal constants (10-bit readings;
 #: up to +140 ms for soft contacts); a late onset left fixed passes for a faster sensor with a
 #: softer contact (response-time error 0.11 both before and after such a fit, seed 11).
+#: A faster sensor's search is shorter by its half-response time's ratio to the paper's
+#: (`onset_search`): on fast-film (0.25 s) +-0.25 s is its whole response, and an early
+#: onset passed for a slower sensor.
 ONSET_SEARCH = 0.25
 #: A release and a new onset of the same taxel closer than this are one touch, s (a heater
 #: switched off at contact can make the detector see a release early in a touch).
@@ -207,6 +210,13 @@ def touch_seconds(sensors: list) -> float:
     paper = SensorDescription().response_time
     slow = max((_response_time(s) for s in sensors), default=paper)
     return TOUCH_SECONDS * max(1.0, slow / paper)
+
+
+def onset_search(sensor: object) -> float:
+    """How far the fit may move a touch's onset, s: `ONSET_SEARCH`, shorter on a faster sensor."""
+    from skin.models.sensors import SensorDescription
+
+    return ONSET_SEARCH * min(1.0, _response_time(sensor) / SensorDescription().response_time)
 
 
 def _response_time(sensor: object) -> float:
@@ -497,7 +507,7 @@ def _fit_group(tcs: list[ReferenceTouch], materials: dict, nominal: object,
     mats = [materials[tc.material] for tc in tcs]
     t = np.array([tc.t for tc in tcs])
     y = np.array([tc.y for tc in tcs])
-    kw = dict(nominal=nominal, onset_search=ONSET_SEARCH,
+    kw = dict(nominal=nominal, onset_search=onset_search(nominal),
               conductance_range=([m.conductance_range[0] for m in mats],
                                  [CONDUCTANCE_MAX] * len(mats)))
     args = (t, y, [tc.initial for tc in tcs],

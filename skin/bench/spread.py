@@ -90,7 +90,8 @@ def play(scene: Scene, calibrated: object) -> dict:
         calibration, sensors = sim.true_calibration().apply(layout)
     elif isinstance(calibrated, tuple):
         calibration, sensors = calibrated[1].apply(layout)
-        sensors = design(sensors)
+        sensors = design(sensors, [layout.index(int(i)) for i in calibrated[1].taxels
+                                   if "diffusivity" in calibrated[1].taxels[i]])
     elif calibrated:
         calibration, sensors = calibrated.apply(layout)
     classifier = JointClassifier(
@@ -114,11 +115,18 @@ def play(scene: Scene, calibrated: object) -> dict:
             "wall_time": round(wall, 2)}
 
 
-def design(sensors: list) -> list:
-    """Return every taxel with the median of ``sensors``' depth, diffusivity, conductivity."""
+def design(sensors: list, fitted: list[int] | None = None) -> list:
+    """Return every taxel with the median depth, diffusivity and conductivity of ``sensors``.
+
+    ``fitted``: the columns whose constants were commissioned (default all); the others,
+    left at their board's nominal constants, do not count.
+    """
     import dataclasses
 
-    mid = {k: float(np.median([getattr(s, k) for s in sensors]))
+    pick = [sensors[k] for k in (range(len(sensors)) if fitted is None else fitted)]
+    if not pick:
+        raise ValueError("the calibration file fits no taxel's thermal constants")
+    mid = {k: float(np.median([getattr(s, k) for s in pick]))
            for k in ("depth", "diffusivity", "conductivity")}
     return [dataclasses.replace(s, **mid) for s in sensors]
 

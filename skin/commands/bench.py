@@ -451,6 +451,9 @@ def main_spread(args: argparse.Namespace) -> int:
         from skin.formats.calibration_file import load_calibration
 
         commissioned = load_calibration(args.calibration)
+        if not any("diffusivity" in v for v in commissioned.taxels.values()):
+            raise SkinError(f"{args.calibration}: no taxel's thermal constants (commission "
+                            f"them with `skin commission --touches`)")
     progress = Progress()
     started = time.monotonic()
     doc = {"machine": bench.machine(),
