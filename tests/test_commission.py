@@ -340,6 +340,8 @@ def test_bench_spread_holds_every_touch_for_each_duration(tmp_path, capsys):
     assert [t.taxels for t in a.touches] == [t.taxels for t in b.touches]
     assert [t.object for t in a.touches] == [t.object for t in b.touches]
     assert [t.taxels for t in a.touches] == [t.taxels for t in random_scene(6, seed=3).touches]
+    few = random_scene(20, seed=3, taxels=[0, 1, 2, 3])  # a file that commissioned four
+    assert {i for t in few.touches for i in t.taxels} <= {0, 1, 2, 3}
     truth = tmp_path / "truth.json"
     assert skin_main(["simulate", "calibration", "--scene", "reference-touches", "-o",
                       str(truth)]) == 0

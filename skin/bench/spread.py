@@ -18,6 +18,7 @@ many short touches on the arm three times through the pipeline with the joint cl
    nothing of this unit's own taxels, so its per-taxel constants (run 4) are those of other
    taxels.
 
+A file that commissioned only some taxels has the scenes touch those alone (every run).
 With ``durations`` every touch is held exactly that long (one scene per duration, the same
 taxels and objects): the classifier answers from that much contact, as issue 4's benchmark
 reads a window of that length.
@@ -37,12 +38,13 @@ from skin.formats.scene import Scene, match_touches, parse_scene
 
 def random_scene(touches: int = 120, spread: float = 0.10, seed: int = 0,
                  sensor: str = "", materials: list[str] | None = None,
-                 hold: float | None = None) -> Scene:
+                 hold: float | None = None, taxels: list[int] | None = None) -> Scene:
     """Build a scene on the arm: ``touches`` touches of 1.5-3 s, one every 3 s.
 
     Each touch presses one object of a random classifiable material (at ambient) on a random
     taxel and one or two of its neighbours. ``hold``: every touch lasts that long instead
-    (the same taxels and objects; touches start every max(3, hold + 1.5) s).
+    (the same taxels and objects; touches start every max(3, hold + 1.5) s). ``taxels``:
+    touch only these taxel ids (for example those a calibration file commissioned).
     """
     from skin.formats.layout import load_layout
     from skin.models import load_materials
@@ -60,9 +62,11 @@ def random_scene(touches: int = 120, spread: float = 0.10, seed: int = 0,
         lines.append(f'sensor = "{sensor}"')
     for m in mats:
         lines += ["[[objects]]", f'name = "{m}"', f'material = "{m}"']
+    pool = np.arange(len(layout)) if taxels is None else np.array(
+        [layout.index(int(i)) for i in taxels])
     for k in range(touches):
-        i = int(rng.integers(len(layout)))
-        extra = rng.permutation(near[i])[: int(rng.integers(1, 3))]
+        i = int(pool[rng.integers(pool.size)])
+        extra = [j for j in rng.permutation(near[i])[: int(rng.integers(1, 3))] if j in pool]
         ids = [int(layout.ids[j]) for j in (i, *extra)]
         obj = mats[int(rng.integers(len(mats)))]
         drawn = float(rng.uniform(1.5, 3.0))  # drawn either way: the same touches
@@ -146,11 +150,17 @@ def run(touches: int = 120, spread: float = 0.10, seed: int = 0, sensor: str = "
         plan += [("commissioned", spread, commissioned), ("design", spread,
                                                           ("design", commissioned))]
     holds = list(durations) if durations else [None]
+    only = None  # a file that commissioned some taxels: touch those alone
+    if commissioned is not None:
+        fitted = sorted(int(i) for i, v in commissioned.taxels.items() if "diffusivity" in v)
+        only = fitted if len(fitted) < len(random_scene(1).layout) else None
+        out["taxels"] = fitted if only else "all"
     done = 0
     for hold in holds:
         figures: dict = {}
         for name, s, cal in plan:
-            figures[name] = play(random_scene(touches, s, seed, sensor, hold=hold), cal)
+            figures[name] = play(random_scene(touches, s, seed, sensor, hold=hold,
+                                              taxels=only), cal)
             done += 1
             if progress is not None:
                 progress(done, len(plan) * len(holds))
