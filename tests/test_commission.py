@@ -342,6 +342,13 @@ def test_bench_spread_holds_every_touch_for_each_duration(tmp_path, capsys):
     assert [t.taxels for t in a.touches] == [t.taxels for t in random_scene(6, seed=3).touches]
     few = random_scene(20, seed=3, taxels=[0, 1, 2, 3])  # a file that commissioned four
     assert {i for t in few.touches for i in t.taxels} <= {0, 1, 2, 3}
+    from skin.bench.spread import commissioned_taxels
+
+    own = {"diffusivity": 3e-9, "thermal_scope": "taxel"}
+    pooled = {"diffusivity": 3e-9, "thermal_scope": "board"}
+    assert commissioned_taxels(CalibrationFile(taxels={2: own, 5: own, 7: pooled,
+                                                       9: {"noise_sigma": 0.02}})) == [2, 5]
+    assert commissioned_taxels(CalibrationFile(taxels={7: pooled, 8: pooled})) == [7, 8]
     truth = tmp_path / "truth.json"
     assert skin_main(["simulate", "calibration", "--scene", "reference-touches", "-o",
                       str(truth)]) == 0

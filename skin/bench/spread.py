@@ -94,8 +94,7 @@ def play(scene: Scene, calibrated: object) -> dict:
         calibration, sensors = sim.true_calibration().apply(layout)
     elif isinstance(calibrated, tuple):
         calibration, sensors = calibrated[1].apply(layout)
-        sensors = design(sensors, [layout.index(int(i)) for i in calibrated[1].taxels
-                                   if "diffusivity" in calibrated[1].taxels[i]])
+        sensors = design(sensors, [layout.index(i) for i in commissioned_taxels(calibrated[1])])
     elif calibrated:
         calibration, sensors = calibrated.apply(layout)
     classifier = JointClassifier(
@@ -117,6 +116,17 @@ def play(scene: Scene, calibrated: object) -> dict:
             "false_contacts": len(unmatched),
             "accuracy": round(len(correct) / len(matches), 4),
             "wall_time": round(wall, 2)}
+
+
+def commissioned_taxels(cal: object) -> list[int]:
+    """Ids of the taxels a calibration file fitted from their own touches.
+
+    Taxels given their board's pooled fit (``thermal_scope`` "board": too few touches of
+    their own, or none) count only when no taxel has its own fit.
+    """
+    fitted = {int(i): v for i, v in cal.taxels.items() if "diffusivity" in v}
+    own = [i for i, v in fitted.items() if v.get("thermal_scope", "taxel") == "taxel"]
+    return sorted(own or fitted)
 
 
 def design(sensors: list, fitted: list[int] | None = None) -> list:
@@ -152,7 +162,7 @@ def run(touches: int = 120, spread: float = 0.10, seed: int = 0, sensor: str = "
     holds = list(durations) if durations else [None]
     only = None  # a file that commissioned some taxels: touch those alone
     if commissioned is not None:
-        fitted = sorted(int(i) for i, v in commissioned.taxels.items() if "diffusivity" in v)
+        fitted = commissioned_taxels(commissioned)
         only = fitted if len(fitted) < len(random_scene(1).layout) else None
         out["taxels"] = fitted if only else "all"
     done = 0
