@@ -91,7 +91,8 @@ def fit_sensor_constants(t: np.ndarray, temperature: np.ndarray, t_sensor: Seque
                          nominal: SensorConstants | None = None,
                          conductance_range: tuple = (1e2, 1e7),
                          onset_search: float = 0.0,
-                         conductance_groups: Sequence[int] | None = None) -> SensorFit:
+                         conductance_groups: Sequence[int] | None = None,
+                         fit_depth: bool | None = None) -> SensorFit:
     """Fit a taxel's diffusivity and conductivity from reference contacts.
 
     Parameters
@@ -126,6 +127,9 @@ def fit_sensor_constants(t: np.ndarray, temperature: np.ndarray, t_sensor: Seque
         Contacts with the same group number share one conductance (for example one per
         reference material, when the touches were equally firm); default: one per contact.
         Its bounds are the widest of its contacts'.
+    fit_depth : bool, optional
+        Fit the thermistor depth too; default: when the heater mode pins it
+        (`_depth_matters`). False for contacts pooled from taxels that differ.
 
     Returns
     -------
@@ -162,7 +166,8 @@ def fit_sensor_constants(t: np.ndarray, temperature: np.ndarray, t_sensor: Seque
 
     m = ts.size
     n_free = 3 * m if search > 0 else 0  # onset shift, baseline at the onset, slope before it
-    b = 3 if _depth_matters(s0) else 2  # the body: diffusivity, conductivity (and depth)
+    free_depth = _depth_matters(s0) if fit_depth is None else fit_depth
+    b = 3 if free_depth else 2  # the body: diffusivity, conductivity (and depth)
     group = np.arange(m) if conductance_groups is None else np.unique(
         np.asarray(conductance_groups), return_inverse=True)[1].ravel()
     if group.shape != (m,):
