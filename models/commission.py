@@ -132,7 +132,9 @@ def quiet_figures(times: np.ndarray, temperature: np.ndarray,
 
 #: Least touches of each material, and least materials, that pin a sensor response.
 MIN_TOUCHES, MIN_MATERIALS = 3, 2
-#: Seconds of each touch fitted after its onset (the touch must last this long).
+#: Seconds of each touch fitted after its onset (the touch must last this long) on the
+#: paper's sensor; a slower sensor's window is longer by its half-response time's ratio to
+#: the paper's (`touch_seconds`).
 TOUCH_SECONDS = 2.5
 #: Seconds before the detected onset fitted too: they pin the baseline, so that the fit can
 #: date the onset itself (`ONSET_SEARCH`).
@@ -141,12 +143,17 @@ TOUCH_BEFORE = 0.4
 #: dates reference touches to some -20..+80 ms with the nominal constants (10-bit readings;
 #: up to +140 ms for soft contacts); a late onset left fixed passes for a faster sensor with a
 #: softer contact (response-time error 0.11 both before and after such a fit, seed 11).
+#: A faster sensor's search is shorter by its half-response time's ratio to the paper's
+#: (`onset_search`): on fast-film (0.25 s) +-0.25 s is its whole response, and an early
+#: onset passed for a slower sensor.
 ONSET_SEARCH = 0.25
 #: A release and a new onset of the same taxel closer than this are one touch, s (a heater
 #: switched off at contact can make the detector see a release early in a touch).
 MERGE_GAP = 0.5
 #: Upper bound of a touch's fitted conductance, W/(m^2 K): a firm touch may be near perfect.
 CONDUCTANCE_MAX = 1e6
+#: Why a detected touch is left out (`find_touches`).
+LEFT_OUT = ("unended", "short", "rising", "incomplete")
 
 
 @dataclass(frozen=True)
@@ -190,9 +197,40 @@ class ResponseFit:
     fit: object
 
 
+def touch_seconds(sensors: list) -> float:
+    """Seconds fitted after each onset: `TOUCH_SECONDS`, longer for a slower sensor.
+
+    Scaled by the slowest taxel's half-response time (`SensorDescription.response_time`)
+    against the paper's sensor's, never shorter: a low-cost sensor (8.6 s) read for the
+    paper's 2.5 s shows only the start of its response (measured on the low-cost preset,
+    seed 7, 6 labelled touches per taxel: effusivity error 0.061 nominal -> 0.63 fitted).
+    """
+    from skin.models.sensors import SensorDescription
+
+    paper = SensorDescription().response_time
+    slow = max((_response_time(s) for s in sensors), default=paper)
+    return TOUCH_SECONDS * max(1.0, slow / paper)
+
+
+def onset_search(sensor: object) -> float:
+    """How far the fit may move a touch's onset, s: `ONSET_SEARCH`, shorter on a faster sensor."""
+    from skin.models.sensors import SensorDescription
+
+    return ONSET_SEARCH * min(1.0, _response_time(sensor) / SensorDescription().response_time)
+
+
+def _response_time(sensor: object) -> float:
+    from skin.models.sensors import SensorDescription
+
+    if isinstance(sensor, SensorDescription):
+        return float(sensor.response_time)
+    return SensorDescription(depth=sensor.depth, diffusivity=sensor.diffusivity).response_time
+
+
 def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
                  sensors: list, noise: np.ndarray | None = None,
-                 ) -> tuple[list[tuple[int, float, float, np.ndarray, np.ndarray]], int]:
+                 ) -> tuple[list[tuple[int, float, float, np.ndarray, np.ndarray]],
+                            dict[str, int]]:
     """Detect touches with the pipeline's onset detector and date them with `refine_onset`.
 
     A release followed within `MERGE_GAP` by a new onset of the same taxel is one touch.
@@ -203,8 +241,11 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
         (column, onset, initial temperature, time since onset, readings) of each falling
         touch lasting at least `TOUCH_SECONDS` with every sample of its window present; the
         window runs from `TOUCH_BEFORE` s before the onset to `TOUCH_SECONDS` after it.
-    short : int
-        Touches left out: too short, rising (a warm object) or with missing samples.
+    left_out : dict
+        Touches left out, by reason (`LEFT_OUT`): ``unended`` (no release before the
+        recording ends: the reading never recovered), ``short`` (released less than
+        `TOUCH_SECONDS` after the onset), ``rising`` (a warm object) and ``incomplete``
+        (missing samples, or the window runs past the recording or the release).
     """
     from skin.stream.onset_refine import refine_onset
     from skin.stream.pipeline import _detector_for
@@ -212,7 +253,8 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
     t = np.asarray(times, dtype=float)
     y = np.asarray(temperature, dtype=float)
     step = float(np.median(np.diff(t)))
-    n_before, n_after = round(TOUCH_BEFORE / step), round(TOUCH_SECONDS / step)
+    seconds = touch_seconds(sensors)
+    n_before, n_after = round(TOUCH_BEFORE / step), round(seconds / step)
     detector = _detector_for(layout, noise)
     events, _ = detector.process(t, y, detector.initial_state())
     spans: dict[int, list] = {}  # per taxel: [onset event, release time] of each touch
@@ -226,11 +268,13 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
                 held.append([ev, None])
         elif held and held[-1][1] is None:
             held[-1][1] = ev.time
-    out, short = [], 0
+    out, left = [], dict.fromkeys(LEFT_OUT, 0)
     for k, held in sorted(spans.items()):
         for on, off in held:
-            if off is None or on.direction != -1 or off - on.time < TOUCH_SECONDS:
-                short += 1
+            why = ("rising" if on.direction != -1 else "unended" if off is None
+                   else "short" if off - on.time < seconds else "")
+            if why:
+                left[why] += 1
                 continue
             near = (t >= on.time - 1.0) & (t <= off)
             onset, initial = refine_onset(t[near], y[near, k], on.time, on.baseline, on.slope,
@@ -240,25 +284,27 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
             if (first < 0 or first + n_before + n_after > t.size
                     or t[first + n_before + n_after - 1] > off
                     or not np.all(np.isfinite(y[window, k]))):
-                short += 1
+                left["incomplete"] += 1
                 continue
             out.append((k, float(onset), float(initial), t[window] - onset,
                         y[window, k].copy()))
-    return out, short
+    return out, left
 
 
 def labelled_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
-                     labels: list[Any]) -> tuple[list[ReferenceTouch], int]:
+                     labels: list[Any], seconds: float = TOUCH_SECONDS,
+                     ) -> tuple[list[ReferenceTouch], int]:
     """Cut each labelled touch's window (as `find_touches`) from the recording.
 
     The initial temperature is the median of the `TOUCH_BEFORE` s before the label's time;
     the fit dates the onset within `ONSET_SEARCH`. A touch whose window runs past the
-    recording or has a missing sample is left out (counted).
+    recording or has a missing sample is left out (counted). ``seconds``: fitted after each
+    label's time (`touch_seconds`).
     """
     t = np.asarray(times, dtype=float)
     y = np.asarray(temperature, dtype=float)
     step = float(np.median(np.diff(t)))
-    n_before, n_after = round(TOUCH_BEFORE / step), round(TOUCH_SECONDS / step)
+    n_before, n_after = round(TOUCH_BEFORE / step), round(seconds / step)
     out, short = [], 0
     for lab in labels:
         first = int(np.searchsorted(t, lab.time, side="right")) - n_before
@@ -368,11 +414,15 @@ def _pins(touches: list[ReferenceTouch]) -> bool:
 
 
 def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict,
-                  sensors: list, room: float) -> list[ResponseFit]:
+                  sensors: list, room: float, left_out: dict | None = None,
+                  ) -> list[ResponseFit]:
     """Fit each taxel's response, or its board's where the taxel has too few touches.
 
     A taxel (or a board, pooling its taxels' touches) needs `MIN_TOUCHES` touches of each of
     `MIN_MATERIALS` references; the fit is `skin.models.sensor_fit.fit_sensor_constants`.
+
+    ``left_out``: the touches left out before the fit, by reason (`find_touches`, with
+    ``ambiguous``): they name what to record instead when the rest cannot pin the response.
 
     Raises
     ------
@@ -391,18 +441,20 @@ def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict
         if cols and _pins(pool):
             groups.append((np.array(cols), "board", pool))
     if not groups:
+        hold, rest = _hold_and_rest(sensors)
         found = {}
         for tc in touches:
             found[tc.material] = found.get(tc.material, 0) + 1
         raise CommissioningError(
             f"the recording cannot pin the sensor response: it holds {len(touches)} usable "
-            f"touches ({', '.join(f'{v} of {k}' for k, v in found.items()) or 'none'}); record "
-            f"at least {MIN_TOUCHES} touches of at least {MIN_MATERIALS} of "
-            f"{', '.join(materials)}, each held {TOUCH_SECONDS:g} s or more at room "
-            f"temperature, on every taxel (or, pooled per board, on each board)")
+            f"touches ({', '.join(f'{v} of {k}' for k, v in found.items()) or 'none'})"
+            f"{_left_out_said(left_out or {}, sensors)}; record at least {MIN_TOUCHES} "
+            f"touches of at least {MIN_MATERIALS} of {', '.join(materials)} at room "
+            f"temperature, each held {hold:g} s or more with {rest:g} s or more between "
+            f"them, on every taxel (or, pooled per board, on each board)")
     out = []
     for cols, scope, tcs in groups:
-        fit = _fit_group(tcs, materials, sensors[int(cols[0])], room)
+        fit = _fit_group(tcs, materials, sensors[int(cols[0])], room, pooled=scope == "board")
         counts: dict[str, int] = {}
         for tc in tcs:
             counts[tc.material] = counts.get(tc.material, 0) + 1
@@ -410,8 +462,36 @@ def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict
     return out
 
 
+def _hold_and_rest(sensors: list) -> tuple[float, float]:
+    """How long to hold each reference touch and to rest between them, s.
+
+    The detector dates a touch some fraction of the sensor's half-response time late and
+    `TOUCH_SECONDS` are fitted after the onset; the reading must recover between touches.
+    """
+    slow = max((_response_time(s) for s in sensors), default=TOUCH_SECONDS)
+    return (float(np.ceil(2 * (touch_seconds(sensors) + slow / 4)) / 2),
+            float(max(5.0, round(2 * slow))))
+
+
+def _left_out_said(left: dict, sensors: list) -> str:
+    """Say why touches were left out, and what to record instead for each reason."""
+    rest = _hold_and_rest(sensors)[1]
+    said = {
+        "unended": "never ended (the reading did not recover before the next touch or the "
+                   f"end: rest {rest:.0f} s or more between touches and after the last, or "
+                   "give their times with --labels)",
+        "short": f"ended less than {touch_seconds(sensors):.3g} s after their detected onset (the "
+                 "detector dates the onset late on a slow sensor)",
+        "rising": "warmed the taxel (the reference must rest at room temperature)",
+        "incomplete": "had missing samples or ran past the recording's end",
+        "ambiguous": "fitted two references alike (choose references that differ in "
+                     "effusivity, such as a metal and a wood)"}
+    parts = [f"{left[k]} {said[k]}" for k in said if left.get(k)]
+    return (", and of the touches left out " + "; ".join(parts)) if parts else ""
+
+
 def _fit_group(tcs: list[ReferenceTouch], materials: dict, nominal: object,
-               room: float) -> object:
+               room: float, pooled: bool = False) -> object:
     """Fit one taxel's (or board's) touches: one conductance per material or one per touch.
 
     Both are fitted, each touch's onset with them; the one per material is kept unless one
@@ -427,7 +507,11 @@ def _fit_group(tcs: list[ReferenceTouch], materials: dict, nominal: object,
     mats = [materials[tc.material] for tc in tcs]
     t = np.array([tc.t for tc in tcs])
     y = np.array([tc.y for tc in tcs])
-    kw = dict(nominal=nominal, onset_search=ONSET_SEARCH,
+    # a board's pool mixes taxels that differ: a free depth absorbs their differences
+    # (fast-film, seed 7, 21 pooled taxels: response-time error median 0.52 with it, 0.12
+    # held as before)
+    kw = dict(nominal=nominal, onset_search=onset_search(nominal),
+              fit_depth=False if pooled else None,
               conductance_range=([m.conductance_range[0] for m in mats],
                                  [CONDUCTANCE_MAX] * len(mats)))
     args = (t, y, [tc.initial for tc in tcs],
@@ -480,10 +564,20 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
     """
     sensors = described(layout, sensors)
     if labels is not None:
-        touches, short = labelled_touches(times, temperature, layout, labels)
+        touches, short = labelled_touches(times, temperature, layout, labels,
+                                          touch_seconds(sensors))
         counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": 0}
         return fit_responses(touches, layout, materials, sensors, room), counts
-    touches, short = find_touches(times, temperature, layout, sensors, noise)
+    touches, left = find_touches(times, temperature, layout, sensors, noise)
+    if not touches and not any(left.values()):
+        hold, rest = _hold_and_rest(sensors)
+        raise CommissioningError(
+            f"the recording cannot pin the sensor response: the onset detector found no "
+            f"touch in it; record at least {MIN_TOUCHES} touches of at least {MIN_MATERIALS} "
+            f"of {', '.join(materials)} at room temperature, each held {hold:g} s or more "
+            f"with {rest:g} s or more between them, or give their times with --labels")
     assigned, ambiguous = assign_materials(touches, materials, sensors, room)
+    short = sum(left.values())
     counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": len(ambiguous)}
-    return fit_responses(assigned, layout, materials, sensors, room), counts
+    return fit_responses(assigned, layout, materials, sensors, room,
+                         {**left, "ambiguous": len(ambiguous)}), counts

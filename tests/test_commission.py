@@ -328,3 +328,91 @@ def test_bench_spread_classifies_with_a_given_calibration(tmp_path, capsys):
     doc = json.loads(capsys.readouterr().out)
     assert doc["commissioned"]["touches"] == 4 and doc["commissioned_gap"] == 0.0
     assert doc["commissioned"]["correct"] == doc["calibrated"]["correct"]
+    assert doc["design"]["touches"] == 4 and "design_gap" in doc
+
+
+def test_bench_spread_holds_every_touch_for_each_duration(tmp_path, capsys):
+    """--durations: one set of runs per hold, the same taxels and objects, held that long."""
+    from skin.bench.spread import design, random_scene
+
+    a, b = random_scene(6, seed=3, hold=0.5), random_scene(6, seed=3, hold=2.5)
+    assert [t.duration for t in a.touches] == [0.5] * 6 == [t.duration / 5 for t in b.touches]
+    assert [t.taxels for t in a.touches] == [t.taxels for t in b.touches]
+    assert [t.object for t in a.touches] == [t.object for t in b.touches]
+    assert [t.taxels for t in a.touches] == [t.taxels for t in random_scene(6, seed=3).touches]
+    few = random_scene(20, seed=3, taxels=[0, 1, 2, 3])  # a file that commissioned four
+    assert {i for t in few.touches for i in t.taxels} <= {0, 1, 2, 3}
+    from skin.bench.spread import commissioned_taxels
+
+    own = {"diffusivity": 3e-9, "thermal_scope": "taxel"}
+    pooled = {"diffusivity": 3e-9, "thermal_scope": "board"}
+    assert commissioned_taxels(CalibrationFile(taxels={2: own, 5: own, 7: pooled,
+                                                       9: {"noise_sigma": 0.02}})) == [2, 5]
+    assert commissioned_taxels(CalibrationFile(taxels={7: pooled, 8: pooled})) == [7, 8]
+    truth = tmp_path / "truth.json"
+    assert skin_main(["simulate", "calibration", "--scene", "reference-touches", "-o",
+                      str(truth)]) == 0
+    _, sensors = load_calibration(truth).apply(load_layout("arm"))
+    mid = design(sensors)
+    assert len({s.depth**2 / s.diffusivity for s in sensors}) > 10
+    assert len({(s.depth, s.diffusivity, s.conductivity) for s in mid}) == 1
+    assert mid[0].diffusivity == pytest.approx(np.median([s.diffusivity for s in sensors]))
+    capsys.readouterr()
+    assert skin_main(["bench", "spread", "--touches", "2", "--durations", "0.5,1",
+                      "--calibration", str(truth), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert set(doc["by_duration"]) == {"0.5", "1"}
+    for figures in doc["by_duration"].values():
+        assert {"nominal", "spread", "calibrated", "commissioned", "design"} <= set(figures)
+        assert figures["calibrated"]["touches"] == 2
+    assert skin_main(["bench", "spread", "--durations", "0.5,soon"]) != 0
+    assert "--durations" in capsys.readouterr().err
+
+
+def test_a_sensor_too_slow_for_the_touches_is_told_how_long_to_hold_and_rest(tmp_path, capsys):
+    """The paper's protocol (3 s touches, 5 s apart) on the low-cost sensor (t50 8.6 s)."""
+    scene = tmp_path / "slow.toml"
+    lines = ['name = "slow"', 'layout = "arm"', "duration = 40.0", "ambient = 25.0",
+             "seed = 7", 'sensor = "low-cost"', "initial_temperature = [34.0, 38.9]",
+             '[[objects]]\nname = "al"\nmaterial = "aluminium"',
+             '[[objects]]\nname = "pine"\nmaterial = "pine"']
+    for k in range(4):
+        lines.append(f'[[touches]]\nobject = "{("al", "pine")[k % 2]}"\ntaxels = [0, 1, 2, 3]'
+                     f"\nstart = {3.0 + 8.0 * k}\nduration = 3.0")
+    scene.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "cal.json"
+    assert skin_main(["commission", "--port", f"sim://{scene}?speed=0", "--seconds", "40",
+                      "--touches", "aluminium,pine", "-o", str(out)]) != 0
+    err = capsys.readouterr().err
+    assert "cannot pin the sensor response" in err and "never ended" in err
+    assert "each held 11 s or more with 17 s or more between them" in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("preset", ["fast-film", "low-cost"])
+def test_a_heater_off_or_on_at_contact_pins_the_depth_too(preset):
+    """Off-at-contact drains with thickness^2 / alpha, on-during-contact adds a flux term:
+    with the depth held nominal the fit must bend the diffusivity (measured on fast-film:
+    +7.6 % response time); fitted with it, the truth comes back."""
+    import dataclasses
+
+    from skin.models import load_materials
+    from skin.models.sensor_fit import fit_sensor_constants, reference_reading
+    from skin.models.sensors import load_sensor
+
+    nominal = load_sensor(preset)
+    true = dataclasses.replace(nominal, depth=nominal.depth * 1.08,
+                               diffusivity=nominal.diffusivity * 0.94,
+                               conductivity=nominal.conductivity * 1.05)
+    mats = load_materials()
+    refs = [mats["aluminium"], mats["pine"]] * 3
+    seconds = 2.5 * max(1.0, nominal.response_time / load_sensor("paper").response_time)
+    t = np.arange(0.0, seconds, 1.0 / nominal.sample_rate)
+    y = np.vstack([reference_reading(t, 36.0, 25.0, m.effusivity, true, 5e4) for m in refs])
+    fit = fit_sensor_constants(t, y, [36.0] * 6, [25.0] * 6, [m.effusivity for m in refs],
+                               nominal=nominal, conductance_range=(1e3, 1e6),
+                               conductance_groups=[0, 1] * 3)
+    got = fit.sensor
+    assert got.depth**2 / got.diffusivity == pytest.approx(true.depth**2 / true.diffusivity,
+                                                           rel=0.01)
+    assert got.effusivity == pytest.approx(true.effusivity, rel=0.01)

@@ -11,7 +11,17 @@ many short touches on the arm three times through the pipeline with the joint cl
    true constants (`SkinSimulator.true_calibration`: what a perfect commissioning fits);
 4. ``commissioned`` (with a calibration file given): the same skin classified with that
    file's constants, for example those `skin commission --touches` fitted on the same unit
-   (the scene ``reference-touches`` with the same seed and sensor).
+   (the scene ``reference-touches`` with the same seed and sensor);
+5. ``design`` (with a calibration file given): every taxel classified with the median of the
+   file's constants, the sensor design the commissioning found. This is what carries over to
+   another unit of the same design: a file commissioned on another unit (another seed) knows
+   nothing of this unit's own taxels, so its per-taxel constants (run 4) are those of other
+   taxels.
+
+A file that commissioned only some taxels has the scenes touch those alone (every run).
+With ``durations`` every touch is held exactly that long (one scene per duration, the same
+taxels and objects): the classifier answers from that much contact, as issue 4's benchmark
+reads a window of that length.
 
 It reports each run's accuracy, detections and the classification time, so that the gap
 between 2 and 3 is what ``skin run --calibration`` can win back.
@@ -27,42 +37,51 @@ from skin.formats.scene import Scene, match_touches, parse_scene
 
 
 def random_scene(touches: int = 120, spread: float = 0.10, seed: int = 0,
-                 sensor: str = "", materials: list[str] | None = None) -> Scene:
+                 sensor: str = "", materials: list[str] | None = None,
+                 hold: float | None = None, taxels: list[int] | None = None) -> Scene:
     """Build a scene on the arm: ``touches`` touches of 1.5-3 s, one every 3 s.
 
     Each touch presses one object of a random classifiable material (at ambient) on a random
-    taxel and one or two of its neighbours.
+    taxel and one or two of its neighbours. ``hold``: every touch lasts that long instead
+    (the same taxels and objects; touches start every max(3, hold + 1.5) s). ``taxels``:
+    touch only these taxel ids (for example those a calibration file commissioned).
     """
     from skin.formats.layout import load_layout
     from skin.models import load_materials
 
     rng = np.random.default_rng([seed, 3])
+    every = 3.0 if hold is None else max(3.0, hold + 1.5)
     layout = load_layout("arm")
     near = layout.neighbour_lists()
     mats = materials or [m.name for m in load_materials().values()
                          if m.classify and m.temperature is None]
-    lines = ['name = "spread"', 'layout = "arm"', f"duration = {3.0 * touches + 2.0}",
+    lines = ['name = "spread"', 'layout = "arm"', f"duration = {every * touches + 2.0}",
              "ambient = 25.0", "noise = 0.02", f"seed = {seed}", f"taxel_spread = {spread}",
              "initial_temperature = [31.0, 38.9]"]
     if sensor:
         lines.append(f'sensor = "{sensor}"')
     for m in mats:
         lines += ["[[objects]]", f'name = "{m}"', f'material = "{m}"']
+    pool = np.arange(len(layout)) if taxels is None else np.array(
+        [layout.index(int(i)) for i in taxels])
     for k in range(touches):
-        i = int(rng.integers(len(layout)))
-        extra = rng.permutation(near[i])[: int(rng.integers(1, 3))]
+        i = int(pool[rng.integers(pool.size)])
+        extra = [j for j in rng.permutation(near[i])[: int(rng.integers(1, 3))] if j in pool]
         ids = [int(layout.ids[j]) for j in (i, *extra)]
-        lines += ["[[touches]]", f'object = "{mats[int(rng.integers(len(mats)))]}"',
-                  f"taxels = {ids}", f"start = {1.0 + 3.0 * k}",
-                  f"duration = {float(rng.uniform(1.5, 3.0)):.3f}"]
+        obj = mats[int(rng.integers(len(mats)))]
+        drawn = float(rng.uniform(1.5, 3.0))  # drawn either way: the same touches
+        held = drawn if hold is None else hold
+        lines += ["[[touches]]", f'object = "{obj}"', f"taxels = {ids}",
+                  f"start = {1.0 + every * k}", f"duration = {held:.3f}"]
     return parse_scene("\n".join(lines) + "\n", "spread-scene.toml")
 
 
 def play(scene: Scene, calibrated: object) -> dict:
     """Run the scene through the pipeline; return accuracy and detections.
 
-    ``calibrated``: False (nominal constants), True (the simulation's true constants) or a
-    `skin.formats.calibration_file.CalibrationFile` whose constants are used.
+    ``calibrated``: False (nominal constants), True (the simulation's true constants), a
+    `skin.formats.calibration_file.CalibrationFile` whose constants are used, or a tuple
+    ``("design", file)``: the median of the file's constants for every taxel (`design`).
     """
     from skin.drivers.sim import SkinSimulator
     from skin.models import JointClassifier, load_materials
@@ -73,6 +92,9 @@ def play(scene: Scene, calibrated: object) -> dict:
     calibration, sensors = None, None
     if calibrated is True:
         calibration, sensors = sim.true_calibration().apply(layout)
+    elif isinstance(calibrated, tuple):
+        calibration, sensors = calibrated[1].apply(layout)
+        sensors = design(sensors, [layout.index(i) for i in commissioned_taxels(calibrated[1])])
     elif calibrated:
         calibration, sensors = calibrated.apply(layout)
     classifier = JointClassifier(
@@ -96,23 +118,72 @@ def play(scene: Scene, calibrated: object) -> dict:
             "wall_time": round(wall, 2)}
 
 
+def commissioned_taxels(cal: object) -> list[int]:
+    """Ids of the taxels a calibration file fitted from their own touches.
+
+    Taxels given their board's pooled fit (``thermal_scope`` "board": too few touches of
+    their own, or none) count only when no taxel has its own fit.
+    """
+    fitted = {int(i): v for i, v in cal.taxels.items() if "diffusivity" in v}
+    own = [i for i, v in fitted.items() if v.get("thermal_scope", "taxel") == "taxel"]
+    return sorted(own or fitted)
+
+
+def design(sensors: list, fitted: list[int] | None = None) -> list:
+    """Return every taxel with the median depth, diffusivity and conductivity of ``sensors``.
+
+    ``fitted``: the columns whose constants were commissioned (default all); the others,
+    left at their board's nominal constants, do not count.
+    """
+    import dataclasses
+
+    pick = [sensors[k] for k in (range(len(sensors)) if fitted is None else fitted)]
+    if not pick:
+        raise ValueError("the calibration file fits no taxel's thermal constants")
+    mid = {k: float(np.median([getattr(s, k) for s in pick]))
+           for k in ("depth", "diffusivity", "conductivity")}
+    return [dataclasses.replace(s, **mid) for s in sensors]
+
+
 def run(touches: int = 120, spread: float = 0.10, seed: int = 0, sensor: str = "",
-        progress=None, commissioned: object = None) -> dict:
+        progress=None, commissioned: object = None,
+        durations: list[float] | None = None) -> dict:
     """Play the runs of the module docstring; return their figures.
 
-    ``commissioned``: a `skin.formats.calibration_file.CalibrationFile` for the fourth run.
+    ``commissioned``: a `skin.formats.calibration_file.CalibrationFile` for runs 4 and 5.
+    ``durations``: hold every touch this long, one set of runs each (default: one set with
+    touches of 1.5-3 s); the figures of each are under ``by_duration`` keyed by seconds.
     """
     out = {"touches": touches, "taxel_spread": spread, "seed": seed, "sensor": sensor or "paper"}
     plan = [("nominal", 0.0, False), ("spread", spread, False), ("calibrated", spread, True)]
     if commissioned is not None:
-        plan.append(("commissioned", spread, commissioned))
-    for i, (name, s, cal) in enumerate(plan):
-        out[name] = play(random_scene(touches, s, seed, sensor), cal)
-        if progress is not None:
-            progress(i + 1, len(plan))
-    out["calibration_gain"] = round(out["calibrated"]["accuracy"] - out["spread"]["accuracy"], 4)
-    out["spread_loss"] = round(out["nominal"]["accuracy"] - out["spread"]["accuracy"], 4)
+        plan += [("commissioned", spread, commissioned), ("design", spread,
+                                                          ("design", commissioned))]
+    holds = list(durations) if durations else [None]
+    only = None  # a file that commissioned some taxels: touch those alone
     if commissioned is not None:
-        out["commissioned_gap"] = round(out["calibrated"]["accuracy"]
-                                        - out["commissioned"]["accuracy"], 4)
+        fitted = commissioned_taxels(commissioned)
+        only = fitted if len(fitted) < len(random_scene(1).layout) else None
+        out["taxels"] = fitted if only else "all"
+    done = 0
+    for hold in holds:
+        figures: dict = {}
+        for name, s, cal in plan:
+            figures[name] = play(random_scene(touches, s, seed, sensor, hold=hold,
+                                              taxels=only), cal)
+            done += 1
+            if progress is not None:
+                progress(done, len(plan) * len(holds))
+        figures["calibration_gain"] = round(figures["calibrated"]["accuracy"]
+                                            - figures["spread"]["accuracy"], 4)
+        figures["spread_loss"] = round(figures["nominal"]["accuracy"]
+                                       - figures["spread"]["accuracy"], 4)
+        if commissioned is not None:
+            for name in ("commissioned", "design"):
+                figures[f"{name}_gap"] = round(figures["calibrated"]["accuracy"]
+                                               - figures[name]["accuracy"], 4)
+        if hold is None:
+            out.update(figures)
+        else:
+            out.setdefault("by_duration", {})[f"{hold:g}"] = figures
     return out

@@ -157,7 +157,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     spread.add_argument("--seed", type=int, default=0, help="seed")
     spread.add_argument("--calibration", metavar="FILE", default=None,
                         help="a fourth run classified with this file's constants (e.g. from "
-                             "`skin commission --touches` on the same unit: same seed)")
+                             "`skin commission --touches` on the same unit: same seed), and a "
+                             "fifth with the median of its constants (the design: what carries "
+                             "over from another unit)")
+    spread.add_argument("--durations", default=None, metavar="S1,S2,...",
+                        help="hold every touch this long, one set of runs each (e.g. "
+                             "0.5,1,2.5; default: touches of 1.5-3 s)")
     spread.add_argument("--json", action="store_true", help="print one JSON document")
     spread.set_defaults(func=main_spread)
     nui = kinds.add_parser("nuisance", help="what each nuisance of the synthetic benchmark "
@@ -432,34 +437,50 @@ def main_spread(args: argparse.Namespace) -> int:
 
     if args.touches < 1 or not 0 <= args.spread < 1:
         raise SkinError("--touches must be at least 1 and --spread within [0, 1)")
+    durations = None
+    if args.durations:
+        try:
+            durations = [float(v) for v in args.durations.split(",") if v.strip()]
+        except ValueError:
+            raise SkinError(f"--durations {args.durations!r}: seconds separated by commas, "
+                            f"e.g. 0.5,1,2.5") from None
+        if not durations or any(not 0.1 <= d <= 30 for d in durations):
+            raise SkinError("--durations: each between 0.1 and 30 s")
     commissioned = None
     if args.calibration:
         from skin.formats.calibration_file import load_calibration
 
         commissioned = load_calibration(args.calibration)
+        if not any("diffusivity" in v for v in commissioned.taxels.values()):
+            raise SkinError(f"{args.calibration}: no taxel's thermal constants (commission "
+                            f"them with `skin commission --touches`)")
     progress = Progress()
     started = time.monotonic()
     doc = {"machine": bench.machine(),
            **run(args.touches, args.spread, args.seed, args.sensor,
                  progress=lambda d, n: progress.bar(d, n, "runs", started),
-                 commissioned=commissioned)}
+                 commissioned=commissioned, durations=durations)}
     progress.done()
     if args.json:
         print(json.dumps(doc))
         return 0
     print(f"{args.touches} touches on the arm, taxel constants spread +-{args.spread:.0%} "
           f"(seed {args.seed}, sensor {doc['sensor']}, {doc['machine']['cpus']} cores)")
-    print(f"{'run':<12} {'accuracy':>8} {'detected':>8} {'false':>6} {'wall s':>7}")
-    for key in ("nominal", "spread", "calibrated", "commissioned"):
-        if key not in doc:
-            continue
-        r = doc[key]
-        print(f"{key:<12} {r['accuracy']:>8.3f} {r['detected']:>8} {r['false_contacts']:>6} "
-              f"{r['wall_time']:>7}")
-    print(f"calibration gain {doc['calibration_gain']:+.3f}, spread loss "
-          f"{doc['spread_loss']:+.3f} (accuracy)")
-    if "commissioned_gap" in doc:
-        print(f"commissioned {doc['commissioned_gap']:+.3f} below the true constants")
+    sets = doc["by_duration"].items() if durations else [("1.5-3", doc)]
+    for held, figures in sets:
+        print(f"touches held {held} s")
+        print(f"{'run':<12} {'accuracy':>8} {'detected':>8} {'false':>6} {'wall s':>7}")
+        for key in ("nominal", "spread", "calibrated", "commissioned", "design"):
+            if key not in figures:
+                continue
+            r = figures[key]
+            print(f"{key:<12} {r['accuracy']:>8.3f} {r['detected']:>8} "
+                  f"{r['false_contacts']:>6} {r['wall_time']:>7}")
+        print(f"calibration gain {figures['calibration_gain']:+.3f}, spread loss "
+              f"{figures['spread_loss']:+.3f} (accuracy)")
+        for key in ("commissioned", "design"):
+            if f"{key}_gap" in figures:
+                print(f"{key} {figures[f'{key}_gap']:+.3f} below the true constants")
     return 0
 
 

@@ -13,9 +13,12 @@ sample jitter and a spectrum summary. `skin run --calibration` and `skin evaluat
 that is too short or not quiet is refused with what to record instead.
 
 With ``--touches aluminium,pine`` it fits each taxel's sensor response (diffusivity and
-conductivity, the depth kept: a semi-infinite body shows depth^2 / diffusivity and the
-effusivity) from touches of those references at room temperature, at least 3 of each held
-2.5 s (`skin.models.commission`): touches found by the pipeline's detector, named by the
+conductivity; the depth too when the heater is switched off or left on at contact, else it
+is kept: a semi-infinite body shows depth^2 / diffusivity and the effusivity) from touches
+of those references at room temperature, at least 3 of each held 2.5 s on the paper's
+sensor, longer on a slower one (`skin.models.commission.touch_seconds`; a recording that
+falls short is refused with how long to hold and rest): touches found by the pipeline's
+detector (or given by ``--labels``), named by the
 reference they fit best, each touch's onset, baseline and contact conductance fitted with
 the constants. A taxel with too few touches gets its board's pooled fit.
 """
@@ -52,7 +55,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                      help="instead of the noise, fit each taxel's sensor response from touches "
                           "of these reference materials at room temperature in the recording, "
                           "e.g. aluminium,pine (at least 3 touches of each of 2, held 2.5 s, "
-                          "with 0.4 s of quiet before each); each touch's onset is fitted with "
+                          "longer on a slower sensor, with 0.4 s of quiet before each); each "
+                          "touch's onset is fitted with "
                           "the constants")
     cmd.add_argument("--labels", metavar="CSV", default=None,
                      help="the reference touches' times instead of detecting them: a label "
