@@ -141,7 +141,10 @@ class ContactFeatures(TransformerMixin, BaseEstimator):
     def transform(self, X: np.ndarray) -> np.ndarray:
         """Return the feature vectors (see the module docstring)."""
         check_is_fitted(self, "responses_")
-        x = validate_data(self, X, reset=False, ensure_all_finite="allow-nan")
+        return self._features(validate_data(self, X, reset=False, ensure_all_finite="allow-nan"))
+
+    def _features(self, x: np.ndarray) -> np.ndarray:
+        """`transform` of rows already checked (the classifier's predict checks them once)."""
         amb, t0, w = split_contact_rows(x, self.channels)
         fit, near = grid_fits(amb, t0, w, self.responses_, self.noise,
                               (self.object_std, AMBIENT_STD), getattr(self, "basis_", None))
@@ -486,7 +489,7 @@ class ContactClassifier(ClassifierMixin, BaseEstimator):
         """Calibrated class probabilities, (n, n_classes)."""
         check_is_fitted(self, "model_")
         x = validate_data(self, X, reset=False, ensure_all_finite="allow-nan")
-        p = self.model_.predict_proba(self.features_.transform(x))
+        p = self.model_.predict_proba(self.features_._features(x))
         if self.temperature_ == 1.0 and getattr(self, "raw_", None) is None:
             return p
         logits = np.log(np.maximum(p, 1e-300))

@@ -105,12 +105,13 @@ def grid_fits(ambient: np.ndarray, t0: np.ndarray, window: np.ndarray, responses
     d = np.where(present[:, :, None], w - np.nan_to_num(t0)[:, :, None], 0.0)
     a = np.where(present, t0 - amb[:, None], 0.0)  # measured from ambient: no cancellation
     phi = responses
-    pp = np.einsum("gm,gm->g", phi, phi)
     flat_d = d.reshape(-1, d.shape[2])
     if basis is None:
+        pp = np.einsum("gm,gm->g", phi, phi)
         dp = (flat_d @ phi.T).reshape(n, -1, phi.shape[0])  # (n, c, g)
-    else:
+    else:  # the basis is orthonormal: |phi_g|^2 = |coef_g|^2, no pass over the responses
         coef, vt = basis
+        pp = np.einsum("gr,gr->g", coef, coef)
         dp = ((flat_d @ vt.T) @ coef.T).reshape(n, -1, phi.shape[0])
     k = present.sum(axis=1).astype(float)
     s2 = noise**2
