@@ -196,7 +196,7 @@ def _raw_expert(w: np.ndarray):
     from sklearn.pipeline import make_pipeline
     from sklearn.svm import SVC
 
-    return make_pipeline(PCA(min(RAW_COMPONENTS, *w.shape)),
+    return make_pipeline(PCA(min(RAW_COMPONENTS, *w.shape), random_state=0),
                          SVC(kernel="linear", decision_function_shape="ovr"))
 
 
