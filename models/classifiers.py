@@ -81,7 +81,9 @@ def _svm_pca(kind: str, fs: float):
     from sklearn.pipeline import make_pipeline
     from sklearn.svm import SVC
 
-    return make_pipeline(TraceFeatures(kind=kind, fs=fs), PCA(n_components=10),
+    # seeded: on large windows scikit-learn picks its randomized solver, and an unseeded one
+    # moved the accuracy by up to 0.7 points between identical runs
+    return make_pipeline(TraceFeatures(kind=kind, fs=fs), PCA(n_components=10, random_state=0),
                          SVC(kernel="linear"))
 
 
@@ -90,7 +92,7 @@ def _knn_pca(kind: str, fs: float):
     from sklearn.neighbors import KNeighborsClassifier
     from sklearn.pipeline import make_pipeline
 
-    return make_pipeline(TraceFeatures(kind=kind, fs=fs), PCA(n_components=10),
+    return make_pipeline(TraceFeatures(kind=kind, fs=fs), PCA(n_components=10, random_state=0),
                          KNeighborsClassifier(n_neighbors=3))
 
 

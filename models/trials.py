@@ -23,8 +23,15 @@ contacts and resting 10 minutes every 10 trials; initial sensor temperatures spr
   30-150 um, conforming rubber 0.5-2 um; see the materials table); ``"semi-infinite"`` is
   the paper's perfect contact (h = inf); ``"multilayer"`` runs the finite-volume column
   through the whole protocol (heater on throughout, non-uniform profiles, slower).
-- **Taxels**: each recording run (``group``, 50 trials) uses one of ``n_taxels`` taxels whose
-  thermistor depth, diffusivity and conductivity are drawn within +-10 % of the paper's.
+- **Taxels**: ``n_taxels`` taxels whose thermistor depth, diffusivity and conductivity are
+  drawn within +-10 % of the paper's. A contact is seen by a *unit*: one taxel, or with
+  several channels a fixed set of that many taxels (the pool split into disjoint sets). Each
+  recording run uses one unit, and a material's runs take the units in turn (from a random
+  one), so by default (``run_length`` None: a material's trials split into one run per unit)
+  every unit touches every material. ``group`` is the unit: trials of one group share their
+  taxels and no other group's, so grouped cross-validation tests on taxels the model never
+  saw. (Before, each 50-trial run drew its taxel at random: a taxel's constants marked the
+  run and so the material, and folds that shared taxels read them.)
 - **Readout**: the 0.5 s before onset, then ``duration`` s of contact at 200 Hz, through the
   paper's divider and 10-bit ADC: Gaussian noise of 0.5 LSB before rounding (the ADC's
   specified noise), then quantisation (about 0.07 C per count at 39 C).
@@ -96,10 +103,11 @@ class Protocol:
     conductance : tuple of float or None
         Range of log10 contact conductance, W/(m^2 K), log-uniform, for every material; None
         (default): each material's own range from its air gap (`Material.conductance_range`).
-    run_length : int
-        Trials per recording run (one taxel, one ``group``).
+    run_length : int or None
+        Trials per recording run (one unit of taxels); None (default): a material's trials
+        split evenly into one run per unit, so that every unit touches every material.
     n_taxels : int
-        Number of distinct taxels.
+        Number of distinct taxels (with several channels, split into units of that many).
     taxel_spread : float
         Relative spread of each taxel's depth, diffusivity and conductivity (uniform +-).
     adc_noise : float
@@ -129,7 +137,7 @@ class Protocol:
     rest: float = 600.0
     hold: tuple[float, float] = (5.0, 35.0)
     conductance: tuple[float, float] | None = None
-    run_length: int = 50
+    run_length: int | None = None
     n_taxels: int = 8
     taxel_spread: float = 0.10
     adc_noise: float = 0.5
@@ -260,8 +268,13 @@ def simulate_trials(
     if model == "multilayer" and np.any(np.asarray(p.object_offset) != 0.0):
         raise ValueError("object_offset needs a closed-form model ('contact' or "
                          "'semi-infinite'): the multilayer slab's back is held at ambient")
-    if p.trials < 1 or p.run_length < 1 or p.n_taxels < 1 or p.rest_every < 1:
+    if p.trials < 1 or (p.run_length is not None and p.run_length < 1) or p.n_taxels < 1 \
+            or p.rest_every < 1:
         raise ValueError("trials, run_length, n_taxels and rest_every must be at least 1")
+    n_units = p.n_taxels // len(kinds)
+    if n_units < 1:
+        raise ValueError(f"{len(kinds)} channels need at least {len(kinds)} taxels, "
+                         f"n_taxels is {p.n_taxels}")
     if not materials:
         raise ValueError("simulate_trials needs at least one material")
     rng = np.random.default_rng(seed)
@@ -273,8 +286,11 @@ def simulate_trials(
     reheat = rng.uniform(*p.reheat, (n_mat, n))
     rest = (np.arange(n) + 1) % p.rest_every == 0
     after = np.where(rest[None, :], p.rest, reheat)  # time from release to the next contact
-    run = np.arange(n) // p.run_length
-    run_taxel = rng.integers(0, p.n_taxels, (n_mat, run.max() + 1))
+    run_length = p.run_length or -(-n // n_units)
+    run = np.arange(n) // run_length
+    # a material's runs take the units in turn from a random one: no unit marks a material
+    run_unit = (rng.integers(0, n_units, (n_mat, 1)) + np.arange(run.max() + 1)) % n_units
+    run_taxel = run_unit * len(kinds)  # the unit's primary taxel
     if p.conductance is None:
         lo_hi = np.log10([m.conductance_range for m in materials])  # (n_mat, 2)
     else:
@@ -285,8 +301,8 @@ def simulate_trials(
     offset = _offsets(p.object_offset, (n_mat, run.max() + 1), rng)[:, run]  # per run
     n_ch = len(kinds)
     ch_rng = np.random.default_rng([seed, 1])  # extra channels: their own stream
-    # channel c of a run is the c-th taxel after the primary's in the pool
-    ch_taxel = (run_taxel[:, :, None] + np.arange(n_ch)) % p.n_taxels  # (n_mat, runs, ch)
+    # channel c of a run is the c-th taxel of its unit
+    ch_taxel = run_taxel[:, :, None] + np.arange(n_ch)  # (n_mat, runs, ch)
 
     n_pre = round(p.pre * p.fs)
     n_post = round(p.duration * p.fs)
@@ -316,9 +332,9 @@ def simulate_trials(
                                 base.adc_bits).reshape(total, n_ch, -1)
     readings = smooth(readings, base, axis=-1, fs=p.fs)
     label = np.repeat([m.name for m in materials], n)
-    groups = (np.arange(n_mat)[:, None] * (run.max() + 1) + run[None, :]).ravel()
     if model == "multilayer":  # it may have changed the runs' taxels
         ch_taxel = run_taxel[:, :, None]
+    groups = (ch_taxel[:, run, 0] // n_ch).ravel()  # the unit: a physical set of taxels
     taxels_of = ch_taxel[:, run].reshape(total, n_ch)
     taxel = taxels_of[:, 0]
     eff = np.repeat([m.effusivity for m in materials], n)

@@ -20,7 +20,7 @@ from skin.models.classifiers import (
     expected_failed_checks,
 )
 from skin.models.contact import ContactClassifier, ContactFeatures
-from skin.models.contact_fit import grid_fit, grid_responses
+from skin.models.contact_fit import grid_basis, grid_fit, grid_fits, grid_responses
 from skin.models.features import contact_matrix
 from skin.models.materials import hierarchical_answer
 from skin.models.physics import SensorConstants, contact_trace
@@ -60,6 +60,29 @@ def test_grid_fit_recovers_effusivity_and_object_from_two_channels():
     flat = grid_fit(np.array([amb]), np.array([[amb]]), np.full((1, 1, 300), amb),
                     grid_responses(300, 200.0, s))  # a sensor at ambient: nothing to see
     assert all(np.all(np.isfinite(v)) for v in flat.values())
+
+
+def test_grid_fit_on_the_basis_and_under_several_priors_is_the_same_fit():
+    """The low-rank product and the shared statistics change the fit by rounding only."""
+    s = SensorConstants()
+    rng = np.random.default_rng(3)
+    t = np.arange(500) / 200.0
+    amb, n = 25.0, 12
+    obj = amb + rng.uniform(-8, 8, n)
+    t0 = np.column_stack([rng.uniform(30, 40, n), amb + rng.uniform(0, 1, n)])
+    e = 10.0 ** rng.uniform(2.5, 4.3, n)
+    w = np.stack([[contact_trace(t, t0[i, c], obj[i], e[i], s, 3e3) for c in range(2)]
+                  for i in range(n)]) + rng.normal(0, 0.05, (n, 2, t.size))
+    w[::3, 1], t0[::3, 1] = np.nan, np.nan  # some contacts reach one taxel only: k = 1 and 2
+    resp = grid_responses(t.size, 200.0, s)
+    coef, basis = grid_basis(resp)
+    assert 5 < basis.shape[0] < 40 and np.allclose(coef @ basis, resp, atol=1e-9)
+    ambient = np.full(n, amb)
+    full = [grid_fit(ambient, t0, w, resp, object_std=std) for std in (10.0, 1.0)]
+    fast = grid_fits(ambient, t0, w, resp, object_stds=(10.0, 1.0), basis=(coef, basis))
+    for a, b in zip(full, fast, strict=True):
+        for key in a:
+            assert np.allclose(a[key], b[key], rtol=1e-7, atol=1e-7), key
 
 
 def test_hierarchy_names_the_family_when_the_material_is_unresolved():
@@ -116,6 +139,23 @@ def test_copies_only_where_a_second_channel_pins_the_object(two_channel):
     # the ambient-trained one-channel model is the same with or without the unused spread
     same = ContactClassifier(1, object_spread=0.0).fit(x1, one.label)
     assert np.allclose(m1.predict_proba(x1), same.predict_proba(x1))
+
+
+def test_calibration_folds_follow_the_groups(two_channel):
+    """With groups, the held-out rows that fit the weights come from taxels left out."""
+    train, _ = two_channel
+    one = train.channels([0])
+    x = contact_matrix(one, 0.5)
+    grouped = ContactClassifier(1).fit(x, one.label, groups=one.group)
+    plain = ContactClassifier(1).fit(x, one.label)
+    assert np.unique(one.group).size >= 3
+    assert grouped.expert_weights_ != plain.expert_weights_  # other held-out rows
+    assert np.allclose(grouped.predict_proba(x).sum(axis=1), 1.0)
+    copies = ContactClassifier(2).fit(contact_matrix(train, 0.5), train.label,
+                                      groups=train.group)  # groups follow the copies
+    assert copies.copied_ and copies.temperature_ > 0
+    with pytest.raises(ValueError, match="one per row"):
+        ContactClassifier(1).fit(x, one.label, groups=one.group[:-1])
 
 
 def test_absent_channel_is_read_as_absent(two_channel):

@@ -166,10 +166,15 @@ def test_simulate_trials_and_evaluate_the_paper_svm(tmp_path):
         assert r["accuracy"] == pytest.approx(np.trace(conf) / 90, abs=0.02)
     assert doc["results"][-1]["accuracy"] > 0.9  # three well-separated materials
     assert "selective" not in doc["results"][0]  # a linear SVC gives no probabilities
-    grouped = skin("evaluate", "--data", str(path), "--durations", "1", "--groups", "--json",
-                   "--merge", "aluminium+pine+cardboard")
-    assert grouped.returncode == 0, grouped.stderr
-    assert json.loads(grouped.stdout)["results"][0]["merged_accuracy"] == 1.0
+    assert doc["split"].startswith("grouped: 8 independent groups")  # the default
+    assert doc["results"][0]["split"] == doc["split"]
+    strat = skin("evaluate", "--data", str(path), "--durations", "1", "--split", "stratified",
+                 "--json", "--merge", "aluminium+pine+cardboard")
+    assert strat.returncode == 0, strat.stderr
+    assert json.loads(strat.stdout)["split"].startswith("stratified by class")
+    assert json.loads(strat.stdout)["results"][0]["merged_accuracy"] == 1.0
+    table = skin("evaluate", "--data", str(path), "--durations", "1")
+    assert "3-fold cross-validation, grouped: 8 independent groups" in table.stdout
     bad = skin("evaluate", "--data", str(path), "--merge", "aluminium+unobtainium")
     assert bad.returncode == 2 and "unobtainium" in bad.stderr
 
@@ -224,8 +229,8 @@ def test_evaluate_explains_too_few_trials(tmp_path):
     assert out.returncode == 2 and "fewer than the 3 folds" in out.stderr
     out = skin("evaluate", "--data", str(path), "--cv", "2")
     assert out.returncode == 2 and "PCA with 10 components" in out.stderr
-    out = skin("evaluate", "--data", str(path), "--cv", "3", "--groups")
-    assert out.returncode == 2 and "groups cannot make 3 folds" in out.stderr
+    out = skin("evaluate", "--data", str(path), "--cv", "3", "--split", "stratified")
+    assert out.returncode == 2 and "fewer than the 3 folds" in out.stderr
 
 
 def test_simulate_trace_rejects_a_non_positive_conductance():
@@ -290,6 +295,16 @@ def test_evaluate_ceiling_on_simulated_data(tmp_path):
     assert out.returncode == 0, out.stderr
     rows = {r["method"]: r for r in json.loads(out.stdout)["results"]}
     assert rows["ceiling"]["accuracy"] >= rows["svm-pca"]["accuracy"] - 0.1
+    less = skin("evaluate", "--data", str(tmp_path / "t.npz"), "--durations", "0.5",
+                "--ceiling", "--ceiling-unknown",
+                "taxel_constants,taxel_constants+object_temperature", "--json")
+    assert less.returncode == 0, less.stderr
+    methods = [r["method"] for r in json.loads(less.stdout)["results"]]
+    assert methods[1:] == ["ceiling", "ceiling (taxel_constants unknown)",
+                           "ceiling (taxel_constants unknown) (object_temperature unknown)"]
+    bad = skin("evaluate", "--data", str(tmp_path / "t.npz"), "--ceiling",
+               "--ceiling-unknown", "onset")
+    assert bad.returncode == 2 and "unknown nuisance(s) onset" in bad.stderr
 
 
 def test_one_class_is_a_dataset_but_not_a_classifier_dataset(tmp_path):
@@ -334,3 +349,54 @@ def test_simulate_trials_command_takes_channels_and_an_offset(tmp_path):
     assert back.n_channels == 2 and not back.heated[:, 1].any()
     bad = skin("simulate", "trials", "-o", str(tmp_path / "d.npz"), "--channels", "passive")
     assert bad.returncode == 2 and "must be heated" in bad.stderr
+
+
+def test_a_group_is_a_unit_of_taxels_that_touches_every_material():
+    """Groups are physical: no taxel in two groups, every group touches every material."""
+    mats = [MATS["glass"], MATS["pine"], MATS["steel"]]
+    ds = simulate_trials(mats, Protocol(trials=16, n_taxels=4), seed=2)
+    assert np.array_equal(ds.group, ds.taxel[:, 0])  # one channel: the unit is the taxel
+    for g in range(4):
+        assert set(ds.label[ds.group == g]) == {"glass", "pine", "steel"}
+    two = simulate_trials(mats, Protocol(trials=16, n_taxels=5, channels=("heated", "passive")),
+                          seed=2)
+    assert set(two.group.tolist()) == {0, 1}  # 5 taxels make two units of two
+    for g in (0, 1):
+        inside = set(two.taxel[two.group == g].ravel().tolist())
+        outside = set(two.taxel[two.group != g].ravel().tolist())
+        assert inside == {2 * g, 2 * g + 1} and not inside & outside
+    every = simulate_trials(mats, Protocol(trials=20, run_length=5, n_taxels=8), seed=2)
+    for m in ("glass", "pine", "steel"):  # explicit runs take consecutive units
+        units = every.group[every.label == m].reshape(4, 5)
+        assert (units == units[:, :1]).all()
+        assert np.array_equal(np.diff(units[:, 0]) % 8, [1, 1, 1])
+    with pytest.raises(ValueError, match="2 channels need at least 2 taxels"):
+        simulate_trials(mats, Protocol(trials=4, n_taxels=1, channels=("heated", "passive")))
+
+
+def test_grouped_folds_keep_every_taxel_on_one_side():
+    from skin.commands.evaluate import independent_groups, split_folds
+    from skin.errors import SkinError
+
+    mats = [MATS["glass"], MATS["pine"], MATS["steel"]]
+    ds = simulate_trials(mats, Protocol(trials=16, n_taxels=4), seed=2)
+    folds, how = split_folds(ds, 2)
+    assert how.startswith("grouped: 4 independent groups of trials linked by group and taxel")
+    for train, test in folds:
+        assert not set(ds.taxel[train, 0]) & set(ds.taxel[test, 0])
+        assert set(ds.label[train]) == set(ds.label)
+    # a taxel shared by two groups joins them; a trial without group or taxel stands alone
+    base = TrialSet(ds.temperature, ds.fs, ds.label, onset=ds.onset, ambient=ds.ambient,
+                    group=np.arange(len(ds)) % 6, taxel=np.where(np.arange(len(ds)) % 6 < 2,
+                                                                 7, -1)[:, None])
+    g, made_of = independent_groups(base)
+    assert made_of == "group and taxel" and np.unique(g).size == 5
+    assert g[0] == g[1]
+    nothing = TrialSet(ds.temperature, ds.fs, ds.label, onset=ds.onset, ambient=ds.ambient)
+    assert independent_groups(nothing) == (None, "none")
+    assert split_folds(nothing, 2)[1].startswith("stratified by class: the dataset names no")
+    # one material recorded on one taxel only cannot be tested on a taxel the model never saw
+    lone = TrialSet(ds.temperature, ds.fs, ds.label, onset=ds.onset, ambient=ds.ambient,
+                    group=np.where(ds.label == "steel", 9, ds.group))
+    with pytest.raises(SkinError, match="a training fold has no trial of steel"):
+        split_folds(lone, 3)

@@ -6,7 +6,9 @@ the object's temperature (warmed by the touches before), each taxel's own consta
 the contact conductance, the onset error and the ADC noise. Each row of this benchmark
 simulates the same protocol with *one* of them fixed and cross-validates the methods on it;
 the rise over the unchanged protocol is what that nuisance costs each method, and so where
-the gap between a method and the known-nuisance ceiling comes from.
+the gap between a method and the known-nuisance ceiling comes from. The folds are grouped
+(`skin.commands.evaluate.split_folds`): no taxel on both sides, so with the taxel spread fixed
+the methods no longer read a taxel's constants to tell its run (and formerly its material).
 """
 
 from __future__ import annotations
@@ -87,7 +89,7 @@ def nuisance_table(variants: Sequence[str], methods: Sequence[str],
                 if progress is not None:
                     progress(f"{v} {m} {d:g} s")
                 r = (known_nuisance_ceiling(data, d) if m == "ceiling"
-                     else evaluate(data, m, d, folds, False, 0))
+                     else evaluate(data, m, d, folds, "grouped", 0))
                 rows.append({"variant": v, "method": m, "duration": d,
                              "accuracy": r["accuracy"], "accuracy_std": r["accuracy_std"],
                              "predict_ms_per_trial": r["predict_ms_per_trial"]})

@@ -3,8 +3,11 @@
 Methods (`skin.models.classifiers`): the paper's ``svm-pca``, ``knn-pca``, ``hmm``, ``model``,
 each with ``:raw``, ``:slope`` or ``:both`` features (``svm-pca:both``), and ``default``, the
 library's recommendation. ``--train A --test B`` trains on one dataset and tests on another.
-Trials whose onset is -1 are first run through the onset detector. Stratified K-fold
-cross-validation (``--groups`` keeps the trials of one recording run on one side). For each
+Trials whose onset is -1 are first run through the onset detector. K-fold cross-validation
+grouped so that no taxel is on both sides of a fold (the dataset's ``group`` and ``taxel``
+columns; a model is tested on taxels it never saw, as on a new skin); ``--split stratified``
+ignores them (optimistic wherever a taxel's constants mark its class). The output says which
+split it used. For each
 method and duration: accuracy (mean and std over the folds), per-class recall, the confusion
 matrix, and fit and predict time per trial; for methods with probabilities, the expected
 calibration error and the coverage and accuracy when unsure answers become "unknown".
@@ -15,6 +18,7 @@ calibration error and the coverage and accuracy when unsure answers become "unkn
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import time
 
@@ -44,8 +48,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--durations", default="0.5,1.5,2.5",
                     help="comma-separated contact durations, s (default 0.5,1.5,2.5)")
     ev.add_argument("--cv", type=int, default=3, help="number of folds (default 3)")
-    ev.add_argument("--groups", action="store_true",
-                    help="folds follow the dataset's 'group' column")
+    ev.add_argument("--split", choices=("grouped", "stratified"), default="grouped",
+                    help="grouped (default): no taxel and no 'group' on both sides of a fold; "
+                         "stratified: by class only, folds may share taxels (optimistic)")
     ev.add_argument("--seed", type=int, default=0, help="seed of the fold split")
     ev.add_argument("--merge", default=None, metavar="A+B,C+D",
                     help="also report the accuracy with these classes merged (from the "
@@ -53,6 +58,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--ceiling", action="store_true",
                     help="also report the known-nuisance ceiling (simulated data only; "
                          "skin.bench.ceiling): the accuracy no method can be expected to beat")
+    ev.add_argument("--ceiling-unknown", default="", metavar="A,B+C",
+                    help="with --ceiling, also the ceiling told less: each comma-separated "
+                         "entry names nuisances kept from it, joined by + (object_temperature, "
+                         "taxel_constants), e.g. taxel_constants,taxel_constants+"
+                         "object_temperature")
     ev.add_argument("--plot", metavar="DIR",
                     help="draw accuracy against duration and the confusion matrices into DIR")
     ev.add_argument("--object-temperature-range", type=float, default=0.0, metavar="K",
@@ -85,30 +95,109 @@ def _time_left(spent: list[tuple[float, float]], left: list[float], methods_left
     return guess
 
 
-def evaluate(data, method: str, duration: float, folds: int, groups: bool,
+def independent_groups(data) -> tuple[np.ndarray | None, str]:
+    """Label the trials so that trials sharing a ``group`` or any taxel share a label.
+
+    Folds that keep each label on one side test every trial on taxels (and recording units)
+    the model never saw: the connected components of trials linked by a common ``group`` id
+    or a common known taxel id (``taxel`` >= 0, any channel).
+
+    Returns
+    -------
+    (numpy.ndarray or None, str)
+        The component of each trial (None when the dataset names neither groups nor taxels)
+        and what the labels were made from.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = len(data.label)
+    rows, cols, used = [], [], []
+    offset = n
+    if data.group is not None:
+        _, g = np.unique(np.asarray(data.group), return_inverse=True)
+        rows.append(np.arange(n))
+        cols.append(offset + g)
+        offset += int(g.max()) + 1
+        used.append("group")
+    if data.taxel is not None and np.any(np.asarray(data.taxel) >= 0):
+        tax = np.asarray(data.taxel).reshape(n, -1)
+        trial, ch = np.nonzero(tax >= 0)
+        _, t = np.unique(tax[trial, ch], return_inverse=True)
+        rows.append(trial)
+        cols.append(offset + t)
+        offset += int(t.max()) + 1
+        used.append("taxel")
+    if not used:
+        return None, "none"
+    r, c = np.concatenate(rows), np.concatenate(cols)
+    graph = coo_matrix((np.ones(r.size), (r, c)), shape=(offset, offset))
+    _, label = connected_components(graph, directed=False)
+    return label[:n], " and ".join(used)
+
+
+def split_folds(data, folds: int, split: str = "grouped", seed: int = 0
+                ) -> tuple[list[tuple[np.ndarray, np.ndarray]], str]:
+    """Return the cross-validation folds (train, test index pairs) and a line saying how.
+
+    ``"grouped"``: `independent_groups` kept on one side each (stratified by class as far as
+    the groups allow); a dataset that names no group or taxel falls back to stratified, and
+    the line says so. ``"stratified"``: by class only.
+
+    Raises
+    ------
+    SkinError
+        Too few trials or groups for the folds, or a training fold without some class.
+    """
+    from sklearn.model_selection import StratifiedGroupKFold, StratifiedKFold
+
+    y = data.label
+    idx = np.zeros((len(y), 1))
+    groups, made_of = (None, "") if split == "stratified" else independent_groups(data)
+    if split not in ("grouped", "stratified"):
+        raise SkinError(f"unknown split {split!r}; grouped or stratified")
+    smallest = min(int(np.sum(y == c)) for c in data.classes)
+    if smallest < folds:
+        raise SkinError(f"{data.source}: a class has only {smallest} trials, fewer than "
+                        f"the {folds} folds")
+    if groups is None:
+        how = ("stratified by class (folds may share taxels: optimistic where a taxel marks "
+               "its class)" if split == "stratified" else
+               "stratified by class: the dataset names no group or taxel, so folds may share "
+               "taxels")
+        return list(StratifiedKFold(folds, shuffle=True, random_state=seed).split(idx, y)), how
+    n_groups = int(groups.max()) + 1
+    if n_groups < folds:
+        raise SkinError(f"{data.source}: {n_groups} independent groups (trials linked by "
+                        f"{made_of}) cannot make {folds} folds; --split stratified ignores "
+                        f"them (optimistic)")
+    out = list(StratifiedGroupKFold(folds, shuffle=True, random_state=seed)
+               .split(idx, y, groups))
+    for train, _ in out:
+        missing = sorted(set(data.classes) - set(y[train].tolist()))
+        if missing:
+            raise SkinError(f"{data.source}: grouped by {made_of}, a training fold has no "
+                            f"trial of {', '.join(missing)}: record each class on more "
+                            f"taxels, use fewer --cv folds, or --split stratified (optimistic)")
+    return out, (f"grouped: {n_groups} independent groups of trials linked by {made_of}; no "
+                 f"taxel on both sides of a fold")
+
+
+def evaluate(data, method: str, duration: float, folds: int, split: str = "grouped",
              seed: int = 0) -> dict:
-    """Cross-validate ``method`` on the first ``duration`` s after onset; return the figures."""
+    """Cross-validate ``method`` on the first ``duration`` s after onset; return the figures.
+
+    ``split``: `split_folds`'s; the result's ``split`` says how the folds were made.
+    """
     from sklearn.metrics import confusion_matrix
-    from sklearn.model_selection import GroupKFold, StratifiedKFold
 
     from skin.models.classifiers import make_method, method_matrix
 
     x = method_matrix(data, method, duration)
     y = data.label
     classes = data.classes
-    smallest = min(int(np.sum(y == c)) for c in classes)
-    if groups:
-        if data.group is None:
-            raise SkinError(f"{data.source}: --groups needs a 'group' column")
-        n_groups = len(np.unique(data.group))
-        if n_groups < folds:
-            raise SkinError(f"{data.source}: {n_groups} groups cannot make {folds} folds")
-        splits = GroupKFold(n_splits=folds).split(x, y, data.group)
-    else:
-        if smallest < folds:
-            raise SkinError(f"{data.source}: a class has only {smallest} trials, fewer than "
-                            f"the {folds} folds")
-        splits = StratifiedKFold(n_splits=folds, shuffle=True, random_state=seed).split(x, y)
+    splits, how = split_folds(data, folds, split, seed)
+    groups = independent_groups(data)[0] if split == "grouped" else None
     n_train = len(y) - int(np.ceil(len(y) / folds))
     if "pca" in method and min(n_train, x.shape[1] - 2) < 10:
         raise SkinError(f"{data.source}: PCA with 10 components needs at least 10 training "
@@ -121,7 +210,11 @@ def evaluate(data, method: str, duration: float, folds: int, groups: bool,
     for train, test in splits:
         model = make_method(method, fs=data.fs, channels=data.n_channels)
         t0 = time.perf_counter()
-        model.fit(x[train], y[train])
+        if groups is not None and "groups" in inspect.signature(model.fit).parameters:
+            # its own calibration folds then keep the taxels apart too
+            model.fit(x[train], y[train], groups=groups[train])
+        else:
+            model.fit(x[train], y[train])
         t1 = time.perf_counter()
         if hasattr(model, "predict_proba"):
             proba = model.predict_proba(x[test])
@@ -137,8 +230,10 @@ def evaluate(data, method: str, duration: float, folds: int, groups: bool,
         conf += confusion_matrix(y[test], pred, labels=classes)
         unknown += int(np.sum(pred == "unknown"))
     recall = conf.diagonal() / np.maximum(conf.sum(axis=1), 1)
-    out = {"method": method, "duration": duration, "folds": folds,
-           "accuracy": round(float(np.mean(acc)), 4), "accuracy_std": round(float(np.std(acc)), 4),
+    out = {"method": method, "duration": duration, "folds": folds, "split": how,
+           # over all trials (grouped folds differ in size), the std over the folds
+           "accuracy": round(float(np.trace(conf) / len(y)), 4),
+           "accuracy_std": round(float(np.std(acc)), 4),
            "recall": {c: round(float(r), 4) for c, r in zip(classes, recall, strict=True)},
            "confusion": conf.tolist(), "classes": classes, "unknown": unknown,
            "fit_ms_per_trial": round(1e3 * float(np.mean(fit_t)), 4),
@@ -403,9 +498,19 @@ def main(args: argparse.Namespace) -> int:
         raise SkinError("--object-temperature-range goes with --train/--test (a "
                         "cross-validation's folds share their objects' temperatures)")
     merge = _parse_merge(args.merge, data.classes)
+    cv = test is None and not args.model
+    split_line = split_folds(data, args.cv, args.split, args.seed)[1] if cv else None
+    told_less = [tuple(p.strip() for p in entry.split("+"))
+                 for entry in args.ceiling_unknown.split(",") if entry.strip()]
+    if told_less and not args.ceiling:
+        raise SkinError("--ceiling-unknown goes with --ceiling")
     if args.ceiling:  # before the work starts
-        from skin.bench.ceiling import check_ceiling
+        from skin.bench.ceiling import UNKNOWABLE, check_ceiling
 
+        bad = sorted({u for entry in told_less for u in entry} - set(UNKNOWABLE))
+        if bad:
+            raise SkinError(f"--ceiling-unknown: unknown nuisance(s) {', '.join(bad)}; "
+                            f"choose from {', '.join(UNKNOWABLE)}")
         check_ceiling(test if test is not None else data)
     progress = Progress()
     if args.object_temperature_range > 0:
@@ -429,7 +534,7 @@ def main(args: argparse.Namespace) -> int:
                             f"{_time_left(spent, durations[j:], len(methods) - k - 1)})")
             t0 = time.monotonic()
             if test is None:
-                results.append(evaluate(data, m, d, args.cv, args.groups, args.seed))
+                results.append(evaluate(data, m, d, args.cv, args.split, args.seed))
             else:
                 results.append(train_test(data, test, m, d, args.object_temperature_range))
             spent.append((d, time.monotonic() - t0))
@@ -441,18 +546,22 @@ def main(args: argparse.Namespace) -> int:
     if args.ceiling:
         from skin.bench.ceiling import known_nuisance_ceiling
 
-        for d in durations:
-            progress.message(f"ceiling {d:g} s")
-            results.append(known_nuisance_ceiling(test if test is not None else data, d))
-            if merge:
-                results[-1]["merged_accuracy"] = round(merged_accuracy(results[-1], merge), 4)
+        for unknown in [(), *told_less]:
+            for d in durations:
+                progress.message(f"ceiling {d:g} s" + "".join(f", {u} unknown"
+                                                              for u in unknown))
+                results.append(known_nuisance_ceiling(test if test is not None else data, d,
+                                                      unknown))
+                if merge:
+                    results[-1]["merged_accuracy"] = round(merged_accuracy(results[-1], merge),
+                                                           4)
     progress.done()
     families = family_merge(data.classes)
     for r in results:
         if families is not None and r["classes"] == data.classes:
             r["family_accuracy"] = round(merged_accuracy(r, families), 4)
     doc = {"data": str(args.data or args.train), "trials": len(data), "classes": data.classes,
-           "cv": None if test is not None else args.cv, "groups": args.groups,
+           "cv": args.cv if cv else None, "split": split_line,
            "merge": [sorted(g) for g in merge], "onsets_detected": detected,
            "results": results}
     if test is not None:
@@ -470,9 +579,11 @@ def main(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(doc))
         return 0
-    if test is None:
-        print(f"{len(data)} trials, {len(data.classes)} classes, {args.cv}-fold"
-              f"{' grouped' if args.groups else ''} cross-validation")
+    if cv:
+        print(f"{len(data)} trials, {len(data.classes)} classes, {args.cv}-fold "
+              f"cross-validation, {split_line}")
+    elif test is None:
+        print(f"{len(data)} trials, {len(data.classes)} classes, model {args.model}")
     else:
         print(f"trained on {args.train} ({len(data)} trials), tested on {args.test} "
               f"({len(test)} trials)")

@@ -10,7 +10,7 @@ channels (taxels)::
     label        str (n_trials,)
     onset        int (n_trials,): sample index of contact onset, -1 = unknown (detect it)
     ambient      float (n_trials,), deg C
-    group        int (n_trials,): recording run, for grouped cross-validation
+    group        int (n_trials,): what recorded the trial (taxel unit, session), for grouped CV
     setpoint     float (n_trials, n_channels): a held heater's setpoint, deg C (NaN: none) opt.
     force        float (n_trials, n_samples), N                                        opt.
     object_temperature  float (n_trials,), deg C, where it was measured               opt.
