@@ -294,6 +294,8 @@ def simulate_trials(
     temp = np.empty((n_mat, n, n_ch, t.size))
     t_sensor = np.empty((n_mat, n, n_ch))
     t_object = np.empty((n_mat, n))
+    h_channel = np.empty((n_mat, n, n_ch))  # each channel's contact conductance
+    h_channel[:, :, 0] = np.inf if model == "semi-infinite" else h
     if model == "multilayer":
         _multilayer_protocol(materials, p, taxels, run_taxel, run, hold, after, h, jitter, amb,
                              t, temp[:, :, 0], t_sensor[:, :, 0], t_object, progress)
@@ -302,7 +304,7 @@ def simulate_trials(
             _closed_form_protocol(mat, p, taxels, ch_taxel[i], run, hold[i], after[i],
                                   np.inf if model == "semi-infinite" else h[i], jitter[i],
                                   amb[i], offset[i], t, temp[i], t_sensor[i], t_object[i], rng,
-                                  kinds, ch_rng)
+                                  kinds, ch_rng, h_channel[i])
             if progress is not None:
                 progress((i + 1) * n, total)
     temp = apply_dynamics(temp, base, p.fs, axis=-1)  # the PID loop and the lag, if any
@@ -327,7 +329,11 @@ def simulate_trials(
     held = np.array([np.nan if k[1] is None else k[1] for k in kinds])
     setpoint = amb.ravel()[:, None] + held[None, :]
     extra_truth = {} if n_ch == 1 else {
-        "true_channel_sensor_temperature": t_sensor.reshape(total, n_ch)}
+        "true_channel_sensor_temperature": t_sensor.reshape(total, n_ch),
+        # each channel's own taxel constants and contact conductance (the ceilings use them)
+        **{f"true_channel_sensor_{name}": np.array([getattr(s, name) for s in taxels])[taxels_of]
+           for name in ("depth", "diffusivity", "conductivity")},
+        "true_channel_conductance": h_channel.reshape(total, n_ch)}
     return TrialSet(
         temperature=readings, fs=p.fs, label=label, heated=heated,
         setpoint=None if np.isnan(held).all() else setpoint,
@@ -365,10 +371,11 @@ def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorDescrip
                           amb: np.ndarray, offset: np.ndarray, t: np.ndarray, out: np.ndarray,
                           t_sensor: np.ndarray, t_object: np.ndarray,
                           rng: np.random.Generator, kinds: list[tuple[bool, float | None]],
-                          ch_rng: np.random.Generator) -> None:
+                          ch_rng: np.random.Generator, h_channel: np.ndarray) -> None:
     """Walk one material's protocol with the closed forms; fill ``out`` (n, channels, samples).
 
-    ``run_taxel`` is (runs, channels): each channel's taxel in each run.
+    ``run_taxel`` is (runs, channels): each channel's taxel in each run; ``h_channel``
+    (n, channels) receives the other channels' contact conductances.
     """
     e_o = mat.effusivity
     h = np.broadcast_to(np.asarray(h, dtype=float), hold.shape)
@@ -402,6 +409,7 @@ def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorDescrip
             else:
                 t0_c = amb[j] + ch_rng.uniform(0.0, 1.0)
             h_c = h[j] * 10.0 ** ch_rng.normal(0.0, 0.1)
+            h_channel[j, c] = h_c
             s_c = taxels[run_taxel[run[j], c]]
             t_sensor[j, c] = t0_c
             after_contact = (contact_reading(since, t0_c, tobj, e_o, s_c, h_c, amb[j]) if heated

@@ -439,13 +439,14 @@ def main(args: argparse.Namespace) -> int:
         progress.status(f"evaluated {total} method-durations in "
                         f"{time.monotonic() - started:.0f} s", force=True)
     if args.ceiling:
-        from skin.bench.ceiling import known_nuisance_ceiling
+        from skin.bench.ceiling import ceilings
 
         for d in durations:
             progress.message(f"ceiling {d:g} s")
-            results.append(known_nuisance_ceiling(test if test is not None else data, d))
-            if merge:
-                results[-1]["merged_accuracy"] = round(merged_accuracy(results[-1], merge), 4)
+            for r in ceilings(test if test is not None else data, d):
+                results.append(r)
+                if merge:
+                    r["merged_accuracy"] = round(merged_accuracy(r, merge), 4)
     progress.done()
     families = family_merge(data.classes)
     for r in results:
@@ -484,6 +485,9 @@ def main(args: argparse.Namespace) -> int:
               f"{r['accuracy_std']:.3f} {r['fit_ms_per_trial']:>13.3f} "
               f"{r['predict_ms_per_trial']:>17.4f}"
               + (f" {r['merged_accuracy']:>7.3f}" if merge else ""))
+        if "confident" in r:
+            print(f"{'':<14} {'':>10}   answers at p >= 0.9: {r['confident']:.0%}, "
+                  f"{r['confident_right']:.3f} of them right")
         if "family_accuracy" in r:
             print(f"{'':<14} {'':>10}   family accuracy {r['family_accuracy']:.3f}")
         if "calibration_error" in r:

@@ -1,0 +1,70 @@
+"""Ceilings of contacts seen by several channels (issue 17: cold and warm objects)."""
+
+import numpy as np
+import pytest
+
+from skin.bench.ceiling import ceilings, channel_truth, joint_fit_accuracy, known_nuisance_ceiling
+from skin.errors import SkinError
+from skin.formats.dataset import TrialSet
+from skin.models.materials import load_materials
+from skin.models.trials import Protocol, simulate_trials
+
+MATS = load_materials()
+FOUR = [MATS[m] for m in ("aluminium", "glass", "pine", "cardboard")]
+
+
+def _two_channels(spread: float = 0.1, seed: int = 5) -> TrialSet:
+    return simulate_trials(FOUR, Protocol(trials=12, run_length=6, taxel_spread=spread,
+                                          channels=("heated", "passive"),
+                                          object_offset=(8.0, 8.0)), seed=seed)
+
+
+def test_each_channel_truth_is_stored_and_the_primary_agrees():
+    ds = _two_channels()
+    truth = channel_truth(ds)
+    for key in ("sensor_temperature", "depth", "diffusivity", "conductivity", "conductance"):
+        assert truth[key].shape == (len(ds), 2)
+    assert np.array_equal(truth["depth"][:, 0], ds.extra["true_sensor_depth"])
+    assert np.array_equal(truth["conductance"][:, 0], ds.extra["true_conductance"])
+    # another taxel of the pool: its own constants, and a conductance near the primary's
+    assert np.any(truth["depth"][:, 1] != truth["depth"][:, 0])
+    ratio = np.log10(truth["conductance"][:, 1] / truth["conductance"][:, 0])
+    assert 0 < np.std(ratio) < 0.3
+    # the passive channel's reading is the closed form of its own constants: a least-squares
+    # choice told every nuisance is (nearly) always right on four distinct effusivities
+    assert known_nuisance_ceiling(ds, 1.0)["accuracy"] > 0.95
+    one = simulate_trials(FOUR, Protocol(trials=12, run_length=6), seed=5)
+    assert channel_truth(one)["depth"].shape == (len(one), 1)
+
+
+def test_a_second_channel_pins_the_object_where_one_cannot():
+    ds = _two_channels()
+    primary = TrialSet(temperature=ds.temperature[:, :1], fs=ds.fs, label=ds.label,
+                       onset=ds.onset, ambient=ds.ambient, extra={
+                           k: v for k, v in ds.extra.items() if not k.startswith("true_ch")})
+    both = known_nuisance_ceiling(ds, 1.0, ("object_temperature",))["accuracy"]
+    alone = known_nuisance_ceiling(primary, 1.0, ("object_temperature",))["accuracy"]
+    assert both > alone + 0.2  # objects 8 K warm: one channel takes them for another material
+
+
+def test_joint_fit_told_the_constants_equals_nominal_without_spread():
+    ds = _two_channels(spread=0.0)
+    true = joint_fit_accuracy(ds, 1.0, "true")
+    nominal = joint_fit_accuracy(ds, 1.0, "nominal")
+    assert true["accuracy"] == nominal["accuracy"] > 0.7
+    assert true["method"] == "joint fit (true taxel constants)"
+    assert 0.0 <= true["confident"] <= 1.0 and true["predict_ms_per_trial"] > 0
+    assert [r["method"] for r in ceilings(ds, 0.5)] == [
+        "ceiling", "ceiling (object_temperature unknown)", "joint fit (true taxel constants)",
+        "joint fit (nominal taxel constants)"]
+    with pytest.raises(ValueError, match="constants"):
+        joint_fit_accuracy(ds, 1.0, "guessed")
+
+
+def test_old_multi_channel_datasets_are_refused_before_the_work():
+    ds = _two_channels()
+    old = TrialSet(temperature=ds.temperature, fs=ds.fs, label=ds.label, onset=ds.onset,
+                   ambient=ds.ambient, extra={k: v for k, v in ds.extra.items()
+                                              if not k.startswith("true_channel_sensor_d")})
+    with pytest.raises(SkinError, match="simulate it again"):
+        ceilings(old, 1.0)
