@@ -215,6 +215,7 @@ def simulate_trials(
     seed: int = 0,
     progress: Callable[[int, int], None] | None = None,
     sensor: SensorDescription | str | None = None,
+    skin_seed: int | None = None,
 ) -> TrialSet:
     """Simulate the paper's protocol for each material; return a trial dataset.
 
@@ -233,6 +234,10 @@ def simulate_trials(
     sensor : SensorDescription or str, optional
         The sensor (a description, preset name or file; default the paper's). Its sample
         rate and ADC noise replace the protocol's ``fs`` and ``adc_noise``.
+    skin_seed : int, optional
+        Seed of the taxels' constants alone: datasets with one ``skin_seed`` are recorded by
+        the same skin (a model trained on one and tested on another meets the taxels it was
+        trained with, as on a robot). Default: drawn from ``seed`` like everything else.
 
     Returns
     -------
@@ -266,6 +271,9 @@ def simulate_trials(
         raise ValueError("simulate_trials needs at least one material")
     rng = np.random.default_rng(seed)
     taxels = spread_sensors(p.n_taxels, p.taxel_spread, rng, base)
+    if skin_seed is not None:  # the same draws from rng either way: only the taxels change
+        taxels = spread_sensors(p.n_taxels, p.taxel_spread, np.random.default_rng(skin_seed),
+                                base)
     n_mat, n = len(materials), p.trials
     total = n_mat * n
     # the protocol's schedule: per trial, the hold before release and the reheat after it

@@ -68,3 +68,21 @@ def test_old_multi_channel_datasets_are_refused_before_the_work():
                                               if not k.startswith("true_channel_sensor_d")})
     with pytest.raises(SkinError, match="simulate it again"):
         ceilings(old, 1.0)
+
+
+def test_skin_seed_keeps_the_taxels_and_changes_nothing_else():
+    p = Protocol(trials=6, run_length=3, channels=("heated", "passive"))
+    a = simulate_trials(FOUR, p, seed=5)
+    same = simulate_trials(FOUR, p, seed=5, skin_seed=5)
+    assert np.array_equal(a.temperature, same.temperature)  # the seed's own taxels
+    other = simulate_trials(FOUR, p, seed=6, skin_seed=5)
+    # another recording by the same skin: each taxel id has the same constants
+    for key in ("depth", "diffusivity", "conductivity"):
+        ta, to = channel_truth(a)[key], channel_truth(other)[key]
+        for k in set(a.taxel.ravel()) & set(other.taxel.ravel()):
+            assert np.unique(ta[a.taxel == k]).size == 1
+            assert ta[a.taxel == k][0] == to[other.taxel == k][0]
+    # only the taxels differ from seed 6's own skin: the schedule and noise stream are kept
+    own = simulate_trials(FOUR, p, seed=6)
+    assert np.array_equal(own.extra["true_onset_time"], other.extra["true_onset_time"])
+    assert not np.array_equal(own.extra["true_sensor_depth"], other.extra["true_sensor_depth"])
