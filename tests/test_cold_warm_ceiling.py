@@ -86,3 +86,58 @@ def test_skin_seed_keeps_the_taxels_and_changes_nothing_else():
     own = simulate_trials(FOUR, p, seed=6)
     assert np.array_equal(own.extra["true_onset_time"], other.extra["true_onset_time"])
     assert not np.array_equal(own.extra["true_sensor_depth"], other.extra["true_sensor_depth"])
+
+
+def _skin(*args):
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-m", "skin", *args], capture_output=True,
+                          text=True, timeout=600)
+
+
+def test_self_calibration_from_labelled_contacts_then_the_calibrated_joint_fit(tmp_path):
+    from skin.formats.calibration_file import load_calibration
+
+    # a training set of known materials at ambient, and cold/warm objects met later by the
+    # same skin (the same taxels)
+    p = Protocol(trials=24, run_length=6, n_taxels=4, channels=("heated", "passive"))
+    train = simulate_trials(FOUR, p, seed=5, skin_seed=1)
+    test = simulate_trials(FOUR, Protocol(trials=12, run_length=6, n_taxels=4,
+                                          channels=("heated", "passive"),
+                                          object_offset=8.0), seed=6, skin_seed=1)
+    train.save(tmp_path / "train.npz")
+    test.save(tmp_path / "test.npz")
+    out = _skin("calibrate", "thermal", "--data", str(tmp_path / "train.npz"), "--reference",
+                "label", "-o", str(tmp_path / "cal.json"))
+    assert out.returncode == 0, out.stderr
+    cal = load_calibration(tmp_path / "cal.json").taxels
+    truth = channel_truth(train)
+    for tid in np.unique(train.taxel[:, 0]):
+        i = np.flatnonzero(train.taxel[:, 0] == tid)[0]
+        want = truth["depth"][i, 0] ** 2 / truth["diffusivity"][i, 0]
+        got = cal[int(tid)]["depth"] ** 2 / cal[int(tid)]["diffusivity"]
+        assert got == pytest.approx(want, rel=0.1)  # the time scale, from the shapes
+        # the effusivity stays nominal (the amplitude is the warmed objects')
+        e = cal[int(tid)]["conductivity"] / np.sqrt(cal[int(tid)]["diffusivity"])
+        assert e == pytest.approx(0.0349 / np.sqrt(2.796e-9), rel=1e-6)
+    out = _skin("evaluate", "--train", str(tmp_path / "train.npz"), "--test",
+                str(tmp_path / "test.npz"), "--methods", "svm-pca", "--durations", "1.0",
+                "--calibration", str(tmp_path / "cal.json"), "--json")
+    assert out.returncode == 0, out.stderr
+    rows = {r["method"]: r for r in __import__("json").loads(out.stdout)["results"]}
+    joint = rows["joint fit (calibrated taxel constants, confidence scaled on the training set)"]
+    assert joint["accuracy"] > rows["svm-pca"]["accuracy"] + 0.2  # svm-pca: near chance
+    assert joint["temperature"] > 0 and 0 <= joint["calibration_error"] <= 1
+    # a labelled set with a class that is not a material at rest is refused before the work
+    import dataclasses
+
+    bad = dataclasses.replace(train, label=np.where(train.label == "pine", "human_skin",
+                                                    train.label))
+    bad.save(tmp_path / "bad.npz")
+    out = _skin("calibrate", "thermal", "--data", str(tmp_path / "bad.npz"), "--reference",
+                "label", "-o", str(tmp_path / "bad.json"))
+    assert out.returncode != 0 and "human_skin" in out.stderr
+    out = _skin("evaluate", "--data", str(tmp_path / "test.npz"), "--methods", "svm-pca",
+                "--calibration", str(tmp_path / "missing.json"))
+    assert out.returncode != 0 and "missing.json" in out.stderr

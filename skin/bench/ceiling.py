@@ -168,7 +168,8 @@ def known_nuisance_ceiling(data: TrialSet, duration: float,
             "fit_ms_per_trial": 0.0, "predict_ms_per_trial": 0.0}
 
 
-def joint_fit_accuracy(data: TrialSet, duration: float, constants: str = "true") -> dict:
+def joint_fit_accuracy(data: TrialSet, duration: float, constants: str = "true",
+                       calibration: dict | None = None, train: TrialSet | None = None) -> dict:
     """Accuracy of the joint physics fit of all channels, told (or not) the taxels' constants.
 
     The fit is `skin.models.joint.JointContactModel` over the dataset's materials (one object
@@ -176,8 +177,14 @@ def joint_fit_accuracy(data: TrialSet, duration: float, constants: str = "true")
     conductance range; onsets up to 10 ms either side), on what a classifier sees (each
     channel's temperature before the recorded onset and its window). With ``constants=
     "true"`` each channel gets its taxel's own depth, diffusivity and conductivity, as a
-    per-taxel calibration would give them; with ``"nominal"`` the sensor's. It answers "what
-    does calibrating the taxels buy", not "what can no method beat" (`known_nuisance_ceiling`).
+    per-taxel calibration would give them; with ``"nominal"`` the sensor's; with
+    ``"calibrated"`` those of ``calibration`` (taxel id -> `SensorConstants`, e.g. from
+    `skin calibrate thermal`; taxels it lacks keep the nominal ones), which needs no
+    simulated truth, only the dataset's ``taxel`` column. It answers "what does calibrating
+    the taxels buy", not "what can no method beat" (`known_nuisance_ceiling`). With ``train``
+    (labelled contacts of the same materials) the log evidence is divided by the temperature
+    that makes it calibrated on them (`skin.models.contact.fit_temperature`): the fit's
+    noise (0.1 K) leaves out the taxels' and the contacts' own errors, and is overconfident.
 
     Returns
     -------
@@ -186,17 +193,18 @@ def joint_fit_accuracy(data: TrialSet, duration: float, constants: str = "true")
         p >= 0.9) and ``confident_right`` (share of those right, NaN if none) and the
         predict cost per contact.
     """
-    import time
-
-    from skin.models.contact import split_contact_rows
-    from skin.models.features import contact_matrix
     from skin.models.joint import JointContactModel
     from skin.models.materials import load_materials
-    from skin.models.physics import SensorConstants
 
-    if constants not in ("true", "nominal"):
-        raise ValueError(f"constants must be 'true' or 'nominal', got {constants!r}")
-    check_ceiling(data)
+    if constants not in ("true", "nominal", "calibrated"):
+        raise ValueError(f"constants must be 'true', 'nominal' or 'calibrated', got "
+                         f"{constants!r}")
+    if constants == "calibrated":
+        if calibration is None or data.taxel is None:
+            raise SkinError(f"{data.source}: calibrated constants need a calibration and the "
+                            f"dataset's 'taxel' column")
+    else:
+        check_ceiling(data)
     table = load_materials()
     missing = [c for c in data.classes if c not in table]
     if missing:
@@ -205,12 +213,65 @@ def joint_fit_accuracy(data: TrialSet, duration: float, constants: str = "true")
     classes = data.classes
     model = JointContactModel([table[c] for c in classes], noise=0.1, object_std=10.0,
                               onset_shifts=(-0.01, -0.005, 0.0, 0.005, 0.01))
+    temperature = 1.0
+    if train is not None:  # the physics' confidence, scaled on the labelled training contacts
+        from skin.models.contact import fit_temperature
+
+        known = np.isin(train.label, classes)
+        if not known.any():
+            raise SkinError(f"{train.source}: no training contact of the test's materials")
+        sub = train.subset(np.flatnonzero(known))
+        temperature = fit_temperature(
+            _joint_log_evidence(model, sub, duration, constants, calibration)[0],
+            np.searchsorted(classes, sub.label))
+    log_ev, cost = _joint_log_evidence(model, data, duration, constants, calibration)
+    z = log_ev / temperature
+    p = np.exp(z - z.max(axis=1, keepdims=True))
+    p /= p.sum(axis=1, keepdims=True)
+    chosen, top = np.argmax(p, axis=1), np.max(p, axis=1)
+    truth = np.searchsorted(classes, data.label)
+    conf = np.zeros((len(classes), len(classes)), dtype=int)
+    np.add.at(conf, (truth, chosen), 1)
+    recall = conf.diagonal() / np.maximum(conf.sum(axis=1), 1)
+    sure = top >= 0.9
+    return {"method": f"joint fit ({constants} taxel constants"
+                      + (", confidence scaled on the training set)" if train is not None
+                         else ")"), "duration": duration,
+            "accuracy": round(float(np.mean(chosen == truth)), 4), "accuracy_std": 0.0,
+            "recall": {c: round(float(r), 4) for c, r in zip(classes, recall, strict=True)},
+            "confusion": conf.tolist(), "classes": classes, "unknown": 0,
+            "confident": round(float(np.mean(sure)), 4),
+            "confident_right": (round(float(np.mean(chosen[sure] == truth[sure])), 4)
+                                if sure.any() else float("nan")),
+            "temperature": round(float(temperature), 4),
+            **_probability_scores(top, chosen == truth),
+            "fit_ms_per_trial": 0.0, "predict_ms_per_trial": round(cost, 4)}
+
+
+def _probability_scores(top: np.ndarray, right: np.ndarray) -> dict:
+    """Return the calibration figures `skin evaluate` prints for methods with probabilities."""
+    from skin.commands.evaluate import calibration_error, confident_wrong, selective
+
+    return {"calibration_error": round(calibration_error(top, right), 4),
+            "confident_wrong": round(confident_wrong(top, right), 4),
+            "selective": selective(top, right)}
+
+
+def _joint_log_evidence(model, data: TrialSet, duration: float, constants: str,
+                        calibration: dict | None) -> tuple[np.ndarray, float]:
+    """Return each contact's log evidence per material (n, classes) and the ms per contact."""
+    import time
+
+    from skin.models.contact import split_contact_rows
+    from skin.models.features import contact_matrix
+    from skin.models.physics import SensorConstants
+
     rows = contact_matrix(data, duration)
     amb, t0, w = split_contact_rows(rows, data.temperature.shape[1])
     t = (np.arange(w.shape[2]) + 1e-6) / data.fs
-    truth_of = channel_truth(data)
-    chosen = np.empty(len(data), dtype=int)
-    top = np.empty(len(data))
+    truth_of = channel_truth(data) if constants == "true" else None
+    nominal = SensorConstants()
+    out = np.empty((len(data), len(model.classes)))
     started = time.perf_counter()
     for i in range(len(data)):
         c = np.flatnonzero(np.all(np.isfinite(w[i]), axis=1))
@@ -223,22 +284,10 @@ def joint_fit_accuracy(data: TrialSet, duration: float, constants: str = "true")
                                        diffusivity=float(truth_of["diffusivity"][i, j]),
                                        conductivity=float(truth_of["conductivity"][i, j]))
                        for j in c]
-        p = model.probabilities(t, w[i, c], t0[i, c], float(amb[i]), sensors)
-        chosen[i], top[i] = int(np.argmax(p)), float(np.max(p))
-    cost = (time.perf_counter() - started) / max(len(data), 1) * 1e3
-    truth = np.searchsorted(classes, data.label)
-    conf = np.zeros((len(classes), len(classes)), dtype=int)
-    np.add.at(conf, (truth, chosen), 1)
-    recall = conf.diagonal() / np.maximum(conf.sum(axis=1), 1)
-    sure = top >= 0.9
-    return {"method": f"joint fit ({constants} taxel constants)", "duration": duration,
-            "accuracy": round(float(np.mean(chosen == truth)), 4), "accuracy_std": 0.0,
-            "recall": {c: round(float(r), 4) for c, r in zip(classes, recall, strict=True)},
-            "confusion": conf.tolist(), "classes": classes, "unknown": 0,
-            "confident": round(float(np.mean(sure)), 4),
-            "confident_right": (round(float(np.mean(chosen[sure] == truth[sure])), 4)
-                                if sure.any() else float("nan")),
-            "fit_ms_per_trial": 0.0, "predict_ms_per_trial": round(cost, 4)}
+        elif constants == "calibrated":
+            sensors = [calibration.get(int(data.taxel[i, j]), nominal) for j in c]
+        out[i] = model.log_evidence(t, w[i, c], t0[i, c], float(amb[i]), sensors)
+    return out, (time.perf_counter() - started) / max(len(data), 1) * 1e3
 
 
 def ceilings(data: TrialSet, duration: float) -> list[dict]:
