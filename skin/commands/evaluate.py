@@ -518,8 +518,8 @@ def main(args: argparse.Namespace) -> int:
               f"{r['predict_ms_per_trial']:>17.4f}"
               + (f" {r['merged_accuracy']:>7.3f}" if merge else ""))
         if "confident" in r:
-            print(f"{'':<14} {'':>10}   answers at p >= 0.9: {r['confident']:.0%}, "
-                  f"{r['confident_right']:.3f} of them right")
+            print(f"{'':<14} {'':>10}   answers at p >= 0.9: {r['confident']:.0%}"
+                  + (f", {r['confident_right']:.3f} of them right" if r["confident"] else ""))
         if "family_accuracy" in r:
             print(f"{'':<14} {'':>10}   family accuracy {r['family_accuracy']:.3f}")
         if "calibration_error" in r:
