@@ -329,8 +329,11 @@ class JointClassifier:
         way from its pinned contacts (weighed by its probability), its table spread being
         the new one's prior: a forearm met once at 32 C is not outweighed, on the next
         contact that cannot pin it, by cardboard at ambient whose learned prior is merely
-        narrower (scene seed 8: cardboard at p = 0.92 became 0.76; skin touches held at
-        30.5 or 33.5 C: one more right of 15 in each of four scenes, none at p >= 0.9 wrong).
+        narrower (scene seed 8: cardboard at p = 0.92 became 0.76, and a one-taxel forearm
+        touch, "unknown" before, is named). The other side of it: a short one-taxel pine
+        touch that skin at 32 C explains as well is named skin at 0.54 on scene seeds 9 and
+        11 ("unknown" at 0.31-0.33 before); seeds 7 and 10 and forearms at 30.5 or 33.5 C
+        are unchanged.
     **model_options
         Passed to `JointContactModel` (``noise``, ``object_std``, ``h_points``,
         ``onset_shifts``; by default the contact may have begun up to 80 ms before the
