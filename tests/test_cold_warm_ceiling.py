@@ -125,6 +125,7 @@ def test_self_calibration_from_labelled_contacts_then_the_calibrated_joint_fit(t
                 str(tmp_path / "test.npz"), "--methods", "svm-pca", "--durations", "1.0",
                 "--calibration", str(tmp_path / "cal.json"), "--json")
     assert out.returncode == 0, out.stderr
+    assert "NaN" not in out.stdout  # strict JSON
     rows = {r["method"]: r for r in __import__("json").loads(out.stdout)["results"]}
     joint = rows["joint fit (calibrated taxel constants, confidence scaled on the training set)"]
     assert joint["accuracy"] > rows["svm-pca"]["accuracy"] + 0.2  # svm-pca: near chance

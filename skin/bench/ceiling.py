@@ -190,7 +190,7 @@ def joint_fit_accuracy(data: TrialSet, duration: float, constants: str = "true",
     -------
     dict
         The layout of `known_nuisance_ceiling`, plus ``confident`` (share of answers at
-        p >= 0.9) and ``confident_right`` (share of those right, NaN if none) and the
+        p >= 0.9) and ``confident_right`` (share of those right, None if none) and the
         predict cost per contact.
     """
     from skin.models.joint import JointContactModel
@@ -242,7 +242,7 @@ def joint_fit_accuracy(data: TrialSet, duration: float, constants: str = "true",
             "confusion": conf.tolist(), "classes": classes, "unknown": 0,
             "confident": round(float(np.mean(sure)), 4),
             "confident_right": (round(float(np.mean(chosen[sure] == truth[sure])), 4)
-                                if sure.any() else float("nan")),
+                                if sure.any() else None),
             "temperature": round(float(temperature), 4),
             **_probability_scores(top, chosen == truth),
             "fit_ms_per_trial": 0.0, "predict_ms_per_trial": round(cost, 4)}
