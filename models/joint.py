@@ -78,6 +78,10 @@ class JointContactModel:
         if self.onset_shifts.ndim != 1 or self.onset_shifts.size == 0:
             raise ValueError("onset_shifts must be a non-empty sequence of seconds")
         self.effusivity = np.array([m.effusivity for m in self.materials])
+        #: prior std of a heat-generating material's temperature about its centre, K (0: none)
+        self.own_std = np.array([0.0 if m.temperature is None
+                                 else max(0.5 * (m.temperature[1] - m.temperature[0]), 0.5)
+                                 for m in self.materials])
         lo_hi = np.log10([m.conductance_range if conductance_range is None
                           else conductance_range for m in self.materials])
         # (n_classes, h_points): each material's contact conductances, log-spaced
@@ -112,14 +116,15 @@ class JointContactModel:
     def log_evidence_by_std(self, t: np.ndarray, temperature: np.ndarray,
                             t_sensor: np.ndarray, ambient: float,
                             sensors: Sequence[SensorConstants] | None,
-                            stds: Sequence[float]) -> np.ndarray:
+                            stds: Sequence[float], own: bool = False) -> np.ndarray:
         """Log evidence of each material for each prior std of the object's temperature.
 
         The arguments are those of `log_evidence`; ``stds`` (K) replace ``object_std``
-        (heat-generating materials keep their own prior). Returns (len(stds), n_classes),
+        (heat-generating materials keep their own prior, unless ``own``: then the stds apply
+        to them too, about their own resting temperature). Returns (len(stds), n_classes),
         up to one constant shared by all entries.
         """
-        log_ev, _ = self._posterior(t, temperature, t_sensor, ambient, sensors, stds)
+        log_ev, _ = self._posterior(t, temperature, t_sensor, ambient, sensors, stds, own)
         top = log_ev.max(axis=-1, keepdims=True)  # log-mean-exp over the h grid
         return top[..., 0] + np.log(np.mean(np.exp(log_ev - top), axis=-1))
 
@@ -148,7 +153,8 @@ class JointContactModel:
 
     def _posterior(self, t: np.ndarray, temperature: np.ndarray, t_sensor: np.ndarray,
                    ambient: float, sensors: Sequence[SensorConstants] | None,
-                   stds: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                   stds: Sequence[float] | None = None,
+                   own_stds: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Log evidence and posterior mean of T_obj, both (classes, h x onset shifts).
 
         With ``stds`` (prior stds of the object's temperature, K) both get a leading axis, one
@@ -204,11 +210,10 @@ class JointContactModel:
         mu = np.array([0.0 if m.temperature is None else m.resting_temperature(ambient) - ambient
                        for m in self.materials])[:, None]
         own = np.array([m.temperature is not None for m in self.materials])[:, None]
-        own_std = np.array([0.0 if m.temperature is None
-                            else max(0.5 * (m.temperature[1] - m.temperature[0]), 0.5)
-                            for m in self.materials])[:, None]
+        own_std = self.own_std[:, None]
         tau = np.asarray([self.object_std] if stds is None else stds, dtype=float)
-        tau2 = np.where(own[None], own_std[None], tau[:, None, None]) ** 2  # (K, classes, 1)
+        tau2 = np.where(own[None] & (stds is None or not own_stds), own_std[None],
+                        tau[:, None, None]) ** 2  # (K, classes, 1)
         s2 = self.noise**2
         a = pp.sum(axis=-1)
         b = dp.sum(axis=-1) + pp @ t0
@@ -319,7 +324,16 @@ class JointClassifier:
         ``object_std`` (10 K), which leaves most one-taxel contacts "unknown". The learned
         prior trusts the objects seen: a cold object touched by one taxel after many at
         ambient is taken for a more conductive one at ambient (one heated trace cannot tell
-        them apart); a second taxel on it pins its temperature either way.
+        them apart); a second taxel on it pins its temperature either way. A
+        heat-generating material's temperature about its table centre is learned the same
+        way from its pinned contacts (weighed by its probability), its table spread being
+        the new one's prior: a forearm met once at 32 C is not outweighed, on the next
+        contact that cannot pin it, by cardboard at ambient whose learned prior is merely
+        narrower (scene seed 8: cardboard at p = 0.92 became 0.76, and a one-taxel forearm
+        touch, "unknown" before, is named). The other side of it: a short one-taxel pine
+        touch that skin at 32 C explains as well is named skin at 0.54 on scene seeds 9 and
+        11 ("unknown" at 0.31-0.33 before); seeds 7 and 10 and forearms at 30.5 or 33.5 C
+        are unchanged.
     **model_options
         Passed to `JointContactModel` (``noise``, ``object_std``, ``h_points``,
         ``onset_shifts``; by default the contact may have begun up to 80 ms before the
@@ -348,6 +362,15 @@ class JointClassifier:
         # the candidates below the model's own (broad) std, which a new kind of object gets
         broad = self.model.object_std
         self.prior = ObjectTemperaturePrior([*(v for v in OBJECT_STDS if v < broad), broad])
+        # a heat-generating material (skin) holds its own temperature: how far the ones this
+        # skin meets sit from the table's centre is learned the same way, its table spread
+        # being the broad prior of a new one (a new person, another spot)
+        self.own_priors = {}
+        for i, m in enumerate(self.model.materials):
+            if m.temperature is not None:
+                own = float(self.model.own_std[i])
+                self.own_priors[i] = ObjectTemperaturePrior(
+                    [*(v for v in OBJECT_STDS if v < own), own])
         self.threshold = threshold
         self.min_duration = min_duration
         self.max_duration = max_duration
@@ -379,10 +402,20 @@ class JointClassifier:
         if self.object_prior == "fixed":
             log_ev = self.model.log_evidence(grid, y, t0, contact.ambient, sensors)
         else:
-            by_std = self.model.log_evidence_by_std(grid, y, t0, contact.ambient, sensors,
-                                                    self.prior.stds)
+            stds = np.unique(np.concatenate([self.prior.stds,
+                                             *(q.stds for q in self.own_priors.values())]))
+            by_all = self.model.log_evidence_by_std(grid, y, t0, contact.ambient, sensors,
+                                                    stds, own=True)
+            by_std = by_all[np.searchsorted(stds, self.prior.stds)]
+            own_by_std = {i: by_all[np.searchsorted(stds, q.stds), i]
+                          for i, q in self.own_priors.items()}
+            for i, ev in own_by_std.items():  # at the material's own (table) std
+                by_std[:, i] = ev[-1]
             log_w = np.log(np.maximum(self.prior.weights(), 1e-300))
             log_ev = np.logaddexp.reduce(log_w[:, None] + by_std, axis=0)
+            for i, q in self.own_priors.items():
+                log_ev[i] = np.logaddexp.reduce(
+                    np.log(np.maximum(q.weights(), 1e-300)) + own_by_std[i])
         p = np.exp(log_ev - log_ev.max())
         p /= p.sum()
         if self.object_prior == "learned" and len(usable) >= 2 and contact.final:
@@ -391,6 +424,8 @@ class JointClassifier:
             at_rest = sum(float(v) for m, v in zip(self.model.materials, p, strict=True)
                           if m.temperature is None)
             self.prior.update(by_std, at_rest)
+            for i, q in self.own_priors.items():  # and what it says of skin, if skin
+                q.update(own_by_std[i][:, None], float(p[i]))
         probs = {c: float(v) for c, v in zip(self.model.classes, p, strict=True)}
         label, confidence, family, family_confidence = hierarchical_answer(
             probs, self.threshold, self.table)

@@ -223,6 +223,7 @@ def simulate_trials(
     seed: int = 0,
     progress: Callable[[int, int], None] | None = None,
     sensor: SensorDescription | str | None = None,
+    skin_seed: int | None = None,
 ) -> TrialSet:
     """Simulate the paper's protocol for each material; return a trial dataset.
 
@@ -241,6 +242,10 @@ def simulate_trials(
     sensor : SensorDescription or str, optional
         The sensor (a description, preset name or file; default the paper's). Its sample
         rate and ADC noise replace the protocol's ``fs`` and ``adc_noise``.
+    skin_seed : int, optional
+        Seed of the taxels' constants alone: datasets with one ``skin_seed`` are recorded by
+        the same skin (a model trained on one and tested on another meets the taxels it was
+        trained with, as on a robot). Default: drawn from ``seed`` like everything else.
 
     Returns
     -------
@@ -279,6 +284,9 @@ def simulate_trials(
         raise ValueError("simulate_trials needs at least one material")
     rng = np.random.default_rng(seed)
     taxels = spread_sensors(p.n_taxels, p.taxel_spread, rng, base)
+    if skin_seed is not None:  # the same draws from rng either way: only the taxels change
+        taxels = spread_sensors(p.n_taxels, p.taxel_spread, np.random.default_rng(skin_seed),
+                                base)
     n_mat, n = len(materials), p.trials
     total = n_mat * n
     # the protocol's schedule: per trial, the hold before release and the reheat after it
@@ -310,6 +318,8 @@ def simulate_trials(
     temp = np.empty((n_mat, n, n_ch, t.size))
     t_sensor = np.empty((n_mat, n, n_ch))
     t_object = np.empty((n_mat, n))
+    h_channel = np.empty((n_mat, n, n_ch))  # each channel's contact conductance
+    h_channel[:, :, 0] = np.inf if model == "semi-infinite" else h
     if model == "multilayer":
         _multilayer_protocol(materials, p, taxels, run_taxel, run, hold, after, h, jitter, amb,
                              t, temp[:, :, 0], t_sensor[:, :, 0], t_object, progress)
@@ -318,7 +328,7 @@ def simulate_trials(
             _closed_form_protocol(mat, p, taxels, ch_taxel[i], run, hold[i], after[i],
                                   np.inf if model == "semi-infinite" else h[i], jitter[i],
                                   amb[i], offset[i], t, temp[i], t_sensor[i], t_object[i], rng,
-                                  kinds, ch_rng)
+                                  kinds, ch_rng, h_channel[i])
             if progress is not None:
                 progress((i + 1) * n, total)
     temp = apply_dynamics(temp, base, p.fs, axis=-1)  # the PID loop and the lag, if any
@@ -343,7 +353,11 @@ def simulate_trials(
     held = np.array([np.nan if k[1] is None else k[1] for k in kinds])
     setpoint = amb.ravel()[:, None] + held[None, :]
     extra_truth = {} if n_ch == 1 else {
-        "true_channel_sensor_temperature": t_sensor.reshape(total, n_ch)}
+        "true_channel_sensor_temperature": t_sensor.reshape(total, n_ch),
+        # each channel's own taxel constants and contact conductance (the ceilings use them)
+        **{f"true_channel_sensor_{name}": np.array([getattr(s, name) for s in taxels])[taxels_of]
+           for name in ("depth", "diffusivity", "conductivity")},
+        "true_channel_conductance": h_channel.reshape(total, n_ch)}
     return TrialSet(
         temperature=readings, fs=p.fs, label=label, heated=heated,
         setpoint=None if np.isnan(held).all() else setpoint,
@@ -381,10 +395,11 @@ def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorDescrip
                           amb: np.ndarray, offset: np.ndarray, t: np.ndarray, out: np.ndarray,
                           t_sensor: np.ndarray, t_object: np.ndarray,
                           rng: np.random.Generator, kinds: list[tuple[bool, float | None]],
-                          ch_rng: np.random.Generator) -> None:
+                          ch_rng: np.random.Generator, h_channel: np.ndarray) -> None:
     """Walk one material's protocol with the closed forms; fill ``out`` (n, channels, samples).
 
-    ``run_taxel`` is (runs, channels): each channel's taxel in each run.
+    ``run_taxel`` is (runs, channels): each channel's taxel in each run; ``h_channel``
+    (n, channels) receives the other channels' contact conductances.
     """
     e_o = mat.effusivity
     h = np.broadcast_to(np.asarray(h, dtype=float), hold.shape)
@@ -418,6 +433,7 @@ def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorDescrip
             else:
                 t0_c = amb[j] + ch_rng.uniform(0.0, 1.0)
             h_c = h[j] * 10.0 ** ch_rng.normal(0.0, 0.1)
+            h_channel[j, c] = h_c
             s_c = taxels[run_taxel[run[j], c]]
             t_sensor[j, c] = t0_c
             after_contact = (contact_reading(since, t0_c, tobj, e_o, s_c, h_c, amb[j]) if heated

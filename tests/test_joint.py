@@ -171,3 +171,46 @@ def test_object_prior_bench_one_taxel_contacts_named_at_ambient():
     one_f, one_l = fixed["one taxel"], learned["one taxel"]
     assert one_l["contacts"] == one_f["contacts"] > 0
     assert one_l["family"] > one_f["family"] and one_l["unknown"] < one_f["unknown"]
+
+
+def test_own_temperature_stds_apply_to_skin_only_when_asked():
+    from skin.models.joint import OBJECT_STDS
+
+    model = JointContactModel([MATS[m] for m in ("pine", "cardboard", "human_skin")])
+    t0 = np.array([36.2, 36.2])  # two taxels at one temperature: the object is not pinned
+    y = np.array([_reading("human_skin", v, 32.0) for v in t0])
+    table = model.log_evidence_by_std(T, y, t0, 25.0, None, OBJECT_STDS)
+    own = model.log_evidence_by_std(T, y, t0, 25.0, None, OBJECT_STDS, own=True)
+    assert np.allclose(table[:, :2], own[:, :2])  # objects at rest: unchanged
+    assert np.ptp(table[:, 2]) < 1e-9  # skin keeps its table prior whatever the std
+    assert np.ptp(own[:, 2]) > 1.0  # ... unless asked: then the std about its centre counts
+    at_own = model.log_evidence_by_std(T, y, t0, 25.0, None, [model.own_std[2]], own=True)
+    assert at_own[0, 2] == pytest.approx(table[0, 2])
+    assert own[0, 2] > table[0, 2]  # skin at its centre: a narrow prior explains it better
+
+
+def test_skin_met_twice_is_not_called_cardboard_with_confidence(tmp_path):
+    """Scene seed 8: a forearm touched by two taxels 7 mK apart read like cardboard at 0.92.
+
+    The skin's own temperature prior is now learned from the run's pinned skin contacts, as
+    the objects' is: cardboard at ambient no longer wins on the narrower prior alone.
+    """
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import skin
+
+    scene = (Path(skin.__file__).parent / "data" / "scenes" / "default.toml").read_text()
+    (tmp_path / "scene.toml").write_text(scene.replace("\nseed = 7\n", "\nseed = 8\n"))
+    out = subprocess.run([sys.executable, "-m", "skin", "run", "--speed", "0", "--duration",
+                          "20", "--no-map", "--scene", str(tmp_path / "scene.toml"), "--out",
+                          str(tmp_path / "run")], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    final = [json.loads(line) for line in (tmp_path / "run" / "events.jsonl").open()]
+    final = [e for e in final if e.get("final") and e.get("truth") not in (None, "(none)")]
+    wrong = [e for e in final if e["label"] not in (e["truth"], "unknown")]
+    assert not [e for e in wrong if e["confidence"] >= 0.9]
+    skin_named = [e for e in final if e["truth"] == "human_skin" and e["label"] == "human_skin"]
+    assert len(skin_named) >= 2  # of three (the fourth touch is split by the tracker)

@@ -54,11 +54,44 @@ def check_ceiling(data: TrialSet) -> None:
                         f"otherwise, so it has no ceiling")
     if np.any(data.onset < 0):
         raise SkinError(f"{data.source}: the ceiling needs recorded onsets, not -1")
+    if data.temperature.shape[1] > 1 and "true_channel_sensor_depth" not in data.extra:
+        raise SkinError(f"{data.source}: the ceiling of a contact seen by several channels "
+                        f"needs each channel's taxel constants (true_channel_...), which "
+                        f"datasets simulated before they were stored lack: simulate it again")
+
+
+def channel_truth(data: TrialSet) -> dict[str, np.ndarray]:
+    """Each channel's simulated truth, (n_trials, n_channels) arrays, and ``present``.
+
+    Multi-channel simulations store every channel's taxel constants, starting temperature
+    and contact conductance (``true_channel_...``); a dataset without them (one channel, or
+    made before they were stored) gives its primary channel's alone.
+    """
+    x = data.extra
+    keys = {"sensor_temperature": "true_channel_sensor_temperature",
+            "depth": "true_channel_sensor_depth",
+            "diffusivity": "true_channel_sensor_diffusivity",
+            "conductivity": "true_channel_sensor_conductivity",
+            "conductance": "true_channel_conductance"}
+    if all(v in x for v in keys.values()):
+        out = {k: np.asarray(x[v], dtype=float) for k, v in keys.items()}
+        out["present"] = np.all(np.isfinite(data.temperature), axis=2)
+        return out
+    primary = {"sensor_temperature": "true_sensor_temperature", "depth": "true_sensor_depth",
+               "diffusivity": "true_sensor_diffusivity",
+               "conductivity": "true_sensor_conductivity", "conductance": "true_conductance"}
+    out = {k: np.asarray(x[v], dtype=float)[:, None] for k, v in primary.items()}
+    out["present"] = np.ones((len(data), 1), dtype=bool)
+    return out
 
 
 def known_nuisance_ceiling(data: TrialSet, duration: float,
                            unknown: tuple[str, ...] = ()) -> dict:
     """Accuracy of the least-squares material choice when every nuisance is known.
+
+    Every channel of a contact is used where the simulation stored each channel's truth
+    (`channel_truth`); with ``"object_temperature"`` unknown it is fitted once, shared by
+    the channels.
 
     Parameters
     ----------
@@ -98,26 +131,32 @@ def known_nuisance_ceiling(data: TrialSet, duration: float,
         raise SkinError(f"{data.source}: a {duration} s window does not fit the recording")
     k = np.arange(n)
     nominal = SensorConstants()
+    truth_of = channel_truth(data)
     chosen = np.empty(len(data), dtype=int)
     for i in range(len(data)):
-        sensor = nominal if "taxel_constants" in unknown else SensorConstants(
-            depth=float(x["true_sensor_depth"][i]),
-            diffusivity=float(x["true_sensor_diffusivity"][i]),
-            conductivity=float(x["true_sensor_conductivity"][i]))
         since = (data.onset[i] + k) / data.fs - x["true_onset_time"][i]
-        t0 = x["true_sensor_temperature"][i]
-        observed = data.primary[i, data.onset[i] + k]
+        phi, t0, observed = [], [], []
+        for c in np.flatnonzero(truth_of["present"][i]):
+            sensor = nominal if "taxel_constants" in unknown else SensorConstants(
+                depth=float(truth_of["depth"][i, c]),
+                diffusivity=float(truth_of["diffusivity"][i, c]),
+                conductivity=float(truth_of["conductivity"][i, c]))
+            phi.append(contact_trace(since[None, :], 0.0, 1.0, effusivity[:, None], sensor,
+                                     truth_of["conductance"][i, c]))
+            t0.append(truth_of["sensor_temperature"][i, c])
+            observed.append(data.temperature[i, c, data.onset[i] + k])
+        phi = np.stack(phi, axis=1)  # (materials, channels, samples)
+        t0 = np.array(t0)[None, :, None]
+        observed = np.array(observed)[None]
         if "object_temperature" in unknown:
-            # reading = T0 + (T_obj - T0) phi: the best T_obj per material, closed form
-            phi = contact_trace(since[None, :], 0.0, 1.0, effusivity[:, None], sensor,
-                                x["true_conductance"][i])
-            d = observed[None, :] - t0
-            gain = np.sum(d * phi, axis=1) / np.maximum(np.sum(phi * phi, axis=1), 1e-300)
-            predicted = t0 + gain[:, None] * phi
+            # reading_c = T0_c + (T_obj - T0_c) phi_c, T_obj shared: closed form per material
+            z = observed - t0 + t0 * phi
+            t_obj = (np.sum(z * phi, axis=(1, 2))
+                     / np.maximum(np.sum(phi * phi, axis=(1, 2)), 1e-300))[:, None, None]
         else:
-            predicted = contact_trace(since[None, :], t0, x["true_object_temperature"][i],
-                                      effusivity[:, None], sensor, x["true_conductance"][i])
-        chosen[i] = int(np.argmin(np.sum((predicted - observed) ** 2, axis=1)))
+            t_obj = x["true_object_temperature"][i]
+        predicted = t0 + (t_obj - t0) * phi
+        chosen[i] = int(np.argmin(np.sum((predicted - observed) ** 2, axis=(1, 2))))
     truth = np.searchsorted(classes, data.label)
     conf = np.zeros((len(classes), len(classes)), dtype=int)
     np.add.at(conf, (truth, chosen), 1)
@@ -127,3 +166,141 @@ def known_nuisance_ceiling(data: TrialSet, duration: float,
             "recall": {c: round(float(r), 4) for c, r in zip(classes, recall, strict=True)},
             "confusion": conf.tolist(), "classes": classes, "unknown": 0,
             "fit_ms_per_trial": 0.0, "predict_ms_per_trial": 0.0}
+
+
+def joint_fit_accuracy(data: TrialSet, duration: float, constants: str = "true",
+                       calibration: dict | None = None, train: TrialSet | None = None) -> dict:
+    """Accuracy of the joint physics fit of all channels, told (or not) the taxels' constants.
+
+    The fit is `skin.models.joint.JointContactModel` over the dataset's materials (one object
+    temperature shared by the channels, 10 K prior about ambient; each material's contact
+    conductance range; onsets up to 10 ms either side), on what a classifier sees (each
+    channel's temperature before the recorded onset and its window). With ``constants=
+    "true"`` each channel gets its taxel's own depth, diffusivity and conductivity, as a
+    per-taxel calibration would give them; with ``"nominal"`` the sensor's; with
+    ``"calibrated"`` those of ``calibration`` (taxel id -> `SensorConstants`, e.g. from
+    `skin calibrate thermal`; taxels it lacks keep the nominal ones), which needs no
+    simulated truth, only the dataset's ``taxel`` column. It answers "what does calibrating
+    the taxels buy", not "what can no method beat" (`known_nuisance_ceiling`). With ``train``
+    (labelled contacts of the same materials) the log evidence is divided by the temperature
+    that makes it calibrated on them (`skin.models.contact.fit_temperature`): the fit's
+    noise (0.1 K) leaves out the taxels' and the contacts' own errors, and is overconfident.
+
+    Returns
+    -------
+    dict
+        The layout of `known_nuisance_ceiling`, plus ``confident`` (share of answers at
+        p >= 0.9) and ``confident_right`` (share of those right, None if none) and the
+        predict cost per contact.
+    """
+    from skin.models.joint import JointContactModel
+    from skin.models.materials import load_materials
+
+    if constants not in ("true", "nominal", "calibrated"):
+        raise ValueError(f"constants must be 'true', 'nominal' or 'calibrated', got "
+                         f"{constants!r}")
+    if constants == "calibrated":
+        if calibration is None or data.taxel is None:
+            raise SkinError(f"{data.source}: calibrated constants need a calibration and the "
+                            f"dataset's 'taxel' column")
+    else:
+        check_ceiling(data)
+    table = load_materials()
+    missing = [c for c in data.classes if c not in table]
+    if missing:
+        raise SkinError(f"{data.source}: the joint fit needs materials of the table; "
+                        f"{', '.join(missing)} is not one")
+    classes = data.classes
+    model = JointContactModel([table[c] for c in classes], noise=0.1, object_std=10.0,
+                              onset_shifts=(-0.01, -0.005, 0.0, 0.005, 0.01))
+    temperature = 1.0
+    if train is not None:  # the physics' confidence, scaled on the labelled training contacts
+        from skin.models.contact import fit_temperature
+
+        known = np.isin(train.label, classes)
+        if not known.any():
+            raise SkinError(f"{train.source}: no training contact of the test's materials")
+        sub = train.subset(np.flatnonzero(known))
+        temperature = fit_temperature(
+            _joint_log_evidence(model, sub, duration, constants, calibration)[0],
+            np.searchsorted(classes, sub.label))
+    log_ev, cost = _joint_log_evidence(model, data, duration, constants, calibration)
+    z = log_ev / temperature
+    p = np.exp(z - z.max(axis=1, keepdims=True))
+    p /= p.sum(axis=1, keepdims=True)
+    chosen, top = np.argmax(p, axis=1), np.max(p, axis=1)
+    truth = np.searchsorted(classes, data.label)
+    conf = np.zeros((len(classes), len(classes)), dtype=int)
+    np.add.at(conf, (truth, chosen), 1)
+    recall = conf.diagonal() / np.maximum(conf.sum(axis=1), 1)
+    sure = top >= 0.9
+    return {"method": f"joint fit ({constants} taxel constants"
+                      + (", confidence scaled on the training set)" if train is not None
+                         else ")"), "duration": duration,
+            "accuracy": round(float(np.mean(chosen == truth)), 4), "accuracy_std": 0.0,
+            "recall": {c: round(float(r), 4) for c, r in zip(classes, recall, strict=True)},
+            "confusion": conf.tolist(), "classes": classes, "unknown": 0,
+            "confident": round(float(np.mean(sure)), 4),
+            "confident_right": (round(float(np.mean(chosen[sure] == truth[sure])), 4)
+                                if sure.any() else None),
+            "temperature": round(float(temperature), 4),
+            **_probability_scores(top, chosen == truth),
+            "fit_ms_per_trial": 0.0, "predict_ms_per_trial": round(cost, 4)}
+
+
+def _probability_scores(top: np.ndarray, right: np.ndarray) -> dict:
+    """Return the calibration figures `skin evaluate` prints for methods with probabilities."""
+    from skin.commands.evaluate import calibration_error, confident_wrong, selective
+
+    return {"calibration_error": round(calibration_error(top, right), 4),
+            "confident_wrong": round(confident_wrong(top, right), 4),
+            "selective": selective(top, right)}
+
+
+def _joint_log_evidence(model, data: TrialSet, duration: float, constants: str,
+                        calibration: dict | None) -> tuple[np.ndarray, float]:
+    """Return each contact's log evidence per material (n, classes) and the ms per contact."""
+    import time
+
+    from skin.models.contact import split_contact_rows
+    from skin.models.features import contact_matrix
+    from skin.models.physics import SensorConstants
+
+    rows = contact_matrix(data, duration)
+    amb, t0, w = split_contact_rows(rows, data.temperature.shape[1])
+    t = (np.arange(w.shape[2]) + 1e-6) / data.fs
+    truth_of = channel_truth(data) if constants == "true" else None
+    nominal = SensorConstants()
+    out = np.empty((len(data), len(model.classes)))
+    started = time.perf_counter()
+    for i in range(len(data)):
+        c = np.flatnonzero(np.all(np.isfinite(w[i]), axis=1))
+        sensors = None
+        if constants == "true":
+            if c.size > truth_of["depth"].shape[1]:
+                raise SkinError(f"{data.source}: the taxel constants of channels other than "
+                                f"the primary are not stored (simulate it again)")
+            sensors = [SensorConstants(depth=float(truth_of["depth"][i, j]),
+                                       diffusivity=float(truth_of["diffusivity"][i, j]),
+                                       conductivity=float(truth_of["conductivity"][i, j]))
+                       for j in c]
+        elif constants == "calibrated":
+            sensors = [calibration.get(int(data.taxel[i, j]), nominal) for j in c]
+        out[i] = model.log_evidence(t, w[i, c], t0[i, c], float(amb[i]), sensors)
+    return out, (time.perf_counter() - started) / max(len(data), 1) * 1e3
+
+
+def ceilings(data: TrialSet, duration: float) -> list[dict]:
+    """Return what `skin evaluate --ceiling` reports for ``data`` at one window.
+
+    One channel: `known_nuisance_ceiling`. Several channels (a contact seen by taxels at
+    different starting temperatures): also the ceiling with the object's temperature fitted
+    (shared by the channels), and the joint physics fit told the taxels' true constants and
+    the nominal ones (`joint_fit_accuracy`): what no method beats on objects of unknown
+    temperature, and what a per-taxel calibration buys the physics.
+    """
+    out = [known_nuisance_ceiling(data, duration)]
+    if data.temperature.shape[1] > 1:
+        out.append(known_nuisance_ceiling(data, duration, ("object_temperature",)))
+        out += [joint_fit_accuracy(data, duration, c) for c in ("true", "nominal")]
+    return out

@@ -47,7 +47,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     th.set_defaults(func=main_thermistors)
     tm = kinds.add_parser("thermal", help="sensor diffusivity and conductivity per taxel")
     tm.add_argument("--data", required=True, help="trial dataset (.npz) of reference contacts")
-    tm.add_argument("--reference", default="water", help="the reference material (water)")
+    tm.add_argument("--reference", default="water",
+                    help="the reference material (water), or 'label': each contact's own "
+                         "labelled material (a training set of known materials), whose "
+                         "shape gives the taxel's time scale (its effusivity stays nominal)")
     tm.add_argument("--duration", type=float, default=1.5, help="seconds of contact used")
     tm.add_argument("-o", "--out", required=True, help="calibration file to write or update")
     tm.add_argument("--json", action="store_true", help=JSON_HELP)
@@ -173,6 +176,26 @@ def main_thermistors(args: argparse.Namespace) -> int:
     return 0
 
 
+def _time_scale_only(fit):
+    """Keep a fit's diffusivity (the time scale depth^2 / alpha), the sensor's effusivity nominal.
+
+    Contacts from a labelled set (a training protocol) meet objects warmed by earlier
+    touches, which the reading's amplitude takes for a more effusive sensor (+25-50 % in the
+    simulated protocol, seed 1), while its shape still gives the time scale (within 3 %).
+    Measured (heated + passive, trained at ambient, tested at +-8 K by the same skin; the
+    issue 17 notes): the joint fit with the fitted effusivity .41 / .39 at 0.5 / 1.5 s, with
+    the nominal one .50 / .62.
+    """
+    import dataclasses
+
+    from skin.models.physics import SensorConstants
+
+    nominal = SensorConstants().effusivity
+    sensor = dataclasses.replace(fit.sensor,
+                                 conductivity=nominal * float(np.sqrt(fit.sensor.diffusivity)))
+    return dataclasses.replace(fit, sensor=sensor)
+
+
 def main_thermal(args: argparse.Namespace) -> int:
     """Fit the thermal constants."""
     from skin.formats.dataset import load_trials
@@ -181,12 +204,21 @@ def main_thermal(args: argparse.Namespace) -> int:
     from skin.models.sensor_fit import fit_sensor_constants
 
     table = load_materials()
-    if args.reference not in table:
+    if args.reference not in table and args.reference != "label":
         raise SkinError(f"unknown reference material {args.reference!r}")
-    ref = table[args.reference]
     data = load_trials(args.data)
     if data.taxel is None:
         raise SkinError(f"{args.data}: a 'taxel' column is needed to know whose contact is whose")
+    labelled = args.reference == "label"
+    if labelled:
+        bad = sorted({str(c) for c in data.classes
+                      if c not in table or table[c].temperature is not None})
+        if bad:
+            raise SkinError(f"{args.data}: --reference label needs materials of the table at "
+                            f"rest in the room; {', '.join(bad)} is not one")
+    if not np.all(data.heated[:, 0]):
+        raise SkinError(f"{args.data}: trial {int(np.argmin(data.heated[:, 0]))}: the primary "
+                        f"channel is not heated (the fit models a heated taxel)")
     if np.any(data.onset < PRE):
         raise SkinError(f"{args.data}: every trial needs its onset and {PRE} samples before it")
     n = round(args.duration * data.fs)
@@ -201,11 +233,16 @@ def main_thermal(args: argparse.Namespace) -> int:
         y = np.array([data.primary[i, data.onset[i] + 1:data.onset[i] + 1 + n]
                       for i in rows])
         ambient = data.ambient[rows] if data.ambient is not None else np.full(rows.size, 25.0)
+        refs = [table[str(c)] for c in data.label[rows]] if labelled else [
+            table[args.reference]] * rows.size
         try:
-            fit = fit_sensor_constants(t, y, t0, ambient, ref.effusivity,
-                                       conductance_range=ref.conductance_range)
+            fit = fit_sensor_constants(
+                t, y, t0, ambient, [m.effusivity for m in refs],
+                conductance_range=tuple(np.array([m.conductance_range for m in refs]).T))
         except ValueError as exc:
             raise SkinError(f"{args.data}: taxel {int(taxel)}: {exc}") from None
+        if labelled:
+            fit = _time_scale_only(fit)
         out.taxels.setdefault(int(taxel), {}).update(
             diffusivity=fit.sensor.diffusivity, conductivity=fit.sensor.conductivity,
             depth=fit.sensor.depth, thermal_rms=round(fit.rms, 5),

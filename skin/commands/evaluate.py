@@ -55,6 +55,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--merge", default=None, metavar="A+B,C+D",
                     help="also report the accuracy with these classes merged (from the "
                          "confusion matrix), e.g. aluminium+steel,glass+porcelain")
+    ev.add_argument("--calibration", default=None, metavar="FILE",
+                    help="also report the joint physics fit of all channels with each "
+                         "taxel's constants from this calibration file (skin calibrate "
+                         "thermal; the test set's taxel column says whose contact is whose)")
     ev.add_argument("--ceiling", action="store_true",
                     help="also report the known-nuisance ceiling (simulated data only; "
                          "skin.bench.ceiling): the accuracy no method can be expected to beat")
@@ -72,6 +76,24 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                          "default 0: not reported)")
     ev.add_argument("--json", action="store_true", help="print one JSON document")
     ev.set_defaults(func=main)
+
+
+def _calibrated_sensors(path: str, data) -> dict:
+    """Return taxel id -> `SensorConstants` from a calibration file's thermal constants."""
+    import dataclasses
+
+    from skin.formats.calibration_file import THERMAL, load_calibration
+    from skin.models.physics import SensorConstants
+
+    if data.taxel is None:
+        raise SkinError(f"{data.source}: --calibration needs the dataset's 'taxel' column")
+    cal = load_calibration(path)
+    out = {int(k): dataclasses.replace(SensorConstants(), **{
+        key: float(v[key]) for key in THERMAL if key in v}) for k, v in cal.taxels.items()
+        if any(key in v for key in THERMAL)}
+    if not out:
+        raise SkinError(f"{path}: no taxel has thermal constants (skin calibrate thermal)")
+    return out
 
 
 def _time_left(spent: list[tuple[float, float]], left: list[float], methods_left: int) -> str:
@@ -512,6 +534,9 @@ def main(args: argparse.Namespace) -> int:
             raise SkinError(f"--ceiling-unknown: unknown nuisance(s) {', '.join(bad)}; "
                             f"choose from {', '.join(UNKNOWABLE)}")
         check_ceiling(test if test is not None else data)
+    sensors = None
+    if args.calibration:  # before the work starts
+        sensors = _calibrated_sensors(args.calibration, test if test is not None else data)
     progress = Progress()
     if args.object_temperature_range > 0:
         from skin.models.nuisance import object_spread, uncovered
@@ -544,9 +569,15 @@ def main(args: argparse.Namespace) -> int:
         progress.status(f"evaluated {total} method-durations in "
                         f"{time.monotonic() - started:.0f} s", force=True)
     if args.ceiling:
-        from skin.bench.ceiling import known_nuisance_ceiling
+        from skin.bench.ceiling import ceilings, known_nuisance_ceiling
 
-        for unknown in [(), *told_less]:
+        for d in durations:
+            progress.message(f"ceiling {d:g} s")
+            for r in ceilings(test if test is not None else data, d):
+                results.append(r)
+                if merge:
+                    r["merged_accuracy"] = round(merged_accuracy(r, merge), 4)
+        for unknown in told_less:
             for d in durations:
                 progress.message(f"ceiling {d:g} s" + "".join(f", {u} unknown"
                                                               for u in unknown))
@@ -555,6 +586,13 @@ def main(args: argparse.Namespace) -> int:
                 if merge:
                     results[-1]["merged_accuracy"] = round(merged_accuracy(results[-1], merge),
                                                            4)
+    if sensors is not None:
+        from skin.bench.ceiling import joint_fit_accuracy
+
+        for d in durations:
+            progress.message(f"joint fit, calibrated, {d:g} s")
+            results.append(joint_fit_accuracy(test if test is not None else data, d,
+                                              "calibrated", sensors, train=data))
     progress.done()
     families = family_merge(data.classes)
     for r in results:
@@ -595,6 +633,9 @@ def main(args: argparse.Namespace) -> int:
               f"{r['accuracy_std']:.3f} {r['fit_ms_per_trial']:>13.3f} "
               f"{r['predict_ms_per_trial']:>17.4f}"
               + (f" {r['merged_accuracy']:>7.3f}" if merge else ""))
+        if "confident" in r:
+            print(f"{'':<14} {'':>10}   answers at p >= 0.9: {r['confident']:.0%}"
+                  + (f", {r['confident_right']:.3f} of them right" if r["confident"] else ""))
         if "family_accuracy" in r:
             print(f"{'':<14} {'':>10}   family accuracy {r['family_accuracy']:.3f}")
         if "calibration_error" in r:

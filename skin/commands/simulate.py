@@ -64,6 +64,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                              "heated,passive or heated,heated@+10; the first must be heated "
                              "(default: heated)")
     trials.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    trials.add_argument("--skin-seed", type=int, default=None, metavar="N",
+                        help="seed of the taxels' constants alone: datasets with one N come "
+                             "from the same skin (default: from --seed)")
     trials.add_argument("--sensor", default=None, metavar="PRESET|FILE",
                         help="sensor description: a preset (`skin sensors`) or a sensor file "
                              "(default: the paper's)")
@@ -198,7 +201,7 @@ def main_trials(args: argparse.Namespace) -> int:
     progress = Progress()
     started = time.monotonic()
     ds = simulate_trials([materials[m] for m in names], protocol, model=args.model,
-                         seed=args.seed, sensor=sensor,
+                         seed=args.seed, sensor=sensor, skin_seed=args.skin_seed,
                          progress=lambda d, n: progress.bar(d, n, "trials", started))
     progress.done()
     wall = time.monotonic() - started
