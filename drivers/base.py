@@ -153,12 +153,16 @@ class Driver:
                 return None
 
     def _stamp(self, frame: Frame) -> Frame:
-        """Give ``frame`` its host sampling time from its board's clock map."""
+        """Give ``frame`` its host sampling time from its board's clock map.
+
+        The frame's device time comes out unwrapped (the board's u32 microsecond clock wraps
+        every 71.6 min; the pipeline's time axis must not jump back).
+        """
         clock = self.clocks.get(frame.board)
         if clock is None:
             clock = self.clocks[frame.board] = ClockMap()
-        return dataclasses.replace(frame, host_time=clock.update(frame.device_time,
-                                                                 frame.host_time))
+        host = clock.update(frame.device_time, frame.host_time)
+        return dataclasses.replace(frame, device_time=clock.device_time, host_time=host)
 
     def _fault(self, exc: DeviceError) -> None:
         """Record a fault; close the backend; raise unless reconnecting is allowed."""

@@ -68,6 +68,7 @@ class ClockMap:
         self.block = float(block)
         self._minima: deque[tuple[float, float]] = deque(maxlen=blocks)
         self._resets = 0
+        self.device_time = float("nan")  # the last device time taken, unwrapped, s
         self._restart()
 
     def _restart(self) -> None:
@@ -95,7 +96,7 @@ class ClockMap:
 
     def update(self, device_time: float, host_arrival: float) -> float:
         """Take one frame's device time and host arrival time; return its host sampling time."""
-        t = self.unwrap(device_time)
+        t = self.device_time = self.unwrap(device_time)
         delay = host_arrival - t
         if np.isnan(self._offset):
             self._offset, self._block_start = delay, t

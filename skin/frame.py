@@ -31,7 +31,8 @@ class Frame:
     seq : int
         Sequence number as sent by the device (wraps at 2**32).
     device_time : float
-        Device clock at sampling, in seconds.
+        Device clock at sampling, in seconds (a decoder gives the board's u32 microsecond
+        clock, which wraps every 71.6 min; a driver's ``recv`` gives it unwrapped).
     host_time : float
         Host clock (``time.monotonic``), s: a decoder gives the arrival time; a driver's
         ``recv`` gives the host time at sampling, mapped from the device time by the board's

@@ -112,3 +112,42 @@ def test_bench_clock_prints_error_and_cost_per_method(capsys):
         assert mapped["us_per_frame"] > 0
     assert abs(rows["USB serial", "running min, no drift"]["drift_error_ppm"] + 50) < 1
     assert main(["bench", "clock", "--seconds", "5"]) == 2
+
+
+def test_a_skin_read_across_the_device_clock_wrap_keeps_its_contacts():
+    from skin.models import JointClassifier
+    from skin.stream.pipeline import Pipeline
+
+    class WrappingSimulator(SkinSimulator):
+        """The same board, its clock started 3 s before the u32 microsecond wrap."""
+
+        def frames(self):
+            for f in super().frames():
+                yield dataclasses.replace(f, device_time=f.device_time + DEVICE_WRAP - 3.0)
+
+    import dataclasses
+
+    scene = load_scene("default")
+    contacts = []
+    for simulator in (SkinSimulator(scene, duration=12.0),
+                      WrappingSimulator(scene, duration=12.0)):
+        device = PtySerialDevice(simulator, speed=0)
+        try:
+            with drivers.open(f"serial://{device.port}") as skin:
+                device.start()
+                pipe = Pipeline(scene.layout, JointClassifier(scene.layout))
+                times, found = [], []
+                while (frame := skin.recv(timeout=5.0)) is not None:
+                    times.append(frame.device_time)
+                    found += [r for r in pipe.process([frame]) if r.contact.final]
+                    if len(times) == device.frames_sent and device.done.is_set():
+                        break
+                found += [r for r in pipe.flush() if r.contact.final]
+        finally:
+            device.close()
+        assert len(times) == 12 * 200 and np.all(np.diff(times) > 0)  # no jump back
+        contacts.append([(r.contact.taxels, r.contact.onset - times[0], r.estimate.label)
+                         for r in found])
+    assert len(contacts[0]) >= 5 and len(contacts[1]) == len(contacts[0])
+    for (taxels, onset, label), (taxels1, onset1, label1) in zip(*contacts, strict=True):
+        assert (taxels1, label1) == (taxels, label) and onset1 == pytest.approx(onset, abs=2e-3)
