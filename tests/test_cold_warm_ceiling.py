@@ -140,5 +140,5 @@ def test_self_calibration_from_labelled_contacts_then_the_calibrated_joint_fit(t
                 "label", "-o", str(tmp_path / "bad.json"))
     assert out.returncode != 0 and "human_skin" in out.stderr
     out = _skin("evaluate", "--data", str(tmp_path / "test.npz"), "--methods", "svm-pca",
-                "--calibration", str(tmp_path / "missing.json"))
+                "--split", "stratified", "--calibration", str(tmp_path / "missing.json"))
     assert out.returncode != 0 and "missing.json" in out.stderr
