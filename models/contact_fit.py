@@ -132,15 +132,11 @@ def _posterior(pp: np.ndarray, k: np.ndarray, lb: np.ndarray, zs: np.ndarray, s2
     number of channels ``k`` only: it is computed per distinct ``k``, not per contact.
     """
     n, g = lb.shape
-    inv_prec = np.empty((n, g)) if np.unique(k).size > 1 else None
-    log_term = np.empty((n, g)) if inv_prec is not None else None
     ks, at = np.unique(k, return_inverse=True)
     prec_k = ks[:, None] * pp[None, :] / s2 + 1.0 / tau2  # (distinct k, g)
-    if inv_prec is None:
-        inv_p, log_p = 1.0 / prec_k[0], np.log(tau2 * prec_k[0])
-    else:
-        inv_prec[:], log_term[:] = 1.0 / prec_k[at], np.log(tau2 * prec_k[at])
-        inv_p, log_p = inv_prec, log_term
+    # one row when every contact has as many channels (broadcast), else one per contact
+    prec = prec_k[0] if ks.size == 1 else prec_k[at]
+    inv_p, log_p = 1.0 / prec, np.log(tau2 * prec)
     mean = lb * inv_p  # posterior mean of T_obj - T_amb at each grid point
     log_ev = lb * mean
     log_ev -= zs
@@ -149,7 +145,7 @@ def _posterior(pp: np.ndarray, k: np.ndarray, lb: np.ndarray, zs: np.ndarray, s2
     best = np.argmax(log_ev, axis=1)
     rows = np.arange(n)
     top = log_ev[rows, best]
-    quad_best = -2.0 * top - (log_p[best] if inv_prec is None else log_p[rows, best])
+    quad_best = -2.0 * top - np.broadcast_to(log_p, (n, g))[rows, best]
     post = np.exp(log_ev - top[:, None], out=log_ev)  # unnormalised
     z = post.sum(axis=1)
     cube = post.reshape(n, LOG_E.size, LOG_H.size, len(SHIFTS))
@@ -159,7 +155,7 @@ def _posterior(pp: np.ndarray, k: np.ndarray, lb: np.ndarray, zs: np.ndarray, s2
     log_e = p_e @ LOG_E
     t_obj = np.einsum("ng,ng->n", post, mean) / z
     second = (np.einsum("ng,ng->n", post, mean * mean)
-              + (post @ inv_p if inv_prec is None else np.einsum("ng,ng->n", post, inv_p)))
+              + (post @ inv_p if inv_p.ndim == 1 else np.einsum("ng,ng->n", post, inv_p)))
     t_var = second / z - t_obj**2
     return {"log_e_profile": np.maximum(np.log(np.maximum(p_e, 1e-300)), -30.0),
             "log_e": log_e,
