@@ -101,12 +101,17 @@ def _commissioned_elsewhere(table: dict, names: list, n_taxels: int, seed: int,
     return quiet_figures(quiet.times, quiet.temperature).noise_sigma
 
 
+def _five_sigma(contacts: list, detector: object, min_duration: float) -> list[bool]:
+    """Whether each contact lasts ``min_duration`` s and moves the reading > 5 noise sigmas."""
+    sigma = float(np.median(detector.sigma))
+    return [c.duration >= min_duration and c.peak_change > 5 * sigma for c in contacts]
+
+
 def _sensor_figures(contacts: list, flags: list, delays: list, errors: list, detector: object,
                     min_duration: float) -> dict:
     """Return issue 16's figures: 5-sigma detection, delay against the floor, onset error."""
     sigma = float(np.median(detector.sigma))
-    big = [k for k, c in enumerate(contacts)
-           if c.duration >= min_duration and c.peak_change > 5 * sigma]
+    big = [k for k, five in enumerate(_five_sigma(contacts, detector, min_duration)) if five]
     ratio = [delays[k] / contacts[k].visible_after for k in range(len(contacts))
              if flags[k] and np.isfinite(contacts[k].visible_after)
              and contacts[k].visible_after > 0]
@@ -135,8 +140,7 @@ def _why(events: list, contacts: list, stream: object, detector: object, sensor:
         from skin.models.sensors import load_sensor
 
         scale = sensor.heated_rise / load_sensor("paper").heated_rise
-        sigma = float(np.median(detector.sigma))
-        counted = [c.duration >= min_duration and c.peak_change > 5 * sigma for c in contacts]
+        counted = _five_sigma(contacts, detector, min_duration)
         which = "5-sigma contacts"
     else:
         counted = [c.duration >= min_duration for c in contacts]
