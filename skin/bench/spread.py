@@ -163,7 +163,9 @@ def run(touches: int = 120, spread: float = 0.10, seed: int = 0, sensor: str = "
     only = None  # a file that commissioned some taxels: touch those alone
     if commissioned is not None:
         fitted = commissioned_taxels(commissioned)
-        only = fitted if len(fitted) < len(random_scene(1).layout) else None
+        from skin.formats.layout import load_layout
+
+        only = fitted if len(fitted) < len(load_layout("arm")) else None
         out["taxels"] = fitted if only else "all"
     done = 0
     for hold in holds:

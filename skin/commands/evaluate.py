@@ -175,9 +175,9 @@ def split_folds(data, folds: int, split: str = "grouped", seed: int = 0
 
     y = data.label
     idx = np.zeros((len(y), 1))
-    groups, made_of = (None, "") if split == "stratified" else independent_groups(data)
     if split not in ("grouped", "stratified"):
         raise SkinError(f"unknown split {split!r}; grouped or stratified")
+    groups, made_of = (None, "") if split == "stratified" else independent_groups(data)
     smallest = min(int(np.sum(y == c)) for c in data.classes)
     if smallest < folds:
         raise SkinError(f"{data.source}: a class has only {smallest} trials, fewer than "
