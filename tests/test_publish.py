@@ -132,6 +132,42 @@ async def _foxglove_client(port: int, deadline: float, exited=lambda: None) -> d
     return got
 
 
+def test_foxglove_server_delivers_the_last_contact_before_it_stops():
+    """A run's last contacts are decided when it ends: closing must not drop them (without the
+    linger, the server stopped with the contact still queued behind the temperatures)."""
+    pytest.importorskip("foxglove")
+    pytest.importorskip("websockets")
+    import threading
+
+    from skin.contact import Contact, MaterialEstimate
+    from skin.stream.pipeline import ContactResult
+
+    layout = load_scene("default").layout
+    for trial in range(8):
+        pub = open_publisher("foxglove://127.0.0.1:0", layout)
+        got: dict = {}
+        port = pub.port
+
+        def listen(got: dict = got, port: int = port) -> None:
+            got.update(asyncio.run(_foxglove_client(port, time.monotonic() + 30)))
+
+        client = threading.Thread(target=listen)
+        client.start()
+        deadline = time.monotonic() + 30
+        while not pub._contacts.has_sinks():  # the client subscribed
+            assert time.monotonic() < deadline, "the client did not subscribe"
+            time.sleep(0.01)
+        t = np.arange(400) * 0.005
+        pub.publish_temperature(t, np.full((400, len(layout)), 30.0), t + 1.0)
+        contact = Contact(trial, [int(layout.ids[0])], onset=1.0, release=2.0, ambient=25.0,
+                          windows=[])
+        pub.publish_contact(ContactResult(
+            contact, MaterialEstimate("pine", {"pine": 1.0}, 1.0, None, "m"), 2.1))
+        pub.close()
+        client.join(30)
+        assert [c["contact"] for c in got["contacts"]] == [trial]
+
+
 @pytest.mark.slow
 def test_skin_run_publishes_every_contact_to_foxglove_and_zenoh(tmp_path):
     pytest.importorskip("foxglove")

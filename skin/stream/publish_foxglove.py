@@ -45,6 +45,8 @@ from skin.formats.protobuf import (
 from skin.stream.pipeline import ContactResult
 from skin.stream.publish import Publisher, contact_payload
 
+LINGER = 0.5  # s the server stays up after the last contact sent, for it to reach the clients
+
 CONTACT_SCHEMA = {
     "title": "thermoskin.contact",
     "type": "object",
@@ -151,6 +153,7 @@ class FoxglovePublisher(Publisher):
         self._discs = [self._disc(k) for k in range(len(layout))]
         self._scene_msg: Any = None
         self._next_static = 0.0
+        self._last_contact = -np.inf  # monotonic time of the last contact sent to a client
         self._closed = False
 
     # -- the layout and the arm --
@@ -246,6 +249,8 @@ class FoxglovePublisher(Publisher):
             return
         payload = contact_payload(result, self.layout, self.robot)
         stamp = payload["host_reported_at"] or time.time()
+        if self._contacts.has_sinks():
+            self._last_contact = time.monotonic()
         self._contacts.log(payload, log_time=int(stamp * 1e9))
         if result.contact.final:
             for t in result.contact.taxels:
@@ -261,7 +266,13 @@ class FoxglovePublisher(Publisher):
             self._health.log(payload, log_time=int(payload["host_time"] * 1e9))
 
     def close(self) -> None:
-        """Stop the server (idempotent)."""
+        """Stop the server (idempotent), after the last contact had time to reach the clients.
+
+        The server sends from its own thread and stopping it drops what is still queued, so a
+        run's last contacts (decided when it ends) would be lost; it lingers up to `LINGER`
+        seconds after the last contact sent to a subscriber.
+        """
         if not self._closed:
             self._closed = True
+            time.sleep(max(0.0, self._last_contact + LINGER - time.monotonic()))
             self._server.stop()
