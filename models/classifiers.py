@@ -423,6 +423,15 @@ def truncate_rows(x: np.ndarray, channels: int, samples: int) -> np.ndarray:
     return np.column_stack([x[:, 0], b.reshape(x.shape[0], -1)])
 
 
+def fit_grouped(model, X: np.ndarray, y: np.ndarray, groups: np.ndarray | None = None):
+    """Fit ``model``, passing ``groups`` when its ``fit`` takes them; return the model."""
+    import inspect
+
+    if groups is not None and "groups" in inspect.signature(model.fit).parameters:
+        return model.fit(X, y, groups=groups)
+    return model.fit(X, y)
+
+
 class AnytimeClassifier(ClassifierMixin, BaseEstimator):
     """A label and a confidence at any moment after onset, "unknown" until it is sure.
 
@@ -460,8 +469,14 @@ class AnytimeClassifier(ClassifierMixin, BaseEstimator):
     def _samples(self, x: np.ndarray) -> int:
         return (x.shape[1] - 1) // self.channels - 1
 
-    def fit(self, X: np.ndarray, y: np.ndarray) -> AnytimeClassifier:
-        """Fit one model per duration on the rows truncated to it."""
+    def fit(self, X: np.ndarray, y: np.ndarray, groups: np.ndarray | None = None
+            ) -> AnytimeClassifier:
+        """Fit one model per duration on the rows truncated to it.
+
+        ``groups`` (one per row: trials that share a taxel or recording unit share a group)
+        go to each model whose ``fit`` takes them (the default's calibration folds keep each
+        group on one side); the others ignore them.
+        """
         nan = "allow-nan" if reads_channels(self.method) else True
         x, y = validate_data(self, X, y, reset=True, ensure_all_finite=nan)
         _check_targets(y)
@@ -472,8 +487,9 @@ class AnytimeClassifier(ClassifierMixin, BaseEstimator):
         self.samples_ = [round(d * self.fs) for d in self.durations if round(d * self.fs) <= n]
         if not self.samples_:
             raise ValueError(f"windows of {n} samples are shorter than every duration")
-        self.models_ = [make_method(self.method, self.fs, self.channels).fit(
-            truncate_rows(x, self.channels, k), y) for k in self.samples_]
+        self.models_ = [fit_grouped(make_method(self.method, self.fs, self.channels),
+                                    truncate_rows(x, self.channels, k), y, groups)
+                        for k in self.samples_]
         self.classes_ = self.models_[0].classes_
         return self
 

@@ -18,6 +18,7 @@ from skin.models.classifiers import (
     PhysicsFeatures,
     TraceFeatures,
     expected_failed_checks,
+    truncate_rows,
 )
 from skin.models.contact import ContactClassifier, ContactFeatures
 from skin.models.contact_fit import grid_basis, grid_fit, grid_fits, grid_responses
@@ -158,6 +159,19 @@ def test_calibration_folds_follow_the_groups(two_channel):
         ContactClassifier(1).fit(x, one.label, groups=one.group[:-1])
 
 
+def test_anytime_passes_the_groups_to_each_duration(two_channel):
+    train, _ = two_channel
+    one = train.channels([0])
+    x = contact_matrix(one, 0.5)
+    anytime = AnytimeClassifier("default", (0.25, 0.5), fs=one.fs, channels=1).fit(
+        x, one.label, groups=one.group)
+    for k, model in zip(anytime.samples_, anytime.models_, strict=True):
+        alone = ContactClassifier(1).fit(truncate_rows(x, 1, k), one.label, groups=one.group)
+        assert model.expert_weights_ == alone.expert_weights_
+        assert np.allclose(model.predict_proba(truncate_rows(x, 1, k)),
+                           alone.predict_proba(truncate_rows(x, 1, k)))
+
+
 def test_absent_channel_is_read_as_absent(two_channel):
     train, test = two_channel
     m = ContactClassifier(2).fit(contact_matrix(train, 0.5), train.label)
@@ -185,6 +199,19 @@ def test_train_tiny_dataset_says_why_and_evaluate_reads_a_model_file(tmp_path, t
     out = skin("train", "--data", str(tmp_path / "train.npz"), "--duration", "1.5",
                "-o", str(tmp_path / "m.skops"))
     assert out.returncode == 0, out.stderr
+    # the model's calibration folds kept the units apart, as `skin evaluate`'s do
+    from skin.commands.evaluate import independent_groups
+    from skin.formats.dataset import load_trials
+    from skin.models.classifiers import make_method, method_matrix
+    from skin.models.modelfile import load_model
+
+    saved = load_trials(tmp_path / "train.npz")
+    x, groups = method_matrix(saved, "default", 1.5), independent_groups(saved)[0]
+    grouped = make_method("default", saved.fs, saved.n_channels).fit(x, saved.label,
+                                                                     groups=groups)
+    plain = make_method("default", saved.fs, saved.n_channels).fit(x, saved.label)
+    trained = load_model(tmp_path / "m.skops")["estimator"]
+    assert trained.temperature_ == grouped.temperature_ != plain.temperature_
     out = skin("evaluate", "--data", str(tmp_path / "test.npz"), "--model",
                str(tmp_path / "m.skops"), "--json")
     assert out.returncode == 0, out.stderr

@@ -18,7 +18,6 @@ calibration error and the coverage and accuracy when unsure answers become "unkn
 from __future__ import annotations
 
 import argparse
-import inspect
 import json
 import time
 
@@ -213,7 +212,7 @@ def evaluate(data, method: str, duration: float, folds: int, split: str = "group
     """
     from sklearn.metrics import confusion_matrix
 
-    from skin.models.classifiers import make_method, method_matrix
+    from skin.models.classifiers import fit_grouped, make_method, method_matrix
 
     x = method_matrix(data, method, duration)
     y = data.label
@@ -232,11 +231,8 @@ def evaluate(data, method: str, duration: float, folds: int, split: str = "group
     for train, test in splits:
         model = make_method(method, fs=data.fs, channels=data.n_channels)
         t0 = time.perf_counter()
-        if groups is not None and "groups" in inspect.signature(model.fit).parameters:
-            # its own calibration folds then keep the taxels apart too
-            model.fit(x[train], y[train], groups=groups[train])
-        else:
-            model.fit(x[train], y[train])
+        # a model's own calibration folds then keep the taxels apart too
+        fit_grouped(model, x[train], y[train], None if groups is None else groups[train])
         t1 = time.perf_counter()
         if hasattr(model, "predict_proba"):
             proba = model.predict_proba(x[test])
@@ -387,7 +383,7 @@ def train_test(train, test, method: str, duration: float, object_range: float = 
     of the confidence bounded over that many K (`skin.models.nuisance`) are added under
     ``bounded`` (a method without probabilities is bounded from its votes).
     """
-    from skin.models.classifiers import make_method, method_matrix, reads_channels
+    from skin.models.classifiers import fit_grouped, make_method, method_matrix, reads_channels
 
     if train.n_channels != test.n_channels:
         raise SkinError(f"{test.source}: {test.n_channels} channel(s) per trial, the training "
@@ -396,7 +392,7 @@ def train_test(train, test, method: str, duration: float, object_range: float = 
                                                                               duration)
     model = make_method(method, fs=train.fs, channels=train.n_channels)
     t0 = time.perf_counter()
-    model.fit(x_train, train.label)
+    fit_grouped(model, x_train, train.label, independent_groups(train)[0])
     t1 = time.perf_counter()
     proba = model.predict_proba(x_test) if hasattr(model, "predict_proba") else None
     if proba is not None:

@@ -62,10 +62,12 @@ def check_enough(data, method: str) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Fit and save."""
+    from skin.commands.evaluate import independent_groups
     from skin.errors import SkinError
     from skin.formats.dataset import load_trials, require_classes, with_detected_onsets
     from skin.models.classifiers import (
         AnytimeClassifier,
+        fit_grouped,
         make_method,
         method_matrix,
         parse_method,
@@ -95,9 +97,12 @@ def main(args: argparse.Namespace) -> int:
         estimator = make_method(args.method, fs=data.fs, channels=channels)
         method = args.method
     x = method_matrix(data, args.method, duration)
+    # trials that share a taxel or unit share a group: the default's calibration folds keep
+    # each on one side, so its probabilities hold on taxels it has not seen
+    groups = independent_groups(data)[0]
     started = time.perf_counter()
     try:
-        estimator.fit(x, data.label)
+        fit_grouped(estimator, x, data.label, groups)
     except ValueError as exc:  # what the estimator found wrong with the data, said plainly
         raise SkinError(f"{data.source}: cannot train {method} on {len(data)} trials: "
                         f"{exc}") from None
