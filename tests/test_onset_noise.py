@@ -120,6 +120,30 @@ def test_chunks_of_any_size_give_the_same_events_on_a_foreign_sensor():
     assert parts == whole
 
 
+def test_a_heater_switched_off_at_contact_holds_the_touch_until_it_reheats():
+    """Its reading settles at the contact's temperature within 0.3 s: that is no release (it
+    was one, 0.3 s into a touch, and commissioning then found no touch long enough)."""
+    from skin.drivers.sim import SkinSimulator
+
+    src = ('layout = "arm"\nsensor = "fast-film"\nduration = 7.5\nseed = 3\n'
+           'initial_temperature = [34.0, 36.0]\n'
+           '[[objects]]\nname = "a"\nmaterial = "aluminium"\n'
+           '[[objects]]\nname = "p"\nmaterial = "pine"\n'
+           '[[touches]]\nobject = "a"\ntaxels = [0, 1]\nstart = 1.0\nduration = 2.0\n'
+           '[[touches]]\nobject = "p"\ntaxels = [0, 1]\nstart = 4.5\nduration = 2.0\n')
+    sim = SkinSimulator(parse_scene(src, "s.toml"))
+    temp = sim.temperatures()[:, :2]
+    d = OnsetDetector(2, sensor=load_sensor("fast-film"))
+    assert not d.ends_when_stopped and OnsetDetector(3).ends_when_stopped
+    times = np.arange(len(temp)) / d.sensor.sample_rate
+    events, _ = d.process(times, temp, d.initial_state())
+    for k in range(2):
+        mine = [(e.kind, e.time) for e in events if e.taxel == k]
+        assert [kind for kind, _ in mine] == ["onset", "release"] * 2
+        for (_, on), (_, off), start in zip(mine[::2], mine[1::2], (1.0, 4.5), strict=True):
+            assert abs(on - start) < 0.05 and abs(off - (start + 2.0)) < 0.1
+
+
 def test_the_pipeline_sets_its_detector_by_the_boards_sensor():
     text = ('[[boards]]\nid = 0\nsensor = "low-cost"\n\n[[taxels]]\nid = 0\nboard = 0\n'
             'address = 0\nlink = "l"\nposition = [0, 0, 0]\nnormal = [0, 0, 1]\n')

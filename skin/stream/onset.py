@@ -266,7 +266,11 @@ class OnsetDetector:
         watches for the trend stopping short (the contact's end when the reading does not come
         back past its extreme: a warm touch on a taxel still reheating keeps rising after it);
         departures smaller than this times the trend's slope (s) do not accumulate, which
-        covers the baseline's lag behind the decelerating in-contact trend.
+        covers the baseline's lag behind the decelerating in-contact trend. Not with a
+        heater switched off at contact (``sensor.heater == "off-at-contact"``): its reading
+        settles at the contact's temperature within the sensor's response, so a trend that
+        stops is the contact going on; its end shows as the reheat (the return past
+        ``release_rise``).
     contact_slope_tau : float
         Time constant of the baseline slope in contact, s.
     rebound : float
@@ -370,6 +374,8 @@ class OnsetDetector:
         self.slow_tau = 3.0 * stretch if slow_tau is None else slow_tau
         self.recovery = recovery
         self.release_slack = release_slack
+        # a heater switched off at contact: the reading settles in contact, ends show as reheat
+        self.ends_when_stopped = sensor.heater != "off-at-contact"
         self.contact_slope_tau = 0.2 * stretch if contact_slope_tau is None else contact_slope_tau
         self.rebound = 1.0 * stretch if rebound is None else rebound
 
@@ -534,7 +540,8 @@ class OnsetDetector:
         # too brief to be reported, or a gust), not a warm object
         rebound = idle & rose & (s.rise_start - s.t_fell <= self.rebound)
         rise_alarm = idle & rose & armed & ~alarm & ~rebound
-        stopped = (warm & fell) | (cool & rose)
+        stopped = ((warm & fell) | (cool & rose)) if self.ends_when_stopped else \
+            np.zeros_like(live)
         for k in np.flatnonzero(alarm):
             t0 = float(s.t_start[k])
             events.append(OnsetEvent("onset", int(k), t0, t,
