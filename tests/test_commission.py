@@ -416,3 +416,18 @@ def test_a_heater_off_or_on_at_contact_pins_the_depth_too(preset):
     assert got.depth**2 / got.diffusivity == pytest.approx(true.depth**2 / true.diffusivity,
                                                            rel=0.01)
     assert got.effusivity == pytest.approx(true.effusivity, rel=0.01)
+
+
+def test_bench_commission_fits_a_fast_film_unit_from_detected_touches(capsys):
+    """`skin bench commission`: a heater switched off at contact gives touches the detector
+    holds to their end (it released them 0.3 s in: no touch long enough, nothing fitted)."""
+    assert skin_main(["bench", "commission", "--sensor", "fast-film", "--taxels", "1",
+                      "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["sensor"] == "fast-film" and doc["hold"] == 3.0
+    assert doc["counts"] == {"detected": 6, "left_out": 0, "ambiguous": 0, "taxels_fitted": 1}
+    for key in ("response_time", "effusivity"):
+        assert doc[key]["fitted"]["median"] < doc[key]["nominal"]["median"] / 3
+    assert doc["fit_cpu_seconds"] > 0
+    assert skin_main(["bench", "commission", "--touches", "1"]) == 2
+    assert "--touches at least 2" in capsys.readouterr().err

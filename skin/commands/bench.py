@@ -47,7 +47,11 @@ subscriber in another process at the skin's real rate (`skin.bench.publish`).
 ``skin bench calibration`` runs simulated calibrations (each taxel's constants drawn within
 +-10 % of the paper's, a few contacts with a reference material) and reports how well
 `skin.models.sensor_fit.fit_sensor_constants` recovers them, against the nominal constants,
-with the fit time per taxel.
+with the fit time per taxel. ``skin bench commission --sensor PRESET`` does the same for
+`skin commission --touches` on a unit of any sensor preset: reference touches of aluminium
+and pine through the preset's ADC and smoothing, detected (or ``--labelled``) and fitted,
+with the response time's and the effusivity's error against the unit's truth, nominal and
+fitted, beside the fit's CPU time (`skin.bench.commission`).
 
 ``skin bench map`` runs the shared map service with several robots publishing contacts and
 reports lost contacts, the time from a contact's decision to its query visibility, and a
@@ -58,6 +62,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -165,6 +170,23 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                              "0.5,1,2.5; default: touches of 1.5-3 s)")
     spread.add_argument("--json", action="store_true", help="print one JSON document")
     spread.set_defaults(func=main_spread)
+    com = kinds.add_parser("commission", help="commissioning a simulated unit from reference "
+                                              "touches against its true constants")
+    com.add_argument("--sensor", default="paper", help="sensor preset (paper)")
+    com.add_argument("--seed", type=int, default=7, help="the unit: seed of its taxels (7)")
+    com.add_argument("--taxels", type=int, default=8, help="taxels touched (8)")
+    com.add_argument("--touches", type=int, default=6,
+                     help="reference touches, aluminium and pine alternately (6)")
+    com.add_argument("--hold", type=float, default=None,
+                     help="hold each touch, s (default: what skin commission asks for)")
+    com.add_argument("--rest", type=float, default=None,
+                     help="rest between touches, s (default: what skin commission asks for)")
+    com.add_argument("--spread", type=float, default=0.10,
+                     help="relative spread of each taxel's constants (0.10)")
+    com.add_argument("--labelled", action="store_true",
+                     help="fit from the scripted touch times (as --labels), not detected ones")
+    com.add_argument("--json", action="store_true", help="print one JSON document")
+    com.set_defaults(func=main_commission)
     nui = kinds.add_parser("nuisance", help="what each nuisance of the synthetic benchmark "
                                             "costs the classifiers (one fixed at a time)")
     nui.add_argument("--variants", default=None,
@@ -426,6 +448,43 @@ def main_calibration(args: argparse.Namespace) -> int:
           f"over 25-45 C, median {th['nominal_max_error_k']['median']} K nominal -> "
           f"{th['fitted_max_error_k']['median']} K fitted (p95 "
           f"{th['nominal_max_error_k']['p95']} -> {th['fitted_max_error_k']['p95']} K)")
+    return 0
+
+
+def main_commission(args: argparse.Namespace) -> int:
+    """``skin bench commission``: commissioning error against a simulated unit's truth."""
+    from skin import bench
+    from skin.bench.commission import run
+    from skin.errors import SkinError
+
+    if args.taxels < 1 or args.touches < 2 or not 0 <= args.spread < 1:
+        raise SkinError("--taxels must be at least 1, --touches at least 2 and --spread "
+                        "within [0, 1)")
+    for name in ("hold", "rest"):
+        if getattr(args, name) is not None and getattr(args, name) <= 0:
+            raise SkinError(f"--{name} must be positive")
+    print("simulating and commissioning...", file=sys.stderr, flush=True)
+    doc = {"machine": bench.machine(),
+           **run(args.sensor, args.seed, args.taxels, args.touches, args.hold, args.rest,
+                 args.spread, args.labelled)}
+    if args.json:
+        print(json.dumps(doc))
+        return 0
+    c = doc["counts"]
+    print(f"{doc['sensor']}, unit (seed) {doc['seed']}: {doc['touches']} touches held "
+          f"{doc['hold']:g} s, {doc['rest']:g} s apart, on {doc['taxels_touched']} taxels "
+          f"({'labelled' if doc['labelled'] else 'detected'}); {c['detected']} taxel-touches, "
+          f"{c['left_out']} left out, {c['ambiguous']} ambiguous; {c['taxels_fitted']} taxels "
+          f"fitted in {doc['fit_cpu_seconds']:g} CPU s ({doc['recording_seconds']:g} s "
+          f"recorded; {doc['machine']['cpus']} cores)")
+    if "response_time" not in doc:
+        print("no taxel fitted")
+        return 0
+    print(f"{'relative error':<16} {'nominal':>22} {'fitted':>22}")
+    for key in ("response_time", "effusivity"):
+        cells = [f"{e['median']:.3f} (p90 {e['p90']:.3f})" for e in
+                 (doc[key]["nominal"], doc[key]["fitted"])]
+        print(f"{key.replace('_', ' '):<16} {cells[0]:>22} {cells[1]:>22}")
     return 0
 
 
