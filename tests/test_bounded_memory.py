@@ -107,7 +107,8 @@ def test_soak_of_two_boards_loses_nothing_and_keeps_memory_flat(tmp_path):
     assert r["boards"] == 2 and r["frames_sent"] == r["frames_received"] == 2 * 3 * 12000
     assert r["lost_frames"] == 0 and r["crc_errors"] == 0
     # every touch of the repeated pattern is one contact, the same number every minute
-    assert r["contacts_per_bin"] == [2 * TOUCHES] * 3 and r["contacts"] == r["touches"]
+    assert r["contacts_per_bin"] == r["touches_per_bin"] == [2 * TOUCHES] * 3
+    assert r["contacts"] == r["touches"]
     # memory is flat once the chain is warm (the contact fit keeps one response grid per
     # sample rate and sensor, not one per window length)
     assert r["rss_mb"]["max"] - r["rss_mb"]["baseline"] < 40, r["rss_mb"]
@@ -128,3 +129,46 @@ def test_a_soak_stopped_at_its_wall_limit_reports_what_it_reached():
     # only the touches that ended before the stop count
     assert r["touches"] < 6 * 60 and r["contacts"] <= r["touches"] + 1
     assert len(r["contacts_per_bin"]) == int(r["seconds_simulated"] // 60)
+
+
+@pytest.mark.parametrize("n_taxels", [300, 1000, 2000, 3000])
+def test_soak_touches_never_form_one_patch_across_boards(n_taxels):
+    """The soak's boards are touched at the same instants: no two touches may be neighbours.
+
+    At 1000 taxels (boards of 16, 16, 16 and 14 rings) board 2's patch on its last two rings
+    met board 3's on its first at 191.3 s and 2250 s: one contact for two touches (the
+    "missed touch of minute 37")."""
+    from skin.bench.soak import soak_scenes, touches_apart
+
+    layout, scenes = soak_scenes(n_taxels, 2 * 3600.0)
+    assert touches_apart(layout, scenes) == []
+
+
+def test_soak_touches_of_minute_37_are_one_contact_each():
+    """The touches of 2250 s on boards 2 and 3 of the 1000-taxel soak, simulated on their own
+    (moved to 2 s), through the pipeline: one contact per touch, on the touch's taxels."""
+    import dataclasses
+
+    from skin.bench.soak import soak_scenes
+    from skin.drivers.sim import SkinSimulator
+    from skin.formats.layout import Layout
+    from skin.models import HistogramClassifier
+    from skin.stream.pipeline import Pipeline
+
+    full, scenes = soak_scenes(1000, 2400.0)
+    picked = []
+    for scene in scenes[2:]:
+        touches = tuple(dataclasses.replace(t, start=t.start - 2248.0)
+                        for t in scene.touches if 2249.0 < t.start < 2251.0)
+        assert len(touches) == 1
+        picked.append(dataclasses.replace(scene, duration=6.0, touches=touches))
+    layout = Layout([t for t in full.taxels if t.board in (2, 3)],
+                    [full.boards[2], full.boards[3]], name="boards 2 and 3")
+    pipe = Pipeline(layout, HistogramClassifier(layout))
+    sims = [SkinSimulator(s).frames() for s in picked]
+    results = []
+    for frames in zip(*sims, strict=True):
+        results += pipe.process(list(frames))
+    results += pipe.flush()
+    found = sorted(tuple(sorted(r.contact.taxels)) for r in results if r.contact.final)
+    assert found == sorted(tuple(sorted(s.touches[0].taxels)) for s in picked)

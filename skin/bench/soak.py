@@ -45,6 +45,9 @@ def soak_scenes(n_taxels: int, seconds: float, seed: int = 0) -> tuple[Layout, l
     In each period, each board is touched `TOUCHES` times, 0.4-2.4 s long, by each object in
     turn, on a patch of four neighbouring taxels (two in a ring, the same two in the next
     ring) that moves from one period to the next; the last touches end before ``seconds``.
+    The boards are touched at the same instants, so a board's last ring is never touched: it
+    keeps every board's patch off the next board's first ring, where two simultaneous touches
+    would be one patch on the skin, one contact (`touches_apart` checks it).
     """
     from skin.bench.pipeline import cylinder_layout
     from skin.formats.scene import Scene, SceneObject, Touch
@@ -55,7 +58,7 @@ def soak_scenes(n_taxels: int, seconds: float, seed: int = 0) -> tuple[Layout, l
     for board in sorted(layout.boards):
         taxels = [t for t in layout.taxels if t.board == board]
         ids = [t.id for t in taxels]
-        rings = max(1, len(ids) // RING)
+        rings = max(1, len(ids) // RING - 1)  # the rings touched: all but the last
         touches = []
         for period in range(int(np.ceil(seconds / PERIOD))):
             for slot in range(TOUCHES):
@@ -77,6 +80,29 @@ def soak_scenes(n_taxels: int, seconds: float, seed: int = 0) -> tuple[Layout, l
                             initial_temperature=(31.0, 38.9), objects=objects,
                             touches=tuple(touches)))
     return layout, scenes
+
+
+def touches_apart(layout: Layout, scenes: list[Any], join_window: float = 0.5) -> list[tuple]:
+    """Return the pairs of touches that the tracker would take for one contact.
+
+    Two touches whose taxels are the same or neighbours (`Layout.neighbour_lists`) and whose
+    starts lie at most ``join_window`` s apart (`skin.stream.tracking.ContactTracker`) are
+    one patch on the skin. Returns ``(start, board, taxels, other board, other taxels)`` per
+    such pair; empty when every scripted touch can be told apart.
+    """
+    near = layout.neighbour_lists()
+    touches = sorted((t.start, b, tuple(layout.index(i) for i in t.taxels))
+                     for b, scene in enumerate(scenes) for t in scene.touches)
+    joined = []
+    for i, (start, board, idx) in enumerate(touches):
+        reach = set(idx).union(*(near[k].tolist() for k in idx))
+        for other, board2, idx2 in touches[i + 1:]:
+            if other - start > join_window:
+                break
+            if reach.intersection(idx2):
+                joined.append((start, board, tuple(int(layout.ids[k]) for k in idx),
+                               board2, tuple(int(layout.ids[k]) for k in idx2)))
+    return joined
 
 
 def _rss_mb() -> float:
@@ -125,8 +151,9 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
         ``rss_growth_max`` (relative, from the first simulated hour, or the first tenth of a
         shorter run, to the run's last sample and to its largest); ``contacts_per_bin``
         (final contacts by onset, per whole simulated hour, or per `PERIOD` for a run
-        shorter than two hours, as ``per`` says) and ``labels_per_bin`` (their labels,
-        counted; ``same_labels_every_bin``); ``lost_frames`` (``gaps``, ``late`` and
+        shorter than two hours, as ``per`` says), ``touches_per_bin`` (the scripted
+        touches by start, to compare) and ``labels_per_bin`` (their labels, counted;
+        ``same_labels_every_bin``); ``lost_frames`` (``gaps``, ``late`` and
         frames sent but not read), ``crc_errors``, ``speed`` (simulated seconds per wall
         second), ``written_mb``, ``stopped_early``.
     """
@@ -271,6 +298,8 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
     bins = int((now if stopped_early else seconds) // bin_s)  # whole bins reached
     which = (np.array(onsets) // bin_s).astype(int)
     per_bin = [int(np.sum(which == b)) for b in range(bins)]
+    starts = np.array([t.start for s in scenes for t in s.touches]) // bin_s
+    touches_per_bin = [int(np.sum(starts == b)) for b in range(bins)]
     # the same touches every bin: the labels given should not drift either
     labels_per_bin = [dict(sorted(Counter(lab for lab, w in zip(labels, which, strict=True)
                                           if w == b).items())) for b in range(bins)]
@@ -289,7 +318,8 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
             "touches": sum(1 for s in scenes for t in s.touches
                            if not stopped_early or t.start + t.duration < now),
             "per": "hour" if bin_s == 3600.0 else f"{PERIOD:g} s",
-            "contacts_per_bin": per_bin, "labels_per_bin": labels_per_bin,
+            "contacts_per_bin": per_bin, "touches_per_bin": touches_per_bin,
+            "labels_per_bin": labels_per_bin,
             "same_labels_every_bin": all(x == labels_per_bin[0] for x in labels_per_bin),
             "rss_mb": {"start": float(rss[0]), "baseline": float(base),
                        "end": float(rss[-1]), "max": float(rss.max()),

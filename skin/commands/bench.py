@@ -700,7 +700,9 @@ def main_soak(args: argparse.Namespace) -> int:
           f"{r['lost_frames']} (gaps {r['gaps']}, late {r['late']}), CRC errors {r['crc_errors']}"
           + (f", {r['in_flight']} on their way when stopped" if r["stopped_early"] else ""))
     print(f"contacts {r['contacts']} from {r['touches']} touches, results {r['results']}; "
-          f"contacts per {r['per']}: {r['contacts_per_bin']}")
+          f"contacts per {r['per']}: {r['contacts_per_bin']}"
+          + ("" if r["contacts_per_bin"] == r["touches_per_bin"]
+             else f" (touches: {r['touches_per_bin']})"))
     print("the same labels every " + r["per"] + ": "
           + ("yes" if r["same_labels_every_bin"] else "no: " + "; ".join(
               ", ".join(f"{k} {v}" for k, v in b.items()) for b in r["labels_per_bin"])))
