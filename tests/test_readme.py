@@ -153,6 +153,7 @@ SKIPPED = {
     "--touches aluminium,pine": "1-3 min of fitting (tests/test_commission.py runs it)",
     "--calibration ref.json": "the file of the --touches line (skipped above)",
     "skin commission --data": "the user's own dataset (tests/test_commission.py)",
+    "skin bench commission": "a minute of fitting (tests/test_commission.py runs one taxel)",
 }
 
 
