@@ -176,8 +176,12 @@ def test_malformed_commands_get_errors_and_streaming_goes_on(firmware_built, tmp
 def test_set_rate_changes_the_sample_period(firmware_built, tmp_path):
     with Board(tmp_path) as board:
         board.driver.request(Command(MsgType.SET_RATE, rate_hz=100), timeout=5.0)
-        frames = board.frames(50)[5:]
-        assert np.allclose(np.diff([f.device_time for f in frames]), 0.010, rtol=0.01)
+        # frames sampled at 200 Hz before the command took effect may still be on their way
+        # (a few on a quiet machine, more on a loaded one): the period after them is 10 ms
+        period = np.diff([f.device_time for f in board.frames(60)])
+        old = np.flatnonzero(~np.isclose(period, 0.010, rtol=0.01))
+        start = int(old.max()) + 1 if old.size else 0
+        assert start <= 20 and period.size - start >= 39  # then 100 Hz, every frame
         with pytest.raises(ProtocolError, match="ARGUMENT"):
             board.driver.request(Command(MsgType.SET_RATE, rate_hz=5000), timeout=5.0)
 

@@ -391,11 +391,15 @@ def run(quick: bool = False, sizes: tuple[int, ...] = SIZES, rate_hz: float = RA
                 say(f"CanDriver over virtual CAN: {name}")
                 rows.append(bench_can_virtual(w, max(10, budget["e2e"] // len(w.boards))))
     base = doc["baseline"]
+
+    def ratio(a: float, b: float) -> float:  # 3 significant figures: a slow run is not 0.0
+        return float(f"{a / b:.3g}")
+
     for r in rows:
         if "bytes_per_s" in r:
-            r["x_memcpy"] = round(r["bytes_per_s"] / base["memcpy_bytes_per_s"], 4)
-            r["x_garbage"] = round(r["bytes_per_s"] / base["garbage_decode_bytes_per_s"], 3)
-        r["x_frombuffer"] = round(r["us_per_frame"] / base["frombuffer_us_per_frame"], 1)
+            r["x_memcpy"] = ratio(r["bytes_per_s"], base["memcpy_bytes_per_s"])
+            r["x_garbage"] = ratio(r["bytes_per_s"], base["garbage_decode_bytes_per_s"])
+        r["x_frombuffer"] = ratio(r["us_per_frame"], base["frombuffer_us_per_frame"])
     doc["results"] = rows
     doc["wall_time"] = round(time.monotonic() - started, 2)
     return doc
