@@ -397,6 +397,15 @@ class Skin:
         if self.scene is None:
             return
         sim = self._sim
+        from skin.drivers.protocol import MAX_COUNT
+
+        for board in self.layout.boards.values():
+            if board.adc_max > MAX_COUNT:
+                raise SkinError(
+                    f"scene {self.scene.source}: board {board.id}'s ADC has {board.adc_bits} bits "
+                    f"(sensor {board.sensor or 'of the layout'}); the serial protocol v1 the "
+                    f"simulated board is served over carries {MAX_COUNT.bit_length()}: read "
+                    f"it in-process instead, with --port sim://{self.scene.source}")
         if s.firmware_sim:
             from skin.drivers.firmware_board import emulated_board
 

@@ -360,3 +360,22 @@ def test_a_layout_names_a_sensor_file_beside_it(tmp_path):
     (tmp_path / "mine.toml").write_text('[[sensors]]\nname = "mine"\nlag = -1.0\n')
     with pytest.raises(LayoutError, match=r"skin.toml:1: board #0: field 'sensor': .*mine.toml:1"):
         load_layout(tmp_path / "skin.toml")
+
+
+def test_skin_run_says_before_the_first_frame_when_a_scene_s_adc_does_not_fit_the_link(
+        tmp_path, capsys):
+    """A 16-bit logger (pid-logger) cannot be served over protocol v1's 12-bit words: said at
+    once (the board's thread failed and the run ended with "no frame arrived"); in-process,
+    through sim://, the same scene runs."""
+    from skin.cli import main
+
+    scene = tmp_path / "pl.toml"
+    scene.write_text('layout = "arm"\nsensor = "pid-logger"\nduration = 3.0\n')
+    assert main(["run", "--scene", str(scene), "--speed", "0", "--no-map", "--out",
+                 str(tmp_path / "a")]) == 2
+    err = capsys.readouterr().err
+    assert "board 0's ADC has 16 bits (sensor pid-logger)" in err and "sim://" in err
+    assert not (tmp_path / "a" / "events.jsonl").exists()
+    assert main(["run", "--port", f"sim://{scene}?speed=0", "--no-map", "--json", "--out",
+                 str(tmp_path / "b")]) == 0
+    assert json.loads(capsys.readouterr().out)["frames"] == 150  # 3 s at 50 Hz
