@@ -130,3 +130,36 @@ def test_udp_multicast_through_open(group):
         frames = [driver.recv(timeout=1.0) for _ in range(10)]
         assert [f.seq for f in frames] == list(range(10)) and frames[0].board == 4
         assert driver.url == url
+
+
+
+def test_no_sample_follows_the_acknowledgement_of_a_stop(channel):
+    """A STOP answered while the node waits for a sample's time: that sample stays unsent
+    until a START (it went out after the acknowledgement: a host that had stopped the stream
+    still got a frame, and the driver contract's quiet check failed on the UDP bus)."""
+    import time
+
+    from skin.drivers.protocol import CanType
+
+    sim = SkinSimulator(load_scene("default"), duration=5.0)
+    with can.Bus(interface="virtual", channel=channel) as tap, \
+            drivers.open(f"can://virtual/{channel}") as driver, \
+            CanSimNode(sim, ("virtual", channel), node=1) as node:
+        node.start()
+        seqs = [driver.recv(timeout=1.0).seq]  # streaming
+        for _ in range(5):
+            assert isinstance(driver.request(Command(MsgType.STOP), node=1), Ack)
+            time.sleep(0.1)  # what the node sends after its acknowledgement
+            kinds = []
+            while (msg := tap.recv(timeout=0)) is not None:
+                kinds.append(msg.arbitration_id >> 8)
+            last_reply = max(i for i, k in enumerate(kinds) if k == CanType.REPLY)
+            assert CanType.DATA in kinds[:last_reply]  # it streamed before
+            assert CanType.DATA not in kinds[last_reply:], kinds[last_reply:]
+            driver.request(Command(MsgType.START), node=1)
+            time.sleep(0.05)
+        driver.request(Command(MsgType.STOP), node=1)
+        while (frame := driver.recv(timeout=0.2)) is not None:
+            seqs.append(frame.seq)
+    # the sample held back goes out after the START: nothing lost, nothing twice
+    assert seqs == list(range(seqs[0], seqs[0] + len(seqs))) and len(seqs) > 10
