@@ -136,14 +136,14 @@ def skin(*args):
 
 
 def test_evaluate_onset_command_on_a_stream_and_on_trials(tmp_path):
-    out = skin("evaluate-onset", "--taxels", "2", "--minutes", "2", "--rate", "2", "--json")
+    out = skin("evaluate-onset", "--taxels", "2", "--minutes", "1", "--rate", "2", "--json")
     assert out.returncode == 0, out.stderr
     doc = json.loads(out.stdout)
     assert doc["contacts"] > 0 and "by_material" in doc and "detected_flags" not in doc
     assert doc["beyond_gusts"]["threshold_k"] == 0.4
     assert 0 <= doc["beyond_gusts"]["detection_rate"] <= 1
     assert doc["detector_us_per_taxel_sample"] > 0
-    out = skin("evaluate-onset", "--taxels", "3", "--minutes", "2", "--rate", "3", "--quiet",
+    out = skin("evaluate-onset", "--taxels", "3", "--minutes", "1", "--rate", "3", "--quiet",
                "--warm", "0.6", "--seed", "1")
     assert out.returncode == 0, out.stderr
     assert "warm contacts: detected" in out.stdout and "cool contacts: detected" in out.stdout
