@@ -307,14 +307,20 @@ class CanSimNode:
         pacer = _Pacer(self.speed)
         try:
             for frame in self._frames:
-                paused = time.monotonic()
-                while not self.streaming and not self._stop.is_set():
-                    self._poll(0.05)
-                pacer.t0 += time.monotonic() - paused  # a pause does not make a backlog
-                if self.speed > 0:  # answer commands while waiting for the sample's time
-                    self._poll(pacer.t0 + frame.device_time / self.speed - time.monotonic())
-                else:
-                    self._poll(0.0)
+                while True:
+                    paused = time.monotonic()
+                    while not self.streaming and not self._stop.is_set():
+                        self._poll(0.05)
+                    pacer.t0 += time.monotonic() - paused  # a pause does not make a backlog
+                    if self.speed > 0:  # answer commands while waiting for the sample's time
+                        self._poll(pacer.t0 + frame.device_time / self.speed
+                                   - time.monotonic())
+                    else:
+                        self._poll(0.0)
+                    if self.streaming or self._stop.is_set():
+                        break
+                    # a STOP answered meanwhile: the sample waits for the next START (sent
+                    # now, it would follow the acknowledgement of the STOP)
                 if self._stop.is_set() or not self._send_sample(frame):
                     return
                 self.frames_sent += 1

@@ -130,3 +130,44 @@ def test_udp_multicast_through_open(group):
         frames = [driver.recv(timeout=1.0) for _ in range(10)]
         assert [f.seq for f in frames] == list(range(10)) and frames[0].board == 4
         assert driver.url == url
+
+
+
+
+def test_no_sample_follows_the_acknowledgement_of_a_stop(channel):
+    """A STOP answered while the node waits for a sample's time: that sample stays unsent
+    until a START (it went out after the acknowledgement: a host that had stopped the stream
+    still got a frame, and the driver contract's quiet check failed on the UDP bus)."""
+    import time
+
+    from skin.drivers.protocol import CanType
+
+    def watch(tap, until, linger=0.0):
+        """The frame types seen on the bus until ``until(types)`` holds, then ``linger`` s."""
+        kinds, deadline, end = [], time.monotonic() + 10.0, None
+        while end is None or time.monotonic() < end:
+            assert time.monotonic() < deadline, kinds
+            if (msg := tap.recv(timeout=0.01)) is not None:
+                kinds.append(msg.arbitration_id >> 8)
+            if end is None and until(kinds):
+                end = time.monotonic() + linger
+        return kinds
+
+    sim = SkinSimulator(load_scene("default"), duration=5.0)
+    with can.Bus(interface="virtual", channel=channel) as tap, \
+            drivers.open(f"can://virtual/{channel}") as driver, \
+            CanSimNode(sim, ("virtual", channel), node=1) as node:
+        node.start()
+        for _ in range(5):
+            watch(tap, lambda kinds: CanType.DATA in kinds)  # streaming
+            assert isinstance(driver.request(Command(MsgType.STOP), node=1), Ack)
+            kinds = watch(tap, lambda kinds: CanType.REPLY in kinds, linger=0.1)
+            after = kinds[kinds.index(CanType.REPLY):]  # the STOP's reply, then nothing
+            assert CanType.DATA not in after, after
+            driver.request(Command(MsgType.START), node=1)
+        driver.request(Command(MsgType.STOP), node=1)
+        seqs = []
+        while (frame := driver.recv(timeout=0.5)) is not None:
+            seqs.append(frame.seq)
+    # each sample held back went out after the START: nothing lost, nothing twice
+    assert seqs == list(range(len(seqs))) and len(seqs) >= 5

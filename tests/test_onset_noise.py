@@ -183,7 +183,7 @@ def test_evaluate_onset_per_sensor_reports_the_issue_figures(capsys):
 
     from skin.cli import main
 
-    assert main(["evaluate-onset", "--sensor", "fast-film", "--taxels", "4", "--minutes", "2",
+    assert main(["evaluate-onset", "--sensor", "fast-film", "--taxels", "4", "--minutes", "1",
                  "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     for key in ("detected_5sigma", "false_alarms_per_taxel_hour", "delay_floor_ratio_median",

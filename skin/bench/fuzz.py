@@ -425,14 +425,12 @@ def sequence_stats(seqs: Sequence[int], window: int = DUPLICATE_WINDOW) -> tuple
 
 def _intact_serial(case: SerialCase, origin: list[int]) -> Counter[int]:
     """How many times each packet appears undamaged, its preceding 0x00 included."""
-    where: dict[int, list[int]] = {}
-    for j, o in enumerate(origin):
-        where.setdefault(o, []).append(j)
+    at = np.asarray(origin)
     found: Counter[int] = Counter()
     for i, (start, end) in enumerate(case.bounds):
-        want = list(range(start, end + 1))
-        for j in where.get(start, ()):
-            if origin[j : j + len(want)] == want:
+        want = np.arange(start, end + 1)
+        for j in np.flatnonzero(at == start):
+            if np.array_equal(at[j : j + want.size], want):
                 found[i] += 1
     return found
 
