@@ -150,3 +150,23 @@ duration = 1.5
 """
     results = _run(parse_scene(text, source, base), 3.5)
     assert [r.contact.taxels for r in results] == [[44], [45]]
+
+
+def test_bench_tracking_counts_whole_split_and_merged_touches(capsys):
+    import json
+
+    from skin.bench.tracking import random_scene, score
+    from skin.cli import main
+
+    scene = random_scene(pairs=2, seed=3)
+    assert len(scene.touches) == 6
+    pieces = [{k: t.start + 0.01 for k in t.taxels} for t in scene.touches]
+    assert score(scene, pieces)["whole"] == 6
+    # the first touch in two pieces, the next two as one contact, a false alarm elsewhere
+    first = list(pieces[0].items())
+    split = [dict(first[:1]), dict(first[1:]), pieces[1] | pieces[2], *pieces[3:], {71: 0.0}]
+    assert score(scene, split) == {"touches": 6, "whole": 3, "split": 1, "merged": 1,
+                                   "missed": 0, "other_contacts": 1}
+    assert main(["bench", "tracking", "--pairs", "2", "--seeds", "3", "--json"]) == 0
+    row = json.loads(capsys.readouterr().out)["rows"][0]
+    assert row["touches"] == row["whole"] == 6 and row["track_us_per_sample"] > 0
