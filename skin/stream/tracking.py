@@ -157,6 +157,8 @@ class ContactTracker:
     provisional : sequence of float
         Seconds after a contact's first onset at which a provisional snapshot of it is handed
         on while it is still open (an anytime answer before the final one); empty: none.
+        A contact that has handed one on is never merged into another (its final follows);
+        a merged contact keeps the snapshot instants of the one it was merged into.
     """
 
     def __init__(
