@@ -99,7 +99,7 @@ def test_wheel_installs_and_imports_subpackages(tmp_path):
 # commands whose job is to measure: they may import the measuring tools
 MEASURING_COMMANDS = {"skin.commands.bench", "skin.commands.bench_drivers",
                       "skin.commands.bench_view", "skin.commands.bench_map",
-                      "skin.commands.bench_onset_shape",
+                      "skin.commands.bench_onset_shape", "skin.commands.bench_tracking",
                       "skin.commands.evaluate",
                       "skin.commands.evaluate_onset"}
 

@@ -56,6 +56,10 @@ fitted, beside the fit's CPU time (`skin.bench.commission`).
 ``skin bench map`` runs the shared map service with several robots publishing contacts and
 reports lost contacts, the time from a contact's decision to its query visibility, and a
 1 m^3 box query over a 1 M-voxel map (`skin.bench.map`).
+
+``skin bench tracking`` plays touches of several taxels and pairs of touches on neighbouring
+taxels through the pipeline and counts the touches made one whole contact, split into
+pieces, merged with another, or missed, beside the tracker's cost (`skin.bench.tracking`).
 """
 
 from __future__ import annotations
@@ -66,7 +70,13 @@ import sys
 import time
 from pathlib import Path
 
-from skin.commands import bench_drivers, bench_map, bench_onset_shape, bench_view
+from skin.commands import (
+    bench_drivers,
+    bench_map,
+    bench_onset_shape,
+    bench_tracking,
+    bench_view,
+)
 from skin.progress import Progress
 
 
@@ -217,6 +227,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     bench_view.add_parsers(kinds)
     bench_map.add_parsers(kinds)
     bench_onset_shape.add_parsers(kinds)
+    bench_tracking.add_parsers(kinds)
 
 
 def main_object_prior(args: argparse.Namespace) -> int:

@@ -44,7 +44,13 @@ from skin.stream.assembly import FrameAssembler, Samples
 from skin.stream.calibration import Calibration
 from skin.stream.onset import OnsetDetector
 from skin.stream.onset_refine import refine_span
-from skin.stream.tracking import ContactTracker, DecidedContact, finish_contact, refine_member
+from skin.stream.tracking import (
+    ContactTracker,
+    DecidedContact,
+    finish_contact,
+    join_window_for,
+    refine_member,
+)
 
 if TYPE_CHECKING:
     from skin.stream.board_workers import CalibratedBlock
@@ -295,7 +301,8 @@ class Pipeline:
         self.refine_sensor = getattr(self.detector, "sensor", None)
         self.tracker = ContactTracker(layout, rates.pop(), window=window,
                                       provisional=provisional,
-                                      search=refine_span(self.refine_sensor)[0])
+                                      search=refine_span(self.refine_sensor)[0],
+                                      join_window=join_window_for(self.refine_sensor))
         if sensors is not None:
             if len(sensors) != len(layout):
                 raise SkinError(f"{len(sensors)} sensor constants for {len(layout)} taxels")

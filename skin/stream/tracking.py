@@ -1,7 +1,12 @@
 """Contact tracking: group taxel onsets into contacts and cut each taxel's samples.
 
-Onsets of neighbouring taxels (by the layout's geometry) within ``join_window`` seconds of each
-other form one contact.  A contact is decided when all its taxels are released or when
+A contact is a connected group of onsets: an onset joins every open contact that holds a
+neighbour of its taxel (by the layout's geometry) whose onset lies within ``join_window``
+seconds of it and which has not been released before it (the two overlap in time); when it
+joins several, they become one (an onset can bridge two pieces of one touch that began apart:
+taxels diagonal to each other, then the taxel between them). ``join_window`` follows from
+the sensor (`join_window_for`): the coarse onsets of one touch's taxels lie within a fraction
+of it. A contact is decided when all its taxels are released or when
 ``window`` seconds have passed since its first onset, whichever comes first; the tracker then
 hands on a `DecidedContact` holding, per taxel, the samples from ``search`` seconds before its
 coarse onset to its release or the cut. `refine_member` dates each taxel's onset on those
@@ -25,6 +30,10 @@ from skin.formats.layout import Layout
 from skin.stream.onset import OnsetEvent
 from skin.stream.onset_refine import refine_onset
 
+#: Onsets of neighbours at most this far apart join one contact with the paper's sensor, s.
+#: The coarse onsets of one touch's taxels lie within 0.15 s of each other (median 0.015 s,
+#: scene seeds 7-13, 15 touches each); two touches of one spot a second apart stay two.
+JOIN_WINDOW = 0.5
 #: The heap key of a contact's final decision (provisional snapshots count 0, 1, ...).
 FINAL = 1 << 30
 
@@ -95,6 +104,7 @@ class _OpenContact:
     first: float
     members: dict[int, _Member] = field(default_factory=dict)
     when: float = np.inf  # current decision time (heap entries that differ are stale)
+    snapshots: int = 0  # provisional snapshots handed on
 
 
 class _History:
@@ -140,12 +150,15 @@ class ContactTracker:
     window : float
         Longest window handed to the classifier, s.
     join_window : float
-        Onsets of neighbours at most this far apart join one contact, s.
+        Onsets of neighbours at most this far apart join one contact, s (`join_window_for`
+        gives the sensor's).
     search : float
         How far before the coarse onset the samples reach (the refinement's span), s.
     provisional : sequence of float
         Seconds after a contact's first onset at which a provisional snapshot of it is handed
         on while it is still open (an anytime answer before the final one); empty: none.
+        A contact that has handed one on is never merged into another (its final follows);
+        a merged contact keeps the snapshot instants of the one it was merged into.
     """
 
     def __init__(
@@ -154,7 +167,7 @@ class ContactTracker:
         sample_rate: float,
         *,
         window: float = 2.5,
-        join_window: float = 0.5,
+        join_window: float = JOIN_WINDOW,
         search: float = 0.6,
         provisional: Sequence[float] = (),
     ) -> None:
@@ -226,11 +239,22 @@ class ContactTracker:
 
     def _on_onset(self, ev: OnsetEvent) -> None:
         member = _Member(ev.time, ev.baseline, ev.slope)
-        joined = [c for k in self.neighbours[ev.taxel]
-                  if (c := self._owner.get(int(k))) is not None
-                  and abs(ev.time - c.members[int(k)].coarse) <= self.join_window]
+        joined: list[_OpenContact] = []
+        for k in self.neighbours[ev.taxel]:
+            c = self._owner.get(int(k))
+            if c is None or any(c is j for j in joined):
+                continue
+            m = c.members[int(k)]
+            if (abs(ev.time - m.coarse) <= self.join_window
+                    and (m.release is None or m.release >= ev.time)):  # they overlap in time
+                joined.append(c)
         if joined:
-            contact = min(joined, key=lambda c: c.id)  # the oldest, as in the order of onsets
+            # one contact: the oldest, or the one already reported provisionally; a contact
+            # with a provisional answer out is not merged into another (its final must follow)
+            contact = min(joined, key=lambda c: (c.snapshots == 0, c.id))
+            for other in joined:
+                if other is not contact and other.snapshots == 0:
+                    self._merge(contact, other)
         else:
             contact = _OpenContact(self._next_id, ev.time)
             self._next_id += 1
@@ -241,6 +265,20 @@ class ContactTracker:
         contact.members[ev.taxel] = member
         self._owner[ev.taxel] = contact
         self._schedule(contact, ev.detected_at)
+
+    def _merge(self, into: _OpenContact, other: _OpenContact) -> None:
+        """Make ``other`` (open, no snapshot taken) part of ``into``; its queue entries go stale.
+
+        ``into`` keeps its snapshot instants; its decision is rescheduled by the caller.
+        """
+        del self._open[other.id]
+        for k, m in other.members.items():
+            if self._owner.get(k) is other:
+                self._owner[k] = into
+                into.members[k] = m
+            elif k not in into.members:  # touched again since, now another contact's
+                into.members[k] = m
+        into.first = min(into.first, other.first)
 
     def _schedule(self, contact: _OpenContact, now: float) -> None:
         """(Re)compute when a contact is decided and queue it; older queue entries go stale.
@@ -270,6 +308,7 @@ class ContactTracker:
             instant = when if at is None else min(when, at)
             if k != FINAL:
                 if when < contact.when:  # a snapshot after the final decision is not taken
+                    contact.snapshots += 1
                     done.append(self._cut(contact, instant, final=False))
                 continue
             if contact.when != when:
@@ -290,6 +329,21 @@ class ContactTracker:
             members.append(TaxelSamples(k, m.coarse, m.baseline, m.slope, m.release, end,
                                         h.t[idx], h.y[idx, k], h.ambient[idx]))
         return DecidedContact(contact.id, when, members, final)
+
+
+def join_window_for(sensor: object | None) -> float:
+    """Return the tracker's ``join_window`` for a sensor description (None: the paper's), s.
+
+    `JOIN_WINDOW`, stretched with the sensor's response time when it is slower than the
+    paper's, as the onset detector's time constants are: a slow sensor's contact departs
+    slowly and its coarse onsets scatter as much more (the low-cost preset's slow channel
+    dates one touch's taxels 0.55 s apart).
+    """
+    if sensor is None:
+        return JOIN_WINDOW
+    from skin.models.sensors import SensorDescription
+
+    return JOIN_WINDOW * max(1.0, sensor.response_time / SensorDescription().response_time)
 
 
 def refine_member(member: TaxelSamples, depth: np.ndarray, diffusivity: np.ndarray,
