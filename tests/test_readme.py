@@ -128,6 +128,7 @@ CI_SIZES = [
                                      "onset", "--methods", "svm-pca"]),
     (("skin", "bench", "object-prior"), ["--touches", "10"]),
     (("skin", "bench", "onset-shape"), ["--minutes", "1", "--taxels", "2"]),
+    (("skin", "bench", "tracking"), ["--pairs", "2"]),
 ]
 #: Lines not run, with the reason (hardware, a window, another machine, other extras).
 SKIPPED = {
