@@ -441,7 +441,7 @@ def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict
         if cols and _pins(pool):
             groups.append((np.array(cols), "board", pool))
     if not groups:
-        hold, rest = _hold_and_rest(sensors)
+        hold, rest = hold_and_rest(sensors)
         found = {}
         for tc in touches:
             found[tc.material] = found.get(tc.material, 0) + 1
@@ -462,7 +462,7 @@ def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict
     return out
 
 
-def _hold_and_rest(sensors: list) -> tuple[float, float]:
+def hold_and_rest(sensors: list) -> tuple[float, float]:
     """How long to hold each reference touch and to rest between them, s.
 
     The detector dates a touch some fraction of the sensor's half-response time late and
@@ -475,7 +475,7 @@ def _hold_and_rest(sensors: list) -> tuple[float, float]:
 
 def _left_out_said(left: dict, sensors: list) -> str:
     """Say why touches were left out, and what to record instead for each reason."""
-    rest = _hold_and_rest(sensors)[1]
+    rest = hold_and_rest(sensors)[1]
     said = {
         "unended": "never ended (the reading did not recover before the next touch or the "
                    f"end: rest {rest:.0f} s or more between touches and after the last, or "
@@ -570,7 +570,7 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
         return fit_responses(touches, layout, materials, sensors, room), counts
     touches, left = find_touches(times, temperature, layout, sensors, noise)
     if not touches and not any(left.values()):
-        hold, rest = _hold_and_rest(sensors)
+        hold, rest = hold_and_rest(sensors)
         raise CommissioningError(
             f"the recording cannot pin the sensor response: the onset detector found no "
             f"touch in it; record at least {MIN_TOUCHES} touches of at least {MIN_MATERIALS} "

@@ -65,11 +65,11 @@ def run(sensor: str = "paper", seed: int = 7, taxels: int = 8, touches: int = 6,
     from skin.formats.scene import parse_scene
     from skin.formats.touch_labels import TouchLabel
     from skin.models import load_materials
-    from skin.models.commission import _hold_and_rest, commission_response, described
+    from skin.models.commission import commission_response, described, hold_and_rest
     from skin.models.sensors import load_sensor
 
     preset = load_sensor(sensor)
-    advised = _hold_and_rest([preset])
+    advised = hold_and_rest([preset])
     hold = advised[0] if hold is None else hold
     rest = advised[1] if rest is None else rest
     scene = parse_scene(scene_text(preset.name, seed, taxels, touches, hold, rest, spread),
