@@ -76,6 +76,31 @@ def main(args: argparse.Namespace) -> int:
     say = (lambda line: None) if args.json else (lambda line: print(line, flush=True))
     say(f"subscribed to {prefix}/{robot}/{{{','.join(TOPICS)}}}")
     print("ready", file=sys.stderr, flush=True)  # for scripts waiting on the subscription
+    def take(key: str, data: bytes, arrived: float) -> None:
+        """Count, print and record one message."""
+        nonlocal samples, errors
+        topic = key.rsplit("/", 1)[-1]
+        try:
+            msg = decode_payload(data)
+        except ValueError as exc:
+            errors += 1
+            say(f"{key}: {exc}")
+            return
+        counts[topic] = counts.get(topic, 0) + 1
+        if topic == "temperature":
+            samples += msg["samples"]
+            if msg["host_time"]:
+                latency.append(arrived - msg["host_time"][-1])
+        elif topic == "contacts":
+            say(f"{msg['robot']}: {contact_line(msg)}")
+        elif topic == "health":
+            say(f"{msg['robot']}: health: frames {msg['frames']}  gaps {msg['gaps']}  "
+                f"late {msg.get('late', 0)}  "
+                f"contacts {msg['contacts']}  in contact {msg['in_contact']}")
+        if out is not None:
+            out.write(json.dumps(_record(msg, key)) + "\n")
+            out.flush()
+
     started = last = time.monotonic()
     try:
         while True:
@@ -89,32 +114,18 @@ def main(args: argparse.Namespace) -> int:
             except queue.Empty:
                 continue
             last = time.monotonic()
-            topic = key.rsplit("/", 1)[-1]
-            try:
-                msg = decode_payload(data)
-            except ValueError as exc:
-                errors += 1
-                say(f"{key}: {exc}")
-                continue
-            counts[topic] = counts.get(topic, 0) + 1
-            if topic == "temperature":
-                samples += msg["samples"]
-                if msg["host_time"]:
-                    latency.append(arrived - msg["host_time"][-1])
-            elif topic == "contacts":
-                say(f"{msg['robot']}: {contact_line(msg)}")
-            elif topic == "health":
-                say(f"{msg['robot']}: health: frames {msg['frames']}  gaps {msg['gaps']}  "
-                    f"late {msg.get('late', 0)}  "
-                    f"contacts {msg['contacts']}  in contact {msg['in_contact']}")
-            if out is not None:
-                out.write(json.dumps(_record(msg, key)) + "\n")
-                out.flush()
+            take(key, data, arrived)
     except KeyboardInterrupt:
         pass
     finally:
         for s in subs:
             s.undeclare()
+        # what arrived before the subscribers closed is kept, not dropped with the inbox
+        while True:
+            try:
+                take(*inbox.get_nowait())
+            except queue.Empty:
+                break
         session.close()
         if out is not None:
             out.close()
