@@ -171,7 +171,6 @@ class Skin:
 
     def _check_source(self) -> None:
         from skin.formats.layout import load_layout
-        from skin.formats.scene import load_scene
 
         s = self.setup
         self.scene: Any = None
@@ -181,10 +180,10 @@ class Skin:
             if s.firmware_sim:
                 from skin.drivers.firmware_board import firmware_scene
 
-                self.scene = firmware_scene(load_scene(s.scene))
+                self.scene = firmware_scene(self._load_scene())
                 self.layout = self.scene.layout
             else:
-                self.scene = load_scene(s.scene)
+                self.scene = self._load_scene()
                 self.layout = self.scene.layout if s.layout is None else load_layout(s.layout)
             from skin.drivers.sim import SkinSimulator
 
@@ -194,6 +193,9 @@ class Skin:
             return
         if s.firmware_sim:
             raise SkinError("--firmware-sim plays a scene to the emulated board: give no --port")
+        if s.seed is not None:
+            raise SkinError(f"--seed {s.seed} sets a simulated scene's seed: give no --port "
+                            "(a sim:// port runs its own scene)")
         if self.duration is None and not self.replay:
             self.duration = 20.0
         recorded_layout = None
@@ -214,6 +216,13 @@ class Skin:
             self.progress.message(f"replaying {self.url}: its layout ({len(self.layout)} "
                                   "taxels)" + ("" if self.recorded_cal is None or s.calibration
                                               else " and calibration"))
+
+    def _load_scene(self) -> Any:
+        """Load the setup's scene, with the setup's seed when it gives one."""
+        from skin.formats.scene import load_scene
+
+        scene = load_scene(self.setup.scene)
+        return scene if self.setup.seed is None else replace(scene, seed=self.setup.seed)
 
     def _check_calibration(self) -> None:
         s = self.setup

@@ -26,8 +26,8 @@ contact on stderr); any other entry ending in ``.jsonl`` is a JSON-lines file of
 
 
 GROUPS: dict[str, tuple[str, ...]] = {
-    "source": ("port", "reconnect", "first_frame_timeout", "firmware_sim", "scene", "duration",
-               "speed", "contact"),
+    "source": ("port", "reconnect", "first_frame_timeout", "firmware_sim", "scene", "seed",
+               "duration", "speed", "contact"),
     "skin": ("layout", "calibration", "workers"),
     "classifier": ("model", "classifier", "threshold", "expect", "window", "provisional",
                    "object_temperature_range"),
@@ -67,6 +67,9 @@ class Setup:
         Play the scene to the compiled firmware in simavr (no ``port``).
     scene : str
         Simulation scene: a shipped name or a TOML file.
+    seed : int or None
+        The simulation's seed in place of the scene's own (None: the scene's): the same
+        touches with other noise, starting temperatures and taxel units.
     layout : str or None
         Layout file or shipped name (default: the scene's, the recording's, or ``arm``).
     duration : float or None
@@ -138,6 +141,7 @@ class Setup:
     first_frame_timeout: float = 5.0
     firmware_sim: bool = False
     scene: str = "default"
+    seed: int | None = None
     layout: str | None = None
     duration: float | None = None
     speed: float = 1.0
@@ -269,6 +273,19 @@ def _optional_positive(value: Any) -> float | None:
     return None if value is None else _positive(value)
 
 
+def _optional_seed(value: Any) -> int | None:
+    if value is None:
+        return None
+    if isinstance(value, str):  # the command line's "8"
+        try:
+            value = int(value)
+        except ValueError:
+            raise ValueError(f"must be a whole number, got {value!r}") from None
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise ValueError(f"must be a whole number of at least 0, got {value!r}")
+    return value
+
+
 def _numbers(value: Any) -> list[float]:
     if isinstance(value, str):  # the command line's "0.5,1"
         try:
@@ -324,6 +341,7 @@ _CHECKS: dict[str, Callable[[Any], Any]] = {
     "first_frame_timeout": _positive,
     "firmware_sim": _flag,
     "scene": _text,
+    "seed": _optional_seed,
     "layout": _optional_text,
     "duration": _optional_positive,
     "speed": _non_negative,

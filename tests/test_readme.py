@@ -129,6 +129,7 @@ CI_SIZES = [
     (("skin", "bench", "object-prior"), ["--touches", "10"]),
     (("skin", "bench", "onset-shape"), ["--minutes", "1", "--taxels", "2"]),
     (("skin", "bench", "tracking"), ["--pairs", "2"]),
+    (("skin", "bench", "scene"), ["--seeds", "7", "--duration", "6"]),
 ]
 #: Lines not run, with the reason (hardware, a window, another machine, other extras).
 SKIPPED = {

@@ -74,6 +74,7 @@ from skin.commands import (
     bench_drivers,
     bench_map,
     bench_onset_shape,
+    bench_scene,
     bench_tracking,
     bench_view,
 )
@@ -228,6 +229,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     bench_map.add_parsers(kinds)
     bench_onset_shape.add_parsers(kinds)
     bench_tracking.add_parsers(kinds)
+    bench_scene.add_parsers(kinds)
 
 
 def main_object_prior(args: argparse.Namespace) -> int:

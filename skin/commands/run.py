@@ -53,6 +53,9 @@ def add_setup_options(run: argparse.ArgumentParser) -> None:
                           "`make -C firmware all harness`")
     run.add_argument("--scene",
                      help="simulation scene: a shipped name or a TOML file (default: default)")
+    run.add_argument("--seed", type=int,
+                     help="the simulation's seed in place of the scene's: the same touches "
+                          "with other noise, starting temperatures and taxel units")
     run.add_argument("--layout", help="layout TOML file (default: the scene's, or 'arm')")
     run.add_argument("--duration", type=float,
                      help="seconds to run (default: the scene's duration; 20 for a device)")

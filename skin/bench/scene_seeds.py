@@ -1,0 +1,120 @@
+"""One scene over many seeds: how `skin run` names its touches when only the noise changes.
+
+`skin run` on the default scene is the library's demo; one seed is one draw of the noise, the
+taxels' starting temperatures and their units, so its count of contacts named right is one
+sample. `run` plays a scene once per seed through `skin.Skin` (as `skin run --seed N
+--speed 0`, nothing written) and reports, per seed and over all of them: touches detected,
+named right at material and at family level, "unknown", wrong, wrong at p >= 0.9 and false
+contacts; and every miss, grouped by what the touch was and what it was called, with the
+effusivity ratio of the two materials (a pair a few per cent apart, such as aluminium and
+steel, is one the reading cannot separate) and the touch's taxels and duration.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+#: An answer at or above this probability is a confident one.
+SURE = 0.9
+
+
+def play(scene: str, seed: int, duration: float | None = None) -> dict[str, Any]:
+    """Run ``scene`` with ``seed`` through `skin.Skin`; return its figures and its misses."""
+    import io
+
+    from skin.progress import Progress
+    from skin.runner import Skin
+
+    started, cpu = time.monotonic(), time.process_time()
+    quiet = Progress(io.StringIO())  # the run's own status lines; the bench shows its bar
+    with Skin(scene=scene, seed=seed, speed=0.0, duration=duration, out=None, map=False,
+              sinks=[], progress=quiet) as skin:
+        summary = skin.run()
+        table = skin.materials
+    finals = [r for r in skin.records if r["final"]]
+    touches = {(tuple(t["taxels"]), t["start"]): t for t in summary["per_touch"]}
+    misses, wrong, unknown, sure_wrong = [], 0, 0, 0
+    for rec in finals:
+        truth = rec.get("truth")
+        if truth is None or rec["label"] == truth:
+            continue
+        if rec["label"] == "unknown":
+            unknown += 1
+        else:
+            wrong += 1
+            sure_wrong += rec["confidence"] >= SURE
+        probs = rec.get("probabilities") or {}
+        best = max(probs, key=probs.get) if probs else None
+        misses.append({
+            "truth": truth, "label": rec["label"], "best": best,
+            "confidence": rec["confidence"], "family": rec.get("family"),
+            "family_right": rec.get("family") == table[truth].family,
+            "effusivity_ratio": (None if best is None or best == truth else
+                                 round(table[best].effusivity / table[truth].effusivity, 3)),
+            "taxels": len(rec["taxels"]), "duration": rec["duration"],
+            "onset": rec["onset"]})
+    return {"seed": seed, "touches": summary["touches"], "detected": summary["detected"],
+            "material": summary["correct"], "family": summary["family_correct"],
+            "unknown": unknown, "wrong": wrong, "sure_wrong": sure_wrong,
+            "false_contacts": summary["false_contacts"], "misses": misses,
+            "n_touches": len(touches), "wall_s": round(time.monotonic() - started, 2),
+            "cpu_s": round(time.process_time() - cpu, 2)}
+
+
+def _median(values: list) -> float | None:
+    """Median of the values that are not None (an open contact has no duration), or None."""
+    known = [v for v in values if v is not None]
+    return round(float(np.median(known)), 2) if known else None
+
+
+def run(scene: str = "default", seeds: Sequence[int] = tuple(range(10)),
+        duration: float | None = None,
+        progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+    """Play ``scene`` once per seed; return the runs and the figures over all of them.
+
+    Returns
+    -------
+    dict
+        ``runs`` (one `play` each), ``totals`` (sums over the runs and the share of runs
+        reaching each count of touches named right) and ``pairs`` (the misses grouped by
+        truth and answer: count, median confidence, effusivity ratio, median duration and
+        taxels of the touches).
+    """
+    runs = []
+    for i, seed in enumerate(seeds):
+        runs.append(play(scene, int(seed), duration))
+        if progress is not None:
+            progress(i + 1, len(seeds))
+    keys = ("touches", "detected", "material", "family", "unknown", "wrong", "sure_wrong",
+            "false_contacts")
+    totals: dict[str, Any] = {k: int(sum(r[k] for r in runs)) for k in keys}
+    material = np.array([r["material"] for r in runs])
+    family = np.array([r["family"] for r in runs])
+    totals["runs"] = len(runs)
+    totals["material_per_run"] = {"mean": round(float(material.mean()), 2),
+                                  "min": int(material.min()), "max": int(material.max())}
+    totals["family_per_run"] = {"mean": round(float(family.mean()), 2),
+                                "min": int(family.min()), "max": int(family.max())}
+    totals["runs_material_at_least"] = {int(k): int((material >= k).sum())
+                                        for k in sorted(set(material.tolist()))}
+    groups: dict[tuple[str, str], list[dict]] = {}
+    for r in runs:
+        for m in r["misses"]:
+            groups.setdefault((m["truth"], m["label"]), []).append(m)
+    pairs = [{"truth": t, "label": lab, "count": len(ms),
+              "median_confidence": round(float(np.median([m["confidence"] for m in ms])), 3),
+              "best": max({m["best"] for m in ms if m["best"]} or {""},
+                          key=lambda b: sum(m["best"] == b for m in ms)),
+              "effusivity_ratio": next((m["effusivity_ratio"] for m in ms
+                                        if m["effusivity_ratio"] is not None), None),
+              "family_right": int(sum(m["family_right"] for m in ms)),
+              "median_duration": _median([m["duration"] for m in ms]),
+              "one_taxel": int(sum(m["taxels"] == 1 for m in ms))}
+             for (t, lab), ms in groups.items()]
+    pairs.sort(key=lambda p: -p["count"])
+    return {"scene": scene, "seeds": [int(s) for s in seeds], "runs": runs, "totals": totals,
+            "pairs": pairs}

@@ -1,0 +1,92 @@
+"""``skin bench scene``: one scene over many seeds, as `skin run` names its touches.
+
+The measurement is `skin.bench.scene_seeds.run` (loaded only when run).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+_COLUMNS = ("touches", "detected", "material", "family", "unknown", "wrong", "sure_wrong",
+            "false_contacts")
+
+
+def add_parsers(kinds: argparse._SubParsersAction) -> None:
+    """Register ``skin bench scene``."""
+    scene = kinds.add_parser("scene", help="a scene run once per seed (skin run --seed N): "
+                             "touches named right, and every miss grouped by what it was")
+    scene.add_argument("--scene", default="default",
+                       help="a shipped scene name or a TOML file (default)")
+    scene.add_argument("--seeds", default="0-9",
+                       help="seeds: a range 0-9 or a list 3,7,11 (0-9)")
+    scene.add_argument("--duration", type=float, default=None,
+                       help="seconds of each run (default: the scene's)")
+    scene.add_argument("--json", action="store_true", help="print one JSON document")
+    scene.set_defaults(func=main)
+
+
+def parse_seeds(text: str) -> list[int]:
+    """Seeds from ``"0-9"`` (inclusive) or ``"3,7,11"``; SkinError naming the text otherwise."""
+    from skin.errors import SkinError
+
+    seeds: list[int] = []
+    try:
+        for part in (p.strip() for p in text.split(",")):
+            if not part:
+                continue
+            lo, sep, hi = part.partition("-")
+            seeds += list(range(int(lo), int(hi) + 1)) if sep else [int(lo)]
+    except ValueError:
+        raise SkinError(f"--seeds must be a range like 0-9 or integers like 3,7,11, got "
+                        f"{text!r}") from None
+    if not seeds or min(seeds) < 0:
+        raise SkinError(f"--seeds {text!r}: give at least one seed, none negative")
+    return seeds
+
+
+def main(args: argparse.Namespace) -> int:
+    """Run `skin.bench.scene_seeds.run` and print its figures (or JSON)."""
+    import json
+    import time
+
+    from skin.bench import machine
+    from skin.bench.scene_seeds import SURE, run
+    from skin.errors import SkinError
+    from skin.formats.scene import load_scene
+    from skin.progress import Progress
+
+    seeds = parse_seeds(args.seeds)
+    if args.duration is not None and args.duration <= 0:
+        raise SkinError(f"--duration must be positive, got {args.duration}")
+    load_scene(args.scene)  # a missing or bad scene is named before the work
+    progress = Progress()
+    started = time.monotonic()
+    out = run(args.scene, seeds, args.duration,
+              progress=lambda d, n: progress.bar(d, n, "runs", started))
+    progress.done()
+    if args.json:
+        print(json.dumps({"machine": machine(), **out,
+                          "wall_time": round(time.monotonic() - started, 2)}))
+        return 0
+    print(f"scene {args.scene}, {len(seeds)} seeds; sure_wrong = wrong at p >= {SURE:g}")
+    print(f"{'seed':>5} " + " ".join(f"{c:>{len(c)}}" for c in _COLUMNS) + "  cpu_s")
+    for r in out["runs"]:
+        print(f"{r['seed']:>5} " + " ".join(f"{r[c]:>{len(c)}}" for c in _COLUMNS)
+              + f"  {r['cpu_s']:>5.1f}")
+    t = out["totals"]
+    print(f"{'all':>5} " + " ".join(f"{t[c]:>{len(c)}}" for c in _COLUMNS))
+    m, f = t["material_per_run"], t["family_per_run"]
+    print(f"\nnamed right per run: material {m['mean']} (min {m['min']}, max {m['max']}), "
+          f"family {f['mean']} (min {f['min']}, max {f['max']}) of {t['touches'] // t['runs']}")
+    print("runs with at least k right at material level: "
+          + ", ".join(f"{k}: {n}" for k, n in t["runs_material_at_least"].items()))
+    if out["pairs"]:
+        print(f"\n{'truth':<12} {'called':<12} {'count':>5} {'median p':>8} {'best':<12} "
+              f"{'e ratio':>7} {'family ok':>9} {'median s':>8} {'1 taxel':>7}")
+        for p in out["pairs"]:
+            ratio = "-" if p["effusivity_ratio"] is None else f"{p['effusivity_ratio']:.3f}"
+            dur = "-" if p["median_duration"] is None else f"{p['median_duration']:.2f}"
+            print(f"{p['truth']:<12} {p['label']:<12} {p['count']:>5} "
+                  f"{p['median_confidence']:>8.2f} {p['best']:<12} {ratio:>7} "
+                  f"{p['family_right']:>9} {dur:>8} {p['one_taxel']:>7}")
+    return 0
