@@ -187,8 +187,11 @@ def test_evaluate_onset_per_sensor_reports_the_issue_figures(capsys):
                  "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     for key in ("detected_5sigma", "false_alarms_per_taxel_hour", "delay_floor_ratio_median",
-                "refined_onset_error_ms_median", "contacts_5sigma"):
+                "refined_onset_error_ms_median", "contacts_5sigma", "bound_floor_ratio_median",
+                "delay_bound_ratio_median"):
         assert key in doc
+    # no detector reacts before the information bound: the delay is at least the bound
+    assert doc["delay_bound_ratio_median"] >= 1.0
     assert doc["sensor"] == "fast-film" and 0 <= doc["detected_5sigma"] <= 1
     assert "delay_s" not in doc and "detected_flags" not in doc
     assert main(["evaluate-onset", "--sensor", "nonesuch", "--minutes", "1"]) == 2
@@ -211,3 +214,36 @@ def test_a_faster_sensor_body_raises_the_disturbance_floors():
     thick = dataclasses.replace(paper, thickness=paper.thickness * 2)  # slower: never lower
     assert OnsetDetector(1, sensor=thick).threshold[0] >= DISTURBANCE["threshold"] * \
         thick.heated_rise
+
+
+def test_the_delay_bound_is_lordens_for_a_step_and_later_for_less_noise_never():
+    """ln ARL nats of information: for a step of A in noise sigma, 2 sigma^2 ln ARL / A^2."""
+    from skin.bench.streams import delay_bound
+
+    fs, sigma, a = 200.0, 0.03, 0.05
+    when = np.arange(1, 2001) / fs
+    need = np.log(fs * 3600.0 / 0.1) * 2.0 * sigma**2 / a**2  # samples
+    assert delay_bound(np.full(when.size, a), when, sigma, fs) == pytest.approx(
+        np.ceil(need) / fs)
+    # a fewer false alarms allowed wait longer; less noise or a larger step, sooner
+    base = delay_bound(np.full(when.size, a), when, sigma, fs)
+    assert delay_bound(np.full(when.size, a), when, sigma, fs, false_alarms=0.01) > base
+    assert delay_bound(np.full(when.size, a), when, sigma / 2, fs) < base
+    ramp = a * when / when[-1]  # a ramp gives its information later than the step
+    assert delay_bound(ramp, when, sigma, fs) > base
+    assert delay_bound(np.full(5, a), when[:5], sigma, fs) == np.inf  # too short: never
+    assert delay_bound(np.zeros(when.size), when, sigma, fs) == np.inf  # no change
+    with pytest.raises(ValueError):
+        delay_bound(ramp, when, 0.0, fs)
+
+
+def test_every_sensor_contact_has_a_delay_bound_from_its_onset_on():
+    from skin.bench.streams import simulate_stream
+    from skin.models import load_materials
+
+    for preset in ("paper", "fast-film"):
+        st = simulate_stream(list(load_materials().values())[:4], n_taxels=4, duration=120.0,
+                             seed=2, sensor=preset, contacts_per_minute=3.0)
+        assert any(np.isfinite(c.bound_after) for c in st.contacts)
+        for c in st.contacts:
+            assert c.bound_after >= 0.0

@@ -54,6 +54,9 @@ from skin.models.trials import adc_readings
 
 #: A change of the reading that stands out of its noise (about 3 x 0.5 LSB at 39 C), K.
 VISIBLE = 0.1
+#: The false-alarm rate at which `StreamContact.bound_after` is set, per taxel-hour (issue 16's
+#: target).
+BOUND_FALSE_ALARMS = 0.1
 #: How much a gust cools a taxel's face, K (drawn uniformly per gust).
 GUST_DEPTH = (0.05, 0.4)
 
@@ -85,6 +88,14 @@ class StreamContact:
     five_sigma_after : float
         With a sensor description: when the contact's own change first reaches 5 of the
         sensor's noise sigmas, s after onset (``inf`` if never during the contact).
+    bound_after : float
+        With a sensor description: the earliest any detector can react to the contact at
+        `BOUND_FALSE_ALARMS` false alarms per taxel-hour, s after onset (``inf`` if not during
+        the contact). It is when the contact's own change has given ``ln ARL`` of
+        Kullback-Leibler information (ARL: samples per false alarm), the sum of its squares
+        over twice the variance of the sensor's raw, unsmoothed noise: Lorden's lower bound
+        on the delay of change detection. A detector told the onset instant and the exact
+        shape, in white noise without gusts, nears it; none beats it.
 
     With a sensor description (`simulate_stream`'s ``sensor``), ``visible_after``,
     ``peak_change`` and ``five_sigma_after`` are measured on the contact's own part of the
@@ -103,6 +114,7 @@ class StreamContact:
     visible_after: float = float("inf")
     peak_change: float = 0.0
     five_sigma_after: float = float("inf")
+    bound_after: float = float("inf")
 
     @property
     def duration(self) -> float:
@@ -243,7 +255,8 @@ def _sensor_stream(materials: Sequence[Material], n_taxels: int, duration: float
         return Stream(np.zeros(0), np.zeros((0, n_taxels)), np.zeros(0), [], fs)
     (part,) = parts
     reading = apply_dynamics(part.temperature, sensor, fs, axis=0)  # noise-free still
-    sigma = sensor.noise_kelvin(ambient + sensor.heated_rise) * sensor.smoothing_noise_factor()
+    raw = sensor.noise_kelvin(ambient + sensor.heated_rise)
+    sigma = raw * sensor.smoothing_noise_factor()
     truth = []
     for c in part.contacts:
         k0, k1 = int(np.ceil(c.onset * fs)), min(int(np.ceil(c.release * fs)), len(reading))
@@ -257,13 +270,44 @@ def _sensor_stream(materials: Sequence[Material], n_taxels: int, duration: float
         truth.append(replace(c, sensor_temperature=t0,
                              visible_after=_first_at(moved, when, 3.0 * sigma),
                              peak_change=float(moved.max()) if moved.size else 0.0,
-                             five_sigma_after=_first_at(moved, when, 5.0 * sigma)))
+                             five_sigma_after=_first_at(moved, when, 5.0 * sigma),
+                             bound_after=delay_bound(moved, when, raw, fs)))
     if sensor.noise > 0:
         reading = reading + rng.normal(0.0, sensor.noise, reading.shape)
     temperature = smooth(adc_readings(reading, rng, sensor.adc_noise, sensor.adc_bits),
                          sensor, axis=0, fs=fs)
     truth.sort(key=lambda c: (c.onset, c.taxel))
     return Stream(part.times, temperature, part.ambient, truth, fs, part.gusts, part.switches)
+
+
+def delay_bound(moved: np.ndarray, when: np.ndarray, sigma: float, fs: float,
+                false_alarms: float = BOUND_FALSE_ALARMS) -> float:
+    """Return Lorden's lower bound on the delay of detecting a change, s after it began.
+
+    A detector that raises ``false_alarms`` per hour on white Gaussian noise of ``sigma`` (K)
+    sampled at ``fs`` (Hz) waits on average ``ARL = fs 3600 / false_alarms`` samples between
+    false alarms, and cannot react to a change of the mean before the change has given
+    ``ln ARL`` nats of Kullback-Leibler information: ``sum(moved**2) / (2 sigma**2)`` over the
+    samples since it began (Lorden 1971; Lai 1998 for changes that are not constant). Known
+    onset and shape make it reachable at best; ``inf`` if ``moved`` never gives enough.
+
+    Parameters
+    ----------
+    moved : numpy.ndarray
+        The change of the noise-free reading at each sample since the change began, K.
+    when : numpy.ndarray
+        Those samples' times since it began, s.
+    sigma : float
+        The raw (unsmoothed) noise of a sample, K.
+    fs : float
+        Sampling rate, Hz.
+    false_alarms : float
+        False alarms per hour allowed.
+    """
+    if not (sigma > 0 and fs > 0 and false_alarms > 0):
+        raise ValueError("sigma, fs and false_alarms must be positive")
+    information = np.cumsum(np.asarray(moved, dtype=float) ** 2) / (2.0 * sigma**2)
+    return _first_at(information, when, float(np.log(fs * 3600.0 / false_alarms)))
 
 
 def _first_at(moved: np.ndarray, when: np.ndarray, level: float) -> float:

@@ -115,6 +115,12 @@ def _sensor_figures(contacts: list, flags: list, delays: list, errors: list, det
     ratio = [delays[k] / contacts[k].visible_after for k in range(len(contacts))
              if flags[k] and np.isfinite(contacts[k].visible_after)
              and contacts[k].visible_after > 0]
+    # Lorden's bound at the false-alarm target against the floor, and the delay against the
+    # bound, over the same detected contacts as the delay against the floor
+    both = [k for k, c in enumerate(contacts) if flags[k] and np.isfinite(c.visible_after)
+            and c.visible_after > 0 and np.isfinite(c.bound_after) and c.bound_after > 0]
+    bound = [contacts[k].bound_after / contacts[k].visible_after for k in both]
+    over = [delays[k] / contacts[k].bound_after for k in both]
     err = np.abs([errors[k] for k in range(len(contacts)) if flags[k]])
     floor = np.array([c.visible_after for c in contacts if np.isfinite(c.visible_after)])
     return {"sensor": detector.sensor.name, "noise_sigma_k": round(sigma, 5),
@@ -122,6 +128,8 @@ def _sensor_figures(contacts: list, flags: list, delays: list, errors: list, det
             "detected_5sigma": round(sum(flags[k] for k in big) / max(len(big), 1), 4),
             "delay_floor_ratio_median": round(float(np.median(ratio)), 3) if ratio else None,
             "floor_ms_median": round(1e3 * float(np.median(floor)), 1) if floor.size else None,
+            "bound_floor_ratio_median": round(float(np.median(bound)), 3) if bound else None,
+            "delay_bound_ratio_median": round(float(np.median(over)), 3) if over else None,
             "refined_onset_error_ms_median": (round(1e3 * float(np.median(err)), 1)
                                               if err.size else None)}
 
@@ -266,6 +274,11 @@ def main(args: argparse.Namespace) -> int:
               f"the reading > 5 sigma; delay / floor median {doc['delay_floor_ratio_median']} "
               f"(floor median {doc['floor_ms_median']} ms); refined onset error median "
               f"{doc['refined_onset_error_ms_median']} ms")
+        from skin.bench.streams import BOUND_FALSE_ALARMS
+
+        print(f"  the earliest any detector can react at {BOUND_FALSE_ALARMS:g} false alarms per "
+              f"taxel-hour (Lorden's bound) / floor median {doc['bound_floor_ratio_median']}; "
+              f"delay / that bound median {doc['delay_bound_ratio_median']}")
     if "beyond_gusts" in doc:
         b = doc["beyond_gusts"]
         print(f"of the {b['contacts']} contacts >= {args.min_duration:g} s that move the reading "
