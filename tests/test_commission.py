@@ -127,33 +127,59 @@ def test_evaluate_onset_commissioned_on_another_unit(capsys):
     assert "not with --data" in capsys.readouterr().err
 
 
+#: Taxels the reference-touch tests touch: the shipped scene's first board rings (the
+#: fitting's cost grows with the taxels; the shipped scene touches all 72).
+REFERENCE_TAXELS = 16
+
+
+def _reference_scene(path=None):
+    """The shipped reference-touches scene with its touches on `REFERENCE_TAXELS` taxels.
+
+    The same unit (seed, spread: each taxel's constants as in the shipped scene), the same
+    touches and times. Written to ``path`` when given; returns the parsed scene.
+    """
+    import re
+    from importlib.resources import files
+
+    from skin.formats.scene import parse_scene
+
+    text = (files("skin") / "data" / "scenes" / "reference-touches.toml").read_text()
+    text = re.sub(r"^taxels = \[[0-9, ]+\]$", f"taxels = {list(range(REFERENCE_TAXELS))}",
+                  text, flags=re.M)
+    if path is not None:
+        path.write_text(text)
+    return parse_scene(text, "reference-touches-16.toml")
+
+
 def test_skin_commission_fits_each_taxels_response_from_reference_touches(tmp_path, capsys):
-    """Every taxel of the shipped scene gets its own fit, closer to the truth than nominal.
+    """Every taxel touched gets its own fit, closer to the truth than nominal.
 
     Through sim:// (10-bit ADC) with onsets detected by the pipeline: measured response-time
-    error median 0.129 nominal -> 0.009 fitted (seed 7, the scene's)."""
+    error median 0.129 nominal -> 0.009 fitted over the shipped scene's 72 taxels (seed 7,
+    the scene's)."""
     from skin.drivers.sim import SkinSimulator
-    from skin.formats.scene import load_scene
 
-    cal = tmp_path / "cal.json"
-    assert skin_main(["commission", "--port", "sim://reference-touches?speed=0", "--touches",
+    cal, path = tmp_path / "cal.json", tmp_path / "ref.toml"
+    scene = _reference_scene(path)
+    assert skin_main(["commission", "--port", f"sim://{path}?speed=0", "--touches",
                       "aluminium,pine", "-o", str(cal), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert doc["fitted"] == doc["per_taxel"] == 72 and doc["detected"] >= 72 * 6
+    n = REFERENCE_TAXELS
+    assert doc["fitted"] == doc["per_taxel"] == n and doc["detected"] >= n * 6
     assert doc["ambiguous"] == 0 and abs(doc["room_c"] - 25.0) < 0.05
     entry = json.loads(cal.read_text())["taxels"]["0"]
     assert entry["thermal_scope"] == "taxel" and entry["thermal_contacts"] == 6
     assert "pine" in json.loads(cal.read_text())["references"]["thermal"]
-    scene = load_scene("reference-touches")
     truth = SkinSimulator(scene).taxel_sensor
     _, fitted = load_calibration(cal).apply(scene.layout)
-    want = truth.depth**2 / truth.diffusivity
+    fitted = fitted[:n]
+    want = truth.depth[:n] ** 2 / truth.diffusivity[:n]
     got = np.array([s.depth**2 / s.diffusivity for s in fitted])
     s0 = CalibrationFile().apply(scene.layout)[1][0]
     nominal = np.median(np.abs(s0.depth**2 / s0.diffusivity / want - 1))
     assert np.median(np.abs(got / want - 1)) < min(0.03, 0.25 * nominal)
     eff = np.array([s.effusivity for s in fitted])
-    assert np.median(np.abs(eff / truth.effusivity - 1)) < 0.02
+    assert np.median(np.abs(eff / truth.effusivity[:n] - 1)) < 0.02
 
 
 def test_soft_reference_touches_are_dated_and_fitted():
@@ -163,11 +189,11 @@ def test_soft_reference_touches_are_dated_and_fitted():
     through sim:// with the ADC, seed 11: 0.098 -> 0.059). Soft contacts pin the response
     less well than firm ones (0.129 -> 0.002)."""
     from skin.drivers.sim import SkinSimulator
-    from skin.formats.scene import load_scene
     from skin.models import load_materials
     from skin.models.commission import commission_response
 
-    scene = load_scene("reference-touches")
+    scene = _reference_scene()
+    n = REFERENCE_TAXELS
     sim = SkinSimulator(scene, contact="finite")
     y = sim.temperatures()
     y = y + np.random.default_rng(0).normal(0.0, 0.02, y.shape)
@@ -175,10 +201,10 @@ def test_soft_reference_touches_are_dated_and_fitted():
     _, sensors = CalibrationFile().apply(scene.layout)
     mats = {m: load_materials()[m] for m in ("aluminium", "pine")}
     fits, counts = commission_response(t, y, scene.layout, mats, sensors, scene.ambient)
-    assert counts["detected"] >= 72 * 6 - 8 and sum(len(f.columns) for f in fits) >= 68
+    assert counts["detected"] >= n * 6 - 2 and sum(len(f.columns) for f in fits) >= n - 1
     truth = sim.taxel_sensor
     want = truth.depth**2 / truth.diffusivity
-    got = np.full(72, np.nan)
+    got = np.full(len(scene.layout), np.nan)
     for f in fits:
         got[f.columns] = f.fit.sensor.depth**2 / f.fit.sensor.diffusivity
     ok = np.isfinite(got)
