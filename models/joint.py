@@ -36,6 +36,9 @@ from skin.models.materials import Material
 from skin.models.physics import SensorConstants, conductance_rate, contact_response
 from skin.models.sensors import SensorDescription, contact_basis, has_dynamics
 
+#: How many (sensor, lags) bases of foreign sensors a model keeps (about 1 MB each).
+BASIS_CACHE = 32
+
 
 class JointContactModel:
     """Material evidence of one contact from all its taxels, the object's temperature shared.
@@ -95,6 +98,7 @@ class JointContactModel:
                           else conductance_range for m in self.materials])
         # (n_classes, h_points): each material's contact conductances, log-spaced
         self.conductance = 10.0 ** np.linspace(lo_hi[:, 0], lo_hi[:, 1], h_points, axis=1)
+        self._basis_cache: dict = {}  # (sensor, lags) -> contact_basis, oldest first
 
     def log_evidence(self, t: np.ndarray, temperature: np.ndarray, t_sensor: np.ndarray,
                      ambient: float, sensors: Sequence[SensorConstants] | None = None,
@@ -159,6 +163,22 @@ class JointContactModel:
         log_ev, mean = self._posterior(t, temperature, t_sensor, ambient, sensors)
         i = self.classes.index(material)
         return float(mean[i, np.argmax(log_ev[i])])
+
+    def _basis(self, lags: np.ndarray, sensor: SensorDescription,
+               ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """`contact_basis` of every material and conductance at ``lags``, the last few kept.
+
+        A skin's contacts come back to the same taxels with windows of the same length, and a
+        foreign sensor's basis costs some ms (filters over its own sample grid).
+        """
+        key = (sensor, lags.tobytes())
+        hit = self._basis_cache.pop(key, None)
+        if hit is None:
+            hit = contact_basis(lags, self.effusivity[:, None], self.conductance, sensor)
+            if len(self._basis_cache) >= BASIS_CACHE:
+                self._basis_cache.pop(next(iter(self._basis_cache)))
+        self._basis_cache[key] = hit  # most recent last
+        return hit
 
     def _posterior(self, t: np.ndarray, temperature: np.ndarray, t_sensor: np.ndarray,
                    ambient: float, sensors: Sequence[SensorConstants] | None,
@@ -228,7 +248,7 @@ class JointContactModel:
                 pp[..., group] = cross(r, r)[..., None]
                 dp[..., group] = with_data(r, dg)
                 continue
-            r, q, a = contact_basis(lags, e_o[..., 0], self.conductance, sensor)
+            r, q, a = self._basis(lags, sensor)
             g0 = t0[group]  # from ambient
             pp[..., group] = cross(r, r)[..., None]
             ep = with_data(r, dg)

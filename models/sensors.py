@@ -432,10 +432,11 @@ def contact_basis(lags: np.ndarray, e_object: np.ndarray | float,
     pre = sensor.smoothing_window + 1 if savgol else 1
     post = sensor.smoothing_window + 1 if savgol else 1
     top = max(int(np.ceil(max(float(lags.max(initial=0.0)), 0.0) * fs)), 1) + post
-    tk = np.arange(-pre, top + 1) / fs
-    e = np.asarray(e_object, dtype=float)[..., None]
-    h = np.asarray(conductance, dtype=float)[..., None]
-    p = contact_trace(tk, 0.0, 1.0, e, sensor, h)
+    # time on the first axis: the filters then run over contiguous rows
+    tk = (np.arange(-pre, top + 1) / fs).reshape(-1, *(1,) * len(np.broadcast_shapes(
+        np.shape(e_object), np.shape(conductance))))
+    e = np.asarray(e_object, dtype=float)
+    p = contact_trace(tk, 0.0, 1.0, e, sensor, np.asarray(conductance, dtype=float))
     parts: list[np.ndarray | None] = [p, None, None]
     if sensor.heater == "off-at-contact":
         parts[1] = np.asarray(heater_term(tk, 0.0, e, sensor, ambient=1.0, response=p))
@@ -447,8 +448,9 @@ def contact_basis(lags: np.ndarray, e_object: np.ndarray | float,
     out = []
     for x in parts:
         if x is not None:
-            x = smooth(apply_dynamics(x, sensor, fs, axis=-1), sensor, axis=-1, fs=fs)
-            x = x[..., i0] * (1.0 - w) + x[..., i0 + 1] * w
+            x = smooth(apply_dynamics(x, sensor, fs, axis=0), sensor, axis=0, fs=fs)
+            x = np.moveaxis(x[i0] * (1.0 - w).reshape(-1, *(1,) * (x.ndim - 1))
+                            + x[i0 + 1] * w.reshape(-1, *(1,) * (x.ndim - 1)), 0, -1)
         out.append(x)
     return out[0], out[1], out[2]
 
