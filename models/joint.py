@@ -393,7 +393,9 @@ class JointClassifier:
         Sampling rate of the common grid, Hz.
     sensors : dict, optional
         Taxel id -> calibrated `SensorConstants` (`skin.formats.calibration_file`); taxels not in it
-        use their board's constants.
+        use their board's constants. Each taxel is read as its board's sensor description
+        reads (`skin.models.sensors.SensorDescription.from_board`: heater mode, PID loop, lag,
+        smoothing), with the calibrated depth, diffusivity and conductivity.
     object_prior : str
         ``"learned"`` (default): the prior on the object's temperature is learned from this
         run's contacts of two or more taxels (`ObjectTemperaturePrior`), so that one-taxel

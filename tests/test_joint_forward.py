@@ -197,3 +197,19 @@ def test_classifier_reads_each_taxel_with_its_boards_description():
     assert (got.depth, got.diffusivity, got.conductivity) == (2.7e-5, 3e-9, 0.035)
     other = clf._sensors[int(layout.taxels[1].id)]
     assert other.name == "fast-film" and other.heater == "off-at-contact"
+
+
+def test_a_foreign_sensors_basis_is_kept_for_the_next_contact_and_bounded():
+    from skin.models import joint
+
+    s = load_sensor("fast-film")
+    model = JointContactModel([MATS["glass"], MATS["pine"]], onset_shifts=(0.0, 0.01))
+    t = np.arange(1, 101) / 200.0
+    y = np.full((1, t.size), 36.0)
+    first = model.log_evidence(t, y, np.array([38.0]), AMB, [s])
+    assert len(model._basis_cache) == 1
+    assert np.array_equal(model.log_evidence(t, y, np.array([38.0]), AMB, [s]), first)
+    assert len(model._basis_cache) == 1
+    for k in range(joint.BASIS_CACHE + 3):
+        model.log_evidence(t, y, np.array([38.0]), AMB, [s.with_body(depth=2e-5 + k * 1e-7)])
+    assert len(model._basis_cache) == joint.BASIS_CACHE
