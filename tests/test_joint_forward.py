@@ -213,3 +213,18 @@ def test_a_foreign_sensors_basis_is_kept_for_the_next_contact_and_bounded():
     for k in range(joint.BASIS_CACHE + 3):
         model.log_evidence(t, y, np.array([38.0]), AMB, [s.with_body(depth=2e-5 + k * 1e-7)])
     assert len(model._basis_cache) == joint.BASIS_CACHE
+
+
+def test_bench_forward_prints_both_reading_models_per_preset():
+    import json
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "skin", "bench", "forward", "--sensors",
+                          "paper,low-cost", "--durations", "0.5", "--trials", "1", "--json"],
+                         capture_output=True, text=True, check=True, timeout=300)
+    rows = json.loads(out.stdout)["rows"]
+    assert [r["sensor"] for r in rows] == ["paper", "low-cost"]
+    for r in rows:
+        assert r["contacts"] == 11 and 0 <= r["forward"] <= 1 and r["forward_ms"] > 0
+    assert rows[0]["paper_model"] == rows[0]["forward"]  # the same computation on the paper's
