@@ -449,8 +449,9 @@ def contact_basis(lags: np.ndarray, e_object: np.ndarray | float,
     for x in parts:
         if x is not None:
             x = smooth(apply_dynamics(x, sensor, fs, axis=0), sensor, axis=0, fs=fs)
-            x = np.moveaxis(x[i0] * (1.0 - w).reshape(-1, *(1,) * (x.ndim - 1))
-                            + x[i0 + 1] * w.reshape(-1, *(1,) * (x.ndim - 1)), 0, -1)
+            x = np.ascontiguousarray(np.moveaxis(
+                x[i0] * (1.0 - w).reshape(-1, *(1,) * (x.ndim - 1))
+                + x[i0 + 1] * w.reshape(-1, *(1,) * (x.ndim - 1)), 0, -1))
         out.append(x)
     return out[0], out[1], out[2]
 
