@@ -15,10 +15,18 @@ the material's range, the reading is linear in ``T_obj``, so with a Gaussian pri
 ``T_obj`` (around ambient) its marginal likelihood is closed form (Bayesian regression with
 one coefficient); the conductance is marginalised on a log grid, and the materials are
 compared by that evidence.
+
+A sensor other than the paper's (`skin.models.sensors.SensorDescription`: a heater switched
+off or left on at contact, a PID loop, a thermistor lag, smoothing) reads
+``T0 + (T_obj - T0) P + (T_amb - T0) Q + A`` (`skin.models.sensors.contact_basis`): its
+filters are linear and time-invariant, so the reading stays linear in ``T_obj``, and the
+heater's terms ``Q`` and ``A`` do not depend on it; they are subtracted as an offset per
+material and conductance, and the evidence keeps its closed form.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 
 import numpy as np
@@ -26,6 +34,10 @@ import numpy as np
 from skin.contact import UNKNOWN, MaterialEstimate
 from skin.models.materials import Material
 from skin.models.physics import SensorConstants, conductance_rate, contact_response
+from skin.models.sensors import SensorDescription, contact_basis, has_dynamics
+
+#: How many (sensor, lags) bases of foreign sensors a model keeps (about 1 MB each).
+BASIS_CACHE = 32
 
 
 class JointContactModel:
@@ -86,6 +98,7 @@ class JointContactModel:
                           else conductance_range for m in self.materials])
         # (n_classes, h_points): each material's contact conductances, log-spaced
         self.conductance = 10.0 ** np.linspace(lo_hi[:, 0], lo_hi[:, 1], h_points, axis=1)
+        self._basis_cache: dict = {}  # (sensor, lags) -> contact_basis, oldest first
 
     def log_evidence(self, t: np.ndarray, temperature: np.ndarray, t_sensor: np.ndarray,
                      ambient: float, sensors: Sequence[SensorConstants] | None = None,
@@ -151,6 +164,22 @@ class JointContactModel:
         i = self.classes.index(material)
         return float(mean[i, np.argmax(log_ev[i])])
 
+    def _basis(self, lags: np.ndarray, sensor: SensorDescription,
+               ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """`contact_basis` of every material and conductance at ``lags``, the last few kept.
+
+        A skin's contacts come back to the same taxels with windows of the same length, and a
+        foreign sensor's basis costs some ms (filters over its own sample grid).
+        """
+        key = (sensor, lags.tobytes())
+        hit = self._basis_cache.pop(key, None)
+        if hit is None:
+            hit = contact_basis(lags, self.effusivity[:, None], self.conductance, sensor)
+            if len(self._basis_cache) >= BASIS_CACHE:
+                self._basis_cache.pop(next(iter(self._basis_cache)))
+        self._basis_cache[key] = hit  # most recent last
+        return hit
+
     def _posterior(self, t: np.ndarray, temperature: np.ndarray, t_sensor: np.ndarray,
                    ambient: float, sensors: Sequence[SensorConstants] | None,
                    stds: Sequence[float] | None = None,
@@ -189,20 +218,53 @@ class JointContactModel:
         contiguous = bool(np.all(where == first[:, None] + np.arange(n)))
         pp = np.empty((n_c, n_h, n_s, t0.size))
         dp = np.empty((n_c, n_h, n_s, t0.size))
+        # a sensor with a heater term, dynamics or smoothing (`has_dynamics`) reads
+        # d_i = (T_obj - T0_i) P + (T_amb - T0_i) Q + A (`contact_basis`): its offset-corrected
+        # e_i = d_i + T0_i Q - A stands in for d_i, and ee (n_c, n_h, n_s) collects
+        # sum_i (|e_i|^2 - |d_i|^2) for the quadratic term
+        ee = None
+
+        def cross(x: np.ndarray, z: np.ndarray) -> np.ndarray:
+            """Sum over the samples of x z at each shift's lags, (classes, h, shifts)."""
+            if contiguous:
+                run = np.concatenate([np.zeros((*x.shape[:-1], 1)), np.cumsum(x * z, axis=-1)],
+                                     -1)
+                return run[..., first + n] - run[..., first]
+            return np.einsum("chsn,chsn->chs", x[..., where], z[..., where])
+
+        def with_data(x: np.ndarray, dg: np.ndarray) -> np.ndarray:
+            """Sum over the samples of x against each taxel's dg (n, taxels): (c, h, s, taxels)."""
+            if contiguous:
+                return np.stack([x[..., o:o + n] @ dg for o in first], axis=2)
+            return np.einsum("in,chsn->chsi", dg.T, x[..., where])
+
         for sensor in set(sensors):
             group = [i for i, s in enumerate(sensors) if s == sensor]
-            r = (e_o / (sensor.effusivity + e_o) * contact_response(
-                lags[None, None, :], conductance_rate(self.conductance[:, :, None],
-                                                      sensor.effusivity, e_o), sensor))
-            if contiguous:
-                run = np.concatenate([np.zeros((n_c, n_h, 1)), np.cumsum(r**2, axis=-1)], -1)
-                pp[..., group] = (run[..., first + n] - run[..., first])[..., None]
-                dg = d[group].T  # (n, taxels of the group)
-                dp[..., group] = np.stack([r[..., o:o + n] @ dg for o in first], axis=2)
-            else:
-                phi = r[..., where]  # (classes, h, shifts, samples)
-                pp[..., group] = np.einsum("chsn,chsn->chs", phi, phi)[..., None]
-                dp[..., group] = np.einsum("in,chsn->chsi", d[group], phi)
+            dg = d[group].T  # (n, taxels of the group)
+            if not has_dynamics(sensor):
+                r = (e_o / (sensor.effusivity + e_o) * contact_response(
+                    lags[None, None, :], conductance_rate(self.conductance[:, :, None],
+                                                          sensor.effusivity, e_o), sensor))
+                pp[..., group] = cross(r, r)[..., None]
+                dp[..., group] = with_data(r, dg)
+                continue
+            r, q, a = self._basis(lags, sensor)
+            g0 = t0[group]  # from ambient
+            pp[..., group] = cross(r, r)[..., None]
+            ep = with_data(r, dg)
+            extra = np.zeros((n_c, n_h, n_s, len(group)))
+            if q is not None:  # e_i += T0_i Q
+                ep = ep + g0 * cross(q, r)[..., None]
+                extra += (2.0 * g0 * with_data(q, dg)
+                          + g0**2 * cross(q, q)[..., None])
+            if a is not None:  # e_i -= A
+                a = np.broadcast_to(a, r.shape)
+                ep = ep - cross(a, r)[..., None]
+                extra += -2.0 * with_data(a, dg) + cross(a, a)[..., None]
+                if q is not None:
+                    extra += -2.0 * g0 * cross(q, a)[..., None]
+            dp[..., group] = ep
+            ee = extra.sum(axis=-1) if ee is None else ee + extra.sum(axis=-1)
         pp = pp.reshape(n_c, n_h * n_s, t0.size)
         dp = dp.reshape(n_c, n_h * n_s, t0.size)
         # z_i = y_i - T0_i + T0_i phi_i = T_obj phi_i + noise (all from ambient)
@@ -218,6 +280,8 @@ class JointContactModel:
         a = pp.sum(axis=-1)
         b = dp.sum(axis=-1) + pp @ t0
         zz = np.sum(d**2) + 2.0 * dp @ t0 + pp @ t0**2
+        if ee is not None:
+            zz = zz + ee.reshape(n_c, n_h * n_s)
         precision = a / s2 + 1.0 / tau2
         rhs = b / s2 + mu / tau2
         mean = rhs / precision
@@ -227,6 +291,19 @@ class JointContactModel:
             return log_ev[0], mean[0] + ambient
         return log_ev, mean + ambient
 
+
+
+def with_constants(description: SensorDescription, constants: SensorConstants,
+                   ) -> SensorDescription:
+    """Return ``description`` with the thermal constants of ``constants``.
+
+    A calibration file holds a taxel's fitted depth, diffusivity and conductivity (as
+    `SensorConstants`); its heater, layer, dynamics and smoothing are its board's
+    (as `skin.models.commission.described`).
+    """
+    return dataclasses.replace(description, depth=constants.depth,
+                               diffusivity=constants.diffusivity,
+                               conductivity=constants.conductivity)
 
 
 #: The pipeline's contact conductance range for every material, W/(m^2 K): air gaps of 150 um
@@ -316,7 +393,9 @@ class JointClassifier:
         Sampling rate of the common grid, Hz.
     sensors : dict, optional
         Taxel id -> calibrated `SensorConstants` (`skin.formats.calibration_file`); taxels not in it
-        use their board's constants.
+        use their board's constants. Each taxel is read as its board's sensor description
+        reads (`skin.models.sensors.SensorDescription.from_board`: heater mode, PID loop, lag,
+        smoothing), with the calibrated depth, diffusivity and conductivity.
     object_prior : str
         ``"learned"`` (default): the prior on the object's temperature is learned from this
         run's contacts of two or more taxels (`ObjectTemperaturePrior`), so that one-taxel
@@ -375,9 +454,14 @@ class JointClassifier:
         self.min_duration = min_duration
         self.max_duration = max_duration
         self.fs = fs
-        self._sensors = {int(t.id): SensorConstants.from_board(layout.boards[t.board])
-                         for t in layout.taxels}
-        self._sensors.update(sensors or {})
+        # each taxel's board's sensor description (heater mode, dynamics, smoothing): the
+        # model reads a foreign preset's contacts as that sensor does (`contact_basis`)
+        boards = {int(t.id): SensorDescription.from_board(layout.boards[t.board])
+                  for t in layout.taxels}
+        self._sensors = dict(boards)
+        for i, s in (sensors or {}).items():
+            self._sensors[int(i)] = (s if isinstance(s, SensorDescription) or int(i) not in boards
+                                     else with_constants(boards[int(i)], s))
 
     def classify(self, contact):
         """Label a contact from all its taxels at once (its family, or ``"unknown"``, when unsure).

@@ -373,6 +373,89 @@ def smooth(y: np.ndarray, sensor: SensorDescription, axis: int = -1,
                                 mode="interp")
 
 
+def has_dynamics(sensor: SensorConstants) -> bool:
+    """Whether a sensor reads other than eq. 5 of its constants (`contact_basis` needed).
+
+    False for plain `skin.models.physics.SensorConstants` and for a constant-power heater
+    without lag or smoothing (the paper's sensor).
+    """
+    return isinstance(sensor, SensorDescription) and (
+        sensor.heater != "constant" or sensor.lag > 0 or sensor.smoothing != "none")
+
+
+def contact_basis(lags: np.ndarray, e_object: np.ndarray | float,
+                  conductance: np.ndarray | float, sensor: SensorDescription,
+                  ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """Return the parts of a contact reading that the temperatures scale, after filtering.
+
+    What the library sees of a contact (`contact_reading`, then `apply_dynamics` and `smooth`
+    over a series settled before the contact) is affine in the sensor's, the object's and the
+    room's temperatures, because every filter is linear and time-invariant and keeps a
+    constant::
+
+        y = T0 + (T_obj - T0) P + (T_amb - T0) Q + A
+
+    ``P`` is the filtered unit response (the object's share times eq. 5's response R), ``Q``
+    the filtered drain of an ``"off-at-contact"`` heater (`heater_term` with unit excess:
+    (1 - exp(-t / tau)) (1 - P) before filtering) and ``A`` the filtered flux of an
+    ``"on-during-contact"`` heater (it depends on the object's effusivity alone). They are
+    computed on the sensor's own sample grid from the contact instant (a sample there, as the
+    simulators place it), filtered, and read at ``lags`` by linear interpolation; a
+    non-causal smoothing moves the reading before contact too (negative lags).
+
+    Parameters
+    ----------
+    lags : numpy.ndarray
+        Time since contact, s, (n_lags,).
+    e_object, conductance : array_like
+        Object effusivity and contact conductance, broadcast together (for example
+        (n_classes, 1) and (n_classes, n_h)).
+    sensor : SensorDescription
+        The sensor (its sample rate sets the grid the filters run on).
+
+    Returns
+    -------
+    P : numpy.ndarray
+        (broadcast shape of e_object and conductance, n_lags).
+    Q : numpy.ndarray or None
+        Same shape; None unless the heater is ``"off-at-contact"``.
+    A : numpy.ndarray or None
+        (shape of e_object, n_lags) in K; None unless the heater is ``"on-during-contact"``.
+    """
+    from skin.models.physics import contact_trace
+
+    lags = np.asarray(lags, dtype=float)
+    fs = float(sensor.sample_rate)
+    savgol = sensor.smoothing == "savgol"
+    # settled samples before the contact: a Savitzky-Golay window's edge fit must see none
+    # of it; as many after the last lag, so that no lag is read from the series' end
+    pre = sensor.smoothing_window + 1 if savgol else 1
+    post = sensor.smoothing_window + 1 if savgol else 1
+    top = max(int(np.ceil(max(float(lags.max(initial=0.0)), 0.0) * fs)), 1) + post
+    # time on the first axis: the filters then run over contiguous rows
+    tk = (np.arange(-pre, top + 1) / fs).reshape(-1, *(1,) * len(np.broadcast_shapes(
+        np.shape(e_object), np.shape(conductance))))
+    e = np.asarray(e_object, dtype=float)
+    p = contact_trace(tk, 0.0, 1.0, e, sensor, np.asarray(conductance, dtype=float))
+    parts: list[np.ndarray | None] = [p, None, None]
+    if sensor.heater == "off-at-contact":
+        parts[1] = np.asarray(heater_term(tk, 0.0, e, sensor, ambient=1.0, response=p))
+    elif sensor.heater == "on-during-contact":
+        parts[2] = np.asarray(heater_term(tk, 0.0, e, sensor))
+    pos = lags * fs + pre
+    i0 = np.clip(np.floor(pos).astype(int), 0, tk.size - 2)
+    w = np.clip(pos - i0, 0.0, 1.0)
+    out = []
+    for x in parts:
+        if x is not None:
+            x = smooth(apply_dynamics(x, sensor, fs, axis=0), sensor, axis=0, fs=fs)
+            x = np.ascontiguousarray(np.moveaxis(
+                x[i0] * (1.0 - w).reshape(-1, *(1,) * (x.ndim - 1))
+                + x[i0 + 1] * w.reshape(-1, *(1,) * (x.ndim - 1)), 0, -1))
+        out.append(x)
+    return out[0], out[1], out[2]
+
+
 class StreamingDynamics:
     """`apply_dynamics` over a series given in consecutive chunks along axis 0.
 

@@ -169,7 +169,8 @@ def known_nuisance_ceiling(data: TrialSet, duration: float,
 
 
 def joint_fit_accuracy(data: TrialSet, duration: float, constants: str = "true",
-                       calibration: dict | None = None, train: TrialSet | None = None) -> dict:
+                       calibration: dict | None = None, train: TrialSet | None = None,
+                       sensor: object = None) -> dict:
     """Accuracy of the joint physics fit of all channels, told (or not) the taxels' constants.
 
     The fit is `skin.models.joint.JointContactModel` over the dataset's materials (one object
@@ -185,6 +186,9 @@ def joint_fit_accuracy(data: TrialSet, duration: float, constants: str = "true",
     (labelled contacts of the same materials) the log evidence is divided by the temperature
     that makes it calibrated on them (`skin.models.contact.fit_temperature`): the fit's
     noise (0.1 K) leaves out the taxels' and the contacts' own errors, and is overconfident.
+    With ``sensor`` (the dataset's `skin.models.sensors.SensorDescription`) every channel is
+    read as that sensor reads (heater mode, PID loop, lag, smoothing; the constants as above),
+    and a dataset of a sensor whose reading is not eq. 5's closed form is accepted.
 
     Returns
     -------
@@ -203,8 +207,13 @@ def joint_fit_accuracy(data: TrialSet, duration: float, constants: str = "true",
         if calibration is None or data.taxel is None:
             raise SkinError(f"{data.source}: calibrated constants need a calibration and the "
                             f"dataset's 'taxel' column")
-    else:
+    elif sensor is None:
         check_ceiling(data)
+    else:
+        missing = [k for k in NEEDED if k not in data.extra]
+        if missing:
+            raise SkinError(f"{data.source}: the true constants need a simulated dataset; "
+                            f"missing {', '.join(missing)}")
     table = load_materials()
     missing = [c for c in data.classes if c not in table]
     if missing:
@@ -225,10 +234,10 @@ def joint_fit_accuracy(data: TrialSet, duration: float, constants: str = "true",
         sub = train.subset(np.flatnonzero(known))
         started = time.perf_counter()
         temperature = fit_temperature(
-            _joint_log_evidence(model, sub, duration, constants, calibration)[0],
+            _joint_log_evidence(model, sub, duration, constants, calibration, sensor)[0],
             np.searchsorted(classes, sub.label))
         fit_ms = (time.perf_counter() - started) / len(sub) * 1e3
-    log_ev, cost = _joint_log_evidence(model, data, duration, constants, calibration)
+    log_ev, cost = _joint_log_evidence(model, data, duration, constants, calibration, sensor)
     z = log_ev / temperature
     p = np.exp(z - z.max(axis=1, keepdims=True))
     p /= p.sum(axis=1, keepdims=True)
@@ -262,19 +271,22 @@ def _probability_scores(top: np.ndarray, right: np.ndarray) -> dict:
 
 
 def _joint_log_evidence(model, data: TrialSet, duration: float, constants: str,
-                        calibration: dict | None) -> tuple[np.ndarray, float]:
+                        calibration: dict | None, sensor: object = None,
+                        ) -> tuple[np.ndarray, float]:
     """Return each contact's log evidence per material (n, classes) and the ms per contact."""
     import time
 
     from skin.models.contact import split_contact_rows
     from skin.models.features import contact_matrix
+    from skin.models.joint import with_constants
     from skin.models.physics import SensorConstants
 
     rows = contact_matrix(data, duration)
     amb, t0, w = split_contact_rows(rows, data.temperature.shape[1])
     t = (np.arange(w.shape[2]) + 1e-6) / data.fs
     truth_of = channel_truth(data) if constants == "true" else None
-    nominal = SensorConstants()
+    nominal = SensorConstants() if sensor is None else sensor
+    read = (lambda s: s) if sensor is None else (lambda s: with_constants(sensor, s))
     out = np.empty((len(data), len(model.classes)))
     started = time.perf_counter()
     for i in range(len(data)):
@@ -284,12 +296,14 @@ def _joint_log_evidence(model, data: TrialSet, duration: float, constants: str,
             if c.size > truth_of["depth"].shape[1]:
                 raise SkinError(f"{data.source}: the taxel constants of channels other than "
                                 f"the primary are not stored (simulate it again)")
-            sensors = [SensorConstants(depth=float(truth_of["depth"][i, j]),
-                                       diffusivity=float(truth_of["diffusivity"][i, j]),
-                                       conductivity=float(truth_of["conductivity"][i, j]))
+            sensors = [read(SensorConstants(depth=float(truth_of["depth"][i, j]),
+                                            diffusivity=float(truth_of["diffusivity"][i, j]),
+                                            conductivity=float(truth_of["conductivity"][i, j])))
                        for j in c]
         elif constants == "calibrated":
-            sensors = [calibration.get(int(data.taxel[i, j]), nominal) for j in c]
+            sensors = [read(calibration.get(int(data.taxel[i, j]), nominal)) for j in c]
+        elif sensor is not None:
+            sensors = [sensor] * c.size
         out[i] = model.log_evidence(t, w[i, c], t0[i, c], float(amb[i]), sensors)
     return out, (time.perf_counter() - started) / max(len(data), 1) * 1e3
 

@@ -72,6 +72,7 @@ from pathlib import Path
 
 from skin.commands import (
     bench_drivers,
+    bench_forward,
     bench_map,
     bench_onset_shape,
     bench_scene,
@@ -230,6 +231,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     bench_onset_shape.add_parsers(kinds)
     bench_tracking.add_parsers(kinds)
     bench_scene.add_parsers(kinds)
+    bench_forward.add_parsers(kinds)
 
 
 def main_object_prior(args: argparse.Namespace) -> int:
