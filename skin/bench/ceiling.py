@@ -308,3 +308,190 @@ def ceilings(data: TrialSet, duration: float) -> list[dict]:
         out.append(known_nuisance_ceiling(data, duration, ("object_temperature",)))
         out += [joint_fit_accuracy(data, duration, c) for c in ("true", "nominal")]
     return out
+
+
+#: Nuisances `told_less_ceiling` can leave untold (fitted within their declared range).
+PROFILABLE = ("object_temperature", "taxel_constants", "conductance", "onset")
+
+
+def reading_noise(data: TrialSet) -> float:
+    """Return the reading noise of the primary channel, K, from its stretch before contact.
+
+    The median over trials of the standard deviation about a straight line (the taxel may
+    still be reheating) of the samples 60-10 before the recorded onset: what any classifier
+    can measure, and the weight `told_less_ceiling` gives the trace against its priors.
+    """
+    lo = np.maximum(data.onset - 60, 0)
+    out = []
+    for i in range(len(data)):
+        y = data.temperature[i, 0, lo[i]:max(data.onset[i] - 10, lo[i])]
+        if y.size >= 5 and np.all(np.isfinite(y)):
+            k = np.arange(y.size)
+            out.append(np.std(y - np.polyval(np.polyfit(k, y, 1), k)))
+    if not out:
+        raise SkinError(f"{data.source}: no trial has 15 samples before its onset to measure "
+                        f"the reading noise")
+    return max(float(np.median(out)), 1e-3)
+
+
+def _taxel_grid(spread: float, points: int) -> list:
+    """Sensors spanning +-``spread`` of each of depth, diffusivity and conductivity.
+
+    The trace depends on them through two combinations alone, the response time's root
+    x / sqrt(alpha) and the effusivity k / sqrt(alpha), so a ``points`` x ``points`` grid of
+    those (each over the range the +-``spread`` box gives it) covers every taxel.
+    """
+    from skin.models.physics import SensorConstants
+
+    nominal = SensorConstants()
+    lo, hi = (1 - spread) / np.sqrt(1 + spread), (1 + spread) / np.sqrt(1 - spread)
+    f = np.geomspace(lo, hi, points)
+    return [SensorConstants(depth=nominal.depth * a, conductivity=nominal.conductivity * b)
+            for a in f for b in f]
+
+
+def _log_density(sample: np.ndarray):
+    """Return a function: the log density of a Gaussian kernel estimate of ``sample``."""
+    sample = np.asarray(sample, dtype=float)
+    width = max(1.06 * float(np.std(sample)) * sample.size ** -0.2, 1e-3)
+
+    def log_p(v: np.ndarray) -> np.ndarray:
+        d = (np.asarray(v, dtype=float)[:, None] - sample[None]) / width
+        low = np.min(d * d, axis=1, keepdims=True)
+        return (-low[:, 0] / 2 + np.log(np.mean(np.exp(-(d * d - low) / 2), axis=1))
+                - np.log(width * np.sqrt(2 * np.pi)))
+
+    return log_p
+
+
+def told_less_ceiling(data: TrialSet, duration: float, unknown: tuple[str, ...] = (),
+                     sensors: dict | None = None, taxel_spread: float = 0.10,
+                     points: int = 5) -> dict:
+    """Accuracy of the best material choice when some nuisances are only known by their range.
+
+    `known_nuisance_ceiling` told less by plugging in a guess (the nominal constants, an
+    unconstrained object temperature) falls below methods that learned the nuisances'
+    ranges, so it bounds nothing. Here each untold nuisance is fitted within what a
+    classifier could know of it, jointly with the others, for every material (profile
+    likelihood, Gaussian reading noise measured before contact, `reading_noise`):
+
+    - ``"object_temperature"``: a Gaussian prior per material, the mean and spread of the
+      dataset's object temperatures above ambient for that material (touches warm it);
+    - ``"taxel_constants"``: anywhere in the +-``taxel_spread`` box of the taxels' depth,
+      diffusivity and conductivity (``points`` x ``points`` grid, `_taxel_grid`);
+    - ``"conductance"``: anywhere in the material's range of contact conductance in the
+      dataset (``points`` log-spaced values);
+    - ``"onset"``: anywhere in the dataset's range of onset error (9 shifts).
+
+    What is told is the simulation's truth, except the taxel constants when ``sensors``
+    (taxel id -> `SensorConstants`, e.g. a calibration file's) is given: then each taxel has
+    those, as a commissioned skin does. The primary channel alone is read. Profiling, not
+    integrating, over the nuisances and coarse grids make it an estimate of what the
+    information allows, not a strict Bayes bound (it does not use how the nuisances'
+    distributions differ within a material, which a learned model may).
+
+    Returns
+    -------
+    dict
+        The layout of `known_nuisance_ceiling`, with ``unknown`` (the untold nuisances) as
+        ``told_less`` and ``noise`` (K).
+    """
+    from skin.models.physics import SensorConstants, conductance_rate, contact_response
+
+    bad = [u for u in unknown if u not in PROFILABLE]
+    if bad:
+        raise ValueError(f"unknown nuisance(s) {', '.join(bad)}; choose from "
+                         f"{', '.join(PROFILABLE)}")
+    check_ceiling(data)
+    if sensors is not None and data.taxel is None:
+        raise SkinError(f"{data.source}: commissioned constants need the 'taxel' column")
+    x = data.extra
+    classes = data.classes
+    truth = np.searchsorted(classes, data.label)
+    effusivity = np.array([x["true_effusivity"][data.label == c][0] for c in classes])
+    n = round(duration * data.fs)
+    if n < 1 or np.any(data.onset + n > data.temperature.shape[-1]):
+        raise SkinError(f"{data.source}: a {duration} s window does not fit the recording")
+    k = np.arange(n)
+    noise = reading_noise(data)
+    h_true = np.asarray(x["true_conductance"], dtype=float)
+    shift_true = np.asarray(x["true_onset_time"]) - data.onset / data.fs
+    rise = np.asarray(x["true_object_temperature"]) - data.ambient
+    prior_mean = np.array([rise[truth == m].mean() for m in range(len(classes))])
+    prior_std = np.array([max(rise[truth == m].std(), 0.05) for m in range(len(classes))])
+    t0 = np.asarray(x["true_sensor_temperature"], dtype=float)
+    start = t0 - data.ambient
+    start_density = [_log_density(start[truth == m]) for m in range(len(classes))]
+    taxel_grid = _taxel_grid(taxel_spread, points) if "taxel_constants" in unknown else None
+    shift_grid = np.linspace(shift_true.min(), shift_true.max(), 9)
+    h_grid = np.array([np.geomspace(h_true[truth == m].min(), h_true[truth == m].max(), points)
+                       if np.all(np.isfinite(h_true[truth == m])) else np.full(points, np.inf)
+                       for m in range(len(classes))])
+
+    def options(i: int) -> tuple:
+        if taxel_grid is not None:
+            sens = taxel_grid
+        elif sensors is not None:
+            sens = [sensors.get(int(data.taxel[i, 0]), SensorConstants())]
+        else:
+            sens = [SensorConstants(depth=float(x["true_sensor_depth"][i]),
+                                    diffusivity=float(x["true_sensor_diffusivity"][i]),
+                                    conductivity=float(x["true_sensor_conductivity"][i]))]
+        h = h_grid if "conductance" in unknown else np.full((len(classes), 1), h_true[i])
+        shifts = shift_grid if "onset" in unknown else shift_true[i:i + 1]
+        return sens, h, shifts
+
+    keys: dict = {}
+    for i in range(len(data)):
+        sens, h, shifts = options(i)
+        key = (tuple((s.depth, s.diffusivity, s.conductivity) for s in sens), h.tobytes(),
+               shifts.tobytes())
+        keys.setdefault(key, []).append(i)
+    chosen = np.empty(len(data), dtype=int)
+    for members in keys.values():
+        sens, h, shifts = options(members[0])
+        t = k[None, :] / data.fs - shifts[:, None]  # (shifts, n) since the true contact
+        e_o = effusivity[:, None, None, None]
+        # the reading's share of the step to the object: the contact surface's, times the
+        # thermistor's response (`skin.models.physics.contact_trace` with T0 = 0, T_obj = 1)
+        phi = np.stack([e_o / (s.effusivity + e_o) * contact_response(
+            t[None, None], conductance_rate(h, s.effusivity, effusivity[:, None])[:, :, None,
+                                                                                  None], s)
+            for s in sens], axis=2)  # (materials, h, sensors, shifts, n)
+        m_of = np.broadcast_to(np.arange(len(classes))[:, None, None, None],
+                               phi.shape[:-1]).ravel()
+        phi = phi.reshape(-1, n)
+        rows = np.array(members)
+        z = np.stack([data.temperature[i, 0, data.onset[i] + k] for i in rows]) - t0[rows, None]
+        dot = z @ phi.T / noise**2  # (trials, combos)
+        pp = np.sum(phi * phi, axis=1)[None] / noise**2
+        zz = np.sum(z * z, axis=1)[:, None] / noise**2
+        if "object_temperature" in unknown:  # integrated over its Gaussian prior
+            a0 = (data.ambient[rows, None] + prior_mean[m_of][None]) - t0[rows, None]
+            w = 1.0 / prior_std[m_of][None] ** 2
+            cost = (zz + a0 * a0 * w - (dot + a0 * w) ** 2 / (pp + w)
+                    + np.log((pp + w) / w))
+        else:
+            a = (np.asarray(x["true_object_temperature"])[rows] - t0[rows])[:, None]
+            cost = zz - 2 * a * dot + a * a * pp
+        # -2 log evidence per material: the grids' combinations averaged (a uniform prior
+        # over each range), and what the sensor's starting temperature says of the material
+        # (its history of touches), which every classifier sees
+        evidence = np.empty((rows.size, len(classes)))
+        for m in range(len(classes)):
+            c = cost[:, m_of == m]
+            low = c.min(axis=1, keepdims=True)
+            evidence[:, m] = (low[:, 0] - 2 * np.log(np.mean(np.exp(-(c - low) / 2), axis=1))
+                              - 2 * start_density[m](start[rows]))
+        chosen[rows] = np.argmin(evidence, axis=1)
+    conf = np.zeros((len(classes), len(classes)), dtype=int)
+    np.add.at(conf, (truth, chosen), 1)
+    recall = conf.diagonal() / np.maximum(conf.sum(axis=1), 1)
+    told = "commissioned taxel constants" if sensors is not None and taxel_grid is None else ""
+    name = "ceiling" + (f" ({told})" if told else "") + (
+        f" ({'+'.join(unknown)} fitted)" if unknown else "")
+    return {"method": name, "duration": duration, "told_less": list(unknown),
+            "accuracy": round(float(np.mean(chosen == truth)), 4), "accuracy_std": 0.0,
+            "recall": {c: round(float(r), 4) for c, r in zip(classes, recall, strict=True)},
+            "confusion": conf.tolist(), "classes": classes, "unknown": 0,
+            "noise": round(noise, 5), "fit_ms_per_trial": 0.0, "predict_ms_per_trial": 0.0}

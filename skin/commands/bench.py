@@ -72,6 +72,7 @@ from pathlib import Path
 
 from skin.commands import (
     bench_drivers,
+    bench_gap,
     bench_map,
     bench_onset_shape,
     bench_tracking,
@@ -228,6 +229,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     bench_map.add_parsers(kinds)
     bench_onset_shape.add_parsers(kinds)
     bench_tracking.add_parsers(kinds)
+    bench_gap.add_parsers(kinds)
 
 
 def main_object_prior(args: argparse.Namespace) -> int:
