@@ -11,7 +11,7 @@ from skin.bench.ceiling import known_nuisance_ceiling, told_less_ceiling
 from skin.bench.gap import warp_to_nominal
 from skin.models.materials import load_materials
 from skin.models.physics import SensorConstants, contact_trace
-from skin.models.trials import Protocol, simulate_trials
+from skin.models.trials import PAPER_MATERIALS, Protocol, simulate_trials
 
 MATS = load_materials()
 FOUR = [MATS[m] for m in ("aluminium", "glass", "pine", "cardboard")]
@@ -33,10 +33,14 @@ def test_told_everything_it_is_the_known_nuisance_ceiling_and_commissioning_is_t
         depth=float(x["true_sensor_depth"][i]), diffusivity=float(x["true_sensor_diffusivity"][i]),
         conductivity=float(x["true_sensor_conductivity"][i])) for i in range(len(ds))}
     assert told_less_ceiling(ds, 1.0, sensors=truth)["accuracy"] == told["accuracy"]
-    # knowing only the ranges of everything a classifier cannot see costs accuracy
-    blind = told_less_ceiling(ds, 1.0, ("taxel_constants", "object_temperature", "conductance",
-                                        "onset"))
-    assert 0.25 <= blind["accuracy"] < told["accuracy"]
+    # on the paper's 11 materials, knowing only the ranges of what a classifier cannot see
+    # costs accuracy, and far more than the onset alone
+    eleven = simulate_trials([MATS[m] for m in PAPER_MATERIALS], Protocol(trials=8), seed=3)
+    all_told = told_less_ceiling(eleven, 0.5)["accuracy"]
+    onset = told_less_ceiling(eleven, 0.5, ("onset",))["accuracy"]
+    blind = told_less_ceiling(eleven, 0.5, ("taxel_constants", "object_temperature",
+                                            "conductance", "onset"))["accuracy"]
+    assert 1 / 11 < blind < onset - 0.1 and onset <= all_told + 0.05
     with pytest.raises(ValueError, match="room"):
         told_less_ceiling(ds, 1.0, ("room",))
 
@@ -66,7 +70,7 @@ def test_warp_to_nominal_makes_a_slow_taxel_read_like_the_design():
 def test_bench_gap_prints_the_target_line_and_the_decomposition():
     out = subprocess.run([sys.executable, "-m", "skin", "bench", "gap", "--trials", "8",
                           "--seeds", "7", "--durations", "0.5", "--reference-trials", "4",
-                          "--json"], capture_output=True, text=True, timeout=300)
+                          "--points", "3", "--json"], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     doc = json.loads(out.stdout)
     (row,) = doc["rows"]

@@ -78,9 +78,11 @@ def commission(data, reference, duration: float = 1.5) -> dict:
 
 def gap_table(trials: int = 100, seeds: Sequence[int] = (7, 13),
               durations: Sequence[float] = (0.25, 0.5, 1.0, 1.5, 2.5), folds: int = 3,
-              reference_trials: int = 20,
+              reference_trials: int = 20, points: int = 9,
               progress: Callable[[str], None] | None = None) -> list[dict]:
     """Measure the target of issue 17 (module docstring); one row per (seed, duration).
+
+    ``points``: grid points of each untold nuisance's range (`told_less_ceiling`).
 
     Returns
     -------
@@ -117,8 +119,10 @@ def gap_table(trials: int = 100, seeds: Sequence[int] = (7, 13),
                 ("default_commissioned", warped, "default"))}
             say(f"seed {seed}, {d:g} s: ceilings")
             ceiling = known_nuisance_ceiling(data, d)["accuracy"]
-            told = {"+".join(u): told_less_ceiling(data, d, u) for u in TOLD_LESS}
-            commissioned = told_less_ceiling(data, d, COMMISSIONED_UNKNOWN, sensors=sensors)
+            told = {"+".join(u): told_less_ceiling(data, d, u, points=points)
+                    for u in TOLD_LESS}
+            commissioned = told_less_ceiling(data, d, COMMISSIONED_UNKNOWN, sensors=sensors,
+                                             points=points)
             svm = r["svm"]["accuracy"]
             target = svm + 2.0 / 3.0 * (ceiling - svm)
             reach = told["+".join(ALL_UNKNOWN)]["accuracy"]
