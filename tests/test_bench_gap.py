@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from skin.bench.ceiling import known_nuisance_ceiling, told_less_ceiling
-from skin.bench.gap import warp_to_nominal
 from skin.models.materials import load_materials
 from skin.models.physics import SensorConstants, contact_trace
+from skin.models.timescale import warp_to_nominal
 from skin.models.trials import PAPER_MATERIALS, Protocol, simulate_trials
 
 MATS = load_materials()
@@ -87,3 +87,25 @@ def test_bench_gap_prints_the_target_line_and_the_decomposition():
     bad = subprocess.run([sys.executable, "-m", "skin", "bench", "gap", "--durations", "x"],
                          capture_output=True, text=True, timeout=60)
     assert bad.returncode != 0 and "--durations" in bad.stderr
+
+
+def test_the_design_taxel_is_left_as_it_is_and_evaluate_reads_commissioned_traces(tmp_path):
+    ds = simulate_trials(FOUR, Protocol(trials=12), seed=2, skin_seed=4)
+    same = warp_to_nominal(ds, {int(t): SensorConstants() for t in np.unique(ds.taxel)})
+    assert np.allclose(same.temperature, ds.temperature, atol=1e-12, equal_nan=True)
+    ds.save(tmp_path / "data.npz")
+    simulate_trials(FOUR, Protocol(trials=8), seed=3, skin_seed=4).save(tmp_path / "ref.npz")
+
+    def skin(*args):
+        return subprocess.run([sys.executable, "-m", "skin", *map(str, args)],
+                              capture_output=True, text=True, timeout=300)
+
+    out = skin("calibrate", "thermal", "--data", tmp_path / "ref.npz", "--reference", "label",
+               "-o", tmp_path / "cal.json")
+    assert out.returncode == 0, out.stderr
+    out = skin("evaluate", "--data", tmp_path / "data.npz", "--methods", "svm-pca",
+               "--durations", "1", "--calibration", tmp_path / "cal.json", "--json")
+    assert out.returncode == 0, out.stderr
+    rows = {r["method"]: r for r in json.loads(out.stdout)["results"]}
+    assert {"svm-pca", "svm-pca+commissioned"} <= set(rows)
+    assert 0.25 <= rows["svm-pca+commissioned"]["accuracy"] <= 1

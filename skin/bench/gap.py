@@ -9,8 +9,9 @@ taxels commissioned with `skin.commands.calibrate.fit_thermal_taxels`, ``--refer
 and reports per duration:
 
 - ``svm-pca`` and ``default``, cross-validated (grouped: no taxel on both sides of a fold);
-- the same two with the commissioned constants (`warp_to_nominal`: each contact's trace
-  resampled onto the nominal taxel's time scale, so every taxel reads like the design);
+- the same two with the commissioned constants (`skin.models.timescale.warp_to_nominal`:
+  each contact's trace resampled onto the nominal taxel's time scale, so every taxel reads
+  like the design);
 - the known-nuisance ceiling and the target line ``svm + 2/3 (ceiling - svm)``;
 - the ceiling told less (`skin.bench.ceiling.told_less_ceiling`: each untold nuisance
   integrated over its range): what the information a classifier has allows, without the
@@ -34,34 +35,6 @@ TOLD_LESS = (("taxel_constants",), ("object_temperature",), ("conductance",), ("
 #: What a commissioned skin still does not know of a contact.
 COMMISSIONED_UNKNOWN = ("object_temperature", "conductance", "onset")
 ALL_UNKNOWN = ("taxel_constants", "object_temperature", "conductance", "onset")
-
-
-def warp_to_nominal(data, sensors: dict):
-    """Return ``data`` with each contact's primary trace on the nominal taxel's time scale.
-
-    A taxel at depth x with diffusivity alpha reads, under perfect contact, the nominal
-    taxel's trace at time ``t tau0 / tau`` (tau = x^2 / alpha): the samples from the onset on
-    are resampled at ``onset + k tau / tau0`` (linear interpolation; held at the recording's
-    end). A finite contact conductance does not scale so, which leaves a small error. Taxels
-    that ``sensors`` (taxel id -> `SensorConstants`) lacks are left as they are.
-    """
-    from skin.models.physics import SensorConstants
-
-    nominal = SensorConstants()
-    tau0 = nominal.depth ** 2 / nominal.diffusivity
-    temperature = data.temperature.copy()
-    m = temperature.shape[-1]
-    idx = np.arange(m, dtype=float)
-    taxel = np.asarray(data.taxel).reshape(len(data), -1)[:, 0]
-    for i in range(len(data)):
-        s = sensors.get(int(taxel[i]))
-        if s is None:
-            continue
-        ratio = (s.depth ** 2 / s.diffusivity) / tau0
-        on = int(data.onset[i])
-        at = on + (idx[on:] - on) * ratio
-        temperature[i, 0, on:] = np.interp(at, idx, data.temperature[i, 0])
-    return dataclasses.replace(data, temperature=temperature)
 
 
 def commission(data, reference, duration: float = 1.5) -> dict:
@@ -97,6 +70,7 @@ def gap_table(trials: int = 100, seeds: Sequence[int] = (7, 13),
     from skin.bench.ceiling import known_nuisance_ceiling, told_less_ceiling
     from skin.commands.evaluate import evaluate
     from skin.models import load_materials
+    from skin.models.timescale import warp_to_nominal
     from skin.models.trials import PAPER_MATERIALS, Protocol, simulate_trials
 
     table = load_materials()
