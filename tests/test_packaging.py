@@ -100,6 +100,7 @@ def test_wheel_installs_and_imports_subpackages(tmp_path):
 MEASURING_COMMANDS = {"skin.commands.bench", "skin.commands.bench_drivers",
                       "skin.commands.bench_view", "skin.commands.bench_map",
                       "skin.commands.bench_onset_shape", "skin.commands.bench_tracking",
+                      "skin.commands.bench_gap",
                       "skin.commands.evaluate",
                       "skin.commands.evaluate_onset"}
 
