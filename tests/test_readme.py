@@ -127,6 +127,8 @@ CI_SIZES = [
     (("skin", "bench", "nuisance"), ["--trials", "6", "--durations", "0.5", "--variants",
                                      "onset", "--methods", "svm-pca"]),
     (("skin", "bench", "object-prior"), ["--touches", "10"]),
+    (("skin", "bench", "gap"), ["--trials", "8", "--seeds", "7", "--durations", "0.5",
+                                "--reference-trials", "4", "--points", "3"]),
     (("skin", "bench", "onset-shape"), ["--minutes", "1", "--taxels", "2"]),
     (("skin", "bench", "tracking"), ["--pairs", "2"]),
     (("skin", "bench", "scene"), ["--seeds", "7", "--duration", "6"]),

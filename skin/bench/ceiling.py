@@ -322,3 +322,198 @@ def ceilings(data: TrialSet, duration: float) -> list[dict]:
         out.append(known_nuisance_ceiling(data, duration, ("object_temperature",)))
         out += [joint_fit_accuracy(data, duration, c) for c in ("true", "nominal")]
     return out
+
+
+#: Nuisances `told_less_ceiling` can leave untold (fitted within their declared range).
+PROFILABLE = ("object_temperature", "taxel_constants", "conductance", "onset")
+
+
+def reading_noise(data: TrialSet) -> float:
+    """Return the reading noise of the primary channel, K, from its stretch before contact.
+
+    The median over trials of the standard deviation about a straight line (the taxel may
+    still be reheating) of the samples 60-10 before the recorded onset: what any classifier
+    can measure, and the weight `told_less_ceiling` gives the trace against its priors.
+    """
+    lo = np.maximum(data.onset - 60, 0)
+    out = []
+    for i in range(len(data)):
+        y = data.temperature[i, 0, lo[i]:max(data.onset[i] - 10, lo[i])]
+        if y.size >= 5 and np.all(np.isfinite(y)):
+            k = np.arange(y.size)
+            out.append(np.std(y - np.polyval(np.polyfit(k, y, 1), k)))
+    if not out:
+        raise SkinError(f"{data.source}: no trial has 15 samples before its onset to measure "
+                        f"the reading noise")
+    return max(float(np.median(out)), 1e-3)
+
+
+def _taxel_grid(spread: float, points: int) -> list:
+    """Sensors spanning +-``spread`` of each of depth, diffusivity and conductivity.
+
+    The trace depends on them through two combinations alone, the response time's root
+    x / sqrt(alpha) and the effusivity k / sqrt(alpha), so a ``points`` x ``points`` grid of
+    those (each over the range the +-``spread`` box gives it) covers every taxel.
+    """
+    from skin.models.physics import SensorConstants
+
+    nominal = SensorConstants()
+    lo, hi = (1 - spread) / np.sqrt(1 + spread), (1 + spread) / np.sqrt(1 - spread)
+    f = np.geomspace(lo, hi, points)
+    return [SensorConstants(depth=nominal.depth * a, conductivity=nominal.conductivity * b)
+            for a in f for b in f]
+
+
+def _log_density(sample: np.ndarray):
+    """Return a function: the log density of a Gaussian kernel estimate of ``sample``."""
+    sample = np.asarray(sample, dtype=float)
+    width = max(1.06 * float(np.std(sample)) * sample.size ** -0.2, 1e-3)
+
+    def log_p(v: np.ndarray) -> np.ndarray:
+        d = (np.asarray(v, dtype=float)[:, None] - sample[None]) / width
+        low = np.min(d * d, axis=1, keepdims=True)
+        return (-low[:, 0] / 2 + np.log(np.mean(np.exp(-(d * d - low) / 2), axis=1))
+                - np.log(width * np.sqrt(2 * np.pi)))
+
+    return log_p
+
+
+def told_less_ceiling(data: TrialSet, duration: float, unknown: tuple[str, ...] = (),
+                     sensors: dict | None = None, taxel_spread: float = 0.10,
+                     points: int = 9) -> dict:
+    """Accuracy of the best material choice when some nuisances are only known by their range.
+
+    `known_nuisance_ceiling` told less by plugging in a guess (the nominal constants, an
+    unconstrained object temperature) falls below methods that learned the nuisances'
+    ranges, so it bounds nothing. Here each untold nuisance is fitted within what a
+    classifier could know of it, jointly with the others, for every material (profile
+    likelihood, Gaussian reading noise measured before contact, `reading_noise`):
+
+    - ``"object_temperature"``: a Gaussian prior per material, integrated exactly: the
+      dataset's object temperatures above ambient for that material (touches warm it) as a
+      straight line in the sensor's starting temperature (the same touches cool it) and
+      the spread about it;
+    - ``"taxel_constants"``: anywhere in the +-``taxel_spread`` box of the taxels' depth,
+      diffusivity and conductivity (``points`` x ``points`` grid, `_taxel_grid`);
+    - ``"conductance"``: anywhere in the material's range of contact conductance in the
+      dataset (``points`` log-spaced values);
+    - ``"onset"``: anywhere in the dataset's range of onset error (9 shifts).
+
+    What is told is the simulation's truth, except the taxel constants when ``sensors``
+    (taxel id -> `SensorConstants`, e.g. a calibration file's) is given: then each taxel has
+    those, as a commissioned skin does. The primary channel alone is read. Profiling, not
+    integrating, over the nuisances and coarse grids make it an estimate of what the
+    information allows, not a strict Bayes bound: the priors are fitted to the dataset's
+    truth (a little optimistic) but simplified (a learned model may use the nuisances'
+    joint distribution better), and a coarse grid leaves a misfit that the trace's many
+    samples magnify (seed 7, 2.5 s, taxel constants and object temperature untold: .40
+    with 5 points, .58 with 9; all four untold .637 / .647), hence 9 points.
+
+    Returns
+    -------
+    dict
+        The layout of `known_nuisance_ceiling`, with ``unknown`` (the untold nuisances) as
+        ``told_less`` and ``noise`` (K).
+    """
+    from skin.models.physics import SensorConstants, conductance_rate, contact_response
+
+    bad = [u for u in unknown if u not in PROFILABLE]
+    if bad:
+        raise ValueError(f"unknown nuisance(s) {', '.join(bad)}; choose from "
+                         f"{', '.join(PROFILABLE)}")
+    check_ceiling(data)
+    if sensors is not None and data.taxel is None:
+        raise SkinError(f"{data.source}: commissioned constants need the 'taxel' column")
+    x = data.extra
+    classes = data.classes
+    truth = np.searchsorted(classes, data.label)
+    effusivity = np.array([x["true_effusivity"][data.label == c][0] for c in classes])
+    n = round(duration * data.fs)
+    if n < 1 or np.any(data.onset + n > data.temperature.shape[-1]):
+        raise SkinError(f"{data.source}: a {duration} s window does not fit the recording")
+    k = np.arange(n)
+    noise = reading_noise(data)
+    h_true = np.asarray(x["true_conductance"], dtype=float)
+    shift_true = np.asarray(x["true_onset_time"]) - data.onset / data.fs
+    rise = np.asarray(x["true_object_temperature"]) - data.ambient
+    t0 = np.asarray(x["true_sensor_temperature"], dtype=float)
+    start = t0 - data.ambient
+    # the object's warmth above ambient, as the sensor's start predicts it (both come from the
+    # touches before): a straight line per material, and the spread about it
+    prior_mean, prior_slope, prior_std = (np.empty(len(classes)) for _ in range(3))
+    for m in range(len(classes)):
+        a, b = start[truth == m], rise[truth == m]
+        slope = float(np.cov(a, b)[0, 1] / max(np.var(a, ddof=1), 1e-12)) if a.size > 2 else 0.0
+        prior_slope[m], prior_mean[m] = slope, float(b.mean() - slope * a.mean())
+        prior_std[m] = max(float(np.std(b - prior_mean[m] - slope * a)), 0.05)
+    start_density = [_log_density(start[truth == m]) for m in range(len(classes))]
+    taxel_grid = _taxel_grid(taxel_spread, points) if "taxel_constants" in unknown else None
+    shift_grid = np.linspace(shift_true.min(), shift_true.max(), 9)
+    h_grid = np.array([np.geomspace(h_true[truth == m].min(), h_true[truth == m].max(), points)
+                       if np.all(np.isfinite(h_true[truth == m])) else np.full(points, np.inf)
+                       for m in range(len(classes))])
+
+    def options(i: int) -> tuple:
+        if taxel_grid is not None:
+            sens = taxel_grid
+        elif sensors is not None:
+            sens = [sensors.get(int(data.taxel[i, 0]), SensorConstants())]
+        else:
+            sens = [SensorConstants(depth=float(x["true_sensor_depth"][i]),
+                                    diffusivity=float(x["true_sensor_diffusivity"][i]),
+                                    conductivity=float(x["true_sensor_conductivity"][i]))]
+        h = h_grid if "conductance" in unknown else np.full((len(classes), 1), h_true[i])
+        shifts = shift_grid if "onset" in unknown else shift_true[i:i + 1]
+        return sens, h, shifts
+
+    keys: dict = {}
+    for i in range(len(data)):
+        sens, h, shifts = options(i)
+        key = (tuple((s.depth, s.diffusivity, s.conductivity) for s in sens), h.tobytes(),
+               shifts.tobytes())
+        keys.setdefault(key, []).append(i)
+    chosen = np.empty(len(data), dtype=int)
+    t_obj = np.asarray(x["true_object_temperature"], dtype=float)
+    for members in keys.values():
+        sens, h, shifts = options(members[0])
+        rows = np.array(members)
+        t = k[None, :] / data.fs - shifts[:, None]  # (shifts, n) since the true contact
+        z = np.stack([data.temperature[i, 0, data.onset[i] + k] for i in rows]) - t0[rows, None]
+        zz = np.sum(z * z, axis=1)[:, None] / noise**2
+        # -2 log evidence per material: the grids' combinations averaged (a uniform prior
+        # over each range), and what the sensor's starting temperature says of the material
+        # (its history of touches), which every classifier sees
+        evidence = np.empty((rows.size, len(classes)))
+        for m in range(len(classes)):
+            e_o = effusivity[m]
+            # the reading's share of the step to the object: the contact surface's, times
+            # the thermistor's response (`skin.models.physics.contact_trace`, T0 0, T_obj 1)
+            phi = np.stack([e_o / (s.effusivity + e_o) * contact_response(
+                t[None], conductance_rate(h[m], s.effusivity, e_o)[:, None, None], s)
+                for s in sens]).reshape(-1, n)  # (sensors x h x shifts, n)
+            dot = z @ phi.T / noise**2  # (trials, combinations)
+            pp = np.sum(phi * phi, axis=1)[None] / noise**2
+            if "object_temperature" in unknown:  # integrated over its Gaussian prior
+                a0 = (data.ambient[rows] + prior_mean[m] + prior_slope[m] * start[rows]
+                      - t0[rows])[:, None]
+                w = 1.0 / prior_std[m] ** 2
+                cost = (zz + a0 * a0 * w - (dot + a0 * w) ** 2 / (pp + w)
+                        + np.log((pp + w) / w))
+            else:
+                a = (t_obj[rows] - t0[rows])[:, None]
+                cost = zz - 2 * a * dot + a * a * pp
+            low = cost.min(axis=1, keepdims=True)
+            evidence[:, m] = (low[:, 0] - 2 * np.log(np.mean(np.exp(-(cost - low) / 2), axis=1))
+                              - 2 * start_density[m](start[rows]))
+        chosen[rows] = np.argmin(evidence, axis=1)
+    conf = np.zeros((len(classes), len(classes)), dtype=int)
+    np.add.at(conf, (truth, chosen), 1)
+    recall = conf.diagonal() / np.maximum(conf.sum(axis=1), 1)
+    told = "commissioned taxel constants" if sensors is not None and taxel_grid is None else ""
+    name = "ceiling" + (f" ({told})" if told else "") + (
+        f" ({'+'.join(unknown)} fitted)" if unknown else "")
+    return {"method": name, "duration": duration, "told_less": list(unknown),
+            "accuracy": round(float(np.mean(chosen == truth)), 4), "accuracy_std": 0.0,
+            "recall": {c: round(float(r), 4) for c, r in zip(classes, recall, strict=True)},
+            "confusion": conf.tolist(), "classes": classes, "unknown": 0,
+            "noise": round(noise, 5), "fit_ms_per_trial": 0.0, "predict_ms_per_trial": 0.0}

@@ -73,6 +73,7 @@ from pathlib import Path
 from skin.commands import (
     bench_drivers,
     bench_forward,
+    bench_gap,
     bench_map,
     bench_onset_shape,
     bench_scene,
@@ -232,6 +233,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     bench_tracking.add_parsers(kinds)
     bench_scene.add_parsers(kinds)
     bench_forward.add_parsers(kinds)
+    bench_gap.add_parsers(kinds)
 
 
 def main_object_prior(args: argparse.Namespace) -> int:

@@ -196,12 +196,48 @@ def _time_scale_only(fit):
     return dataclasses.replace(fit, sensor=sensor)
 
 
+def fit_thermal_taxels(data, reference: str, duration: float, source: str = "") -> dict:
+    """Fit each taxel's thermal constants from its contacts (``skin calibrate thermal``).
+
+    ``reference`` is a material of the table, or ``"label"`` (each contact's own label; the
+    time scale alone is fitted, `_time_scale_only`). Returns taxel id -> the fit
+    (`skin.models.sensor_fit.fit_sensor_constants`).
+    """
+    from skin.models import load_materials
+    from skin.models.features import PRE
+    from skin.models.sensor_fit import fit_sensor_constants
+
+    table = load_materials()
+    source = source or str(data.source)
+    n = round(duration * data.fs)
+    if np.any(data.onset + n > data.temperature.shape[-1]):
+        raise SkinError(f"{source}: a {duration:g} s window does not fit the trials")
+    t = np.arange(1, n + 1) / data.fs
+    fits = {}
+    for taxel in np.unique(data.taxel[:, 0]):
+        rows = np.flatnonzero(data.taxel[:, 0] == taxel)
+        t0 = np.array([data.primary[i, data.onset[i] - PRE:data.onset[i]].mean()
+                       for i in rows])
+        y = np.array([data.primary[i, data.onset[i] + 1:data.onset[i] + 1 + n]
+                      for i in rows])
+        ambient = data.ambient[rows] if data.ambient is not None else np.full(rows.size, 25.0)
+        refs = [table[str(c)] for c in data.label[rows]] if reference == "label" else [
+            table[reference]] * rows.size
+        try:
+            fit = fit_sensor_constants(
+                t, y, t0, ambient, [m.effusivity for m in refs],
+                conductance_range=tuple(np.array([m.conductance_range for m in refs]).T))
+        except ValueError as exc:
+            raise SkinError(f"{source}: taxel {int(taxel)}: {exc}") from None
+        fits[int(taxel)] = _time_scale_only(fit) if reference == "label" else fit
+    return fits
+
+
 def main_thermal(args: argparse.Namespace) -> int:
     """Fit the thermal constants."""
     from skin.formats.dataset import load_trials
     from skin.models import load_materials
     from skin.models.features import PRE
-    from skin.models.sensor_fit import fit_sensor_constants
 
     table = load_materials()
     if args.reference not in table and args.reference != "label":
@@ -221,32 +257,13 @@ def main_thermal(args: argparse.Namespace) -> int:
                         f"channel is not heated (the fit models a heated taxel)")
     if np.any(data.onset < PRE):
         raise SkinError(f"{args.data}: every trial needs its onset and {PRE} samples before it")
-    n = round(args.duration * data.fs)
-    if np.any(data.onset + n > data.temperature.shape[-1]):
-        raise SkinError(f"{args.data}: a {args.duration:g} s window does not fit the trials")
-    t = np.arange(1, n + 1) / data.fs
     out = _existing(args.out)
-    for taxel in np.unique(data.taxel[:, 0]):
-        rows = np.flatnonzero(data.taxel[:, 0] == taxel)
-        t0 = np.array([data.primary[i, data.onset[i] - PRE:data.onset[i]].mean()
-                       for i in rows])
-        y = np.array([data.primary[i, data.onset[i] + 1:data.onset[i] + 1 + n]
-                      for i in rows])
-        ambient = data.ambient[rows] if data.ambient is not None else np.full(rows.size, 25.0)
-        refs = [table[str(c)] for c in data.label[rows]] if labelled else [
-            table[args.reference]] * rows.size
-        try:
-            fit = fit_sensor_constants(
-                t, y, t0, ambient, [m.effusivity for m in refs],
-                conductance_range=tuple(np.array([m.conductance_range for m in refs]).T))
-        except ValueError as exc:
-            raise SkinError(f"{args.data}: taxel {int(taxel)}: {exc}") from None
-        if labelled:
-            fit = _time_scale_only(fit)
+    for taxel, fit in fit_thermal_taxels(data, args.reference, args.duration, args.data).items():
+        rows = int(np.sum(data.taxel[:, 0] == taxel))
         out.taxels.setdefault(int(taxel), {}).update(
             diffusivity=fit.sensor.diffusivity, conductivity=fit.sensor.conductivity,
             depth=fit.sensor.depth, thermal_rms=round(fit.rms, 5),
-            thermal_contacts=int(rows.size), thermal_converged=fit.converged)
+            thermal_contacts=rows, thermal_converged=fit.converged)
     out.references["thermal"] = f"{args.reference} ({args.data})"
     path = out.save(args.out)
     if args.json:

@@ -57,7 +57,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--calibration", default=None, metavar="FILE",
                     help="also report the joint physics fit of all channels with each "
                          "taxel's constants from this calibration file (skin calibrate "
-                         "thermal; the test set's taxel column says whose contact is whose)")
+                         "thermal; the taxel column says whose contact is whose), and each "
+                         "method as METHOD+commissioned: every taxel's traces resampled onto "
+                         "the design's time scale (skin.models.timescale)")
     ev.add_argument("--ceiling", action="store_true",
                     help="also report the known-nuisance ceiling (simulated data only; "
                          "skin.bench.ceiling): the accuracy no method can be expected to beat")
@@ -543,6 +545,12 @@ def main(args: argparse.Namespace) -> int:
     started = time.monotonic()
     results = []
     total = len(methods) * len(durations)
+    runs = [(data, test, "")]
+    if sensors is not None:  # each method also reads every taxel on the design's time scale
+        from skin.models.timescale import warp_to_nominal
+
+        runs.append((warp_to_nominal(data, sensors),
+                     None if test is None else warp_to_nominal(test, sensors), "+commissioned"))
     if args.model:
         from skin.models.modelfile import load_model
 
@@ -554,13 +562,16 @@ def main(args: argparse.Namespace) -> int:
             progress.status(f"evaluate {m} {d:g} s ({len(results) + 1}/{total}; "
                             f"{_time_left(spent, durations[j:], len(methods) - k - 1)})")
             t0 = time.monotonic()
-            if test is None:
-                results.append(evaluate(data, m, d, args.cv, args.split, args.seed))
-            else:
-                results.append(train_test(data, test, m, d, args.object_temperature_range))
+            for ds, ts, tag in runs:
+                if ts is None:
+                    r = evaluate(ds, m, d, args.cv, args.split, args.seed)
+                else:
+                    r = train_test(ds, ts, m, d, args.object_temperature_range)
+                r["method"] += tag
+                results.append(r)
+                if merge:
+                    r["merged_accuracy"] = round(merged_accuracy(r, merge), 4)
             spent.append((d, time.monotonic() - t0))
-            if merge:
-                results[-1]["merged_accuracy"] = round(merged_accuracy(results[-1], merge), 4)
     if methods:
         progress.status(f"evaluated {total} method-durations in "
                         f"{time.monotonic() - started:.0f} s", force=True)

@@ -1,0 +1,114 @@
+"""Issue 17's first target, measured and decomposed: the default against svm-pca and ceilings.
+
+The target: on the synthetic benchmark (11 materials, one heated channel) the default's
+accuracy reaches, at every duration, PCA+SVM's plus two thirds of the gap between PCA+SVM and
+the known-nuisance ceiling (`skin.bench.ceiling.known_nuisance_ceiling`, told every nuisance,
+the taxel's own constants among them). For each seed this simulates the benchmark recorded by
+one skin (``skin_seed`` = the seed) and a small reference set recorded by the same skin (its
+taxels commissioned with `skin.commands.calibrate.fit_thermal_taxels`, ``--reference label``),
+and reports per duration:
+
+- ``svm-pca`` and ``default``, cross-validated (grouped: no taxel on both sides of a fold);
+- the same two with the commissioned constants (`skin.models.timescale.warp_to_nominal`:
+  each contact's trace resampled onto the nominal taxel's time scale, so every taxel reads
+  like the design);
+- the known-nuisance ceiling and the target line ``svm + 2/3 (ceiling - svm)``;
+- the ceiling told less (`skin.bench.ceiling.told_less_ceiling`: each untold nuisance
+  integrated over its range): what the information a classifier has allows, without the
+  taxels' constants (``reachable``) and with the commissioned ones (``reachable
+  commissioned``). Where these lie below the target line, the target asks for information
+  the contact does not carry.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+#: Told-less ceilings reported: the untold nuisances of each.
+TOLD_LESS = (("taxel_constants",), ("object_temperature",), ("conductance",), ("onset",),
+             ("taxel_constants", "object_temperature"),
+             ("object_temperature", "conductance", "onset"),
+             ("taxel_constants", "object_temperature", "conductance", "onset"))
+#: What a commissioned skin still does not know of a contact.
+COMMISSIONED_UNKNOWN = ("object_temperature", "conductance", "onset")
+ALL_UNKNOWN = ("taxel_constants", "object_temperature", "conductance", "onset")
+
+
+def commission(data, reference, duration: float = 1.5) -> dict:
+    """Return taxel id -> `SensorConstants` fitted from ``reference`` (labelled contacts).
+
+    Only the taxels both datasets share are kept.
+    """
+    from skin.commands.calibrate import fit_thermal_taxels
+
+    fits = fit_thermal_taxels(reference, "label", duration)
+    seen = set(np.asarray(data.taxel).ravel().tolist())
+    return {t: f.sensor for t, f in fits.items() if t in seen}
+
+
+def gap_table(trials: int = 100, seeds: Sequence[int] = (7, 13),
+              durations: Sequence[float] = (0.25, 0.5, 1.0, 1.5, 2.5), folds: int = 3,
+              reference_trials: int = 20, points: int = 9,
+              progress: Callable[[str], None] | None = None) -> list[dict]:
+    """Measure the target of issue 17 (module docstring); one row per (seed, duration).
+
+    ``points``: grid points of each untold nuisance's range (`told_less_ceiling`).
+
+    Returns
+    -------
+    list of dict
+        ``seed``, ``duration``, ``svm``, ``default``, ``svm_commissioned``,
+        ``default_commissioned``, ``ceiling``, ``target``, ``met``, ``met_commissioned``,
+        ``reachable`` (all of `ALL_UNKNOWN` untold), ``reachable_commissioned``
+        (`COMMISSIONED_UNKNOWN` untold, the commissioned constants told), ``ruled_out``
+        (``reachable`` < ``target``), ``ruled_out_commissioned``, ``told_less`` (name ->
+        accuracy), the predict cost of each method (ms per contact) and ``noise`` (K).
+    """
+    from skin.bench.ceiling import known_nuisance_ceiling, told_less_ceiling
+    from skin.commands.evaluate import evaluate
+    from skin.models import load_materials
+    from skin.models.timescale import warp_to_nominal
+    from skin.models.trials import PAPER_MATERIALS, Protocol, simulate_trials
+
+    table = load_materials()
+    materials = [table[m] for m in PAPER_MATERIALS]
+    rows = []
+    for seed in seeds:
+        say = progress or (lambda _: None)
+        say(f"seed {seed}: simulating {trials} trials per material and a reference set")
+        p = Protocol(trials=trials)
+        data = simulate_trials(materials, p, seed=seed, skin_seed=seed)
+        reference = simulate_trials(materials, dataclasses.replace(p, trials=reference_trials),
+                                    seed=seed + 1000, skin_seed=seed)
+        sensors = commission(data, reference)
+        warped = warp_to_nominal(data, sensors)
+        for d in durations:
+            say(f"seed {seed}, {d:g} s: svm-pca and default, plain and commissioned")
+            r = {key: evaluate(ds, m, d, folds) for key, ds, m in (
+                ("svm", data, "svm-pca"), ("default", data, "default"),
+                ("svm_commissioned", warped, "svm-pca"),
+                ("default_commissioned", warped, "default"))}
+            say(f"seed {seed}, {d:g} s: ceilings")
+            ceiling = known_nuisance_ceiling(data, d)["accuracy"]
+            told = {"+".join(u): told_less_ceiling(data, d, u, points=points)
+                    for u in TOLD_LESS}
+            commissioned = told_less_ceiling(data, d, COMMISSIONED_UNKNOWN, sensors=sensors,
+                                             points=points)
+            svm = r["svm"]["accuracy"]
+            target = svm + 2.0 / 3.0 * (ceiling - svm)
+            reach = told["+".join(ALL_UNKNOWN)]["accuracy"]
+            reach_c = commissioned["accuracy"]
+            rows.append({
+                "seed": seed, "duration": d, **{k: v["accuracy"] for k, v in r.items()},
+                "ceiling": ceiling, "target": round(target, 4),
+                "met": r["default"]["accuracy"] >= target,
+                "met_commissioned": r["default_commissioned"]["accuracy"] >= target,
+                "reachable": reach, "reachable_commissioned": reach_c,
+                "ruled_out": reach < target, "ruled_out_commissioned": reach_c < target,
+                "told_less": {k: v["accuracy"] for k, v in told.items()},
+                "predict_ms_per_trial": {k: v["predict_ms_per_trial"] for k, v in r.items()},
+                "noise": commissioned["noise"], "commissioned_taxels": len(sensors)})
+    return rows

@@ -1,0 +1,87 @@
+"""``skin bench gap``: issue 17's first target, the default against svm-pca and the ceilings.
+
+The measurement is `skin.bench.gap.gap_table` (loaded only when run): per seed and duration,
+svm-pca and the default (plain, and with the taxels commissioned from a reference set of the
+same skin), the known-nuisance ceiling, the target line svm + 2/3 (ceiling - svm), and the
+ceiling told less - what the information available allows without and with commissioning.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_parsers(kinds: argparse._SubParsersAction) -> None:
+    """Register ``skin bench gap``."""
+    gap = kinds.add_parser("gap", help="default vs svm-pca vs the known-nuisance ceiling and "
+                                       "the ceiling told less (issue 17's target)")
+    gap.add_argument("--trials", type=int, default=100, help="trials per material (100)")
+    gap.add_argument("--seeds", default="7,13", help="comma-separated seeds (7,13)")
+    gap.add_argument("--durations", default="0.25,0.5,1,1.5,2.5",
+                     help="contact durations, s (0.25,0.5,1,1.5,2.5)")
+    gap.add_argument("--cv", type=int, default=3, help="folds (3)")
+    gap.add_argument("--reference-trials", type=int, default=20,
+                     help="trials per material of the commissioning reference set (20)")
+    gap.add_argument("--points", type=int, default=9,
+                     help="grid points over each untold nuisance's range in the ceiling told "
+                          "less (9; fewer is faster and lower)")
+    gap.add_argument("--json", action="store_true", help="print one JSON document")
+    gap.set_defaults(func=main)
+
+
+def main(args: argparse.Namespace) -> int:
+    """Run `skin.bench.gap.gap_table` and print the table (or JSON)."""
+    import json
+    import time
+
+    from skin.bench import machine
+    from skin.bench.gap import ALL_UNKNOWN, COMMISSIONED_UNKNOWN, TOLD_LESS, gap_table
+    from skin.errors import SkinError
+    from skin.progress import Progress
+
+    try:
+        seeds = [int(s) for s in args.seeds.split(",") if s.strip()]
+        durations = [float(d) for d in args.durations.split(",") if d.strip()]
+    except ValueError:
+        raise SkinError("--seeds must be integers and --durations numbers") from None
+    if not seeds or not durations or min(durations) <= 0:
+        raise SkinError("give at least one seed and positive durations")
+    if args.points < 2:
+        raise SkinError("--points must be at least 2")
+    if args.cv < 2 or args.trials < args.cv or args.reference_trials < 1:
+        raise SkinError("--cv must be at least 2, --trials at least --cv, "
+                        "--reference-trials at least 1")
+    progress = Progress()
+    started = time.monotonic()
+    rows = gap_table(args.trials, seeds, durations, args.cv, args.reference_trials,
+                     args.points, progress=progress.message)
+    wall = time.monotonic() - started
+    progress.done()
+    if args.json:
+        print(json.dumps({"machine": machine(), "trials": args.trials, "cv": args.cv,
+                          "reference_trials": args.reference_trials,
+                          "points": args.points,
+                          "reachable_unknown": list(ALL_UNKNOWN),
+                          "reachable_commissioned_unknown": list(COMMISSIONED_UNKNOWN),
+                          "wall_s": round(wall, 1), "rows": rows}))
+        return 0
+    print(f"accuracy, {args.cv}-fold grouped, {args.trials} trials per material, 11 "
+          f"materials, one heated channel; commissioned: {args.reference_trials} reference "
+          f"trials per material by the same skin; target = svm + 2/3 (ceiling - svm); "
+          f"reach = ceiling told less ({'+'.join(ALL_UNKNOWN)} integrated over their ranges), "
+          f"reach-c = the same told the commissioned constants; {wall:.0f} s")
+    head = ("seed", "dur s", "svm", "default", "svm-c", "default-c", "ceiling", "target",
+            "met", "met-c", "reach", "reach-c")
+    print("".join(f"{h:>10}" for h in head))
+    for r in rows:
+        cells = [r["seed"], f"{r['duration']:g}", *(f"{r[k]:.3f}" for k in (
+            "svm", "default", "svm_commissioned", "default_commissioned", "ceiling", "target")),
+            "yes" if r["met"] else "no", "yes" if r["met_commissioned"] else "no",
+            f"{r['reachable']:.3f}", f"{r['reachable_commissioned']:.3f}"]
+        print("".join(f"{c:>10}" for c in cells))
+    print("ceiling told less (untold nuisances integrated over their ranges):")
+    names = ["+".join(u) for u in TOLD_LESS]
+    for r in rows:
+        print(f"  seed {r['seed']} {r['duration']:g} s: " + ", ".join(
+            f"{n} {r['told_less'][n]:.3f}" for n in names))
+    return 0
