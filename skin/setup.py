@@ -251,15 +251,19 @@ def _positive(value: Any) -> float:
     return out
 
 
-def _count(value: Any) -> int:
+def _whole(value: Any, least: int) -> int:
     if isinstance(value, str):  # the command line's "2"
         try:
             value = int(value)
         except ValueError:
             raise ValueError(f"must be a whole number, got {value!r}") from None
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise ValueError(f"must be a whole number of at least 1, got {value!r}")
+    if isinstance(value, bool) or not isinstance(value, int) or value < least:
+        raise ValueError(f"must be a whole number of at least {least}, got {value!r}")
     return value
+
+
+def _count(value: Any) -> int:
+    return _whole(value, 1)
 
 
 def _probability(value: Any) -> float:
@@ -274,16 +278,7 @@ def _optional_positive(value: Any) -> float | None:
 
 
 def _optional_seed(value: Any) -> int | None:
-    if value is None:
-        return None
-    if isinstance(value, str):  # the command line's "8"
-        try:
-            value = int(value)
-        except ValueError:
-            raise ValueError(f"must be a whole number, got {value!r}") from None
-    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-        raise ValueError(f"must be a whole number of at least 0, got {value!r}")
-    return value
+    return None if value is None else _whole(value, 0)
 
 
 def _numbers(value: Any) -> list[float]:
