@@ -291,15 +291,23 @@ def sensor_response(lags: np.ndarray, rates: np.ndarray, body: object,
     from skin.models.physics import contact_response
     from skin.models.sensors import apply_dynamics, smooth
 
-    fs = float(sensor.sample_rate)
-    pad = max(int(sensor.smoothing_window), 1) + 2  # samples before the step and after the end
-    pad = max(pad, int(np.ceil(-float(np.min(lags, initial=0.0)) * fs)) + 2)
-    n = int(np.ceil(float(np.max(lags, initial=0.0)) * fs)) + 2 + pad
-    grid = np.arange(-pad, n) / fs
+    fs, grid = _sample_grid(lags, sensor)
     step = contact_response(np.maximum(grid, 0.0)[:, None], np.asarray(rates)[None, :], body)
     step = np.where(grid[:, None] > 0, step, 0.0)
     out = smooth(apply_dynamics(step, sensor, fs, axis=0), sensor, axis=0, fs=fs)
     return np.stack([np.interp(lags, grid, out[:, k]) for k in range(out.shape[1])])
+
+
+def _sample_grid(lags: np.ndarray, sensor: object) -> tuple[float, np.ndarray]:
+    """Return the sensor's sample rate and its sample times spanning ``lags`` (s), padded.
+
+    The padding holds a smoothing window's samples before the step and after the last lag.
+    """
+    fs = float(sensor.sample_rate)
+    pad = max(int(sensor.smoothing_window), 1) + 2  # samples before the step and after the end
+    pad = max(pad, int(np.ceil(-float(np.min(lags, initial=0.0)) * fs)) + 2)
+    n = int(np.ceil(float(np.max(lags, initial=0.0)) * fs)) + 2 + pad
+    return fs, np.arange(-pad, n) / fs
 
 
 def heater_basis(lags: np.ndarray, rates: np.ndarray, body: object,
@@ -316,7 +324,7 @@ def heater_basis(lags: np.ndarray, rates: np.ndarray, body: object,
     the onset and dated fast-film's synthetic contacts worse, median |error| 9 ms against
     3.5 ms). Each column goes through the sensor's loop, lag and smoothing
     (`skin.models.sensors.apply_dynamics`, `smooth`) on its own sample grid, as
-    `sensor_response` does, and is scaled to a peak of 1.
+    `sensor_response` does (both are fractions, 0 to 1, before the filters).
 
     Parameters
     ----------
@@ -342,11 +350,7 @@ def heater_basis(lags: np.ndarray, rates: np.ndarray, body: object,
         raise ValueError(f"heater_basis needs a heater mode in {HEATER_TERMS}, "
                          f"got {sensor.heater!r}")
     rates = np.asarray(rates, dtype=float)
-    fs = float(sensor.sample_rate)
-    pad = max(int(sensor.smoothing_window), 1) + 2  # samples before the step and after the end
-    pad = max(pad, int(np.ceil(-float(np.min(lags, initial=0.0)) * fs)) + 2)
-    n = int(np.ceil(float(np.max(lags, initial=0.0)) * fs)) + 2 + pad
-    grid = np.arange(-pad, n) / fs
+    fs, grid = _sample_grid(lags, sensor)
     since = np.maximum(grid, 0.0)
     after = grid > 0
     r = np.where(after[:, None], contact_response(since[:, None], rates[None, :], body), 0.0)
