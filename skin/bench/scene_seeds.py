@@ -65,6 +65,24 @@ def play(scene: str, seed: int, duration: float | None = None) -> dict[str, Any]
             "cpu_s": round(time.process_time() - cpu, 2)}
 
 
+def _pair(truth: str, label: str, misses: list[dict]) -> dict[str, Any]:
+    """Summarise the misses of one truth called one label (`run`'s ``pairs``).
+
+    ``best`` is the material most often most probable among them, and ``effusivity_ratio``
+    that material's effusivity over the truth's (None when the best is the truth).
+    """
+    bests = [m["best"] for m in misses if m["best"]]
+    best = max(sorted(set(bests)), key=bests.count) if bests else ""  # ties: by name
+    return {"truth": truth, "label": label, "count": len(misses),
+            "median_confidence": round(float(np.median([m["confidence"] for m in misses])), 3),
+            "best": best,
+            "effusivity_ratio": next((m["effusivity_ratio"] for m in misses
+                                      if m["best"] == best), None),
+            "family_right": int(sum(m["family_right"] for m in misses)),
+            "median_duration": _median([m["duration"] for m in misses]),
+            "one_taxel": int(sum(m["taxels"] == 1 for m in misses))}
+
+
 def _median(values: list) -> float | None:
     """Median of the values that are not None (an open contact has no duration), or None."""
     known = [v for v in values if v is not None]
@@ -105,16 +123,7 @@ def run(scene: str = "default", seeds: Sequence[int] = tuple(range(10)),
     for r in runs:
         for m in r["misses"]:
             groups.setdefault((m["truth"], m["label"]), []).append(m)
-    pairs = [{"truth": t, "label": lab, "count": len(ms),
-              "median_confidence": round(float(np.median([m["confidence"] for m in ms])), 3),
-              "best": max({m["best"] for m in ms if m["best"]} or {""},
-                          key=lambda b: sum(m["best"] == b for m in ms)),
-              "effusivity_ratio": next((m["effusivity_ratio"] for m in ms
-                                        if m["effusivity_ratio"] is not None), None),
-              "family_right": int(sum(m["family_right"] for m in ms)),
-              "median_duration": _median([m["duration"] for m in ms]),
-              "one_taxel": int(sum(m["taxels"] == 1 for m in ms))}
-             for (t, lab), ms in groups.items()]
+    pairs = [_pair(t, lab, ms) for (t, lab), ms in groups.items()]
     pairs.sort(key=lambda p: -p["count"])
     return {"scene": scene, "seeds": [int(s) for s in seeds], "runs": runs, "totals": totals,
             "pairs": pairs}
