@@ -233,6 +233,9 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
                             dict[str, int]]:
     """Detect touches with the pipeline's onset detector and date them with `refine_onset`.
 
+    Each touch is dated with its taxel's sensor description (``sensors``: its heater mode,
+    loop, lag and smoothing, `skin.stream.onset_refine.refine_onset`'s ``sensor``).
+
     A release followed within `MERGE_GAP` by a new onset of the same taxel is one touch.
 
     Returns
@@ -247,7 +250,7 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
         `TOUCH_SECONDS` after the onset), ``rising`` (a warm object) and ``incomplete``
         (missing samples, or the window runs past the recording or the release).
     """
-    from skin.stream.onset_refine import refine_onset
+    from skin.stream.onset_refine import refine_onset, refine_span
     from skin.stream.pipeline import _detector_for
 
     t = np.asarray(times, dtype=float)
@@ -276,9 +279,14 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
             if why:
                 left[why] += 1
                 continue
-            near = (t >= on.time - 1.0) & (t <= off)
+            # the taxel's own sensor: its loop, lag, smoothing and heater (a heater switched
+            # off at contact drains the body from the first instant: without it fast-film's
+            # touches were dated 6 ms early, median, and up to 20 ms, seed 7), over its span
+            search, _ = refine_span(sensors[k])
+            near = (t >= on.time - max(1.0, search)) & (t <= off)
             onset, initial = refine_onset(t[near], y[near, k], on.time, on.baseline, on.slope,
-                                          sensors[k].depth, sensors[k].diffusivity)
+                                          sensors[k].depth, sensors[k].diffusivity,
+                                          sensor=sensors[k])
             first = int(np.searchsorted(t, onset, side="right")) - n_before
             window = slice(first, first + n_before + n_after)
             if (first < 0 or first + n_before + n_after > t.size
