@@ -188,8 +188,10 @@ def test_evaluate_onset_per_sensor_reports_the_issue_figures(capsys):
     doc = json.loads(capsys.readouterr().out)
     for key in ("detected_5sigma", "false_alarms_per_taxel_hour", "delay_floor_ratio_median",
                 "refined_onset_error_ms_median", "contacts_5sigma", "bound_floor_ratio_median",
-                "delay_bound_ratio_median"):
+                "delay_bound_ratio_median", "detectable_5sigma", "detected_of_detectable",
+                "detectable_in_contact_5sigma", "detected_not_detectable"):
         assert key in doc
+    assert doc["detectable_in_contact_5sigma"] <= doc["detectable_5sigma"] <= 1.0
     # no detector reacts before the information bound: the delay is at least the bound
     assert doc["delay_bound_ratio_median"] >= 1.0
     assert doc["sensor"] == "fast-film" and 0 <= doc["detected_5sigma"] <= 1
@@ -235,6 +237,59 @@ def test_the_delay_bound_is_lordens_for_a_step_and_later_for_less_noise_never():
     assert delay_bound(np.zeros(when.size), when, sigma, fs) == np.inf  # no change
     with pytest.raises(ValueError):
         delay_bound(ramp, when, 0.0, fs)
+
+
+def test_detectability_is_lordens_bound_for_a_step_held_and_released():
+    """A step of A held n samples in noise sigma gives n A^2 / (2 sigma^2) nats; it is
+    detectable (its bound finite) when that reaches ln ARL, within the samples given."""
+    from skin.bench.streams import BOUND_FALSE_ALARMS, detectability
+
+    paper = load_sensor("paper")  # no loop, no lag: the change is the reading's
+    fs, sigma, a = 200.0, 0.03, 0.02
+    h = np.log(fs * 3600.0 / BOUND_FALSE_ALARMS)
+    need = int(np.ceil(h * 2.0 * sigma**2 / a**2))  # samples of the step to reach ln ARL
+    for held, after in ((need - 1, 0), (need - 1, 50), (need + 10, 50)):
+        change = np.concatenate([[0.0], np.full(held, a), np.zeros(after)])
+        when = np.arange(1, change.size) / fs
+        bound, information = detectability(change, when, paper, sigma, fs)
+        assert information == pytest.approx(held * a**2 / (2 * sigma**2), rel=1e-12)
+        # released (0 after): nothing more comes; held long enough: at the need-th sample
+        assert bound == (np.inf if held < need else pytest.approx(need / fs))
+    # a change that goes on after the release (as the reading recovers) is seen after it
+    change = np.concatenate([[0.0], np.full(need - 1, a), np.full(5, a)])
+    bound, _ = detectability(change, np.arange(1, change.size) / fs, paper, sigma, fs)
+    assert bound == pytest.approx(need / fs)
+    # through a first-order lag of time constant L (q = exp(-1 / (fs L))) the k-th sample
+    # reads A (1 - q^k): sum_k A^2 (1 - q^k)^2 = A^2 (n - 2 q (1 - q^n) / (1 - q)
+    # + q^2 (1 - q^2n) / (1 - q^2))
+    lagged = dataclasses.replace(paper, lag=0.5)
+    q, n = np.exp(-1.0 / (fs * 0.5)), 3 * need
+    change = np.concatenate([[0.0], np.full(n, a)])
+    _, information = detectability(change, np.arange(1, n + 1) / fs, lagged, sigma, fs)
+    closed = a**2 * (n - 2 * q * (1 - q**n) / (1 - q) + q**2 * (1 - q ** (2 * n)) / (1 - q**2))
+    assert information == pytest.approx(closed / (2 * sigma**2), rel=1e-9)
+
+
+def test_a_contact_detectable_in_contact_stays_so_and_the_window_only_adds():
+    """``detectable_after`` is the bound over the contact and the window after its release:
+    where ``bound_after`` (the contact alone) is finite it is the same; elsewhere it comes
+    after the release, within the window, or never."""
+    from skin.bench.onset_eval import release_window
+    from skin.bench.streams import simulate_stream
+    from skin.models import load_materials
+
+    for preset in ("paper", "low-cost"):
+        st = simulate_stream(list(load_materials().values())[:6], n_taxels=4, duration=180.0,
+                             seed=3, sensor=preset, contacts_per_minute=3.0)
+        window = release_window(load_sensor(preset))
+        assert any(np.isfinite(c.detectable_after) for c in st.contacts)
+        for c in st.contacts:
+            assert c.information >= 0.0
+            if np.isfinite(c.bound_after):
+                assert c.detectable_after == c.bound_after
+            elif np.isfinite(c.detectable_after):
+                assert c.duration - 1.0 / st.fs <= c.detectable_after <= \
+                    c.duration + window + 1.0 / st.fs
 
 
 def test_every_sensor_contact_has_a_delay_bound_from_its_onset_on():

@@ -39,6 +39,12 @@ step alone through them: the flutter before it is not the contact's), with "visi
 the sensor's per-sample noise. Such a stream comes whole (`simulate_stream`: the loop, the lag
 and a non-causal smoothing span any chunk). Without one (None), the stream is exactly the
 paper's as before.
+
+With a sensor, each contact also says whether any detector held to `BOUND_FALSE_ALARMS` could
+see it at all (``detectable_after``, ``information``): Lorden's bound on the contact's own
+change over the contact and the window after its release in which
+`skin evaluate-onset` still credits an alarm to it (`skin.bench.onset_eval.release_window`),
+the change going on after release as the reading recovers (`detectability`).
 """
 
 from __future__ import annotations
@@ -96,6 +102,17 @@ class StreamContact:
         over twice the variance of the sensor's raw, unsmoothed noise: Lorden's lower bound
         on the delay of change detection. A detector told the onset instant and the exact
         shape, in white noise without gusts, nears it; none beats it.
+    detectable_after : float
+        With a sensor description: the same bound over the contact and the window after its
+        release in which an alarm still counts as the contact's
+        (`skin.bench.onset_eval.release_window`), the contact's own change going on as the
+        reading recovers (``inf`` if not by the window's end): a contact with ``inf`` is out
+        of reach of every detector held to `BOUND_FALSE_ALARMS` (on average: its expected
+        log-likelihood ratio never reaches ``ln ARL``).
+    information : float
+        With a sensor description: the Kullback-Leibler information the contact's own change
+        gives by the end of that window, nats (``detectable_after`` is finite when it reaches
+        ``ln ARL``).
 
     With a sensor description (`simulate_stream`'s ``sensor``), ``visible_after``,
     ``peak_change`` and ``five_sigma_after`` are measured on the contact's own part of the
@@ -115,6 +132,8 @@ class StreamContact:
     peak_change: float = 0.0
     five_sigma_after: float = float("inf")
     bound_after: float = float("inf")
+    detectable_after: float = float("inf")
+    information: float = 0.0
 
     @property
     def duration(self) -> float:
@@ -242,6 +261,7 @@ def _sensor_stream(materials: Sequence[Material], n_taxels: int, duration: float
     """Return the whole stream of a described sensor (see the module docstring)."""
     from dataclasses import replace
 
+    from skin.bench.onset_eval import release_window
     from skin.models.sensors import apply_dynamics, load_sensor, smooth
 
     sensor = load_sensor(sensor)
@@ -257,6 +277,11 @@ def _sensor_stream(materials: Sequence[Material], n_taxels: int, duration: float
     reading = apply_dynamics(part.temperature, sensor, fs, axis=0)  # noise-free still
     raw = sensor.noise_kelvin(ambient + sensor.heated_rise)
     sigma = raw * sensor.smoothing_noise_factor()
+    window = release_window(sensor)
+    recovery = tau * sensor.reheat_time_constant / load_sensor("paper").reheat_time_constant
+    starts: dict[int, list[float]] = {}
+    for c in part.contacts:
+        starts.setdefault(c.taxel, []).append(c.onset)
     truth = []
     for c in part.contacts:
         k0, k1 = int(np.ceil(c.onset * fs)), min(int(np.ceil(c.release * fs)), len(reading))
@@ -267,17 +292,69 @@ def _sensor_stream(materials: Sequence[Material], n_taxels: int, duration: float
         step = part.temperature[k0 - 1:k1, c.taxel] - part.temperature[k0 - 1, c.taxel]
         moved = np.abs(apply_dynamics(step, sensor, fs)[1:])
         when = part.times[k0:k1] - c.onset
+        # and after the release, within the window an alarm still counts as the contact's
+        # (up to the taxel's next contact): the change recovering as the stream makes it
+        end = min([c.release + window] + [s for s in starts[c.taxel] if s > c.onset])
+        k2 = max(k1, min(int(np.ceil(end * fs)), len(reading)))
+        since = part.times[k1:k2] - c.release
+        change = np.concatenate([step, (step[-1] if step.size > 1 else 0.0)
+                                 * recovery_shape(since, recovery)])
+        detectable, information = detectability(change, part.times[k0:k2] - c.onset, sensor,
+                                                raw, fs)
         truth.append(replace(c, sensor_temperature=t0,
                              visible_after=_first_at(moved, when, 3.0 * sigma),
                              peak_change=float(moved.max()) if moved.size else 0.0,
                              five_sigma_after=_first_at(moved, when, 5.0 * sigma),
-                             bound_after=delay_bound(moved, when, raw, fs)))
+                             bound_after=delay_bound(moved, when, raw, fs),
+                             detectable_after=detectable, information=information))
     if sensor.noise > 0:
         reading = reading + rng.normal(0.0, sensor.noise, reading.shape)
     temperature = smooth(adc_readings(reading, rng, sensor.adc_noise, sensor.adc_bits),
                          sensor, axis=0, fs=fs)
     truth.sort(key=lambda c: (c.onset, c.taxel))
     return Stream(part.times, temperature, part.ambient, truth, fs, part.gusts, part.switches)
+
+
+def recovery_shape(after: np.ndarray, tau: float) -> np.ndarray:
+    """Return the share of a released contact's change left ``after`` s after the release.
+
+    A fast 2 s part and the taxel's slowest mode ``tau`` (s), half each: 1 at the release.
+    """
+    after = np.asarray(after, dtype=float)
+    return 0.5 * np.exp(-after / 2.0) + 0.5 * np.exp(-after / tau)
+
+
+def detectability(change: np.ndarray, when: np.ndarray, sensor: object, sigma: float,
+                  fs: float, false_alarms: float = BOUND_FALSE_ALARMS) -> tuple[float, float]:
+    """Return Lorden's bound on a contact's own change and the information it gives, nats.
+
+    Parameters
+    ----------
+    change : numpy.ndarray
+        The contact's own change of the reading before the sensor's loop and lag, K: the
+        sample before the onset (0) and then every sample since, as far as the detection may
+        come (past the release: the change as it recovers).
+    when : numpy.ndarray
+        The times of ``change[1:]`` since the onset, s.
+    sensor : skin.models.sensors.SensorDescription
+        Its loop and lag (`skin.models.sensors.apply_dynamics`) act on ``change``.
+    sigma, fs, false_alarms
+        As for `delay_bound` (``sigma``: the raw, unsmoothed noise).
+
+    Returns
+    -------
+    bound : float
+        `delay_bound` of the change through the loop and the lag, s since the onset
+        (``inf``: not within ``when``).
+    information : float
+        Its Kullback-Leibler information over all of ``when``, nats (the bound is finite
+        when this reaches ``ln(fs 3600 / false_alarms)``).
+    """
+    from skin.models.sensors import apply_dynamics
+
+    moved = np.abs(apply_dynamics(np.asarray(change, dtype=float), sensor, fs)[1:])
+    information = float(np.sum(moved**2) / (2.0 * sigma**2)) if moved.size else 0.0
+    return delay_bound(moved, when, sigma, fs, false_alarms), information
 
 
 def delay_bound(moved: np.ndarray, when: np.ndarray, sigma: float, fs: float,
@@ -548,6 +625,5 @@ def _write_contact(reading: np.ndarray, free: np.ndarray, times: np.ndarray, a: 
         lo = max(k1, a)
         if gap is None:  # the first free sample after release sets the gap
             gap = c[5] = end - free[k1 - a, j]
-        after = times[lo - a:] - release
-        recovery = gap * (0.5 * np.exp(-after / 2.0) + 0.5 * np.exp(-after / tau))
-        reading[lo - a:, j] = free[lo - a:, j] + recovery
+        reading[lo - a:, j] = free[lo - a:, j] + gap * recovery_shape(times[lo - a:] - release,
+                                                                      tau)
