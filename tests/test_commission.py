@@ -106,6 +106,8 @@ def test_evaluate_onset_reads_the_commissioned_noise(tmp_path, capsys):
     doc = json.loads(capsys.readouterr().out)
     assert doc["noise_sigma_k"] == pytest.approx(0.04)
     assert "noise from" in doc["source"]
+    # a stream without a sensor description carries no information bound: unknown, not 0
+    assert doc["detectable_5sigma"] is None and doc["detected_of_detectable"] is None
     assert skin_main(["evaluate-onset", "--taxels", "4", "--minutes", "1", "--calibration",
                       str(cal)]) == 2
     assert "no commissioned noise_sigma" in capsys.readouterr().err

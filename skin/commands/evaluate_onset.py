@@ -117,8 +117,12 @@ def _five_sigma(contacts: list, detector: object, min_duration: float) -> list[b
 
 
 def _sensor_figures(contacts: list, flags: list, delays: list, errors: list, detector: object,
-                    min_duration: float) -> dict:
-    """Return issue 16's figures: 5-sigma detection, delay against the floor, onset error."""
+                    min_duration: float, described: bool = True) -> dict:
+    """Return issue 16's figures: 5-sigma detection, delay against the floor, onset error.
+
+    ``described``: the stream is a described sensor's (`simulate_stream`'s ``sensor``), whose
+    contacts carry Lorden's bound; else the ``detectable`` figures are None (unknown).
+    """
     sigma = float(np.median(detector.sigma))
     big = [k for k, five in enumerate(_five_sigma(contacts, detector, min_duration)) if five]
     ratio = [delays[k] / contacts[k].visible_after for k in range(len(contacts))
@@ -135,16 +139,20 @@ def _sensor_figures(contacts: list, flags: list, delays: list, errors: list, det
     # what physics allows: the 5-sigma contacts whose own change gives ln ARL nats by the
     # end of the window an alarm still counts in (`StreamContact.detectable_after`)
     reach = [k for k in big if np.isfinite(contacts[k].detectable_after)]
+    physics = {
+        "detectable_5sigma": round(len(reach) / max(len(big), 1), 4),
+        "detectable_in_contact_5sigma": round(
+            sum(np.isfinite(contacts[k].bound_after) for k in big) / max(len(big), 1), 4),
+        "detected_of_detectable": (round(sum(flags[k] for k in reach) / len(reach), 4)
+                                   if reach else None),
+        "detected_not_detectable": int(sum(flags[k] for k in big)
+                                       - sum(flags[k] for k in reach))}
+    if not described:
+        physics = dict.fromkeys(physics)
     return {"sensor": detector.sensor.name, "noise_sigma_k": round(sigma, 5),
             "contacts_5sigma": len(big),
             "detected_5sigma": round(sum(flags[k] for k in big) / max(len(big), 1), 4),
-            "detectable_5sigma": round(len(reach) / max(len(big), 1), 4),
-            "detectable_in_contact_5sigma": round(
-                sum(np.isfinite(contacts[k].bound_after) for k in big) / max(len(big), 1), 4),
-            "detected_of_detectable": (round(sum(flags[k] for k in reach) / len(reach), 4)
-                                       if reach else None),
-            "detected_not_detectable": int(sum(flags[k] for k in big) - sum(flags[k]
-                                                                             for k in reach)),
+            **physics,
             "delay_floor_ratio_median": round(float(np.median(ratio)), 3) if ratio else None,
             "floor_ms_median": round(1e3 * float(np.median(floor)), 1) if floor.size else None,
             "bound_floor_ratio_median": round(float(np.median(bound)), 3) if bound else None,
@@ -250,7 +258,7 @@ def main(args: argparse.Namespace) -> int:
     delays, errors = result.pop("delay_s"), result.pop("onset_error_s")
     if detector is not None and contacts is not None:
         result.update(_sensor_figures(contacts, flags, delays, errors, detector,
-                                      args.min_duration))
+                                      args.min_duration, described=sensor is not None))
     if contacts is not None:
         by_material = {}
         for name in sorted({c.material for c in contacts}):
@@ -299,11 +307,12 @@ def main(args: argparse.Namespace) -> int:
               f"taxel-hour (Lorden's bound) / floor median {doc['bound_floor_ratio_median']}; "
               f"delay / that bound median {doc['delay_bound_ratio_median']}")
         of = doc["detected_of_detectable"]
-        print(f"  detectable by that bound: {doc['detectable_5sigma']:.2%} of the 5-sigma "
-              f"contacts by {release_window(sensor):.2g} s after their release "
-              f"({doc['detectable_in_contact_5sigma']:.2%} before it); detected "
-              + ("n/a" if of is None else f"{of:.2%}") + " of those, and "
-              f"{doc['detected_not_detectable']} beyond the bound")
+        if doc["detectable_5sigma"] is not None:
+            print(f"  detectable by that bound: {doc['detectable_5sigma']:.2%} of the 5-sigma "
+                  f"contacts by {release_window(sensor):.2g} s after their release "
+                  f"({doc['detectable_in_contact_5sigma']:.2%} before it); detected "
+                  + ("n/a" if of is None else f"{of:.2%}") + " of those, and "
+                  f"{doc['detected_not_detectable']} beyond the bound")
     if "beyond_gusts" in doc:
         b = doc["beyond_gusts"]
         print(f"of the {b['contacts']} contacts >= {args.min_duration:g} s that move the reading "
