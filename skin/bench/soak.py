@@ -12,10 +12,10 @@ and an MCAP recording (`skin.drivers.recording.Recorder`: wire bytes, temperatur
 The touches repeat the same pattern every simulated minute (`PERIOD`), moved to other taxels,
 so a chain that does not drift gives the same contacts every hour. Every ``every`` simulated
 seconds it notes the chain's resident memory (and the boards' process's, apart), its open
-file descriptors, and the frames, results and contacts so far. It reports memory over time and its growth after the first
-simulated hour (or after the first tenth of a shorter run), contacts and results per
-simulated hour, lost frames (sequence gaps, frames sent but never read or dropped late by the
-assembler, CRC errors), the
+file descriptors, and the frames, results and contacts so far. It reports memory over time
+and its growth after the first simulated hour (or after the first tenth of a shorter run),
+contacts and results per simulated hour, lost frames (sequence gaps, frames sent but never
+read or dropped late by the assembler, CRC errors), the
 simulated seconds per wall second and the size of what was written.
 """
 
