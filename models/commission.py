@@ -281,7 +281,7 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
                 continue
             # the taxel's own sensor: its loop, lag, smoothing and heater (a heater switched
             # off at contact drains the body from the first instant: without it fast-film's
-            # touches were dated 6 ms early, median, and up to 20 ms, seed 7), over its span
+            # touches were dated 6 ms early, median, up to 20 ms: seed 7, 48 touches), over its span
             search, _ = refine_span(sensors[k])
             near = (t >= on.time - max(1.0, search)) & (t <= off)
             onset, initial = refine_onset(t[near], y[near, k], on.time, on.baseline, on.slope,

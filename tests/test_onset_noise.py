@@ -188,11 +188,13 @@ def test_evaluate_onset_per_sensor_reports_the_issue_figures(capsys):
     doc = json.loads(capsys.readouterr().out)
     for key in ("detected_5sigma", "false_alarms_per_taxel_hour", "delay_floor_ratio_median",
                 "refined_onset_error_ms_median", "contacts_5sigma", "bound_floor_ratio_median",
-                "delay_bound_ratio_median", "refined_onset_bound_ms_median", "detectable_5sigma",
+                "delay_bound_ratio_median", "refined_onset_sd_bound_ms_median",
+                "refined_onset_error_bound_ratio_median", "detectable_5sigma",
                 "detected_of_detectable", "detectable_in_contact_5sigma",
                 "detected_not_detectable"):
         assert key in doc
-    assert doc["refined_onset_bound_ms_median"] > 0
+    assert doc["refined_onset_sd_bound_ms_median"] > 0
+    assert doc["refined_onset_error_bound_ratio_median"] > 0
     assert doc["detectable_in_contact_5sigma"] <= doc["detectable_5sigma"] <= 1.0
     # no detector reacts before the information bound: the delay is at least the bound
     assert doc["delay_bound_ratio_median"] >= 1.0

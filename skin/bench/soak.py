@@ -165,6 +165,7 @@ class SimulatedBoards:
         try:
             kind, what = self._conn.recv()
         except (EOFError, OSError):
+            self._proc.join(1.0)
             raise RuntimeError(f"the simulated boards' process (pid {self._proc.pid}) died "
                                f"(exit code {self._proc.exitcode})") from None
         if kind == "error":
@@ -186,24 +187,42 @@ class SimulatedBoards:
             self.sent, self.done = self._recv()
 
     def stop(self) -> None:
-        """Stop the boards; ``sent`` is then what each wrote in all."""
-        if self._proc.is_alive():
-            self._conn.send("stop")
-            while True:
-                what = self._recv()
-                if what is None:
-                    break
-                self.sent, self.done = what
+        """Stop the boards; ``sent`` is then what each wrote in all.
+
+        Raises
+        ------
+        RuntimeError
+            If the boards' process ended before it was asked to (its counts would be stale).
+        """
+        if not self._proc.is_alive():
+            self.close()
+            raise RuntimeError(f"the simulated boards' process (pid {self._proc.pid}) ended "
+                               f"before the run did (exit code {self._proc.exitcode})")
+        self._conn.send("stop")
+        while True:
+            what = self._recv()
+            if what is None:
+                break
+            self.sent, self.done = what
         self.close()
 
     def close(self) -> None:
-        """End the process (idempotent)."""
-        if self._proc.is_alive():
-            self._proc.join(5.0)
-            if self._proc.is_alive():
-                self._proc.terminate()
-                self._proc.join(5.0)
+        """End the process (idempotent): its end of the pipe closes, so it stops at once."""
         self._conn.close()
+        self._proc.join(5.0)
+        if self._proc.is_alive():
+            self._proc.terminate()
+            self._proc.join(5.0)
+
+
+def _counts(devices: list[Any]) -> tuple[list[int], list[bool]]:
+    """Return each board's frames sent and whether it is done.
+
+    ``done`` is read first: a board counts its last frames before it says it is done, so a
+    board said done has all its frames counted.
+    """
+    done = [d.done.is_set() for d in devices]
+    return [d.frames_sent for d in devices], done
 
 
 def _serve_boards(conn: Any, scenes: list[Any]) -> None:
@@ -221,13 +240,11 @@ def _serve_boards(conn: Any, scenes: list[Any]) -> None:
         for d in devices:
             d.start()
         while not conn.poll(0.2):
-            conn.send(("counts", ([d.frames_sent for d in devices],
-                                  [d.done.is_set() for d in devices])))
+            conn.send(("counts", _counts(devices)))
         conn.recv()  # stop
         for d in devices:
             d.close()
-        conn.send(("counts", ([d.frames_sent for d in devices],
-                              [d.done.is_set() for d in devices])))
+        conn.send(("counts", _counts(devices)))
         conn.send(("stopped", None))
     except (EOFError, BrokenPipeError, KeyboardInterrupt):
         pass
