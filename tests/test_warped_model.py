@@ -207,3 +207,28 @@ def test_skin_run_warps_with_the_skin_file_calibration_and_refuses_without(tmp_p
     assert summary["detected"] == summary["touches"] == 2
     assert {t["label"] for t in summary["per_touch"]} <= {*CLASSES, "unknown"}
 
+
+def test_bench_spread_classifies_with_a_model_file(tmp_path, trials, capsys):
+    from skin.cli import main as skin_main
+
+    train, _ = trials
+    cal = load_calibration(_calibration(tmp_path / "cal.json", np.unique(train.taxel)))
+    sensors = taxel_constants(cal, "cal.json")
+    paths = {}
+    for scale, data in (("taxel", train), ("nominal", warp_to_nominal(train, sensors))):
+        est = make_method("svm-pca", fs=train.fs).fit(trial_matrix(data, 0.5), train.label)
+        paths[scale] = save_model(tmp_path / f"{scale}.skops", est, "svm-pca", 0.5, train.fs,
+                                  training_summary(train, 0.5), time_scale=scale)
+    for scale, runs in (("taxel", {"nominal", "spread", "calibrated"}),
+                        ("nominal", {"nominal", "calibrated"})):  # no constants: no run
+        capsys.readouterr()
+        assert skin_main(["bench", "spread", "--touches", "3", "--seed", "7", "--durations",
+                          "1", "--model", str(paths[scale]), "--json"]) == 0
+        doc = json.loads(capsys.readouterr().out)
+        assert doc["model"]["time_scale"] == scale
+        assert doc["materials"] == [m for m in doc["materials"] if m in CLASSES] != []
+        figures = doc["by_duration"]["1"]
+        assert runs <= set(figures) and not ({"spread"} - runs) & set(figures)
+        for run in runs:
+            assert figures[run]["detected"] == figures[run]["touches"] == 3
+            assert 0 <= figures[run]["correct"] <= 3
