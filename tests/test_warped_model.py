@@ -222,10 +222,12 @@ def test_bench_spread_classifies_with_a_model_file(tmp_path, trials, capsys):
     for scale, runs in (("taxel", {"nominal", "spread", "calibrated"}),
                         ("nominal", {"nominal", "calibrated"})):  # no constants: no run
         capsys.readouterr()
+        contact = "finite" if scale == "nominal" else "perfect"
         assert skin_main(["bench", "spread", "--touches", "3", "--seed", "7", "--durations",
-                          "1", "--model", str(paths[scale]), "--json"]) == 0
+                          "1", "--model", str(paths[scale]), "--contact", contact,
+                          "--json"]) == 0
         doc = json.loads(capsys.readouterr().out)
-        assert doc["model"]["time_scale"] == scale
+        assert doc["model"]["time_scale"] == scale and doc["contact"] == contact
         assert doc["materials"] == [m for m in doc["materials"] if m in CLASSES] != []
         figures = doc["by_duration"]["1"]
         assert runs <= set(figures) and not ({"spread"} - runs) & set(figures)

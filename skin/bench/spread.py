@@ -88,7 +88,8 @@ def random_scene(touches: int = 120, spread: float = 0.10, seed: int = 0,
     return parse_scene("\n".join(lines) + "\n", "spread-scene.toml")
 
 
-def play(scene: Scene, calibrated: object, model: object = None) -> dict:
+def play(scene: Scene, calibrated: object, model: object = None,
+         contact: str = "perfect") -> dict:
     """Run the scene through the pipeline; return accuracy and detections.
 
     ``calibrated``: False (nominal constants), True (the simulation's true constants), a
@@ -96,13 +97,15 @@ def play(scene: Scene, calibrated: object, model: object = None) -> dict:
     ``("design", file)``: the median of the file's constants for every taxel (`design`).
     ``model``: a model file (or `skin.models.modelfile.load_model`'s dictionary) to classify
     with in place of the joint classifier; one trained on warped traces warps each taxel
-    with the constants of the file (the true ones, or the design's).
+    with the constants of the file (the true ones, or the design's). ``contact``: the
+    simulated contact, "perfect" or "finite" (`SkinSimulator`'s; ``skin simulate trials``
+    simulates a finite one).
     """
     from skin.drivers.sim import SkinSimulator
     from skin.models import JointClassifier, load_materials
     from skin.stream.pipeline import Pipeline
 
-    sim = SkinSimulator(scene)
+    sim = SkinSimulator(scene, contact=contact)
     layout = scene.layout
     calibration, sensors, warp = None, None, None
     if calibrated is True:
@@ -178,15 +181,18 @@ def design(sensors: list, fitted: list[int] | None = None) -> list:
 
 def run(touches: int = 120, spread: float = 0.10, seed: int = 0, sensor: str = "",
         progress=None, commissioned: object = None,
-        durations: list[float] | None = None, model: str | None = None) -> dict:
+        durations: list[float] | None = None, model: str | None = None,
+        contact: str = "perfect") -> dict:
     """Play the runs of the module docstring; return their figures.
 
     ``commissioned``: a `skin.formats.calibration_file.CalibrationFile` for runs 4 and 5.
     ``durations``: hold every touch this long, one set of runs each (default: one set with
     touches of 1.5-3 s); the figures of each are under ``by_duration`` keyed by seconds.
-    ``model``: a model file to classify with in place of the joint classifier.
+    ``model``: a model file to classify with in place of the joint classifier. ``contact``:
+    the simulated contact (`play`).
     """
-    out = {"touches": touches, "taxel_spread": spread, "seed": seed, "sensor": sensor or "paper"}
+    out = {"touches": touches, "taxel_spread": spread, "seed": seed, "sensor": sensor or "paper",
+           "contact": contact}
     plan = [("nominal", 0.0, False), ("spread", spread, False), ("calibrated", spread, True)]
     doc, materials = None, None
     if model is not None:
@@ -220,7 +226,7 @@ def run(touches: int = 120, spread: float = 0.10, seed: int = 0, sensor: str = "
         figures: dict = {}
         for name, s, cal in plan:
             figures[name] = play(random_scene(touches, s, seed, sensor, materials, hold=hold,
-                                              taxels=only), cal, doc)
+                                              taxels=only), cal, doc, contact)
             done += 1
             if progress is not None:
                 progress(done, len(plan) * len(holds))

@@ -186,6 +186,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                              "joint classifier; one trained with --calibration warps each "
                              "run's taxels with its constants and sits out the spread run, "
                              "which has none")
+    spread.add_argument("--contact", choices=("perfect", "finite"), default="perfect",
+                        help="simulated contact: perfect (default) or finite, with each "
+                             "material's contact conductance (as skin simulate trials)")
     spread.add_argument("--json", action="store_true", help="print one JSON document")
     spread.set_defaults(func=main_spread)
     com = kinds.add_parser("commission", help="commissioning a simulated unit from reference "
@@ -540,13 +543,15 @@ def main_spread(args: argparse.Namespace) -> int:
     doc = {"machine": bench.machine(),
            **run(args.touches, args.spread, args.seed, args.sensor,
                  progress=lambda d, n: progress.bar(d, n, "runs", started),
-                 commissioned=commissioned, durations=durations, model=args.model)}
+                 commissioned=commissioned, durations=durations, model=args.model,
+                 contact=args.contact)}
     progress.done()
     if args.json:
         print(json.dumps(doc))
         return 0
     print(f"{args.touches} touches on the arm, taxel constants spread +-{args.spread:.0%} "
-          f"(seed {args.seed}, sensor {doc['sensor']}, {doc['machine']['cpus']} cores)")
+          f"(seed {args.seed}, sensor {doc['sensor']}, {args.contact} contact, "
+          f"{doc['machine']['cpus']} cores)")
     if "model" in doc:
         print(f"classifier: model {args.model} ({doc['model']['method']}, traces on the "
               f"{doc['model']['time_scale']} time scale); objects of "
