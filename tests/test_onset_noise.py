@@ -188,8 +188,9 @@ def test_evaluate_onset_per_sensor_reports_the_issue_figures(capsys):
     doc = json.loads(capsys.readouterr().out)
     for key in ("detected_5sigma", "false_alarms_per_taxel_hour", "delay_floor_ratio_median",
                 "refined_onset_error_ms_median", "contacts_5sigma", "bound_floor_ratio_median",
-                "delay_bound_ratio_median"):
+                "delay_bound_ratio_median", "refined_onset_bound_ms_median"):
         assert key in doc
+    assert doc["refined_onset_bound_ms_median"] > 0
     # no detector reacts before the information bound: the delay is at least the bound
     assert doc["delay_bound_ratio_median"] >= 1.0
     assert doc["sensor"] == "fast-film" and 0 <= doc["detected_5sigma"] <= 1
@@ -235,6 +236,44 @@ def test_the_delay_bound_is_lordens_for_a_step_and_later_for_less_noise_never():
     assert delay_bound(np.zeros(when.size), when, sigma, fs) == np.inf  # no change
     with pytest.raises(ValueError):
         delay_bound(ramp, when, 0.0, fs)
+
+
+def test_the_onset_bound_is_the_cramer_rao_bound_and_a_fit_reaches_it():
+    """Closed form for a ramp; a least-squares fit of onset and size reaches it."""
+    from scipy.optimize import least_squares
+
+    from skin.bench.streams import onset_bound
+
+    fs, sigma, r = 100.0, 0.01, 0.5
+    t = np.arange(0, 101) / fs
+    ramp = r * t  # m' = r everywhere: information r^2 (N - S(t)^2 / S(t^2)) / sigma^2
+    expected = sigma / (r * np.sqrt(t.size - t.sum() ** 2 / (t @ t)))
+    assert onset_bound(ramp, t, sigma) == pytest.approx(expected, rel=1e-12)
+    assert onset_bound(2 * ramp, t, sigma) == pytest.approx(expected / 2, rel=1e-12)
+    assert onset_bound(ramp, t, 2 * sigma) == pytest.approx(2 * expected, rel=1e-12)
+    assert onset_bound(np.zeros(t.size), t, sigma) == np.inf
+    assert onset_bound(ramp[:1], t[:1], sigma) == np.inf
+    with pytest.raises(ValueError):
+        onset_bound(ramp, t, 0.0)
+
+    # a response that starts with a kink: fitted (onset, size) in noise spread as the bound says
+    tau, t0, grid = 0.2, 0.0123, np.arange(-10, 100) / fs
+
+    def shape(onset: float) -> np.ndarray:
+        return -np.expm1(-np.maximum(grid - onset, 0.0) / tau)
+
+    after = grid >= 0
+    bound = onset_bound(np.r_[0.0, shape(t0)[grid > t0]], np.r_[0.0, grid[grid > t0] - t0],
+                        sigma)
+    rng = np.random.default_rng(3)
+    fits = []
+    for _ in range(300):
+        y = shape(t0) + rng.normal(0.0, sigma, grid.size)
+        fit = least_squares(lambda p, y=y: (p[1] * shape(p[0]) - y)[after | (grid < 0)],
+                            [t0, 1.0], x_scale=[1e-3, 1.0])
+        fits.append(fit.x[0])
+    assert np.std(fits) == pytest.approx(bound, rel=0.15)
+    assert abs(np.mean(fits) - t0) < 3 * bound / np.sqrt(len(fits)) + 1e-4
 
 
 def test_every_sensor_contact_has_a_delay_bound_from_its_onset_on():

@@ -2,18 +2,20 @@
 
 `run` builds a skin of ``n`` taxels (`skin.bench.pipeline.cylinder_layout`: rings of 16,
 boards of 256), gives each board its own simulated board (`skin.drivers.sim.SkinSimulator`
-served as wire bytes on a real pseudo-terminal by `skin.drivers.sim.PtySerialDevice`), reads
-each through its serial driver (`skin.drivers.open`), a frame from each in turn, and pushes the
+served as wire bytes on a real pseudo-terminal by `skin.drivers.sim.PtySerialDevice`; the
+boards run in a process of their own, `SimulatedBoards`, as real boards are devices of their
+own, so the chain under test has its process to itself), reads each through its serial
+driver (`skin.drivers.open`), a frame from each in turn, and pushes the
 frames through `skin.stream.pipeline.Pipeline` with the joint classifier, a JSON-lines sink
 and an MCAP recording (`skin.drivers.recording.Recorder`: wire bytes, temperatures, events).
 
 The touches repeat the same pattern every simulated minute (`PERIOD`), moved to other taxels,
 so a chain that does not drift gives the same contacts every hour. Every ``every`` simulated
-seconds it notes the process's resident memory, its open file descriptors, and the frames,
-results and contacts so far. It reports memory over time and its growth after the first
-simulated hour (or after the first tenth of a shorter run), contacts and results per
-simulated hour, lost frames (sequence gaps, frames sent but never read or dropped late by the
-assembler, CRC errors), the
+seconds it notes the chain's resident memory (and the boards' process's, apart), its open
+file descriptors, and the frames, results and contacts so far. It reports memory over time
+and its growth after the first simulated hour (or after the first tenth of a shorter run),
+contacts and results per simulated hour, lost frames (sequence gaps, frames sent but never
+read or dropped late by the assembler, CRC errors), the
 simulated seconds per wall second and the size of what was written.
 """
 
@@ -105,15 +107,138 @@ def touches_apart(layout: Layout, scenes: list[Any], join_window: float = 0.5) -
     return joined
 
 
-def _rss_mb() -> float:
-    """Resident memory of this process now, MB."""
-    with open("/proc/self/statm") as f:
-        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+def _rss_mb(pid: int | str = "self") -> float:
+    """Resident memory of a process now (default: this one; 0 once it ended), MB."""
+    try:
+        with open(f"/proc/{pid}/statm") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+    except FileNotFoundError:
+        return 0.0
 
 
 def _open_fds() -> int:
     """Open file descriptors of this process."""
     return len(os.listdir("/proc/self/fd"))
+
+
+class SimulatedBoards:
+    """The soak's simulated boards, served on pseudo-terminals from a process of their own.
+
+    The boards are the hardware's side of the chain: in their own process
+    (``multiprocessing``, ``spawn``), as real boards are their own devices, the chain under
+    test (drivers, pipeline, sinks) has this process to itself. Each board is a
+    `skin.drivers.sim.PtySerialDevice` at full speed (it waits for its reader).
+
+    Parameters
+    ----------
+    scenes : list of Scene
+        One per board (`soak_scenes`).
+
+    Attributes
+    ----------
+    ports : list of (str, int)
+        Each board's pseudo-terminal and board id, in scene order; open them, then `start`.
+    sent : list of int
+        Frames each board has written so far (as last reported; final once ``done``).
+    done : list of bool
+        Whether each board has written its last frame.
+    """
+
+    def __init__(self, scenes: list[Any]) -> None:
+        import multiprocessing
+
+        context = multiprocessing.get_context("spawn")
+        self._conn, child = context.Pipe()
+        self._proc = context.Process(target=_serve_boards, args=(child, scenes),
+                                     name="skin-soak-boards", daemon=True)
+        self._proc.start()
+        child.close()
+        try:
+            self.ports: list[tuple[str, int]] = self._recv()
+        except BaseException:
+            self.close()
+            raise
+        self.sent = [0] * len(scenes)
+        self.done = [False] * len(scenes)
+
+    def _recv(self) -> Any:
+        try:
+            kind, what = self._conn.recv()
+        except (EOFError, OSError):
+            raise RuntimeError(f"the simulated boards' process (pid {self._proc.pid}) died "
+                               f"(exit code {self._proc.exitcode})") from None
+        if kind == "error":
+            raise RuntimeError(f"the simulated boards' process failed:\n{what}")
+        return what
+
+    @property
+    def pid(self) -> int:
+        """The boards' process id."""
+        return self._proc.pid
+
+    def start(self) -> None:
+        """Start every board writing (after the ports are open)."""
+        self._conn.send("start")
+
+    def update(self) -> None:
+        """Take the boards' latest counts, without waiting."""
+        while self._conn.poll():
+            self.sent, self.done = self._recv()
+
+    def stop(self) -> None:
+        """Stop the boards; ``sent`` is then what each wrote in all."""
+        if self._proc.is_alive():
+            self._conn.send("stop")
+            while True:
+                what = self._recv()
+                if what is None:
+                    break
+                self.sent, self.done = what
+        self.close()
+
+    def close(self) -> None:
+        """End the process (idempotent)."""
+        if self._proc.is_alive():
+            self._proc.join(5.0)
+            if self._proc.is_alive():
+                self._proc.terminate()
+                self._proc.join(5.0)
+        self._conn.close()
+
+
+def _serve_boards(conn: Any, scenes: list[Any]) -> None:
+    """`SimulatedBoards`' process: serve the boards, report their counts every 0.2 s."""
+    import traceback
+
+    from skin.drivers.sim import PtySerialDevice, SkinSimulator
+
+    devices = []
+    try:
+        devices = [PtySerialDevice(SkinSimulator(scene), speed=0) for scene in scenes]
+        conn.send(("ports", [(d.port, d.simulator.board.id) for d in devices]))
+        if conn.recv() != "start":
+            return
+        for d in devices:
+            d.start()
+        while not conn.poll(0.2):
+            conn.send(("counts", ([d.frames_sent for d in devices],
+                                  [d.done.is_set() for d in devices])))
+        conn.recv()  # stop
+        for d in devices:
+            d.close()
+        conn.send(("counts", ([d.frames_sent for d in devices],
+                              [d.done.is_set() for d in devices])))
+        conn.send(("stopped", None))
+    except (EOFError, BrokenPipeError, KeyboardInterrupt):
+        pass
+    except Exception:
+        try:
+            conn.send(("error", traceback.format_exc()))
+        except OSError:
+            pass
+    finally:
+        for d in devices:
+            d.close()
 
 
 def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
@@ -160,7 +285,6 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
     import shutil
 
     from skin import drivers
-    from skin.drivers.sim import PtySerialDevice, SkinSimulator
     from skin.models import JointClassifier
     from skin.stream.calibration import Calibration
     from skin.stream.pipeline import Pipeline
@@ -174,15 +298,15 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
     temporary = folder is None
     out = Path(tempfile.mkdtemp(prefix="skin-soak-") if folder is None else folder)
     out.mkdir(parents=True, exist_ok=True)
-    devices = [PtySerialDevice(SkinSimulator(scene), speed=0) for scene in scenes]
-    closers: list[Any] = list(devices)
-    opened: list[Any] = []
+    boards = SimulatedBoards(scenes)
+    closers: list[Any] = [boards]
+    opened: list[Any] = []  # the boards' drivers, read here (one process)
     try:
-        for d in devices:
-            opened.append(drivers.open(f"serial://{d.port}?board={d.simulator.board.id}"))
-            closers.insert(0, opened[-1])
         calibration = Calibration.from_layout(layout)
         pipe = Pipeline(layout, JointClassifier(layout), calibration=calibration)
+        for port, board in boards.ports:
+            opened.append(drivers.open(f"serial://{port}?board={board}"))
+            closers.insert(0, opened[-1])
         events = JsonLinesSink(out / "events.jsonl")
         closers.insert(0, events)
         pipe.sinks.append(events)
@@ -197,15 +321,12 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
                 recorder.add_driver(one)
             pipe.sinks.append(recorder)
             pipe.observers.append(recorder.temperature)
-        for d in devices:
-            d.start()  # after the ports are open: opening one empties its buffer
+        boards.start()  # after the ports are open: opening one empties its buffer
         samples = []
         onsets: list[float] = []  # onset of every final contact, simulated s
         labels: list[str] = []  # and its label
         results = 0
         received = 0
-        batch: list = []
-        latest: dict[int, float] = {}
         now = 0.0
         next_sample = 0.0
         started = time.monotonic()
@@ -215,6 +336,7 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
             samples.append({"simulated_s": round(now, 1),
                             "wall_s": round(time.monotonic() - started, 1),
                             "rss_mb": round(_rss_mb(), 1), "open_fds": _open_fds(),
+                            "boards_rss_mb": round(_rss_mb(boards.pid), 1),
                             "frames": received, "results": results,
                             "contacts": len(onsets)})
             if progress is not None:
@@ -222,63 +344,64 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
                 progress(f"[{now / 3600:6.3f}/{hours:g} h] RSS {s['rss_mb']:.0f} MB, "
                          f"{s['open_fds']} fds, {received} frames, {len(onsets)} contacts")
 
-        per_board = [0] * len(devices)
-        stopped_early = False
-        while True:
-            if wall_limit is not None and time.monotonic() - started > wall_limit:
-                stopped_early = True
-                break
-            # the boards are read in turn, a frame each, as a sync keeps real boards in step
-            # (the assembler takes a board more than 20 samples behind as missing); each
-            # simulated board waits for its reader, so nothing is dropped at full speed
-            got = 0
-            for i, (one, device) in enumerate(zip(opened, devices, strict=True)):
-                if device.done.is_set() and per_board[i] >= device.frames_sent:
-                    continue
-                frame = one.recv(timeout=1.0)
-                if frame is None:
-                    continue
-                got += 1
-                per_board[i] += 1
-                batch.append(frame)
-                latest[frame.board] = frame.device_time
-            received += got
-            if got:
-                idle_since = time.monotonic()
-                if len(latest) == len(devices):
-                    now = min(latest.values())  # the skin's time: its slowest board's
-            done = all(d.done.is_set() and n >= d.frames_sent
-                       for d, n in zip(devices, per_board, strict=True)) or (
-                time.monotonic() - idle_since > 30.0)  # a board went silent
-            if batch and (len(batch) >= 20 * len(devices) or done):
-                for r in pipe.process(batch):
-                    results += 1
-                    if r.contact.final:
-                        onsets.append(r.contact.onset)
-                        labels.append(r.estimate.label)
-                batch = []
-            if now >= next_sample:
-                note()
-                next_sample += every
-            if done:
-                break
-        if batch:  # stopped early: what was read is processed
-            for r in pipe.process(batch):
+        def take(given: list) -> None:
+            nonlocal results
+            for r in given:
                 results += 1
                 if r.contact.final:
                     onsets.append(r.contact.onset)
                     labels.append(r.estimate.label)
-        for r in pipe.flush():
-            results += 1
-            if r.contact.final:
-                onsets.append(r.contact.onset)
-                labels.append(r.estimate.label)
-        now = min(latest.values(), default=0.0)
+
+        def all_read(frames: int) -> bool:
+            boards.update()
+            return all(boards.done) and frames >= sum(boards.sent)
+
+        stopped_early = False
+        if True:
+            batch: list = []
+            latest: dict[int, float] = {}
+            per_board = [0] * len(boards.ports)
+            while True:
+                if wall_limit is not None and time.monotonic() - started > wall_limit:
+                    stopped_early = True
+                    break
+                # the boards are read in turn, a frame each, as a sync keeps real boards in
+                # step (the assembler takes a board more than 20 samples behind as missing);
+                # each simulated board waits for its reader, so nothing is dropped at full speed
+                got = 0
+                for i, one in enumerate(opened):
+                    if boards.done[i] and per_board[i] >= boards.sent[i]:
+                        continue
+                    frame = one.recv(timeout=1.0)
+                    if frame is None:
+                        continue
+                    got += 1
+                    per_board[i] += 1
+                    batch.append(frame)
+                    latest[frame.board] = frame.device_time
+                received += got
+                if got:
+                    idle_since = time.monotonic()
+                    if len(latest) == len(opened):
+                        now = min(latest.values())  # the skin's time: its slowest board's
+                done = all_read(received) or time.monotonic() - idle_since > 30.0
+                if batch and (len(batch) >= 20 * len(opened) or done):
+                    take(pipe.process(batch))
+                    batch = []
+                if now >= next_sample:
+                    note()
+                    next_sample += every
+                if done:
+                    break
+            take(pipe.process(batch) if batch else [])  # stopped early: what was read
+            take(pipe.flush())
+            now = min(latest.values(), default=0.0)
+            crc = sum(one.stats.crc_errors for one in opened)
+            late = pipe.assembler.stats.late
         note()
         wall = time.monotonic() - started
-        sent = sum(d.frames_sent for d in devices)
-        crc = sum(one.stats.crc_errors for one in opened)
-        late = pipe.assembler.stats.late
+        boards.stop()
+        sent = sum(boards.sent)
         for c in closers:
             c.close()
         closers = []
@@ -303,10 +426,10 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
     # the same touches every bin: the labels given should not drift either
     labels_per_bin = [dict(sorted(Counter(lab for lab, w in zip(labels, which, strict=True)
                                           if w == b).items())) for b in range(bins)]
-    return {"hours": hours, "taxels": n_taxels, "boards": len(devices),
+    return {"hours": hours, "taxels": n_taxels, "boards": len(scenes),
             "seconds_simulated": round(now, 1), "wall_s": round(wall, 1),
             "speed": round(now / wall, 2) if wall > 0 else None,
-            "taxel_samples_per_s": round(received / len(devices) * n_taxels / wall)
+            "taxel_samples_per_s": round(received / len(scenes) * n_taxels / wall)
             if wall > 0 else None,
             "frames_sent": sent, "frames_received": received,
             "lost_frames": int((0 if stopped_early else sent - received)

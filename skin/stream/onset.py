@@ -474,6 +474,10 @@ class OnsetDetector:
 
     def _step(self, t: float, y: np.ndarray, s: DetectorState, events: list[OnsetEvent],
               taus: np.ndarray) -> None:
+        # Whole-array updates selected with `np.copyto(..., where=)` (the same arithmetic,
+        # element by element, as masked updates, at a fraction of the calls), and the rare
+        # branches (new taxels, holes, onsets, contacts) skipped when no taxel takes them:
+        # a per-sample step is numpy's call overhead, whatever the taxels.
         valid = np.isfinite(y)
         new = valid & np.isnan(s.level)
         if new.any():
@@ -483,13 +487,16 @@ class OnsetDetector:
             s.t_level[new] = t
             s.t_last[new] = t
             s.armed_at[new] = t + self.warmup
-        live = valid & ~new
+            live = valid & ~new
+        else:
+            live = valid
         if not live.any():
             return
+        free = ~s.in_contact
         # a free taxel read again after a hole longer than the warm-up (its
         # board's samples lost, or flagged) starts again as a new one: its trend extrapolated
         # across the hole is no baseline, and what changed unseen cannot be dated
-        back = live & ~s.in_contact & (t - s.t_last > self.warmup)
+        back = live & free & (t - s.t_last > self.warmup)
         if back.any():
             s.level[back] = s.smooth[back] = s.slow[back] = y[back]
             s.slope[back] = 0.0
@@ -501,36 +508,41 @@ class OnsetDetector:
         # every smoothing gain at once: smooth, slow, level, slope (free, in contact), noise
         gain = 1 - np.exp(-dt / taus)
         # the smoothed reading averages noise and dithered ADC steps; everything runs on it
-        s.smooth[live] += (y[live] - s.smooth[live]) * gain[0, live]
+        np.copyto(s.smooth, s.smooth + (y - s.smooth) * gain[0], where=live)
         pred = s.level + s.slope * (t - s.t_level)
         resid = np.where(live, s.smooth - pred, 0.0)
         sigma = np.sqrt(np.maximum(s.var, self.noise_floor**2))
         allowance = np.maximum(self.drift, 4.0 * sigma)
-        idle = live & ~s.in_contact
+        idle = live & free
         armed = t >= s.armed_at
         # in contact the baseline follows the reading's in-contact trend, and the CUSUM of the
         # other sign watches for the contact's end: a fall stopping short, or a rise
-        cool = live & (s.direction < 0)
-        warm = live & (s.direction > 0)
-        watch_fall, watch_rise = idle | warm, idle | cool
-        # the trend in contact decelerates and the baseline lags it by a fraction of its slope:
-        # only a departure beyond that counts
-        slack = np.where(cool | warm, np.maximum(allowance, self.release_slack * np.abs(s.slope)),
-                         allowance)
+        contact = live & s.in_contact
+        any_contact = bool(contact.any())
+        if any_contact:
+            cool = live & (s.direction < 0)
+            warm = live & (s.direction > 0)
+            watch_fall, watch_rise = idle | warm, idle | cool
+            # the trend in contact decelerates and the baseline lags it by a fraction of its
+            # slope: only a departure beyond that counts
+            slack = np.where(cool | warm,
+                             np.maximum(allowance, self.release_slack * np.abs(s.slope)),
+                             allowance)
+        else:
+            watch_fall = watch_rise = idle
+            slack = allowance
 
         # CUSUMs of the shortfall below and the excess above the baseline, deg C x samples;
         # a free taxel's accumulate only once it is armed (the baseline is still catching the
         # reading's trend at start and during the fast recovery after a release)
         g_old, u_old = s.cusum, s.rise_cusum
+        unarmed = idle & ~armed
         g = np.where(watch_fall, np.maximum(0.0, g_old - resid - slack), g_old)
         u = np.where(watch_rise, np.maximum(0.0, u_old + resid - slack), u_old)
-        unarmed = idle & ~armed
-        g[unarmed] = 0.0
-        u[unarmed] = 0.0
-        starting = watch_fall & (g_old == 0) & (g > 0)
-        s.t_start[starting] = s.t_last[starting]
-        starting = watch_rise & (u_old == 0) & (u > 0)
-        s.rise_start[starting] = s.t_last[starting]
+        np.copyto(g, 0.0, where=unarmed)
+        np.copyto(u, 0.0, where=unarmed)
+        np.copyto(s.t_start, s.t_last, where=watch_fall & (g_old == 0) & (g > 0))
+        np.copyto(s.rise_start, s.t_last, where=watch_rise & (u_old == 0) & (u > 0))
         stale = watch_fall & (g > 0) & (t - s.t_start > self.stale)
         rise_stale = watch_rise & (u > 0) & (t - s.rise_start > self.stale)
         fell = (g > self.threshold) & ~stale
@@ -540,8 +552,6 @@ class OnsetDetector:
         # too brief to be reported, or a gust), not a warm object
         rebound = idle & rose & (s.rise_start - s.t_fell <= self.rebound)
         rise_alarm = idle & rose & armed & ~alarm & ~rebound
-        stopped = ((warm & fell) | (cool & rose)) if self.ends_when_stopped else \
-            np.zeros_like(live)
         for k in np.flatnonzero(alarm):
             t0 = float(s.t_start[k])
             events.append(OnsetEvent("onset", int(k), t0, t,
@@ -554,9 +564,9 @@ class OnsetDetector:
                                      float(s.slope[k]), 1, 1))
         # the slow channel: a fall below the slow average of the smoothed reading
         fall = np.where(idle, s.slow - s.smooth, 0.0)
-        begins = idle & (fall > self.slow_begin) & np.isnan(s.slow_start)
-        s.slow_start[begins] = s.t_last[begins]
-        s.slow_start[idle & (fall <= self.slow_begin)] = np.nan
+        np.copyto(s.slow_start, s.t_last,
+                  where=idle & (fall > self.slow_begin) & np.isnan(s.slow_start))
+        np.copyto(s.slow_start, np.nan, where=idle & (fall <= self.slow_begin))
         slow_alarm = (idle & ~alarm & ~rise_alarm & (fall > self.slow_threshold) & armed
                       & np.isfinite(s.slow_start))
         for k in np.flatnonzero(slow_alarm):
@@ -565,33 +575,31 @@ class OnsetDetector:
         t0 = np.where(alarm, s.t_start, s.rise_start)
         alarm = alarm | slow_alarm
         onset = alarm | rise_alarm
-        rebase = onset
-        s.slow_start[onset] = np.nan
-        c = gain[1]
-        calm = idle & ~onset
-        s.slow[calm] += c[calm] * (s.smooth[calm] - s.slow[calm])
+        any_onset = bool(onset.any())
+        calm = idle & ~onset if any_onset else idle
+        np.copyto(s.slow, s.slow + gain[1] * (s.smooth - s.slow), where=calm)
         # while the taxel recovers from a release, the slow average keeps up with it
-        catch = calm & (t < s.recover_until) & (s.recover_dir * (s.smooth - s.slow) > 0)
-        s.slow[catch] = s.smooth[catch]
-
-        s.in_contact[onset] = True
-        s.direction[alarm] = -1.0
-        s.direction[rise_alarm] = 1.0
-        s.extreme[onset] = s.smooth[onset]
-        s.t_extreme[onset] = t
-        # from the onset on (or a reheat's rebound), the baseline follows the trend from where
-        # the reading is now
-        if rebase.any():
-            o = rebase & np.isfinite(t0)
+        np.copyto(s.slow, s.smooth, where=calm & (t < s.recover_until)
+                  & (s.recover_dir * (s.smooth - s.slow) > 0))
+        if any_onset:
+            s.slow_start[onset] = np.nan
+            s.in_contact[onset] = True
+            s.direction[alarm] = -1.0
+            s.direction[rise_alarm] = 1.0
+            s.extreme[onset] = s.smooth[onset]
+            s.t_extreme[onset] = t
+            # from the onset on (or a reheat's rebound), the baseline follows the trend from
+            # where the reading is now
+            o = onset & np.isfinite(t0)
             since = np.maximum(t - t0[o], 1e-3)
             start = s.level[o] + s.slope[o] * (t0[o] - s.t_level[o])
             s.slope[o] = (s.smooth[o] - start) / since
-            s.slope[rebase & ~o] = 0.0
-            s.level[rebase] = s.smooth[rebase]
-            s.t_level[rebase] = t
-        s.t_fell[idle & (g > self.threshold / 10)] = t
-        g[onset | stale] = 0.0
-        u[onset | rebound | rise_stale] = 0.0
+            s.slope[onset & ~o] = 0.0
+            s.level[onset] = s.smooth[onset]
+            s.t_level[onset] = t
+        np.copyto(s.t_fell, t, where=idle & (g > self.threshold / 10))
+        np.copyto(g, 0.0, where=onset | stale)
+        np.copyto(u, 0.0, where=onset | rebound | rise_stale)
         s.cusum[:] = g
         s.rise_cusum[:] = u
 
@@ -599,49 +607,62 @@ class OnsetDetector:
         # contact, of its end)
         fall_ok = g <= self.threshold / 4
         rise_ok = u <= self.rise_threshold / 4
-        follow = ((idle & ~onset & fall_ok & rise_ok) | (warm & ~stopped & fall_ok)
-                  | (cool & ~stopped & rise_ok))
-        a = gain[2]
-        b = np.where(idle, gain[3], gain[4])
-        err = a * resid
-        s.level[follow] = pred[follow] + err[follow]
-        s.slope[follow] += (b * err / dt)[follow]
-        s.t_level[follow] = t
-        quiet = follow & idle & (g == 0) & (u == 0)
+        follow = calm & fall_ok & rise_ok
+        if any_contact:
+            stopped = ((warm & fell) | (cool & rose)) if self.ends_when_stopped else \
+                np.zeros_like(live)
+            follow |= (warm & ~stopped & fall_ok) | (cool & ~stopped & rise_ok)
+            b = np.where(idle, gain[3], gain[4])
+        else:
+            b = gain[3]
+        err = gain[2] * resid
+        np.copyto(s.level, pred + err, where=follow)
+        np.copyto(s.slope, s.slope + b * err / dt, where=follow)
+        np.copyto(s.t_level, t, where=follow)
         v = gain[5]
-        s.var[quiet] += v[quiet] * (resid[quiet] ** 2 - s.var[quiet])
+        np.copyto(s.var, s.var + v * (resid**2 - s.var), where=follow & idle & (g == 0) & (u == 0))
 
         # release: the smoothed temperature returns clearly from its in-contact extreme, or
         # its departure stops short of the in-contact trend
-        touching = live & s.in_contact & ~onset
+        if any_contact:
+            self._release(t, s, events, contact, sigma, warm, stopped)
+        np.copyto(s.t_last, t, where=live)
+
+    def _release(self, t: float, s: DetectorState, events: list[OnsetEvent],
+                 touching: np.ndarray, sigma: np.ndarray, warm: np.ndarray,
+                 stopped: np.ndarray) -> None:
+        """End the contacts whose reading came back, or whose departure stopped short.
+
+        ``touching``: the taxels in contact before this sample (not those whose onset it is).
+        """
         d = s.direction
         further = touching & (d * (s.smooth - s.extreme) > 0)
         s.extreme[further] = s.smooth[further]
         s.t_extreme[further] = t
         back = np.maximum(self.release_rise, 4 * sigma)
         returned = touching & (d * (s.extreme - s.smooth) > back)
-        stopped &= touching & ~returned
+        stopped = stopped & touching & ~returned
         released = returned | stopped
+        if not released.any():
+            return
         # a contact that stopped short ended where its CUSUM left zero, if not at its extreme
         turn = np.where(warm, s.t_start, s.rise_start)
         s.t_extreme[stopped] = np.minimum(s.t_extreme[stopped], turn[stopped])
         for k in np.flatnonzero(released):
             events.append(OnsetEvent("release", int(k), float(s.t_extreme[k]), t,
                                      float(s.extreme[k]), 0.0, int(d[k]), 3))
-        if released.any():
-            r = released
-            s.in_contact[r] = False
-            s.recover_dir[r] = -d[r]
-            s.recover_until[r] = t + self.recovery
-            s.direction[r] = 0.0
-            s.slope[returned] = ((s.smooth - s.extreme) / np.maximum(t - s.t_extreme, 1e-3)
-                                 )[returned]
-            s.slope[stopped] = 0.0
-            s.level[r] = s.smooth[r]
-            s.t_level[r] = t
-            s.cusum[r] = 0.0
-            s.rise_cusum[r] = 0.0
-            s.armed_at[r] = t + self.warmup
-            s.slow[r] = s.smooth[r]
-            s.slow_start[r] = np.nan
-        s.t_last[live] = t
+        r = released
+        s.in_contact[r] = False
+        s.recover_dir[r] = -d[r]
+        s.recover_until[r] = t + self.recovery
+        s.direction[r] = 0.0
+        s.slope[returned] = ((s.smooth - s.extreme) / np.maximum(t - s.t_extreme, 1e-3)
+                             )[returned]
+        s.slope[stopped] = 0.0
+        s.level[r] = s.smooth[r]
+        s.t_level[r] = t
+        s.cusum[r] = 0.0
+        s.rise_cusum[r] = 0.0
+        s.armed_at[r] = t + self.warmup
+        s.slow[r] = s.smooth[r]
+        s.slow_start[r] = np.nan
