@@ -13,6 +13,9 @@ fewer. The effusivity reported is measured (`skin.models.contact_fit.fitted_effu
 A model trained with ``skin train --anytime`` holds one model per
 duration: each taxel then answers from the longest of them its window covers, so a brief
 touch is named from what it gave, with the confidence that brevity allows.
+A model trained on traces warped to the design's time scale (``skin train --calibration``)
+reads each taxel's window warped alike with that taxel's commissioned constants
+(`skin.models.timescale.taxel_times`): it is refused without them.
 """
 
 from __future__ import annotations
@@ -37,14 +40,30 @@ class LearnedClassifier:
         K objects may be colder or warmer than the training data's: each taxel's
         probabilities are bounded by the physics over that range (`skin.models.nuisance`)
         before they are fused; 0 uses them as they are.
+    sensors : dict, optional
+        Taxel id -> commissioned `SensorConstants` (`skin.models.timescale.taxel_constants`
+        of a calibration file). A model trained on warped traces needs them and warps each
+        taxel's window onto the design's time scale (taxels missing from it are read as
+        recorded, as in training); other models ignore them.
+
+    Raises
+    ------
+    ModelFileError
+        If the model reads warped traces and ``sensors`` is None, naming the model file.
     """
 
     def __init__(self, model: str | Path | dict, threshold: float = 0.0,
-                 object_range: float = 0.0) -> None:
-        from skin.models.modelfile import load_model
+                 object_range: float = 0.0, sensors: dict | None = None) -> None:
+        from skin.models.modelfile import check_time_scale, load_model, reads_nominal_time
         from skin.models.nuisance import uncovered
 
         self.doc = model if isinstance(model, dict) else load_model(model)
+        check_time_scale(self.doc, "the model" if isinstance(model, dict) else str(model),
+                         sensors)
+        #: taxel id -> constants its windows are warped with (None: read as recorded)
+        self.sensors = None
+        if reads_nominal_time(self.doc):
+            self.sensors = dict(sensors)
         self.estimator = self.doc["estimator"]
         self.fs = float(self.doc["features"]["fs"])
         self.samples = round(float(self.doc["features"]["duration"]) * self.fs)
@@ -85,17 +104,25 @@ class LearnedClassifier:
                 parts.append(self._predict(self._rows(contact, picked, n)))
         return np.vstack(parts) if parts else np.empty((0, len(self.classes)))
 
+    def _times(self, taxel: int, nominal: np.ndarray) -> np.ndarray:
+        """Return the times since onset ``taxel`` is read at for the model's ``nominal`` times."""
+        if self.sensors is None:
+            return nominal
+        from skin.models.timescale import taxel_times
+
+        return taxel_times(nominal, self.sensors.get(int(taxel)))
+
     def _covers(self, window, samples: int) -> bool:
         ok = np.isfinite(window.temperature)
-        return bool(ok.sum() >= 2
-                    and window.time[ok][-1] >= (samples - 1) / self.fs - 0.5 / self.fs)
+        last = self._times(window.taxel, np.array([(samples - 1) / self.fs]))[0]
+        return bool(ok.sum() >= 2 and window.time[ok][-1] >= last - 0.5 / self.fs)
 
     def _rows(self, contact: Contact, windows: list, samples: int) -> np.ndarray:
         grid = np.arange(samples) / self.fs
         blocks = []
         for w in windows:
             ok = np.isfinite(w.temperature)
-            y = np.interp(grid, w.time[ok], w.temperature[ok])
+            y = np.interp(self._times(w.taxel, grid), w.time[ok], w.temperature[ok])
             blocks.append(np.concatenate([[w.initial], y]))
         if self.channels == 1:  # one row per taxel
             return np.array([np.concatenate([[contact.ambient], b]) for b in blocks]).reshape(

@@ -273,7 +273,9 @@ class Skin:
                     self.progress.message(f"object temperature range +-{object_range:g} K "
                                           f"(the scene's objects)")
             self.classifier: Any = LearnedClassifier(
-                s.model, threshold=s.threshold, object_range=object_range)
+                s.model, threshold=s.threshold, object_range=object_range,
+                sensors=self._thermal_constants())
+            self._check_time_scale()
             known = set(self.classifier.classes)
             for warning in (self.classifier.coverage_warning, other_sensors(
                     self.classifier.doc.get("training", {}).get("sensor"),
@@ -298,6 +300,35 @@ class Skin:
             raise SkinError(f"{what} has no class {missing[0]!r}, which the "
                             + ("setup's 'expect'" if missing[0] in s.expect else "scene")
                             + f" needs (it knows {', '.join(sorted(known))})")
+
+    def _thermal_constants(self) -> dict | None:
+        """Taxel id -> the calibration's thermal constants (None: it gives none, or no file)."""
+        from skin.formats.calibration_file import THERMAL
+        from skin.models.timescale import taxel_constants
+
+        if self.cal_file is None or not any(k in e for e in self.cal_file.taxels.values()
+                                            for k in THERMAL):
+            return None
+        return taxel_constants(self.cal_file, self.setup.calibration or "recorded calibration")
+
+    def _check_time_scale(self) -> None:
+        """Warn where a model trained on warped traces cannot warp a taxel, or its window."""
+        from skin.models.timescale import time_ratio
+
+        clf, s = self.classifier, self.setup
+        if clf.sensors is None:
+            return
+        bare = [int(i) for i in self.layout.ids if int(i) not in clf.sensors]
+        if bare:
+            self.progress.message(f"warning: {s.model}: {len(bare)} taxels have no thermal "
+                                  f"constants in the calibration, read as recorded: "
+                                  f"{bare[:10]}{' ...' if len(bare) > 10 else ''}")
+        need = max(clf.lengths) / clf.fs * max(time_ratio(v) for v in clf.sensors.values())
+        if need > s.window + 1e-9:
+            self.progress.message(f"warning: {s.model}: its slowest taxel needs {need:.2f} s "
+                                  f"of contact for the model's window; --window {s.window:g} "
+                                  f"cuts it shorter (such taxels answer from a shorter window "
+                                  f"or not at all)")
 
     def _check_arm(self) -> None:
         """Load the arm once and check it covers the layout, if a view or the map needs it."""

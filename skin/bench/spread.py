@@ -25,6 +25,13 @@ reads a window of that length.
 
 It reports each run's accuracy, detections and the classification time, so that the gap
 between 2 and 3 is what ``skin run --calibration`` can win back.
+
+With ``model`` (a file from ``skin train``) every run classifies with it in place of the
+joint classifier (`skin.models.learned.LearnedClassifier`, most probable class named) and the
+scenes touch only the materials it knows. A
+model trained on warped traces (``skin train --calibration``) reads each run's taxel
+constants to warp every contact, as ``skin run`` does: run 1 gives it the nominal skin's
+true constants (the design's: no warp) and run 2, which has no constants, is left out.
 """
 
 from __future__ import annotations
@@ -34,6 +41,13 @@ import time
 import numpy as np
 
 from skin.formats.scene import Scene, match_touches, parse_scene
+
+
+def scene_materials() -> list[str]:
+    """Return the materials `random_scene` draws from: every classifiable one at ambient."""
+    from skin.models import load_materials
+
+    return [m.name for m in load_materials().values() if m.classify and m.temperature is None]
 
 
 def random_scene(touches: int = 120, spread: float = 0.10, seed: int = 0,
@@ -47,14 +61,12 @@ def random_scene(touches: int = 120, spread: float = 0.10, seed: int = 0,
     touch only these taxel ids (for example those a calibration file commissioned).
     """
     from skin.formats.layout import load_layout
-    from skin.models import load_materials
 
     rng = np.random.default_rng([seed, 3])
     every = 3.0 if hold is None else max(3.0, hold + 1.5)
     layout = load_layout("arm")
     near = layout.neighbour_lists()
-    mats = materials or [m.name for m in load_materials().values()
-                         if m.classify and m.temperature is None]
+    mats = materials or scene_materials()
     lines = ['name = "spread"', 'layout = "arm"', f"duration = {every * touches + 2.0}",
              "ambient = 25.0", "noise = 0.02", f"seed = {seed}", f"taxel_spread = {spread}",
              "initial_temperature = [31.0, 38.9]"]
@@ -76,30 +88,50 @@ def random_scene(touches: int = 120, spread: float = 0.10, seed: int = 0,
     return parse_scene("\n".join(lines) + "\n", "spread-scene.toml")
 
 
-def play(scene: Scene, calibrated: object) -> dict:
+def play(scene: Scene, calibrated: object, model: object = None,
+         contact: str = "perfect") -> dict:
     """Run the scene through the pipeline; return accuracy and detections.
 
     ``calibrated``: False (nominal constants), True (the simulation's true constants), a
     `skin.formats.calibration_file.CalibrationFile` whose constants are used, or a tuple
     ``("design", file)``: the median of the file's constants for every taxel (`design`).
+    ``model``: a model file (or `skin.models.modelfile.load_model`'s dictionary) to classify
+    with in place of the joint classifier; one trained on warped traces warps each taxel
+    with the constants of the file (the true ones, or the design's). ``contact``: the
+    simulated contact, "perfect" or "finite" (`SkinSimulator`'s; ``skin simulate trials``
+    simulates a finite one).
     """
     from skin.drivers.sim import SkinSimulator
     from skin.models import JointClassifier, load_materials
     from skin.stream.pipeline import Pipeline
 
-    sim = SkinSimulator(scene)
+    sim = SkinSimulator(scene, contact=contact)
     layout = scene.layout
-    calibration, sensors = None, None
+    calibration, sensors, warp = None, None, None
     if calibrated is True:
-        calibration, sensors = sim.true_calibration().apply(layout)
+        cal = sim.true_calibration()
+        calibration, sensors = cal.apply(layout)
+        warp = cal
     elif isinstance(calibrated, tuple):
         calibration, sensors = calibrated[1].apply(layout)
-        sensors = design(sensors, [layout.index(i) for i in commissioned_taxels(calibrated[1])])
+        fitted = [layout.index(i) for i in commissioned_taxels(calibrated[1])]
+        sensors = design(sensors, fitted)
     elif calibrated:
         calibration, sensors = calibrated.apply(layout)
-    classifier = JointClassifier(
-        layout, load_materials(), sensors=None if sensors is None else
-        {int(t.id): s for t, s in zip(layout.taxels, sensors, strict=True)})
+        warp = calibrated
+    by_id = None if sensors is None else {int(t.id): s for t, s in
+                                          zip(layout.taxels, sensors, strict=True)}
+    if model is None:
+        classifier: object = JointClassifier(layout, load_materials(), sensors=by_id)
+    else:
+        from skin.models.learned import LearnedClassifier
+        from skin.models.timescale import taxel_constants
+
+        if isinstance(calibrated, tuple):  # the design's constants where the file fitted any
+            constants = {int(layout.ids[k]): sensors[k] for k in fitted}
+        else:
+            constants = None if warp is None else taxel_constants(warp, "calibration")
+        classifier = LearnedClassifier(model, sensors=constants)
     pipeline = Pipeline(layout, classifier, calibration=calibration, sensors=sensors)
     started = time.monotonic()
     results = []
@@ -112,7 +144,9 @@ def play(scene: Scene, calibrated: object) -> dict:
                                        [r.contact.onset for r in results])
     detected = [m for m in matches if m.contact_index is not None]
     correct = [m for m in detected if results[m.contact_index].estimate.label == m.material]
+    unknown = [m for m in detected if results[m.contact_index].estimate.label == "unknown"]
     return {"touches": len(matches), "detected": len(detected), "correct": len(correct),
+            "unknown": len(unknown),
             "false_contacts": len(unmatched),
             "accuracy": round(len(correct) / len(matches), 4),
             "wall_time": round(wall, 2)}
@@ -147,15 +181,35 @@ def design(sensors: list, fitted: list[int] | None = None) -> list:
 
 def run(touches: int = 120, spread: float = 0.10, seed: int = 0, sensor: str = "",
         progress=None, commissioned: object = None,
-        durations: list[float] | None = None) -> dict:
+        durations: list[float] | None = None, model: str | None = None,
+        contact: str = "perfect") -> dict:
     """Play the runs of the module docstring; return their figures.
 
     ``commissioned``: a `skin.formats.calibration_file.CalibrationFile` for runs 4 and 5.
     ``durations``: hold every touch this long, one set of runs each (default: one set with
     touches of 1.5-3 s); the figures of each are under ``by_duration`` keyed by seconds.
+    ``model``: a model file to classify with in place of the joint classifier. ``contact``:
+    the simulated contact (`play`).
     """
-    out = {"touches": touches, "taxel_spread": spread, "seed": seed, "sensor": sensor or "paper"}
+    out = {"touches": touches, "taxel_spread": spread, "seed": seed, "sensor": sensor or "paper",
+           "contact": contact}
     plan = [("nominal", 0.0, False), ("spread", spread, False), ("calibrated", spread, True)]
+    doc, materials = None, None
+    if model is not None:
+        from skin.models.modelfile import load_model, reads_nominal_time
+
+        doc = load_model(model)
+        materials = [m for m in scene_materials() if m in {str(c) for c in doc["classes"]}]
+        if not materials:
+            from skin.errors import SkinError
+
+            raise SkinError(f"{model}: the model knows none of the materials the scenes touch "
+                            f"({', '.join(scene_materials())})")
+        out["materials"] = materials  # the scenes touch those the model knows
+        out["model"] = {"file": str(model), "method": str(doc["method"]),
+                        "time_scale": "nominal" if reads_nominal_time(doc) else "taxel"}
+        if reads_nominal_time(doc):  # warps with constants: the nominal skin's true ones
+            plan = [("nominal", 0.0, True), ("calibrated", spread, True)]
     if commissioned is not None:
         plan += [("commissioned", spread, commissioned), ("design", spread,
                                                           ("design", commissioned))]
@@ -171,15 +225,16 @@ def run(touches: int = 120, spread: float = 0.10, seed: int = 0, sensor: str = "
     for hold in holds:
         figures: dict = {}
         for name, s, cal in plan:
-            figures[name] = play(random_scene(touches, s, seed, sensor, hold=hold,
-                                              taxels=only), cal)
+            figures[name] = play(random_scene(touches, s, seed, sensor, materials, hold=hold,
+                                              taxels=only), cal, doc, contact)
             done += 1
             if progress is not None:
                 progress(done, len(plan) * len(holds))
-        figures["calibration_gain"] = round(figures["calibrated"]["accuracy"]
-                                            - figures["spread"]["accuracy"], 4)
-        figures["spread_loss"] = round(figures["nominal"]["accuracy"]
-                                       - figures["spread"]["accuracy"], 4)
+        if "spread" in figures:
+            figures["calibration_gain"] = round(figures["calibrated"]["accuracy"]
+                                                - figures["spread"]["accuracy"], 4)
+            figures["spread_loss"] = round(figures["nominal"]["accuracy"]
+                                           - figures["spread"]["accuracy"], 4)
         if commissioned is not None:
             for name in ("commissioned", "design"):
                 figures[f"{name}_gap"] = round(figures["calibrated"]["accuracy"]

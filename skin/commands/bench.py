@@ -181,6 +181,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     spread.add_argument("--durations", default=None, metavar="S1,S2,...",
                         help="hold every touch this long, one set of runs each (e.g. "
                              "0.5,1,2.5; default: touches of 1.5-3 s)")
+    spread.add_argument("--model", metavar="FILE", default=None,
+                        help="classify with this model file (skin train) in place of the "
+                             "joint classifier; one trained with --calibration warps each "
+                             "run's taxels with its constants and sits out the spread run, "
+                             "which has none")
+    spread.add_argument("--contact", choices=("perfect", "finite"), default="perfect",
+                        help="simulated contact: perfect (default) or finite, with each "
+                             "material's contact conductance (as skin simulate trials)")
     spread.add_argument("--json", action="store_true", help="print one JSON document")
     spread.set_defaults(func=main_spread)
     com = kinds.add_parser("commission", help="commissioning a simulated unit from reference "
@@ -535,25 +543,33 @@ def main_spread(args: argparse.Namespace) -> int:
     doc = {"machine": bench.machine(),
            **run(args.touches, args.spread, args.seed, args.sensor,
                  progress=lambda d, n: progress.bar(d, n, "runs", started),
-                 commissioned=commissioned, durations=durations)}
+                 commissioned=commissioned, durations=durations, model=args.model,
+                 contact=args.contact)}
     progress.done()
     if args.json:
         print(json.dumps(doc))
         return 0
     print(f"{args.touches} touches on the arm, taxel constants spread +-{args.spread:.0%} "
-          f"(seed {args.seed}, sensor {doc['sensor']}, {doc['machine']['cpus']} cores)")
+          f"(seed {args.seed}, sensor {doc['sensor']}, {args.contact} contact, "
+          f"{doc['machine']['cpus']} cores)")
+    if "model" in doc:
+        print(f"classifier: model {args.model} ({doc['model']['method']}, traces on the "
+              f"{doc['model']['time_scale']} time scale); objects of "
+              f"{len(doc['materials'])} materials: {', '.join(doc['materials'])}")
     sets = doc["by_duration"].items() if durations else [("1.5-3", doc)]
     for held, figures in sets:
         print(f"touches held {held} s")
-        print(f"{'run':<12} {'accuracy':>8} {'detected':>8} {'false':>6} {'wall s':>7}")
+        print(f"{'run':<12} {'accuracy':>8} {'detected':>8} {'unknown':>7} {'false':>6} "
+              f"{'wall s':>7}")
         for key in ("nominal", "spread", "calibrated", "commissioned", "design"):
             if key not in figures:
                 continue
             r = figures[key]
-            print(f"{key:<12} {r['accuracy']:>8.3f} {r['detected']:>8} "
+            print(f"{key:<12} {r['accuracy']:>8.3f} {r['detected']:>8} {r['unknown']:>7} "
                   f"{r['false_contacts']:>6} {r['wall_time']:>7}")
-        print(f"calibration gain {figures['calibration_gain']:+.3f}, spread loss "
-              f"{figures['spread_loss']:+.3f} (accuracy)")
+        if "calibration_gain" in figures:
+            print(f"calibration gain {figures['calibration_gain']:+.3f}, spread loss "
+                  f"{figures['spread_loss']:+.3f} (accuracy)")
         for key in ("commissioned", "design"):
             if f"{key}_gap" in figures:
                 print(f"{key} {figures[f'{key}_gap']:+.3f} below the true constants")

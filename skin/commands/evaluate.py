@@ -79,22 +79,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.set_defaults(func=main)
 
 
-def _calibrated_sensors(path: str, data) -> dict:
+def calibrated_sensors(path: str, data) -> dict:
     """Return taxel id -> `SensorConstants` from a calibration file's thermal constants."""
-    import dataclasses
-
-    from skin.formats.calibration_file import THERMAL, load_calibration
-    from skin.models.physics import SensorConstants
+    from skin.formats.calibration_file import load_calibration
+    from skin.models.timescale import taxel_constants
 
     if data.taxel is None:
         raise SkinError(f"{data.source}: --calibration needs the dataset's 'taxel' column")
-    cal = load_calibration(path)
-    out = {int(k): dataclasses.replace(SensorConstants(), **{
-        key: float(v[key]) for key in THERMAL if key in v}) for k, v in cal.taxels.items()
-        if any(key in v for key in THERMAL)}
-    if not out:
-        raise SkinError(f"{path}: no taxel has thermal constants (skin calibrate thermal)")
-    return out
+    return taxel_constants(load_calibration(path), path)
 
 
 def _time_left(spent: list[tuple[float, float]], left: list[float], methods_left: int) -> str:
@@ -534,7 +526,7 @@ def main(args: argparse.Namespace) -> int:
         check_ceiling(test if test is not None else data)
     sensors = None
     if args.calibration:  # before the work starts
-        sensors = _calibrated_sensors(args.calibration, test if test is not None else data)
+        sensors = calibrated_sensors(args.calibration, test if test is not None else data)
     progress = Progress()
     if args.object_temperature_range > 0:
         from skin.models.nuisance import object_spread, uncovered
@@ -552,9 +544,11 @@ def main(args: argparse.Namespace) -> int:
         runs.append((warp_to_nominal(data, sensors),
                      None if test is None else warp_to_nominal(test, sensors), "+commissioned"))
     if args.model:
-        from skin.models.modelfile import load_model
+        from skin.models.modelfile import check_time_scale, load_model, reads_nominal_time
 
-        results = saved_model(load_model(args.model), data, durations)
+        doc = load_model(args.model)
+        check_time_scale(doc, args.model, sensors)
+        results = saved_model(doc, runs[-1][0] if reads_nominal_time(doc) else data, durations)
         methods = []
     for k, m in enumerate(methods):
         spent: list[tuple[float, float]] = []  # (duration, seconds) of this method's steps

@@ -4,7 +4,10 @@ The model file (skops.io, loaded with an allow-list; see `skin.models.modelfile`
 method, the window duration and sampling rate, the class names, a summary of the training
 data and the library version. ``--anytime`` trains one model per duration
 (`skin.models.classifiers.AnytimeClassifier`), so a brief touch is still named from the
-window it gave.
+window it gave. ``--calibration FILE`` trains on each taxel's traces warped to the design's
+time scale with its commissioned constants (`skin.models.timescale`, as ``skin evaluate
+--calibration`` does for METHOD+commissioned); the model file says so, and ``skin run`` then
+needs a calibration file to warp each contact's taxels alike.
 """
 
 from __future__ import annotations
@@ -31,6 +34,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     help="the sensor the training data was recorded (or simulated) with, "
                          "recorded in the model file: `skin run` warns when its layout's "
                          "boards use another (default: not recorded)")
+    tr.add_argument("--calibration", default=None, metavar="FILE",
+                    help="train on every taxel's traces warped to the design's time scale with "
+                         "its thermal constants from this calibration file (skin calibrate "
+                         "thermal; the dataset's taxel column says whose trace is whose): the "
+                         "model then needs a calibration file in skin run (default: traces as "
+                         "recorded)")
     tr.add_argument("-o", "--out", required=True, help="model file to write (.skops)")
     tr.add_argument("--json", action="store_true", help="print one JSON summary")
     tr.set_defaults(func=main)
@@ -76,8 +85,18 @@ def main(args: argparse.Namespace) -> int:
     from skin.models.modelfile import save_model, training_summary
 
     parse_method(args.method)
-    data = with_detected_onsets(require_classes(load_trials(args.data)))  # onset -1: find it
+    data = require_classes(load_trials(args.data))
+    sensors = None
+    if args.calibration:  # before the work starts
+        from skin.commands.evaluate import calibrated_sensors
+
+        sensors = calibrated_sensors(args.calibration, data)
+    data = with_detected_onsets(data)  # onset -1: find it
     check_enough(data, args.method)
+    if sensors is not None:
+        from skin.models.timescale import warp_to_nominal
+
+        data = warp_to_nominal(data, sensors)
     channels = data.n_channels if reads_channels(args.method) else 1
     duration = args.duration
     if args.anytime:
@@ -107,15 +126,20 @@ def main(args: argparse.Namespace) -> int:
         raise SkinError(f"{data.source}: cannot train {method} on {len(data)} trials: "
                         f"{exc}") from None
     fit_time = time.perf_counter() - started
-    path = save_model(args.out, estimator, method, duration, data.fs,
-                      training_summary(data, duration, sensor=args.sensor), channels=channels)
+    training = training_summary(data, duration, sensor=args.sensor)
+    if args.calibration:
+        training["calibration"] = str(args.calibration)
+    path = save_model(args.out, estimator, method, duration, data.fs, training,
+                      channels=channels, time_scale="nominal" if args.calibration else "taxel")
     summary = {"out": str(path), "method": method, "duration": duration,
                "classes": [str(c) for c in estimator.classes_], "trials": len(data),
-               "fit_seconds": round(fit_time, 3)}
+               "fit_seconds": round(fit_time, 3),
+               "time_scale": "nominal" if args.calibration else "taxel"}
     if args.json:
         print(json.dumps(summary))
     else:
         print(f"wrote {path}: {method} on {len(data)} trials, "
-              f"{len(summary['classes'])} classes, {duration:g} s window "
-              f"(fit in {fit_time:.1f} s)")
+              f"{len(summary['classes'])} classes, {duration:g} s window"
+              + (f", traces warped to the design's time scale ({args.calibration})"
+                 if args.calibration else "") + f" (fit in {fit_time:.1f} s)")
     return 0
