@@ -323,7 +323,9 @@ class Skin:
             self.progress.message(f"warning: {s.model}: {len(bare)} taxels have no thermal "
                                   f"constants in the calibration, read as recorded: "
                                   f"{bare[:10]}{' ...' if len(bare) > 10 else ''}")
-        need = max(clf.lengths) / clf.fs * max(time_ratio(v) for v in clf.sensors.values())
+        ratios = [time_ratio(clf.sensors[int(i)]) for i in self.layout.ids
+                  if int(i) in clf.sensors]  # this skin's taxels only
+        need = max(clf.lengths) / clf.fs * max(ratios, default=1.0)
         if need > s.window + 1e-9:
             self.progress.message(f"warning: {s.model}: its slowest taxel needs {need:.2f} s "
                                   f"of contact for the model's window; --window {s.window:g} "

@@ -234,3 +234,21 @@ def test_bench_spread_classifies_with_a_model_file(tmp_path, trials, capsys):
         for run in runs:
             assert figures[run]["detected"] == figures[run]["touches"] == 3
             assert 0 <= figures[run]["correct"] <= 3
+
+
+def test_a_calibration_of_other_taxels_is_refused_and_a_partial_one_named(tmp_path, trials):
+    """Nothing would be warped with another unit's file: refused before the work starts."""
+    train, _ = trials
+    train.save(tmp_path / "train.npz")
+    ids = np.unique(train.taxel[train.taxel >= 0])
+    other = _calibration(tmp_path / "other.json", ids + 1000)
+    out = skin("train", "--data", str(tmp_path / "train.npz"), "--method", "svm-pca",
+               "--duration", "1", "--calibration", str(other), "-o", str(tmp_path / "m.skops"))
+    assert out.returncode != 0 and not (tmp_path / "m.skops").exists()
+    assert "gives thermal constants for none of the taxels" in out.stderr
+    assert "another unit" in out.stderr
+    part = _calibration(tmp_path / "part.json", ids[1:])
+    out = skin("train", "--data", str(tmp_path / "train.npz"), "--method", "svm-pca",
+               "--duration", "1", "--calibration", str(part), "-o", str(tmp_path / "m.skops"))
+    assert out.returncode == 0, out.stderr
+    assert f"gives no thermal constants for taxel {int(ids[0])} of" in out.stderr

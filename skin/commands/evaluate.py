@@ -80,13 +80,36 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def calibrated_sensors(path: str, data) -> dict:
-    """Return taxel id -> `SensorConstants` from a calibration file's thermal constants."""
+    """Return taxel id -> `SensorConstants` from a calibration file's thermal constants.
+
+    Raises `SkinError` if the file gives none of the dataset's taxels (another unit's file,
+    or other ids: nothing would be warped); warns, on stderr, naming the taxels it leaves
+    out (their traces stay as recorded).
+    """
+    import sys
+
     from skin.formats.calibration_file import load_calibration
     from skin.models.timescale import taxel_constants
 
     if data.taxel is None:
         raise SkinError(f"{data.source}: --calibration needs the dataset's 'taxel' column")
-    return taxel_constants(load_calibration(path), path)
+    sensors = taxel_constants(load_calibration(path), path)
+    ids = sorted({int(k) for k in np.asarray(data.taxel).ravel() if k >= 0})
+    missing = [k for k in ids if k not in sensors]
+    if ids and len(missing) == len(ids):
+        raise SkinError(f"{path} gives thermal constants for none of the taxels of "
+                        f"{data.source} ({_some(ids)}): a calibration of another unit?")
+    if missing:
+        print(f"warning: {path} gives no thermal constants for taxel"
+              f"{'s' * (len(missing) > 1)} {_some(missing)} of {data.source}: their traces "
+              "stay as recorded", file=sys.stderr)
+    return sensors
+
+
+def _some(ids: list[int], most: int = 10) -> str:
+    """Name up to ``most`` ids, and how many more."""
+    shown = ", ".join(map(str, ids[:most]))
+    return shown + (f" and {len(ids) - most} more" if len(ids) > most else "")
 
 
 def _time_left(spent: list[tuple[float, float]], left: list[float], methods_left: int) -> str:
@@ -489,6 +512,13 @@ def main(args: argparse.Namespace) -> int:
         raise SkinError("--test goes with --train (use --data for cross-validation)")
     if args.model and not args.data:
         raise SkinError("--model is evaluated on --data")
+    model_doc = None
+    if args.model:  # before the work starts: the file, and the constants a warped model needs
+        from skin.models.modelfile import check_time_scale, load_model
+
+        model_doc = load_model(args.model)
+        if not args.calibration:
+            check_time_scale(model_doc, args.model, None)
     data = require_classes(load_trials(args.data or args.train))
     test = load_trials(args.test) if args.test else None
     detected = int(np.sum(data.onset < 0)) + (0 if test is None else int(np.sum(test.onset < 0)))
@@ -543,12 +573,12 @@ def main(args: argparse.Namespace) -> int:
 
         runs.append((warp_to_nominal(data, sensors),
                      None if test is None else warp_to_nominal(test, sensors), "+commissioned"))
-    if args.model:
-        from skin.models.modelfile import check_time_scale, load_model, reads_nominal_time
+    if model_doc is not None:
+        from skin.models.modelfile import check_time_scale, reads_nominal_time
 
-        doc = load_model(args.model)
-        check_time_scale(doc, args.model, sensors)
-        results = saved_model(doc, runs[-1][0] if reads_nominal_time(doc) else data, durations)
+        check_time_scale(model_doc, args.model, sensors)
+        results = saved_model(model_doc, runs[-1][0] if reads_nominal_time(model_doc) else data,
+                              durations)
         methods = []
     for k, m in enumerate(methods):
         spent: list[tuple[float, float]] = []  # (duration, seconds) of this method's steps
