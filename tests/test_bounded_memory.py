@@ -131,6 +131,45 @@ def test_a_soak_stopped_at_its_wall_limit_reports_what_it_reached():
     assert len(r["contacts_per_bin"]) == int(r["seconds_simulated"] // 60)
 
 
+def test_a_soak_stopped_by_ctrl_c_reports_what_it_reached():
+    """Ctrl-C (SIGINT to the whole process group, as a terminal sends it) stops the reading;
+    the boards' process ignores it, so the run still reports their counts."""
+    import json
+    import os
+    import signal
+    import subprocess
+    import sys
+    import threading
+    import time
+
+    proc = subprocess.Popen([sys.executable, "-m", "skin", "bench", "soak", "--hours", "1",
+                             "--taxels", "256", "--every", "5", "--no-record", "--json"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    seen: list[str] = []
+    reader = threading.Thread(target=lambda: seen.extend(iter(lambda: proc.stderr.read(1), "")),
+                              daemon=True)
+    reader.start()
+    try:
+        deadline = time.monotonic() + 300.0
+        while "frames" not in "".join(seen) and time.monotonic() < deadline:
+            time.sleep(0.2)  # until it reads (its first progress line)
+        time.sleep(2.0)
+        os.killpg(proc.pid, signal.SIGINT)
+        out = proc.stdout.read()
+        proc.wait(timeout=120)
+        reader.join(10.0)
+        err = "".join(seen)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 0, err
+    r = json.loads(out)
+    assert r["stopped_early"] and 0 < r["seconds_simulated"] < 3600
+    assert r["lost_frames"] == 0
+    assert r["frames_sent"] == r["frames_received"] + r["in_flight"]
+
+
 @pytest.mark.parametrize("n_taxels", [300, 1000, 2000, 3000])
 def test_soak_touches_never_form_one_patch_across_boards(n_taxels):
     """The soak's boards are touched at the same instants: no two touches may be neighbours.

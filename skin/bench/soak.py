@@ -226,8 +226,14 @@ def _counts(devices: list[Any]) -> tuple[list[int], list[bool]]:
 
 
 def _serve_boards(conn: Any, scenes: list[Any]) -> None:
-    """`SimulatedBoards`' process: serve the boards, report their counts every 0.2 s."""
+    """`SimulatedBoards`' process: serve the boards, report their counts every 0.2 s.
+
+    Ctrl-C is the chain's to handle (it stops reading and reports): the boards ignore it.
+    """
+    import signal
     import traceback
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
     from skin.drivers.sim import PtySerialDevice, SkinSimulator
 
@@ -374,10 +380,10 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
             return all(boards.done) and frames >= sum(boards.sent)
 
         stopped_early = False
-        if True:
-            batch: list = []
-            latest: dict[int, float] = {}
-            per_board = [0] * len(boards.ports)
+        batch: list = []
+        latest: dict[int, float] = {}
+        per_board = [0] * len(boards.ports)
+        try:
             while True:
                 if wall_limit is not None and time.monotonic() - started > wall_limit:
                     stopped_early = True
@@ -403,18 +409,20 @@ def run(hours: float, n_taxels: int, seed: int = 0, every: float | None = None,
                         now = min(latest.values())  # the skin's time: its slowest board's
                 done = all_read(received) or time.monotonic() - idle_since > 30.0
                 if batch and (len(batch) >= 20 * len(opened) or done):
-                    take(pipe.process(batch))
-                    batch = []
+                    todo, batch = batch, []
+                    take(pipe.process(todo))
                 if now >= next_sample:
                     note()
                     next_sample += every
                 if done:
                     break
-            take(pipe.process(batch) if batch else [])  # stopped early: what was read
-            take(pipe.flush())
-            now = min(latest.values(), default=0.0)
-            crc = sum(one.stats.crc_errors for one in opened)
-            late = pipe.assembler.stats.late
+        except KeyboardInterrupt:  # Ctrl-C: stop here and report (the boards ignore it)
+            stopped_early = True
+        take(pipe.process(batch) if batch else [])  # stopped early: what was read
+        take(pipe.flush())
+        now = min(latest.values(), default=0.0)
+        crc = sum(one.stats.crc_errors for one in opened)
+        late = pipe.assembler.stats.late
         note()
         wall = time.monotonic() - started
         boards.stop()
