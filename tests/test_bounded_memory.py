@@ -145,7 +145,10 @@ def test_a_soak_stopped_by_ctrl_c_reports_what_it_reached():
     proc = subprocess.Popen([sys.executable, "-m", "skin", "bench", "soak", "--hours", "1",
                              "--taxels", "256", "--every", "5", "--no-record", "--json"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
+                            start_new_session=True,
+                            # a background job inherits SIGINT ignored (as CI runs us): a
+                            # terminal's Ctrl-C reaches a foreground run with its default
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     seen: list[str] = []
     reader = threading.Thread(target=lambda: seen.extend(iter(lambda: proc.stderr.read(1), "")),
                               daemon=True)
@@ -156,8 +159,8 @@ def test_a_soak_stopped_by_ctrl_c_reports_what_it_reached():
             time.sleep(0.2)  # until it reads (its first progress line)
         time.sleep(2.0)
         os.killpg(proc.pid, signal.SIGINT)
-        out = proc.stdout.read()
         proc.wait(timeout=120)
+        out = proc.stdout.read()
         reader.join(10.0)
         err = "".join(seen)
     finally:
