@@ -54,8 +54,6 @@ def taxel_constants(cal, source: str) -> dict:
     SkinError
         If no taxel has thermal constants (``skin calibrate thermal`` writes them).
     """
-    import dataclasses
-
     from skin.errors import SkinError
     from skin.formats.calibration_file import THERMAL
     from skin.models.physics import SensorConstants

@@ -129,12 +129,13 @@ def main(args: argparse.Namespace) -> int:
     training = training_summary(data, duration, sensor=args.sensor)
     if args.calibration:
         training["calibration"] = str(args.calibration)
+    time_scale = "nominal" if args.calibration else "taxel"
     path = save_model(args.out, estimator, method, duration, data.fs, training,
-                      channels=channels, time_scale="nominal" if args.calibration else "taxel")
+                      channels=channels, time_scale=time_scale)
     summary = {"out": str(path), "method": method, "duration": duration,
                "classes": [str(c) for c in estimator.classes_], "trials": len(data),
                "fit_seconds": round(fit_time, 3),
-               "time_scale": "nominal" if args.calibration else "taxel"}
+               "time_scale": time_scale}
     if args.json:
         print(json.dumps(summary))
     else:
