@@ -86,7 +86,8 @@ def channel_truth(data: TrialSet) -> dict[str, np.ndarray]:
 
 
 def known_nuisance_ceiling(data: TrialSet, duration: float,
-                           unknown: tuple[str, ...] = ()) -> dict:
+                           unknown: tuple[str, ...] = (),
+                           candidates: dict[str, float] | None = None) -> dict:
     """Accuracy of the least-squares material choice when every nuisance is known.
 
     Every channel of a contact is used where the simulation stored each channel's truth
@@ -102,6 +103,10 @@ def known_nuisance_ceiling(data: TrialSet, duration: float,
         Seconds after the recorded onset that are used.
     unknown : tuple of str
         Nuisances not told (`UNKNOWABLE`; module docstring).
+    candidates : dict of str to float, optional
+        Material name -> effusivity to choose among: a classifier's candidates, of which the
+        dataset may hold a few (a scene's touches, `skin.bench.scene_ceiling`). Default: the
+        dataset's classes, each with its simulated effusivity.
 
     Returns
     -------
@@ -124,8 +129,15 @@ def known_nuisance_ceiling(data: TrialSet, duration: float,
                          f"{', '.join(UNKNOWABLE)}")
     check_ceiling(data)
     x = data.extra
-    classes = data.classes
-    effusivity = np.array([x["true_effusivity"][data.label == c][0] for c in classes])
+    if candidates is None:
+        classes = data.classes
+        effusivity = np.array([x["true_effusivity"][data.label == c][0] for c in classes])
+    else:
+        classes = sorted(candidates)
+        effusivity = np.array([float(candidates[c]) for c in classes])
+        missing = sorted(set(data.classes) - set(classes))
+        if missing:
+            raise SkinError(f"{data.source}: {', '.join(missing)} is not among the candidates")
     n = round(duration * data.fs)
     if n < 1 or np.any(data.onset + n > data.temperature.shape[-1]):
         raise SkinError(f"{data.source}: a {duration} s window does not fit the recording")

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -22,8 +23,14 @@ import numpy as np
 SURE = 0.9
 
 
-def play(scene: str, seed: int, duration: float | None = None) -> dict[str, Any]:
-    """Run ``scene`` with ``seed`` through `skin.Skin`; return its figures and its misses."""
+def play(scene: str, seed: int, duration: float | None = None,
+         ceiling: bool = False) -> dict[str, Any]:
+    """Run ``scene`` with ``seed`` through `skin.Skin`; return its figures and its misses.
+
+    With ``ceiling``, also ``ceiling`` (touches the known-nuisance ceiling names right, and
+    ``ceiling_family``) and ``steps`` (the gap from the run to it,
+    `skin.bench.scene_ceiling.ladder`).
+    """
     import io
 
     from skin.progress import Progress
@@ -33,7 +40,27 @@ def play(scene: str, seed: int, duration: float | None = None) -> dict[str, Any]
     quiet = Progress(io.StringIO())  # the run's own status lines; the bench shows its bar
     with Skin(scene=scene, seed=seed, speed=0.0, duration=duration, out=None, map=False,
               sinks=[], progress=quiet) as skin:
-        summary = skin.run()
+        if not ceiling:
+            summary = skin.run()
+        else:
+            import copy
+
+            fresh = copy.deepcopy(skin.classifier)  # before the run teaches it anything
+            fs = next(iter(skin.layout.boards.values())).sample_rate
+            n = round(skin.duration * fs)
+            readings = np.full((n + 1, len(skin.layout)), np.nan)
+
+            def observe(times: np.ndarray, temperature: np.ndarray, _host: np.ndarray) -> None:
+                k = np.rint(np.asarray(times) * fs).astype(int)
+                ok = (k >= 0) & (k <= n)
+                readings[k[ok]] = temperature[ok]
+
+            skin.pipeline.observers.append(observe)
+            try:
+                contacts = [r.contact for r in skin.results() if r.contact.final]
+            finally:
+                skin.close_sources()
+            summary = skin.finish()
         table = skin.materials
     finals = [r for r in skin.records if r["final"]]
     touches = {(tuple(t["taxels"]), t["start"]): t for t in summary["per_touch"]}
@@ -57,12 +84,39 @@ def play(scene: str, seed: int, duration: float | None = None) -> dict[str, Any]
                                  round(table[best].effusivity / table[truth].effusivity, 3)),
             "taxels": len(rec["taxels"]), "duration": rec["duration"],
             "onset": rec["onset"]})
-    return {"seed": seed, "touches": summary["touches"], "detected": summary["detected"],
+    extra: dict[str, Any] = {}
+    if ceiling:
+        extra = _ceiling_figures(skin, fresh, contacts, readings, fs)
+    return {**extra, "seed": seed, "touches": summary["touches"], "detected": summary["detected"],
             "material": summary["correct"], "family": summary["family_correct"],
             "unknown": unknown, "wrong": wrong, "sure_wrong": sure_wrong,
             "false_contacts": summary["false_contacts"], "misses": misses,
             "n_touches": len(touches), "wall_s": round(time.monotonic() - started, 2),
             "cpu_s": round(time.process_time() - cpu, 2)}
+
+
+def _ceiling_figures(skin, fresh, contacts: list, readings: np.ndarray,
+                     fs: float) -> dict[str, Any]:
+    """Return the ceiling and the gap's steps of one played scene (`play` with ``ceiling``)."""
+    from skin.bench.scene_ceiling import ladder, touch_ceiling, touch_truth
+    from skin.formats.scene import match_touches
+
+    scene, table = skin.scene, skin.materials
+    window = skin.setup.window
+    truths = touch_truth(scene, skin.duration)
+    candidates = {m.name: m.effusivity for m in fresh.model.materials}
+    chosen = [touch_ceiling(t, readings, fs, scene.ambient, window, candidates) for t in truths]
+    misses = [{"truth": t["material"], "chosen": c, "taxels": len(t["taxels"]),
+               "duration": round((t["k1"] - t["k0"]) / fs, 3)}
+              for t, c in zip(truths, chosen, strict=True) if c != t["material"]]
+    in_time = tuple(t["touch"] for t in truths)
+    matches, _ = match_touches(replace(scene, touches=in_time), [c.taxels for c in contacts],
+                               [c.onset for c in contacts])
+    steps = ladder(fresh, matches, contacts, truths, readings, fs, scene.ambient, window)
+    return {"ceiling": sum(c == t["material"] for t, c in zip(truths, chosen, strict=True)),
+            "ceiling_family": sum(table[c].family == t["family"]
+                                  for t, c in zip(truths, chosen, strict=True)),
+            "ceiling_misses": misses, "steps": steps}
 
 
 def _pair(truth: str, label: str, misses: list[dict]) -> dict[str, Any]:
@@ -91,7 +145,8 @@ def _median(values: list) -> float | None:
 
 def run(scene: str = "default", seeds: Sequence[int] = tuple(range(10)),
         duration: float | None = None,
-        progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+        progress: Callable[[int, int], None] | None = None,
+        ceiling: bool = False) -> dict[str, Any]:
     """Play ``scene`` once per seed; return the runs and the figures over all of them.
 
     Returns
@@ -100,11 +155,13 @@ def run(scene: str = "default", seeds: Sequence[int] = tuple(range(10)),
         ``runs`` (one `play` each), ``totals`` (sums over the runs and the share of runs
         reaching each count of touches named right) and ``pairs`` (the misses grouped by
         truth and answer: count, median confidence, effusivity ratio, median duration and
-        taxels of the touches).
+        taxels of the touches). With ``ceiling``, ``totals`` also holds ``ceiling``,
+        ``ceiling_family`` (sums), ``ceiling_per_run`` (mean, min, max) and ``steps`` (each
+        step's counts summed over the runs, `skin.bench.scene_ceiling.ladder`).
     """
     runs = []
     for i, seed in enumerate(seeds):
-        runs.append(play(scene, int(seed), duration))
+        runs.append(play(scene, int(seed), duration, ceiling))
         if progress is not None:
             progress(i + 1, len(seeds))
     keys = ("touches", "detected", "material", "family", "unknown", "wrong", "sure_wrong",
@@ -119,6 +176,15 @@ def run(scene: str = "default", seeds: Sequence[int] = tuple(range(10)),
                                 "min": int(family.min()), "max": int(family.max())}
     totals["runs_material_at_least"] = {int(k): int((material >= k).sum())
                                         for k in sorted(set(material.tolist()))}
+    if ceiling:
+        top = np.array([r["ceiling"] for r in runs])
+        totals["ceiling"] = int(top.sum())
+        totals["ceiling_family"] = int(sum(r["ceiling_family"] for r in runs))
+        totals["ceiling_per_run"] = {"mean": round(float(top.mean()), 2), "min": int(top.min()),
+                                     "max": int(top.max())}
+        totals["steps"] = {step: {k: int(sum(r["steps"][step][k] for r in runs))
+                                  for k in runs[0]["steps"][step] if k != "misses"}
+                           for step in runs[0]["steps"]}
     groups: dict[tuple[str, str], list[dict]] = {}
     for r in runs:
         for m in r["misses"]:

@@ -21,6 +21,10 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
                        help="seeds: a range 0-9 or a list 3,7,11 (0-9)")
     scene.add_argument("--duration", type=float, default=None,
                        help="seconds of each run (default: the scene's)")
+    scene.add_argument("--ceiling", action="store_true",
+                       help="also the known-nuisance ceiling of each touch (the best classifier "
+                            "told all but the material) and the gap from the run to it, in "
+                            "steps (skin.bench.scene_ceiling)")
     scene.add_argument("--json", action="store_true", help="print one JSON document")
     scene.set_defaults(func=main)
 
@@ -62,24 +66,27 @@ def main(args: argparse.Namespace) -> int:
     progress = Progress()
     started = time.monotonic()
     out = run(args.scene, seeds, args.duration,
-              progress=lambda d, n: progress.bar(d, n, "runs", started))
+              progress=lambda d, n: progress.bar(d, n, "runs", started), ceiling=args.ceiling)
     progress.done()
     if args.json:
         print(json.dumps({"machine": machine(), **out,
                           "wall_time": round(time.monotonic() - started, 2)}))
         return 0
     print(f"scene {args.scene}, {len(seeds)} seeds; sure_wrong = wrong at p >= {SURE:g}")
-    print(f"{'seed':>5} " + " ".join(f"{c:>{len(c)}}" for c in _COLUMNS) + "  cpu_s")
+    columns = _COLUMNS + (("ceiling", "ceiling_family") if args.ceiling else ())
+    print(f"{'seed':>5} " + " ".join(f"{c:>{len(c)}}" for c in columns) + "  cpu_s")
     for r in out["runs"]:
-        print(f"{r['seed']:>5} " + " ".join(f"{r[c]:>{len(c)}}" for c in _COLUMNS)
+        print(f"{r['seed']:>5} " + " ".join(f"{r[c]:>{len(c)}}" for c in columns)
               + f"  {r['cpu_s']:>5.1f}")
     t = out["totals"]
-    print(f"{'all':>5} " + " ".join(f"{t[c]:>{len(c)}}" for c in _COLUMNS))
+    print(f"{'all':>5} " + " ".join(f"{t[c]:>{len(c)}}" for c in columns))
     m, f = t["material_per_run"], t["family_per_run"]
     print(f"\nnamed right per run: material {m['mean']} (min {m['min']}, max {m['max']}), "
           f"family {f['mean']} (min {f['min']}, max {f['max']}) of {t['touches'] // t['runs']}")
     print("runs with at least k right at material level: "
           + ", ".join(f"{k}: {n}" for k, n in t["runs_material_at_least"].items()))
+    if args.ceiling:
+        _print_ceiling(t, len(seeds))
     if out["pairs"]:
         print(f"\n{'truth':<12} {'called':<12} {'count':>5} {'median p':>8} {'best':<12} "
               f"{'e ratio':>7} {'family ok':>9} {'median s':>8} {'1 taxel':>7}")
@@ -90,3 +97,19 @@ def main(args: argparse.Namespace) -> int:
                   f"{p['median_confidence']:>8.2f} {p['best']:<12} {ratio:>7} "
                   f"{p['family_right']:>9} {dur:>8} {p['one_taxel']:>7}")
     return 0
+
+
+def _print_ceiling(totals: dict, runs: int) -> None:
+    """Print the ceiling over the runs and the gap's steps (`skin.bench.scene_ceiling`)."""
+    c = totals["ceiling_per_run"]
+    n = totals["touches"] // totals["runs"]
+    print(f"\nceiling (told all but the material) per run: {c['mean']} of {n} "
+          f"(min {c['min']}, max {c['max']}); family {totals['ceiling_family'] / runs:.2f}")
+    print(f"\n{'step':<8} {'named right':>11} {'best right':>10} {'family':>6} "
+          f"{'best family':>11} {'sure_wrong':>10}   (per run)")
+    for step, v in totals["steps"].items():
+        print(f"{step:<8} {v['label'] / runs:>11.2f} {v['best'] / runs:>10.2f} "
+              f"{v['family'] / runs:>6.2f} {v['best_family'] / runs:>11.2f} "
+              f"{v['sure_wrong'] / runs:>10.2f}")
+    print(f"{'ceiling':<8} {'':>11} {totals['ceiling'] / runs:>10.2f} {'':>6} "
+          f"{totals['ceiling_family'] / runs:>11.2f}")
