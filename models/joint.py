@@ -49,9 +49,13 @@ class JointContactModel:
         The candidates.
     sensor : SensorConstants, optional
         The taxels' constants (default: the paper's).
-    noise : float
+    noise : float or sequence of float
         Standard deviation of a reading about the model, K: the ADC's noise and what the
-        model leaves out (taxel spread, onset error). Larger is softer.
+        model leaves out (taxel spread, onset error). Larger is softer. A sequence is a grid
+        the noise is integrated over (log-uniform prior, each material its own): a contact
+        the model explains down to the reading's noise is then judged at that noise, one it
+        explains badly (a misdated onset or release) at the grid's largest. ``noise`` is then
+        the grid's largest, ``noises`` the grid.
     object_std : float
         Prior standard deviation of the object's temperature about ambient, K.
     h_points : int
@@ -79,12 +83,13 @@ class JointContactModel:
                  conductance_range: tuple[float, float] | None = None) -> None:
         if not materials:
             raise ValueError("JointContactModel needs at least one candidate material")
-        if not (noise > 0 and object_std > 0 and h_points >= 1):
+        if not (np.all(np.asarray(noise) > 0) and object_std > 0 and h_points >= 1):
             raise ValueError("noise and object_std must be positive and h_points at least 1")
         self.materials = list(materials)
         self.classes = [m.name for m in self.materials]
         self.sensor = SensorConstants() if sensor is None else sensor
-        self.noise = float(noise)
+        self.noises = np.atleast_1d(np.asarray(noise, dtype=float))
+        self.noise = float(self.noises.max())
         self.object_std = float(object_std)
         self.onset_shifts = np.asarray(onset_shifts, dtype=float)
         if self.onset_shifts.ndim != 1 or self.onset_shifts.size == 0:
@@ -276,17 +281,26 @@ class JointContactModel:
         tau = np.asarray([self.object_std] if stds is None else stds, dtype=float)
         tau2 = np.where(own[None] & (stds is None or not own_stds), own_std[None],
                         tau[:, None, None]) ** 2  # (K, classes, 1)
-        s2 = self.noise**2
         a = pp.sum(axis=-1)
         b = dp.sum(axis=-1) + pp @ t0
         zz = np.sum(d**2) + 2.0 * dp @ t0 + pp @ t0**2
         if ee is not None:
             zz = zz + ee.reshape(n_c, n_h * n_s)
+        noises = np.atleast_1d(np.asarray(self.noises, dtype=float))
+        s2 = (noises**2)[:, None, None, None]  # (noises, 1, 1, 1) against (K, classes, h x s)
         precision = a / s2 + 1.0 / tau2
         rhs = b / s2 + mu / tau2
         mean = rhs / precision
         quad = zz / s2 + mu**2 / tau2 - rhs**2 / precision
         log_ev = -0.5 * quad - 0.5 * np.log(tau2 * precision)
+        if noises.size == 1:
+            log_ev, mean = log_ev[0], mean[0]
+        else:  # the noise integrated over its grid (log-uniform): each material its own
+            log_ev = log_ev - d.size * np.log(noises)[:, None, None, None]
+            top = log_ev.max(axis=0)
+            w = np.exp(log_ev - top)
+            mean = np.sum(w * mean, axis=0) / np.sum(w, axis=0)
+            log_ev = top + np.log(np.mean(w, axis=0))
         if stds is None:
             return log_ev[0], mean[0] + ambient
         return log_ev, mean + ambient

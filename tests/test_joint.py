@@ -216,3 +216,29 @@ def test_skin_met_twice_is_not_called_cardboard_with_confidence(tmp_path):
     assert not [e for e in wrong if e["confidence"] >= 0.9]
     skin_named = [e for e in final if e["truth"] == "human_skin" and e["label"] == "human_skin"]
     assert len(skin_named) >= 2  # of three (the fourth touch is split by the tracker)
+
+
+def test_a_noise_grid_integrates_the_evidence_over_the_noise():
+    """A grid of noises: each material's evidence averaged over them, with the (2 pi s^2)^(-N/2)
+    the fixed noise drops; a one-noise grid is the fixed noise."""
+    mats = [MATS[m] for m in ("glass", "pine", "brick")]
+    t0 = np.array([33.0, 38.0])
+    y = np.array([_reading("glass", v, 25.0) for v in t0])
+    y += np.random.default_rng(1).normal(0, 0.03, y.shape)
+    grid = (0.03, 0.1, 0.3)
+    fixed = [JointContactModel(mats, noise=v).log_evidence(T, y, t0, 25.0) for v in grid]
+    assert np.array_equal(JointContactModel(mats, noise=[0.1]).log_evidence(T, y, t0, 25.0),
+                          fixed[1])
+    by_noise = np.array([f - y.size * np.log(v) for f, v in zip(fixed, grid, strict=True)])
+    top = by_noise.max(axis=0)
+    expected = top + np.log(np.mean(np.exp(by_noise - top), axis=0))
+    model = JointContactModel(mats, noise=grid)
+    assert model.noise == 0.3
+    got = model.log_evidence(T, y, t0, 25.0)
+    assert np.allclose(got - got[0], expected - expected[0], atol=1e-9)
+    # a reading the model explains to its noise is judged at that noise: sharper than 0.1 K
+    margin = np.sort(got)[-1] - np.sort(got)[-2]
+    assert np.argmax(got) == 0 and margin > 1.5 * (np.sort(fixed[1])[-1] - np.sort(fixed[1])[-2])
+    assert np.isfinite(model.object_temperature(T, y, t0, 25.0, "glass"))
+    with pytest.raises(ValueError, match="positive"):
+        JointContactModel(mats, noise=(0.1, 0.0))

@@ -26,6 +26,12 @@ and, beside what the run named, asks of each of the scene's touches:
   ``taxels``    every taxel of the touch, windows as ``dating``;
   ``ceiling``   as above.
 
+  With the joint classifier, two more: ``run+noise`` and ``taxels+noise``, the ``run`` and
+  ``taxels`` steps with the classifier's reading noise integrated over a grid
+  (`NOISE_GRID` times its own, `skin.models.joint.JointContactModel`) rather than fixed:
+  what a sharper classifier gains where the windows are right, and what it costs (confident
+  mistakes) where they are not.
+
   Each step is counted twice: named right (``label``, what the run reports) and most
   probable right (``best``): their difference is what the threshold leaves "unknown".
 
@@ -47,6 +53,10 @@ from skin.errors import SkinError
 SURE = 0.9
 #: The gap's steps (module docstring), from the run to the truth.
 STEPS = ("run", "initial", "onset", "end", "dating", "taxels")
+#: The joint classifier's noise grid of the ``+noise`` steps, times its own noise.
+NOISE_GRID = (0.3, 0.5, 1.0, 2.0)
+#: Steps with the joint classifier's noise integrated over `NOISE_GRID` (module docstring).
+NOISE_STEPS = ("run+noise", "taxels+noise")
 
 
 def touch_truth(scene, duration: float | None = None) -> list[dict[str, Any]]:
@@ -214,9 +224,16 @@ def ladder(classifier, matches: list, contacts: list, truths: list[dict[str, Any
     by_touch = {m.touch: i for i, m in enumerate(matches)}
     truth_of = {t["touch"]: t for t in truths}
     table = classifier.table
+    from skin.models.joint import JointContactModel
+
     out = {}
-    for step in STEPS:
+    joint = isinstance(getattr(classifier, "model", None), JointContactModel)
+    for name in STEPS + (NOISE_STEPS if joint else ()):
         clf = copy.deepcopy(classifier)
+        step = name.removesuffix("+noise")
+        if step != name:
+            clf.model.noises = clf.model.noise * np.array(NOISE_GRID)
+            clf.model.noise = float(clf.model.noises.max())
         queue = []  # (decision instant, run order, contact, touch position or None)
         matched = {m.contact_index: m for m in matches if m.contact_index is not None}
         for i, c in enumerate(contacts):
@@ -252,5 +269,5 @@ def ladder(classifier, matches: list, contacts: list, truths: list[dict[str, Any
                               "p_best": round(est.confidence, 3),
                               "p_truth": round(est.probabilities.get(truth, 0.0), 3),
                               "taxels": len(c.windows)})
-        out[step] = {**counts, "misses": wrong}
+        out[name] = {**counts, "misses": wrong}
     return out
