@@ -105,11 +105,11 @@ def _print_ceiling(totals: dict, runs: int) -> None:
     n = totals["touches"] // totals["runs"]
     print(f"\nceiling (told all but the material) per run: {c['mean']} of {n} "
           f"(min {c['min']}, max {c['max']}); family {totals['ceiling_family'] / runs:.2f}")
-    print(f"\n{'step':<8} {'named right':>11} {'best right':>10} {'family':>6} "
+    print(f"\n{'step':<12} {'named right':>11} {'best right':>10} {'family':>6} "
           f"{'best family':>11} {'sure_wrong':>10}   (per run)")
     for step, v in totals["steps"].items():
-        print(f"{step:<8} {v['label'] / runs:>11.2f} {v['best'] / runs:>10.2f} "
+        print(f"{step:<12} {v['label'] / runs:>11.2f} {v['best'] / runs:>10.2f} "
               f"{v['family'] / runs:>6.2f} {v['best_family'] / runs:>11.2f} "
               f"{v['sure_wrong'] / runs:>10.2f}")
-    print(f"{'ceiling':<8} {'':>11} {totals['ceiling'] / runs:>10.2f} {'':>6} "
+    print(f"{'ceiling':<12} {'':>11} {totals['ceiling'] / runs:>10.2f} {'':>6} "
           f"{totals['ceiling_family'] / runs:>11.2f}")
