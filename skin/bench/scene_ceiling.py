@@ -216,16 +216,16 @@ def ladder(classifier, matches: list, contacts: list, truths: list[dict[str, Any
     ``misses`` (each touch not named right).
 
     ``matches`` are `skin.formats.scene.match_touches`'s (one per touch), ``contacts`` the
-    run's final contacts (with their windows) in the order the run classified them; a step's
-    contacts are replayed in that order (touches the run missed, at their true end), the
-    run's false contacts too, so that the classifier's learned object prior sees what it saw
-    in the run.
+    run's final contacts (with their windows); a step's contacts are replayed in the order of
+    their decision (touches the run missed at their true end), the run's false contacts too,
+    so that the classifier's learned object prior sees what it saw in the run.
     """
+    from skin.models.joint import JointContactModel
+    from skin.models.materials import load_materials
+
     by_touch = {m.touch: i for i, m in enumerate(matches)}
     truth_of = {t["touch"]: t for t in truths}
-    table = classifier.table
-    from skin.models.joint import JointContactModel
-
+    table = getattr(classifier, "table", None) or load_materials()
     out = {}
     joint = isinstance(getattr(classifier, "model", None), JointContactModel)
     for name in STEPS + (NOISE_STEPS if joint else ()):
