@@ -100,3 +100,120 @@ def test_the_heater_basis_is_the_drain_and_the_response() -> None:
     assert cols[0, 0, 4] > cols[0, 1, 4] > 0  # a finite rate closes more slowly
     with pytest.raises(ValueError, match="off-at-contact"):
         heater_basis(lags, np.array([np.inf]), load_sensor("paper"), load_sensor("paper"))
+
+
+def _heated_contact(sensor: object, material: str, h: float, t_on: float,
+                    noise: float = 0.0) -> tuple[np.ndarray, np.ndarray, float]:
+    """A contact with an object at the room's temperature, through the sensor's readout."""
+    fs = sensor.sample_rate
+    t = np.arange(0.0, t_on + 8.0, 1.0 / fs)
+    t0, ambient = 25.0 + sensor.heated_rise, 25.0
+    e = load_materials()[material].effusivity
+    y = np.where(t > t_on, contact_reading(np.maximum(t - t_on, 0.0), t0, ambient, e, sensor, h,
+                                           ambient), t0)
+    y = y + noise * sensor.noise_kelvin() * np.random.default_rng(5).standard_normal(t.size)
+    return t, smooth(apply_dynamics(y, sensor, fs), sensor, fs=fs), t0
+
+
+@pytest.mark.parametrize("material,h", [("cardboard", 300.0), ("pine", 3000.0),
+                                        ("neoprene", 3000.0), ("aluminium", 3000.0)])
+def test_a_heater_left_on_during_contact_is_dated_on_time(material: str, h: float) -> None:
+    # low-cost's heater stays on: its flux warms the thermistor against the contact's fall,
+    # most against a foam-like object; eq. 5 through the lag alone dated these up to 80 ms
+    # off, and its coarse onset, 2.5 s late, lay beyond the span the refinement searched
+    sensor = load_sensor("low-cost")
+    t_on = 20.013
+    t, y, t0 = _heated_contact(sensor, material, h, t_on)
+    coarse = t_on + 2.5
+    search, horizon = refine_span(sensor)
+    assert search >= 3.0  # the span covers a slow sensor's late coarse onset
+    near = (t >= coarse - search) & (t <= coarse + horizon)
+    onset, initial = refine_onset(t[near], y[near], coarse, t0, 0.0, sensor.depth,
+                                  sensor.diffusivity, sensor=sensor)
+    assert abs(onset - t_on) <= 0.015
+    assert np.isfinite(initial)
+
+
+def test_the_heater_basis_of_a_heater_left_on_is_its_flux() -> None:
+    # the second column is the heater's flux into the sensor alone (the object's share 0),
+    # in K: finite at t -> 0, nothing before the contact, growing as the flux reaches the
+    # thermistor; the fit scales it by the sensor's share e_s / (e_s + e_o), within [0, 1]
+    from dataclasses import replace
+
+    from skin.models.sensors import heater_term
+
+    sensor = load_sensor("low-cost")
+    bare = replace(sensor, lag=0.0, smoothing="none")
+    lags = np.array([-0.5, 0.0, 1e-9, 0.05, 1.0, 4.0])
+    cols = heater_basis(lags, np.array([np.inf, 3.0]), bare, bare)
+    assert cols.shape == (2, 2, 6) and np.all(np.isfinite(cols))
+    assert np.all(cols[:, :, :3] == pytest.approx(0.0, abs=1e-12))
+    flux = heater_term(np.array([1.0, 4.0]), 0.0, 0.0, bare)
+    assert cols[1, 0, 4:] == pytest.approx(flux, rel=1e-6)
+    assert 0 < cols[1, 0, 4] < cols[1, 0, 5]
+    filtered = heater_basis(lags, np.array([np.inf]), sensor, sensor)
+    assert np.all(np.isfinite(filtered)) and filtered[1, 0, 5] < flux[1]  # the lag holds it back
+
+
+def test_a_pid_held_sensor_is_dated_without_the_detectors_slope() -> None:
+    # the detector's slope at a slow sensor's coarse onset is the contact's own early
+    # departure; the loop holds the sensor at its setpoint, so the refinement fits none
+    sensor = load_sensor("pid-logger")
+    t_on = 20.011
+    t, y, t0 = _heated_contact(sensor, "glass", 3000.0, t_on)
+    coarse = t_on + 0.9
+    before = (t > coarse - 1.0) & (t <= coarse)
+    slope = float(np.polyfit(t[before], y[before], 1)[0])  # what a smoother there reads
+    assert slope < -0.01
+    search, horizon = refine_span(sensor)
+    near = (t >= coarse - search) & (t <= coarse + horizon)
+    with_slope, _ = refine_onset(t[near], y[near], coarse, t0, slope, sensor.depth,
+                                 sensor.diffusivity, sensor=sensor)
+    flat, _ = refine_onset(t[near], y[near], coarse, t0, 0.0, sensor.depth, sensor.diffusivity,
+                           sensor=sensor)
+    assert abs(with_slope - t_on) <= 0.015
+    assert with_slope == flat
+
+
+@pytest.mark.parametrize("name", ["low-cost", "pid-logger", "fast-film", "paper"])
+def test_a_sensor_at_ambient_with_no_contact_gives_a_finite_onset(name: str) -> None:
+    # a flat reading (the sensor at the room's temperature, nothing touching): no NaN, and
+    # the onset stays within the span searched
+    sensor = load_sensor(name)
+    t = np.arange(0.0, 30.0, 1.0 / sensor.sample_rate)
+    y = np.full(t.size, 25.0)
+    search, horizon = refine_span(sensor)
+    coarse = 20.0
+    near = (t >= coarse - search) & (t <= coarse + horizon)
+    onset, initial = refine_onset(t[near], y[near], coarse, 25.0, 0.0, sensor.depth,
+                                  sensor.diffusivity, sensor=sensor)
+    assert np.isfinite(onset) and coarse - search - 0.005 <= onset <= coarse  # a grid step
+    assert initial == pytest.approx(25.0)
+
+
+def test_a_slow_sensor_is_dated_through_a_gust() -> None:
+    # a gust cooling the face over seconds, and the air's flutter, during a pid-logger
+    # contact: fitted as white noise the slow cooling passes for the contact's own slow
+    # departure and dates it 100-350 ms early; whitened by the residual's own lag-1
+    # autocorrelation it is dated within tens of ms
+    from scipy.signal import lfilter
+
+    sensor = load_sensor("pid-logger")
+    fs = sensor.sample_rate
+    rng = np.random.default_rng(7)
+    search, horizon = refine_span(sensor)
+    errors = []
+    for _ in range(10):
+        t_on = 20.0 + rng.uniform(0, 1 / fs)
+        t, y, t0 = _heated_contact(sensor, "glass", 3000.0, t_on)
+        gust = -rng.uniform(0.04, 0.2) * -np.expm1(-np.maximum(t - t_on - rng.uniform(-2.0, 0.0),
+                                                               0.0) / rng.uniform(1.0, 4.0))
+        a = np.exp(-1.0 / (0.5 * fs))
+        flutter = lfilter([1 - a], [1, -a], rng.normal(0, 0.0072, t.size)) * np.sqrt(fs)
+        y = y + smooth(apply_dynamics(gust + flutter, sensor, fs), sensor, fs=fs)
+        coarse = t_on + 0.9
+        near = (t >= coarse - search) & (t <= coarse + horizon)
+        onset, _ = refine_onset(t[near], y[near], coarse, t0, 0.0, sensor.depth,
+                                sensor.diffusivity, sensor=sensor)
+        errors.append(onset - t_on)
+    assert np.median(np.abs(errors)) < 0.07

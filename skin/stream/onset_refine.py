@@ -8,19 +8,29 @@ a finite rate) to the samples around the coarse onset.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 #: Heater modes whose own term `refine_onset` fits beside the response (`heater_basis`). An
-#: ``"on-during-contact"`` heater's flux is left out: fitted as a free column beside a slow
-#: sensor's response and level it traded with the onset and dated the low-cost preset's
-#: synthetic contacts worse (median |error| 1.4 s against 0.3 s without it).
-HEATER_TERMS = ("off-at-contact",)
+#: ``"on-during-contact"`` heater's flux has its known shape (the sensor's heater power,
+#: `skin.models.sensors.heater_term`) and a weight bounded to [0, 1], the sensor's share
+#: e_s / (e_s + e_o) of it: as an unbounded free column it traded with the onset and dated the
+#: low-cost preset's synthetic contacts worse (median |error| 1.4 s against 0.3 s without it).
+HEATER_TERMS = ("off-at-contact", "on-during-contact")
 
 #: The drain of an ``"off-at-contact"`` heater goes towards the room: `refine_onset` bounds its
 #: fitted size T0 - T_amb to [0, DRAIN_BOUND x the sensor's heated rise] (a margin over the
 #: settled heater for a description that is off; after a release the reheat would otherwise
 #: be fitted as a drain of the wrong sign).
 DRAIN_BOUND = 1.5
+
+#: How much further than its response time `refine_span` stretches a slow sensor's span.
+SPAN_MORE = 2.0
+
+#: Largest AR(1) coefficient `refine_onset` whitens a slow sensor's residual by (below 1,
+#: where the whitened level would vanish).
+AR1_MAX = 0.99
 
 #: Contact closing rates H = h (1/e_s + 1/e_o) tried by `refine_onset`, s^-0.5 (inf: perfect).
 RATES = (np.inf, 300.0, 100.0, 30.0, 10.0, 3.0, 1.0, 0.3)
@@ -74,8 +84,14 @@ def refine_onset(
         (a slow sensor's departure is seen late). A heater switched off at contact
         (``"off-at-contact"``) drains the body from the contact's first instant, linearly in
         t while eq. 5 starts flat: its drain is fitted as a second column (`heater_basis`),
-        else the fit dates such contacts early. None, or a sensor without dynamics,
-        smoothing or such a heater: eq. 5 as is.
+        else the fit dates such contacts early. A heater left on (``"on-during-contact"``)
+        warms the thermistor by its flux, of known shape, scaled by the sensor's share
+        e_s / (e_s + e_o) of it: fitted as a second column whose weight is bounded to [0, 1].
+        A PID-held sensor (``"pid"``) has no slope of its own (the loop holds it): ``slope``
+        is ignored. A sensor with dynamics and no such heater term is fitted twice, the
+        second time on samples whitened by the first fit's residual (AR(1), `_residual_ar1`):
+        a gust's slow cooling then no longer passes for the contact's slow departure. None,
+        or a sensor without dynamics, smoothing or such a heater: eq. 5 as is.
 
     Returns
     -------
@@ -88,6 +104,11 @@ def refine_onset(
 
     dynamic = sensor is not None and _has_dynamics(sensor, step)
     heated = sensor is not None and sensor.heater in HEATER_TERMS
+    if sensor is not None and sensor.heater == "pid":
+        # the loop holds the sensor at its setpoint: its reading has no slope of its own
+        # (a drift is high-passed away), and a detector's slope is the contact's own early
+        # departure, which dated pid-logger's synthetic contacts ~120 ms late
+        slope = 0.0
     search, horizon = refine_span(sensor, search, horizon)
     t = np.asarray(times, dtype=float)
     y = np.asarray(temperature, dtype=float)
@@ -137,6 +158,16 @@ def refine_onset(
         f = x - i
         basis = np.where(lag > -lead, table[:, i] * (1 - f) + table[:, i + 1] * f, 0.0)
         z = y - slope * (t - coarse)  # (n,)
+        if rho[0] > 0:  # whitened: the level's column is a constant still, 1 - rho
+            z = z[1:] - rho[0] * z[:-1]
+            basis = basis[..., 1:] - rho[0] * basis[..., :-1]
+            zc = z - z.mean()
+            bc = basis - basis.mean(-1, keepdims=True)
+            num = np.einsum("rmn,n->rm", bc, zc)
+            den = np.einsum("rmn,rmn->rm", bc, bc)
+            explained = np.divide(num**2, den, out=np.zeros_like(den), where=den > 1e-300)
+            r, m = np.unravel_index(int(np.argmax(explained)), explained.shape)
+            return float(onsets[m]), float(rate_grid[r])
         n = float(t.size)
         s_b = basis.sum(-1)  # (rates, m)
         s_bb = np.einsum("rmn,rmn->rm", basis, basis)
@@ -184,7 +215,7 @@ def refine_onset(
         # DRAIN_BOUND times its heated rise; the least-squares weight is clamped there (the
         # sum of squares is convex in it once D is fitted) and D refitted
         e_fit = np.divide(g00 * v - g01 * u, det, out=np.zeros_like(det), where=ok)
-        e_amb = np.clip(e_fit, -DRAIN_BOUND * sensor.heated_rise, 0.0)
+        e_amb = np.clip(e_fit, *bounds)
         g00s = np.where(g00 > 0, g00, 1.0)
         explained = np.where(g00 > 0, 2 * e_amb * v - e_amb**2 * g11
                              + (u - e_amb * g01) ** 2 / g00s, 0.0)
@@ -194,6 +225,8 @@ def refine_onset(
 
     if heated:
         best_fit = best_fit_heater
+        bounds = ((-DRAIN_BOUND * sensor.heated_rise, 0.0) if sensor.heater == "off-at-contact"
+                  else (0.0, 1.0))
     elif dynamic:
         best_fit = best_fit_level
 
@@ -204,29 +237,43 @@ def refine_onset(
             return sensor_response(lags, rate_grid, body, sensor)
         return contact_response(lags[None, :], rate_grid[:, None], body)  # (rates, lags)
 
-    # coarse to fine: every rate on a 4-step grid over the whole span, then every rate on
-    # the step grid around the best, then finer rates and fifths of a step around that
-    rate_grid = np.asarray(rates, dtype=float)
-    table = tabulate(rate_grid)
-    onset, rate = best_fit(grid[::-4][::-1], rate_grid, table)
-    near = grid[np.abs(grid - onset) <= 4 * step + 1e-9]
-    onset, rate = best_fit(near, rate_grid, table)
+    rho = [0.0]  # the residual's AR(1) coefficient, once estimated (`_residual_ar1`)
 
-    def around(rate: float) -> np.ndarray:
-        return np.array([rate]) if np.isinf(rate) else rate * 2.0 ** np.arange(-1.0, 1.01, 0.25)
+    def search_all() -> tuple[float, float]:
+        # coarse to fine: every rate on a 4-step grid over the whole span, then every rate on
+        # the step grid around the best, then finer rates and fifths of a step around that
+        rate_grid = np.asarray(rates, dtype=float)
+        table = tabulate(rate_grid)
+        onset, rate = best_fit(grid[::-4][::-1], rate_grid, table)
+        near = grid[np.abs(grid - onset) <= 4 * step + 1e-9]
+        onset, rate = best_fit(near, rate_grid, table)
 
-    if dynamic:
-        # through a loop, a lag and a smoothing a slower rate looks much like an earlier
-        # onset: refine both together, over a wider span, a few times (a drained heater's
-        # column alone does not need it: on fast-film's synthetic contacts it left the
-        # median error at 3-4 ms and cost 1.7-3x)
-        for _ in range(3):
-            near = grid[np.abs(grid - onset) <= 8 * step + 1e-9]
-            both = np.unique(np.concatenate([rate_grid, around(rate)]))
-            onset, rate = best_fit(near, both, tabulate(both))
-    fine_rates = around(rate)
-    fine = np.clip(onset + np.arange(-step, step + 1e-9, step / 5), grid[0], grid[-1])
-    onset, _ = best_fit(fine, fine_rates, tabulate(fine_rates))
+        def around(rate: float) -> np.ndarray:
+            return np.array([rate]) if np.isinf(rate) else rate * 2.0 ** np.arange(-1.0, 1.01, 0.25)
+
+        if dynamic:
+            # through a loop, a lag and a smoothing a slower rate looks much like an earlier
+            # onset: refine both together, over a wider span, a few times (a drained heater's
+            # column alone does not need it: on fast-film's synthetic contacts it left the
+            # median error at 3-4 ms and cost 1.7-3x)
+            for _ in range(3):
+                near = grid[np.abs(grid - onset) <= 8 * step + 1e-9]
+                both = np.unique(np.concatenate([rate_grid, around(rate)]))
+                onset, rate = best_fit(near, both, tabulate(both))
+        fine_rates = around(rate)
+        fine = np.clip(onset + np.arange(-step, step + 1e-9, step / 5), grid[0], grid[-1])
+        return best_fit(fine, fine_rates, tabulate(fine_rates))
+
+    onset, rate = search_all()
+    if dynamic and not heated:
+        # the residual of a slow sensor's fit is far from white (the air's flutter through
+        # the loop and the lag, a smoothing): estimate its lag-1 autocorrelation and refit on
+        # samples whitened by it (feasible generalised least squares, AR(1)); on pid-logger's
+        # synthetic streams the onset error median fell from 79-109 ms to 16-77 ms
+        rho[0] = _residual_ar1(t, y - slope * (t - coarse), onset, lead, dl,
+                               tabulate(np.array([rate]))[0])
+        if rho[0] > 0:
+            onset, rate = search_all()
     return onset, float(baseline + slope * (onset - coarse))
 
 
@@ -243,7 +290,40 @@ def refine_span(sensor: object | None, search: float = 0.6,
     from skin.models.sensors import SensorDescription
 
     stretch = max(1.0, sensor.response_time / SensorDescription().response_time)
-    return search * stretch, horizon * stretch
+    # a slow sensor whose noise is large against its heated rise is detected late, well into
+    # the contact (low-cost: coarse onsets 1.7-4.3 s after it): the span before the coarse
+    # onset stretches once more, by that noise over the paper's (up to SPAN_MORE, and no more
+    # than the response time), and the horizon after it as much less, so that fewer samples
+    # after the release enter the fit
+    more = min(stretch, SPAN_MORE, max(1.0, _relative_noise(sensor)
+                                      / _relative_noise(SensorDescription())))
+    return search * stretch * more, horizon * stretch / more
+
+
+@functools.lru_cache(maxsize=64)
+def _relative_noise(sensor: object) -> float:
+    """Return a sensor's smoothed reading noise over its heated rise (both K)."""
+    return sensor.noise_kelvin() * sensor.smoothing_noise_factor() / sensor.heated_rise
+
+
+def _residual_ar1(t: np.ndarray, z: np.ndarray, onset: float, lead: float, dl: float,
+                  table: np.ndarray) -> float:
+    """Return the lag-1 autocorrelation of a fit's residual, clipped to [0, `AR1_MAX`].
+
+    ``z`` is the reading less the baseline's slope, ``table`` the response at the fitted rate
+    on `refine_onset`'s lag grid (step ``dl``, from ``-lead``); the level and the response's
+    size are fitted by least squares at ``onset``.
+    """
+    x = np.maximum(t - onset + lead, 0.0) / dl
+    i = np.minimum(x.astype(np.int64), len(table) - 2)
+    f = x - i
+    col = np.where(t - onset > -lead, table[i] * (1 - f) + table[i + 1] * f, 0.0)
+    a = np.column_stack([np.ones_like(z), col])
+    res = z - a @ np.linalg.lstsq(a, z, rcond=None)[0]
+    energy = float(res @ res)
+    if not energy > 0:
+        return 0.0
+    return float(np.clip(float(res[1:] @ res[:-1]) / energy, 0.0, AR1_MAX))
 
 
 def _has_dynamics(sensor: object, step: float = 0.005) -> bool:
@@ -312,7 +392,13 @@ def _sample_grid(lags: np.ndarray, sensor: object) -> tuple[float, np.ndarray]:
 
 def heater_basis(lags: np.ndarray, rates: np.ndarray, body: object,
                  sensor: object) -> np.ndarray:
-    """Return the two columns of a reading whose heater switches off at contact, filtered.
+    """Return the two columns of a reading whose heater acts in contact, filtered.
+
+    A heater left on during contact (``"on-during-contact"``): the columns are R and the
+    heater's flux at the thermistor in K with all of it going into the sensor
+    (`skin.models.sensors.heater_term` for an object of effusivity 0); a contact scales the
+    flux by the sensor's share e_s / (e_s + e_o), which `refine_onset` bounds to [0, 1]. A
+    heater switched off at contact (``"off-at-contact"``):
 
     A sensor's reading after contact is ``T0 + (T_obj - T0) P + (T_amb - T0) Q``
     (`skin.models.sensors.contact_basis`), with ``P = s R`` (s the object's share, R eq. 5's
@@ -324,7 +410,7 @@ def heater_basis(lags: np.ndarray, rates: np.ndarray, body: object,
     the onset and dated fast-film's synthetic contacts worse, median |error| 9 ms against
     3.5 ms). Each column goes through the sensor's loop, lag and smoothing
     (`skin.models.sensors.apply_dynamics`, `smooth`) on its own sample grid, as
-    `sensor_response` does (both are fractions, 0 to 1, before the filters).
+    `sensor_response` does (R and d are fractions, 0 to 1, before the filters).
 
     Parameters
     ----------
@@ -335,13 +421,13 @@ def heater_basis(lags: np.ndarray, rates: np.ndarray, body: object,
     body : skin.models.physics.SensorConstants
         Depth and diffusivity of the thermistor.
     sensor : skin.models.sensors.SensorDescription
-        An ``"off-at-contact"`` sensor: its reheat time constant, sample rate, lag and
-        smoothing.
+        An ``"off-at-contact"`` or ``"on-during-contact"`` sensor: its reheat time constant or
+        heater power, sample rate, lag and smoothing.
 
     Returns
     -------
     numpy.ndarray, shape (2, r, n)
-        R and d, filtered, at ``lags``.
+        R and d (or the flux, K), filtered, at ``lags``.
     """
     from skin.models.physics import contact_response
     from skin.models.sensors import apply_dynamics, smooth
@@ -354,7 +440,12 @@ def heater_basis(lags: np.ndarray, rates: np.ndarray, body: object,
     since = np.maximum(grid, 0.0)
     after = grid > 0
     r = np.where(after[:, None], contact_response(since[:, None], rates[None, :], body), 0.0)
-    d = np.where(after, -np.expm1(-since / sensor.reheat_time_constant), 0.0)[:, None]
+    if sensor.heater == "off-at-contact":
+        d = np.where(after, -np.expm1(-since / sensor.reheat_time_constant), 0.0)[:, None]
+    else:  # the flux of a heater left on, all of it into the sensor (the object's share 0)
+        from skin.models.sensors import heater_term
+
+        d = np.asarray(heater_term(since, 0.0, 0.0, sensor))[:, None]
     stacked = np.stack([r, np.broadcast_to(d, r.shape)])  # (2, grid, r)
     out = smooth(apply_dynamics(stacked, sensor, fs, axis=1), sensor, axis=1, fs=fs)
     return np.stack([[np.interp(lags, grid, out[c, :, k]) for k in range(out.shape[2])]
