@@ -7,7 +7,7 @@ detector smooths the reading, keeps a level-and-slope baseline (Holt's linear sm
 one-sided CUSUMs, of the shortfall below that baseline and of the excess above it; a CUSUM
 crossing its threshold is an onset (a fall, ``direction`` -1, or a rise, +1), the moment it
 left zero is the coarse onset time.  A slow channel compares the reading (averaged over a
-twentieth of its window) with a slow average of it, for falls too slow for the CUSUM (poor
+tenth of its window) with a slow average of it, for falls too slow for the CUSUM (poor
 conductors through an air gap).  The baseline
 follows a smooth fall as a trend (a poor conductor's, or any contact's through a deep or
 lagged thermistor), so the CUSUM sees only its curvature; the gust-envelope test looks at the
@@ -310,7 +310,7 @@ class OnsetDetector:
         an air gap fall too slowly for the CUSUM, whose baseline follows them; the slow channel
         compares the smoothed reading with a slow average of it instead.
     slow_threshold : float
-        Fall of the reading (averaged over ``slow_tau / 20``) below the slow average that is a
+        Fall of the reading (averaged over ``slow_tau / 10``) below the slow average that is a
         contact, deg C (above what air currents and heater switching give within
         ``slow_tau``, and 8 noise sigmas of that average).
     slow_begin : float
@@ -434,7 +434,7 @@ class OnsetDetector:
         # what the readout noise is after the detector's averages, from the sensor's own
         # smoothing on (a smoothed reading's noise is correlated: averaging it removes less)
         self.smoothed_sigma = self.sigma * _average_noise(sensor, self.smooth_tau)
-        slow_sigma = self.sigma * _average_noise(sensor, 0.05 * slow_tau_now)
+        slow_sigma = self.sigma * _average_noise(sensor, 0.1 * slow_tau_now)
         self.gust_envelope = gust_envelope
         self.gust_depth = GUST_DEPTH * rise if gust_envelope else np.inf
         self.heater_rate = HEATER_STEP * rise / mode
@@ -447,7 +447,7 @@ class OnsetDetector:
         self.warmup = 0.5 * stretch if warmup is None else warmup
         self.stale = 1.0 * stretch if stale is None else stale
         self.slow_tau = 3.0 * stretch if slow_tau is None else slow_tau
-        self.medium_tau = 0.05 * self.slow_tau
+        self.medium_tau = 0.1 * self.slow_tau
         self.recovery = recovery
         self.release_slack = release_slack
         # a heater switched off at contact: the reading settles in contact, ends show as reheat
@@ -591,7 +591,7 @@ class OnsetDetector:
         gain = 1 - np.exp(-dt / taus)
         # the smoothed reading averages noise and dithered ADC steps; everything runs on it
         np.copyto(s.smooth, s.smooth + (y - s.smooth) * gain[0], where=live)
-        # the slow channel's reading: averaged over a twentieth of its window
+        # the slow channel's reading: averaged over a tenth of its window
         np.copyto(s.medium, s.medium + (y - s.medium) * gain[6], where=live)
         pred = s.level + s.slope * (t - s.t_level)
         resid = np.where(live, s.smooth - pred, 0.0)
