@@ -434,7 +434,14 @@ class OnsetDetector:
         # what the readout noise is after the detector's averages, from the sensor's own
         # smoothing on (a smoothed reading's noise is correlated: averaging it removes less)
         self.smoothed_sigma = self.sigma * _average_noise(sensor, self.smooth_tau)
-        slow_sigma = self.sigma * _average_noise(sensor, 0.1 * slow_tau_now)
+        # the slow channel averages its reading over a tenth of its window where the noise,
+        # not the disturbances, would set its threshold (a noisy, already smoothed reading);
+        # elsewhere it looks at the smoothed reading, as the CUSUM does
+        self.medium_tau = 0.1 * slow_tau_now
+        slow_floor = DISTURBANCE["slow_threshold"] * rise * slow_quick
+        if 8.0 * float(np.max(self.smoothed_sigma)) <= slow_floor:
+            self.medium_tau = self.smooth_tau
+        slow_sigma = self.sigma * _average_noise(sensor, self.medium_tau)
         self.gust_envelope = gust_envelope
         self.gust_depth = GUST_DEPTH * rise if gust_envelope else np.inf
         self.heater_rate = HEATER_STEP * rise / mode
@@ -447,7 +454,6 @@ class OnsetDetector:
         self.warmup = 0.5 * stretch if warmup is None else warmup
         self.stale = 1.0 * stretch if stale is None else stale
         self.slow_tau = 3.0 * stretch if slow_tau is None else slow_tau
-        self.medium_tau = 0.1 * self.slow_tau
         self.recovery = recovery
         self.release_slack = release_slack
         # a heater switched off at contact: the reading settles in contact, ends show as reheat
