@@ -664,15 +664,23 @@ class OnsetDetector:
         # make in the time since, and clear of the noise (the baseline, which follows a
         # smooth fall as a trend, lets such a fall pass the CUSUM)
         since = t - s.ref_t
-        drop = s.ref_level + s.ref_slope * since - s.smooth
+        drop = s.ref_level + np.minimum(s.ref_slope, 0.0) * since - s.smooth
         gusty = (self.gust_depth * -np.expm1(-since / GUST_RISE) + self.heater_rate * since
                  + 8.0 * np.maximum(sigma, self.smoothed_sigma))
         deep = idle & armed & ~alarm & ~rise_alarm & ~slow_alarm & (drop > gusty)
         slow_alarm = slow_alarm | deep
+        # a fall the CUSUM has begun to gather is dated where the CUSUM left zero, as its own
+        # onset would be; otherwise where the reading left the noise
+        cusum_began = deep & (g > 0) & np.isfinite(s.t_start)
         for k in np.flatnonzero(slow_alarm):
-            if deep[k]:
+            if cusum_began[k]:
+                t0k = float(s.t_start[k])
+                events.append(OnsetEvent("onset", int(k), t0k, t,
+                                         float(s.level[k] + s.slope[k] * (t0k - s.t_level[k])),
+                                         float(s.slope[k]), -1, 2))
+            elif deep[k]:
                 events.append(OnsetEvent("onset", int(k), float(s.ref_t[k]), t,
-                                         float(s.ref_level[k]), 0.0, -1, 2))
+                                         float(s.ref_level[k]), float(s.ref_slope[k]), -1, 2))
             else:
                 events.append(OnsetEvent("onset", int(k), float(s.slow_start[k]), t,
                                          float(s.slow[k]), 0.0, -1, 2))
@@ -681,10 +689,12 @@ class OnsetDetector:
         # after the slow channel's window (a slower fall is the slow channel's)
         slide = ~(drop > 2.0 * sigma) | (since > self.slow_tau)
         np.copyto(s.ref_level, pred, where=slide)
-        np.copyto(s.ref_slope, np.minimum(s.slope, 0.0), where=slide)
+        np.copyto(s.ref_slope, s.slope, where=slide)
         np.copyto(s.ref_t, t, where=slide)
         np.copyto(s.ref_level, np.nan, where=~(idle & armed) | slow_alarm)
         t0 = np.where(alarm, s.t_start, s.rise_start)
+        # an envelope onset re-bases the baseline from where the fall began, as a CUSUM's does
+        t0 = np.where(deep, np.where(cusum_began, s.t_start, s.ref_t), t0)
         alarm = alarm | slow_alarm
         onset = alarm | rise_alarm
         any_onset = bool(onset.any())
