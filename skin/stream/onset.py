@@ -694,7 +694,9 @@ class OnsetDetector:
         np.copyto(s.ref_level, np.nan, where=~(idle & armed) | slow_alarm)
         t0 = np.where(alarm, s.t_start, s.rise_start)
         # an envelope onset re-bases the baseline from where the fall began, as a CUSUM's does
-        t0 = np.where(deep, np.where(cusum_began, s.t_start, s.ref_t), t0)
+        # (the baseline re-based from where the reading left the noise: the CUSUM may have
+        # left zero a sample ago)
+        t0 = np.where(deep, s.ref_t, t0)
         alarm = alarm | slow_alarm
         onset = alarm | rise_alarm
         any_onset = bool(onset.any())
