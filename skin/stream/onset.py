@@ -6,8 +6,15 @@ part) makes heat flow into the sensor and its temperature rise above it.  Per ta
 detector smooths the reading, keeps a level-and-slope baseline (Holt's linear smoother) and two
 one-sided CUSUMs, of the shortfall below that baseline and of the excess above it; a CUSUM
 crossing its threshold is an onset (a fall, ``direction`` -1, or a rise, +1), the moment it
-left zero is the coarse onset time.  A slow channel compares the reading with a slow average
-of it, for falls too slow for the CUSUM (poor conductors through an air gap).
+left zero is the coarse onset time.  A slow channel compares the reading (averaged over a
+tenth of its window) with a slow average of it, for falls too slow for the CUSUM (poor
+conductors through an air gap).  The baseline
+follows a smooth fall as a trend (a poor conductor's, or any contact's through a deep or
+lagged thermistor), so the CUSUM sees only its curvature; the gust-envelope test looks at the
+fall itself: from where the baseline put the reading when it left the noise, a fall deeper
+than any gust of the air's family (at most `GUST_DEPTH` of the heated rise, approached with a
+time constant of at least `GUST_RISE`) plus the steepest heater step could make in the time
+since, with 8 noise sigmas to spare, is a contact.
 
 What rises without a contact is told apart so: the heater's duty stepping up and ambient drift
 move the reading slowly (through the taxel's ~63 s mode), and the baseline follows them; the
@@ -45,6 +52,10 @@ follows from the taxel's noise and the sensor description (`skin.models.sensors`
   average run length of a one-sided CUSUM) for one false alarm per ``1 / false_alarm_rate``
   taxel-hours, in units of that noise: an upper bound on the false alarms (measured far
   fewer: the allowance is in units of the smoothed, not the summed, noise).
+- Levels (the slow channel's, the gust-envelope test's margin) stay 8 sigmas of the averaged
+  reading they look at clear of noise, that sigma computed through the sensor's own
+  smoothing and then the detector's average (`_average_noise`): a reading the sensor already
+  smoothed has correlated noise, which a further average removes less of than white noise.
 - Disturbances (air currents, heater duty steps, the room drifting) move a heated taxel in
   proportion to how far its heater holds it above ambient (the sensor's ``heated_rise``):
   the thresholds are at least fixed fractions of that rise (`DISTURBANCE`), per second of
@@ -74,6 +85,13 @@ _PAPER_RISE = 2.5**2 / 19.7 * 2.4e-4 / (1.5625e-4 * 0.0349)  # K, eq. 2 with the
 DISTURBANCE = {"threshold": 0.4 / _PAPER_RISE, "rise_threshold": 0.6 / _PAPER_RISE,
                "release_rise": 0.12 / _PAPER_RISE, "slow_threshold": 0.6 / _PAPER_RISE,
                "slow_begin": 0.1 / _PAPER_RISE}
+#: The disturbance family the gust-envelope test is set against (`skin.bench.streams` draws
+#: from it): the deepest gust as a fraction of the heated rise (0.4 K of the paper's 13.96 K),
+#: the fastest gust's time constant, s, and the largest heater duty step, a fraction of the
+#: heated rise reached through the sensor body's slowest mode.
+GUST_DEPTH = 0.4 / _PAPER_RISE
+GUST_RISE = 1.0
+HEATER_STEP = 0.45
 _PAPER_RESPONSE = 2.516  # s, the paper sensor's half-response time (SensorDescription)
 _PAPER_MODE = 2.4e-4**2 / 2.796e-9  # s, the paper sensor's l^2 / alpha
 
@@ -86,6 +104,29 @@ def _paper_smoothed() -> float:
     s = SensorDescription()
     g = 1.0 - math.exp(-1.0 / (s.sample_rate * 0.03))
     return s.noise_kelvin(25.0 + s.heated_rise) * math.sqrt(g / (2.0 - g))
+
+
+def _average_noise(sensor: object, tau: float) -> float:
+    """Return the noise of an exponential average (time constant ``tau``) of the readings.
+
+    In units of the readings' own noise per sample, as delivered: sqrt(g / (2 - g)) for white
+    noise (gain g per sample); more for a reading the sensor already smoothed, whose noise is
+    correlated over the smoothing's span (the impulse response of both filters in turn).
+    """
+    fs = sensor.sample_rate
+    g = 1.0 - math.exp(-1.0 / (fs * tau))
+    if sensor.smoothing == "none":
+        return math.sqrt(g / (2.0 - g))
+    from scipy.signal import lfilter
+
+    from skin.models.sensors import smooth
+
+    n = 8 * max(sensor.smoothing_window, int(fs / sensor.smoothing_cutoff)) + 1
+    impulse = np.zeros(n + int(40.0 / g))
+    impulse[n // 2] = 1.0  # in the middle: a non-causal filter spreads both ways
+    h = smooth(impulse, sensor)
+    both = lfilter([g], [1.0, g - 1.0], h)
+    return float(np.sqrt(np.sum(both**2) / np.sum(h**2)))
 
 
 def arl_threshold(arl: float | np.ndarray, k: float | np.ndarray) -> np.ndarray:
@@ -179,6 +220,22 @@ class DetectorState:
     recover_until: np.ndarray
     recover_dir: np.ndarray
     t_fell: np.ndarray
+    ref_level: np.ndarray = None
+    ref_t: np.ndarray = None
+    ref_slope: np.ndarray = None
+    medium: np.ndarray = None
+
+    def __post_init__(self) -> None:
+        # states built before the gust-envelope test existed start with no fall under way
+        n = self.level.shape
+        if self.ref_level is None:
+            object.__setattr__(self, "ref_level", np.full(n, np.nan))
+        if self.ref_t is None:
+            object.__setattr__(self, "ref_t", np.full(n, np.nan))
+        if self.ref_slope is None:
+            object.__setattr__(self, "ref_slope", np.zeros(n))
+        if self.medium is None:  # the slow channel's reading: the smoothed one, as before
+            object.__setattr__(self, "medium", self.smooth.copy())
 
     def copy(self) -> DetectorState:
         """Return a deep copy."""
@@ -253,8 +310,9 @@ class OnsetDetector:
         an air gap fall too slowly for the CUSUM, whose baseline follows them; the slow channel
         compares the smoothed reading with a slow average of it instead.
     slow_threshold : float
-        Fall below the slow average that is a contact, deg C (above what air currents and
-        heater switching give within ``slow_tau``).
+        Fall of the reading (averaged over ``slow_tau / 10``) below the slow average that is a
+        contact, deg C (above what air currents and heater switching give within
+        ``slow_tau``, and 8 noise sigmas of that average).
     slow_begin : float
         Fall below the slow average that dates a slow contact's coarse onset, deg C.
     recovery : float
@@ -285,6 +343,12 @@ class OnsetDetector:
         sensor's; commissioned from a quiet stretch); default: the sensor's.
     false_alarm_rate : float
         Target of noise-driven false alarms per taxel-hour (sets the CUSUM thresholds' floor).
+    gust_envelope : bool
+        Whether the gust-envelope test runs (see the module docstring): a fall, from where the
+        baseline put the reading when it began, deeper than the deepest and fastest gust of
+        `GUST_DEPTH` and `GUST_RISE` plus the steepest heater step (`HEATER_STEP` through the
+        body's slowest mode) can make in the time since, and 8 noise sigmas more, is a
+        contact (channel 2, with the slow channel).
 
     Every kelvin threshold left as None follows from ``sigma`` and the sensor; the figures in
     the descriptions above are the paper sensor's.
@@ -315,6 +379,7 @@ class OnsetDetector:
         sensor: object | None = None,
         sigma: float | np.ndarray | None = None,
         false_alarm_rate: float = 0.1,
+        gust_envelope: bool = True,
     ) -> None:
         from skin.models.sensors import load_sensor
 
@@ -361,8 +426,25 @@ class OnsetDetector:
             fast = quick if cusum else (slow_quick if key == "slow_threshold" else 1.0)
             floor = DISTURBANCE[key] * rise * fast * (per_sample if cusum else 1.0)
             # levels compared within the smoothed reading stay 8 of its sigmas clear of noise
-            return np.maximum(floor, self.noise_threshold if cusum else 8.0 * smoothed)
+            # (the slow channel's within its own average of the reading)
+            level = slow_sigma if key.startswith("slow") else smoothed
+            return np.maximum(floor, self.noise_threshold if cusum else 8.0 * level)
 
+        # the gust-envelope test: the deepest, fastest gust and the steepest heater step
+        # what the readout noise is after the detector's averages, from the sensor's own
+        # smoothing on (a smoothed reading's noise is correlated: averaging it removes less)
+        self.smoothed_sigma = self.sigma * _average_noise(sensor, self.smooth_tau)
+        # the slow channel averages its reading over a tenth of its window where the noise,
+        # not the disturbances, would set its threshold (a noisy, already smoothed reading);
+        # elsewhere it looks at the smoothed reading, as the CUSUM does
+        self.medium_tau = 0.1 * slow_tau_now
+        slow_floor = DISTURBANCE["slow_threshold"] * rise * slow_quick
+        if 8.0 * float(np.max(self.smoothed_sigma)) <= slow_floor:
+            self.medium_tau = self.smooth_tau
+        slow_sigma = self.sigma * _average_noise(sensor, self.medium_tau)
+        self.gust_envelope = gust_envelope
+        self.gust_depth = GUST_DEPTH * rise if gust_envelope else np.inf
+        self.heater_rate = HEATER_STEP * rise / mode
         self.threshold = scaled(threshold, "threshold", True)
         self.rise_threshold = scaled(rise_threshold, "rise_threshold", True)
         self.release_rise = scaled(release_rise, "release_rise", False)
@@ -404,6 +486,10 @@ class OnsetDetector:
             recover_until=np.full(n, -np.inf),
             recover_dir=np.zeros(n),
             t_fell=np.full(n, -np.inf),
+            ref_level=nan.copy(),
+            ref_t=nan.copy(),
+            ref_slope=np.zeros(n),
+            medium=nan.copy(),
         )
 
     def process(
@@ -431,7 +517,7 @@ class OnsetDetector:
         events: list[OnsetEvent] = []
         temperature = np.asarray(temperature, dtype=float).reshape(len(times), self.n_taxels)
         taus = np.array([self.smooth_tau, self.slow_tau, self.level_tau, self.slope_tau,
-                         self.contact_slope_tau, self.noise_tau])[:, None]
+                         self.contact_slope_tau, self.noise_tau, self.medium_tau])[:, None]
         for t, y in zip(np.asarray(times, dtype=float), temperature, strict=True):
             self._step(float(t), y, s, events, taus)
         return events, s
@@ -465,7 +551,7 @@ class OnsetDetector:
         slope = np.empty_like(temperature)
         events: list[OnsetEvent] = []
         taus = np.array([self.smooth_tau, self.slow_tau, self.level_tau, self.slope_tau,
-                         self.contact_slope_tau, self.noise_tau])[:, None]
+                         self.contact_slope_tau, self.noise_tau, self.medium_tau])[:, None]
         for i, (t, y) in enumerate(zip(times, temperature, strict=True)):
             self._step(float(t), y, s, events, taus)
             smooth[i] = s.smooth
@@ -484,6 +570,7 @@ class OnsetDetector:
             s.level[new] = y[new]
             s.smooth[new] = y[new]
             s.slow[new] = y[new]
+            s.medium[new] = y[new]
             s.t_level[new] = t
             s.t_last[new] = t
             s.armed_at[new] = t + self.warmup
@@ -498,17 +585,20 @@ class OnsetDetector:
         # across the hole is no baseline, and what changed unseen cannot be dated
         back = live & free & (t - s.t_last > self.warmup)
         if back.any():
-            s.level[back] = s.smooth[back] = s.slow[back] = y[back]
+            s.level[back] = s.smooth[back] = s.slow[back] = s.medium[back] = y[back]
             s.slope[back] = 0.0
             s.t_level[back] = s.t_last[back] = t
             s.cusum[back] = s.rise_cusum[back] = 0.0
             s.slow_start[back] = np.nan
+            s.ref_level[back] = np.nan
             s.armed_at[back] = t + self.warmup
         dt = np.maximum(np.where(live, t - s.t_last, 1.0), 1e-9)
         # every smoothing gain at once: smooth, slow, level, slope (free, in contact), noise
         gain = 1 - np.exp(-dt / taus)
         # the smoothed reading averages noise and dithered ADC steps; everything runs on it
         np.copyto(s.smooth, s.smooth + (y - s.smooth) * gain[0], where=live)
+        # the slow channel's reading: averaged over a tenth of its window
+        np.copyto(s.medium, s.medium + (y - s.medium) * gain[6], where=live)
         pred = s.level + s.slope * (t - s.t_level)
         resid = np.where(live, s.smooth - pred, 0.0)
         sigma = np.sqrt(np.maximum(s.var, self.noise_floor**2))
@@ -563,24 +653,58 @@ class OnsetDetector:
                                      float(s.level[k] + s.slope[k] * (t0 - s.t_level[k])),
                                      float(s.slope[k]), 1, 1))
         # the slow channel: a fall below the slow average of the smoothed reading
-        fall = np.where(idle, s.slow - s.smooth, 0.0)
+        fall = np.where(idle, s.slow - s.medium, 0.0)
         np.copyto(s.slow_start, s.t_last,
                   where=idle & (fall > self.slow_begin) & np.isnan(s.slow_start))
         np.copyto(s.slow_start, np.nan, where=idle & (fall <= self.slow_begin))
         slow_alarm = (idle & ~alarm & ~rise_alarm & (fall > self.slow_threshold) & armed
                       & np.isfinite(s.slow_start))
+        # the gust-envelope test: a fall from where the baseline put the reading when it began
+        # to fall, deeper than the deepest, fastest gust and the steepest heater step could
+        # make in the time since, and clear of the noise (the baseline, which follows a
+        # smooth fall as a trend, lets such a fall pass the CUSUM)
+        since = t - s.ref_t
+        drop = s.ref_level + np.minimum(s.ref_slope, 0.0) * since - s.smooth
+        gusty = (self.gust_depth * -np.expm1(-since / GUST_RISE) + self.heater_rate * since
+                 + 8.0 * np.maximum(sigma, self.smoothed_sigma))
+        deep = idle & armed & ~alarm & ~rise_alarm & ~slow_alarm & (drop > gusty)
+        slow_alarm = slow_alarm | deep
+        # a fall the CUSUM has begun to gather is dated where the CUSUM left zero, as its own
+        # onset would be; otherwise where the reading left the noise
+        cusum_began = deep & (g > 0) & np.isfinite(s.t_start)
         for k in np.flatnonzero(slow_alarm):
-            events.append(OnsetEvent("onset", int(k), float(s.slow_start[k]), t,
-                                     float(s.slow[k]), 0.0, -1, 2))
+            if cusum_began[k]:
+                t0k = float(s.t_start[k])
+                events.append(OnsetEvent("onset", int(k), t0k, t,
+                                         float(s.level[k] + s.slope[k] * (t0k - s.t_level[k])),
+                                         float(s.slope[k]), -1, 2))
+            elif deep[k]:
+                events.append(OnsetEvent("onset", int(k), float(s.ref_t[k]), t,
+                                         float(s.ref_level[k]), float(s.ref_slope[k]), -1, 2))
+            else:
+                events.append(OnsetEvent("onset", int(k), float(s.slow_start[k]), t,
+                                         float(s.slow[k]), 0.0, -1, 2))
+        # the reference slides with the baseline while the reading stays within noise of it
+        # (a falling trend extrapolated, a rising one not: it decelerates), and starts again
+        # after the slow channel's window (a slower fall is the slow channel's)
+        slide = ~(drop > 2.0 * sigma) | (since > self.slow_tau)
+        np.copyto(s.ref_level, pred, where=slide)
+        np.copyto(s.ref_slope, s.slope, where=slide)
+        np.copyto(s.ref_t, t, where=slide)
+        np.copyto(s.ref_level, np.nan, where=~(idle & armed) | slow_alarm)
         t0 = np.where(alarm, s.t_start, s.rise_start)
+        # an envelope onset re-bases the baseline from where the fall began, as a CUSUM's does
+        # (the baseline re-based from where the reading left the noise: the CUSUM may have
+        # left zero a sample ago)
+        t0 = np.where(deep, s.ref_t, t0)
         alarm = alarm | slow_alarm
         onset = alarm | rise_alarm
         any_onset = bool(onset.any())
         calm = idle & ~onset if any_onset else idle
-        np.copyto(s.slow, s.slow + gain[1] * (s.smooth - s.slow), where=calm)
+        np.copyto(s.slow, s.slow + gain[1] * (s.medium - s.slow), where=calm)
         # while the taxel recovers from a release, the slow average keeps up with it
-        np.copyto(s.slow, s.smooth, where=calm & (t < s.recover_until)
-                  & (s.recover_dir * (s.smooth - s.slow) > 0))
+        np.copyto(s.slow, s.medium, where=calm & (t < s.recover_until)
+                  & (s.recover_dir * (s.medium - s.slow) > 0))
         if any_onset:
             s.slow_start[onset] = np.nan
             s.in_contact[onset] = True
@@ -664,5 +788,6 @@ class OnsetDetector:
         s.cusum[r] = 0.0
         s.rise_cusum[r] = 0.0
         s.armed_at[r] = t + self.warmup
-        s.slow[r] = s.smooth[r]
+        s.slow[r] = s.medium[r] = s.smooth[r]
         s.slow_start[r] = np.nan
+        s.ref_level[r] = np.nan
