@@ -34,6 +34,11 @@ def touch(sensor, duration, e_obj=GLASS, t_obj=25.0, noise=0.0, seed=0, after=1.
     return t, y + np.random.default_rng(seed).normal(0.0, noise, t.size)
 
 
+def noise(sensor):
+    """The sensor's reading noise at its heated temperature, K."""
+    return sensor.noise_kelvin(25.0 + sensor.heated_rise)
+
+
 def refined(sensor, t, y, coarse):
     return refine_release(t, y, 0.0, coarse, sensor.depth, sensor.diffusivity, sensor=sensor)
 
@@ -54,11 +59,11 @@ def test_noisy_release_within_a_few_samples():
     errors = []
     for seed in range(12):
         duration = (0.3, 0.6, 1.0)[seed % 3]
-        t, y = touch(s, duration, (GLASS, STEEL)[seed % 2], noise=s.noise, seed=seed)
+        t, y = touch(s, duration, (GLASS, STEEL)[seed % 2], noise=noise(s), seed=seed)
         errors.append(refined(s, t, y, duration + 0.085) - duration)
     errors = np.abs(errors)
-    assert np.median(errors) <= 3.01 / s.sample_rate  # the detector's was 0.085 s
-    assert errors.max() < 0.085
+    assert np.median(errors) <= 1.01 / s.sample_rate  # the detector's was 0.085 s
+    assert errors.max() <= 3.01 / s.sample_rate
 
 
 @pytest.mark.parametrize("preset", ["fast-film", "pid-logger", "low-cost"])
@@ -70,7 +75,7 @@ def test_other_sensors_no_worse_than_the_detector(preset):
     errors = []
     for seed in range(4):
         duration = 1.0 * stretch
-        t, y = touch(s, duration, STEEL, noise=s.noise, seed=seed, after=2 * late + 1.0)
+        t, y = touch(s, duration, STEEL, noise=noise(s), seed=seed, after=2 * late + 1.0)
         got = refined(s, t, y, duration + late)
         assert np.isfinite(got)
         errors.append(abs(got - duration))
@@ -83,11 +88,11 @@ def test_cannot_tell_keeps_the_detectors_date():
     t, y = touch(s, 0.02, GLASS)
     assert refined(s, t, y, 0.03) == 0.03
     # no change: the contact goes on through the coarse release and after it
-    t, y = touch(s, 5.0, GLASS, noise=s.noise)
+    t, y = touch(s, 5.0, GLASS, noise=noise(s))
     assert refined(s, t, y, 1.2) == 1.2
     # a flat reading (an object at the sensor's temperature), noisy
     t = np.arange(0, 400) / s.sample_rate
-    y = 40.0 + np.random.default_rng(1).normal(0.0, s.noise, t.size)
+    y = 40.0 + np.random.default_rng(1).normal(0.0, noise(s), t.size)
     assert refined(s, t, y, 1.0) == 1.0
     # release before the onset, NaN dates
     assert refined(s, t, y, -1.0) == -1.0
