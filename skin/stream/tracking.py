@@ -9,8 +9,11 @@ the sensor (`join_window_for`): the coarse onsets of one touch's taxels lie with
 of it. A contact is decided when all its taxels are released or when
 ``window`` seconds have passed since its first onset, whichever comes first; the tracker then
 hands on a `DecidedContact` holding, per taxel, the samples from ``search`` seconds before its
-coarse onset to its release or the cut. `refine_member` dates each taxel's onset on those
-samples and `finish_contact` cuts the windows: steps of their own, so that the pipeline can
+coarse onset to its release or the cut (a released taxel's to the decision: the free
+response after its release). `refine_member` dates each taxel's onset on those samples, and
+a released taxel's release again (`skin.stream.release_refine`: the detector dates it at the
+reading's extreme, tens of milliseconds late), and `finish_contact` cuts the windows at the
+refined release: steps of their own, so that the pipeline can
 spread the costly refinements of many contacts decided at once over the frames that follow.
 
 The tracker's work per sample does not grow with the number of open contacts: decisions wait
