@@ -89,3 +89,5 @@ def test_bench_scene_ceiling_is_never_below_the_run():
     t = out["totals"]
     assert t["ceiling"] >= t["steps"]["run"]["best"] >= t["material"]
     assert t["ceiling_per_run"]["mean"] == round(t["ceiling"] / t["runs"], 2)
+    assert abs(t["dating"]["all"]["end"]["median"]) <= 25.0
+    assert t["dating"]["short"]["end"]["n"] <= t["dating"]["all"]["end"]["n"]

@@ -145,6 +145,26 @@ def dating_errors(matches: list, contacts: list, truths: list[dict[str, Any]],
     return out
 
 
+def dating_summary(dating: list[dict[str, Any]], short: float = 0.6) -> dict[str, Any]:
+    """Median and 5-95 % of `dating_errors`' onset and end errors, ms, all and short touches.
+
+    ``short``: touches at most this long, s. None where there is nothing to count.
+    """
+    def spread(values: list[float]) -> dict[str, float] | None:
+        if not values:
+            return None
+        p5, p50, p95 = np.percentile(values, (5, 50, 95))
+        return {"median": round(float(p50), 1), "p5": round(float(p5), 1),
+                "p95": round(float(p95), 1), "n": len(values)}
+
+    out = {}
+    for name, keep in (("all", lambda d: True), ("short", lambda d: d["duration"] <= short)):
+        chosen = [d for d in dating if keep(d)]
+        out[name] = {"onset": spread([d["onset"] for d in chosen]),
+                     "end": spread([d["end"] for d in chosen if d["end"] is not None])}
+    return out
+
+
 def _pair(truth: str, label: str, misses: list[dict]) -> dict[str, Any]:
     """Summarise the misses of one truth called one label (`run`'s ``pairs``).
 
@@ -211,6 +231,7 @@ def run(scene: str = "default", seeds: Sequence[int] = tuple(range(10)),
         totals["steps"] = {step: {k: int(sum(r["steps"][step][k] for r in runs))
                                   for k in runs[0]["steps"][step] if k != "misses"}
                            for step in runs[0]["steps"]}
+        totals["dating"] = dating_summary([d for r in runs for d in r["dating"]])
     groups: dict[tuple[str, str], list[dict]] = {}
     for r in runs:
         for m in r["misses"]:
