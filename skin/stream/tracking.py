@@ -331,8 +331,13 @@ class ContactTracker:
         for k, m in sorted(contact.members.items()):
             end = min(m.release if m.release is not None else when, m.coarse + self.window)
             # past a release: the samples up to the decision (the free response after it,
-            # for `refine_member` to date the release; the window still ends at ``end``)
-            idx = h.between(m.coarse - self.search, end if m.release is None else when)
+            # for `refine_member` to date the release; the window still ends at ``end``),
+            # short of the taxel's next contact
+            stop = end if m.release is None else when
+            other = self._owner.get(k)
+            if m.release is not None and other is not None and other is not contact:
+                stop = max(end, min(stop, other.members[k].coarse))
+            idx = h.between(m.coarse - self.search, stop)
             members.append(TaxelSamples(k, m.coarse, m.baseline, m.slope, m.release, end,
                                         h.t[idx], h.y[idx, k], h.ambient[idx]))
         return DecidedContact(contact.id, when, members, final)
