@@ -20,6 +20,9 @@ import numpy as np
 #: Contact closing rates H tried for the in-contact part, s^-0.5 (inf: perfect contact).
 RATES = (np.inf, 300.0, 100.0, 30.0, 10.0, 3.0, 1.0)
 
+#: Heater modes whose own drain is fitted beside the contact response (`onset_refine`'s).
+HEATER_TERMS = ("off-at-contact",)
+
 #: Least samples on each side of a candidate release.
 MIN_SAMPLES = 4
 
@@ -42,12 +45,13 @@ def refine_release(
     ``a + D R(t - onset; H)``, the thermistor's contact response
     (`skin.models.physics.contact_response`, through the sensor's PID loop, lag and smoothing
     when it has them: `skin.stream.onset_refine.sensor_response`) with H the best of
-    ``rates``; from there on it continues from the last sample in contact as the free
-    response, the body relaxing towards its heated (or held) state with the sensor's own time
-    constant tau (l^2 / alpha; a PID loop's ``control_time``):
+    ``rates`` (a heater switched off at contact: its drain's column beside it, each weight
+    fitted, as `refine_onset` does); from there on it continues from the last sample in
+    contact as the free response, the body relaxing towards its heated (or held) state with
+    the sensor's own time constant tau (l^2 / alpha; a PID loop's ``control_time``):
     ``a + D R(t_{j-1}) + c tau (1 - exp(-(t - t_{j-1}) / tau))`` (a straight line while tau is
-    long against ``after``). a, D and c are fitted by least squares for every candidate and
-    rate at once (3x3 normal equations from prefix and suffix sums); the candidate with the
+    long against ``after``). The weights are fitted by least squares for every candidate and
+    rate at once (normal equations from prefix and suffix sums); the candidate with the
     least squared error wins. Candidates are the sample instants from ``coarse - search`` to
     ``coarse + search / 2``. The reading being continuous at the release is what makes the
     fit precise: without it (two free fits) noise alone moved it by 10-40 ms on one-taxel
@@ -55,8 +59,9 @@ def refine_release(
     delay the kink by their group delay (`filter_delay`), which is taken off (an
     approximation: with a lag the kink is bent, not shifted; through a PID loop and a
     0.5 s lag, pid-logger's synthetic releases are dated 0.2 s early, against the
-    detector's 0.8 s late). ``search`` and ``after`` stretch with the sensor's response
-    time when it is slower than the paper's.
+    detector's 0.8 s late; in `skin bench tracking`'s scene 0.64 s late, against 1.6 s).
+    ``search`` and ``after`` stretch with the sensor's response time when it is slower
+    than the paper's.
 
     The detector's date is kept (returned as given) when the fit cannot tell: fewer than
     `MIN_SAMPLES` samples on either side of every candidate, non-finite inputs, or a best
@@ -116,14 +121,20 @@ def refine_release(
     body = SensorConstants(depth=depth, diffusivity=diffusivity)
     rate_grid = np.asarray(rates, dtype=float)
     lag = t - onset
-    if sensor is not None and has_dynamics(sensor):
+    if sensor is not None and sensor.heater in HEATER_TERMS:
+        # a heater switched off at contact drains the body from its first instant: its own
+        # column beside the response (as `refine_onset` fits it)
+        from skin.stream.onset_refine import heater_basis
+
+        basis = np.moveaxis(heater_basis(lag, rate_grid, body, sensor), 0, 1)  # (rates, 2, n)
+    elif sensor is not None and has_dynamics(sensor):
         from skin.stream.onset_refine import sensor_response
 
-        basis = sensor_response(lag, rate_grid, body, sensor)  # (rates, n)
+        basis = sensor_response(lag, rate_grid, body, sensor)[:, None, :]  # (rates, 1, n)
     else:
-        basis = contact_response(lag[None, :], rate_grid[:, None], body)
+        basis = contact_response(lag[None, :], rate_grid[:, None], body)[:, None, :]
     basis = np.nan_to_num(basis)
-    before = _prefix_sse(basis, y).min(axis=0)  # (n + 1,): the contact alone, j samples
+    before = _prefix_sse(basis[:, 0], y).min(axis=0)  # (n + 1,): the response alone
 
     # the free part, continuing the reading from the last sample in contact
     tau = desc.control_time if desc.heater == "pid" else desc.reheat_time_constant
@@ -149,39 +160,41 @@ def _hinge_sse(basis: np.ndarray, u: np.ndarray, tau: float, y: np.ndarray,
                j: np.ndarray) -> np.ndarray:
     """Squared error of the contact-then-free fit for each rate and first free sample ``j``.
 
-    The model (linear in a, D, c for a given j): ``a + D R_i`` for i < j, and from j on
-    ``a + D R_{j-1} + c tau (1 - u_i / u_{j-1})`` (the reading continuous at the release,
-    ``u = exp(-t / tau)`` up to a factor). ``basis`` is R (k, n); returns (k, len(j)). The
-    3x3 normal equations come from prefix and suffix sums.
+    The model (linear in its weights for a given j): ``a + sum_c D_c B_c,i`` for i < j, and
+    from j on ``a + sum_c D_c B_c,j-1 + f tau (1 - u_i / u_{j-1})`` (the reading continuous
+    at the release, ``u = exp(-t / tau)`` up to a factor). ``basis`` is B (k rates, p
+    columns, n); returns (k, len(j)). The normal equations come from prefix and suffix sums.
     """
-    k, n = basis.shape
+    k, p, n = basis.shape
 
-    def prefix(v: np.ndarray) -> np.ndarray:  # sum over i < j
-        v = np.broadcast_to(v, (k, n))
-        return np.concatenate([np.zeros((k, 1)), np.cumsum(v, axis=-1)], axis=-1)[:, j]
+    def prefix(v: np.ndarray) -> np.ndarray:  # sum over i < j, along the last axis
+        c = np.cumsum(v, axis=-1)
+        return np.concatenate([np.zeros((*v.shape[:-1], 1)), c], axis=-1)[..., j]
 
     def suffix(v: np.ndarray) -> np.ndarray:  # sum over i >= j
-        v = np.broadcast_to(v, (k, n))
-        c = np.cumsum(v[:, ::-1], axis=-1)[:, ::-1]
-        return np.concatenate([c, np.zeros((k, 1))], axis=-1)[:, j]
+        c = np.cumsum(v[..., ::-1], axis=-1)[..., ::-1]
+        return np.concatenate([c, np.zeros((*v.shape[:-1], 1))], axis=-1)[..., j]
 
-    r_last = basis[:, j - 1]  # (k, m)
-    u_last = u[j - 1][None, :]
-    rest = (n - j)[None, :].astype(float)
+    last = basis[:, :, j - 1]  # (k, p, m)
+    u_last = u[j - 1]
+    rest = (n - j).astype(float)  # (m,)
     s_u, s_uu, s_y, s_uy = suffix(u), suffix(u * u), suffix(y), suffix(u * y)
     f1 = tau * (rest - s_u / u_last)  # sum of the free column
     f2 = tau**2 * (rest - 2.0 * s_u / u_last + s_uu / u_last**2)
-    g = np.empty((k, j.size, 3, 3))
+    g = np.empty((k, j.size, p + 2, p + 2))
     g[..., 0, 0] = n
-    g[..., 0, 1] = g[..., 1, 0] = prefix(basis) + rest * r_last
-    g[..., 1, 1] = prefix(basis * basis) + rest * r_last**2
-    g[..., 0, 2] = g[..., 2, 0] = f1
-    g[..., 1, 2] = g[..., 2, 1] = r_last * f1
-    g[..., 2, 2] = np.maximum(f2, 0.0)
-    b = np.stack([np.broadcast_to(y.sum(), r_last.shape),
-                  prefix(basis * y) + r_last * s_y,
-                  tau * (s_y - s_uy / u_last)], axis=-1)
-    ridge = 1e-12 * np.trace(g, axis1=-2, axis2=-1)[..., None, None] * np.eye(3)
+    g[..., 0, 1:p + 1] = g[..., 1:p + 1, 0] = np.moveaxis(prefix(basis) + rest * last, 1, 2)
+    cross = prefix(basis[:, :, None, :] * basis[:, None, :, :])  # (k, p, p, m)
+    g[..., 1:p + 1, 1:p + 1] = np.moveaxis(cross + rest * last[:, :, None] * last[:, None],
+                                           3, 1)
+    g[..., 0, p + 1] = g[..., p + 1, 0] = f1
+    g[..., 1:p + 1, p + 1] = g[..., p + 1, 1:p + 1] = np.moveaxis(last * f1, 1, 2)
+    g[..., p + 1, p + 1] = np.maximum(f2, 0.0)
+    b = np.concatenate([np.broadcast_to(y.sum(), (k, j.size, 1)),
+                        np.moveaxis(prefix(basis * y) + last * s_y, 1, 2),
+                        np.broadcast_to((tau * (s_y - s_uy / u_last))[:, None],
+                                        (k, j.size, 1))], axis=-1)
+    ridge = 1e-12 * np.trace(g, axis1=-2, axis2=-1)[..., None, None] * np.eye(p + 2)
     coef = np.linalg.solve(g + ridge, b[..., None])[..., 0]
     return np.maximum(float(y @ y) - np.einsum("kmi,kmi->km", coef, b), 0.0)
 
