@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from skin.models.physics import contact_trace
-from skin.models.sensors import apply_dynamics, load_sensor, smooth
+from skin.models.sensors import apply_dynamics, contact_reading, load_sensor, smooth
 from skin.stream.release_refine import filter_delay, refine_release
 
 GLASS, STEEL, FOAM, COPPER = 1500.0, 7000.0, 30.0, 37000.0
@@ -15,9 +14,10 @@ GLASS, STEEL, FOAM, COPPER = 1500.0, 7000.0, 30.0, 37000.0
 def touch(sensor, duration, e_obj=GLASS, t_obj=25.0, noise=0.0, seed=0, after=1.0):
     """A contact from t = 0 to ``duration`` as the simulator makes it, then the free response.
 
-    In contact the thermistor follows eq. 5; from the release on (its first sample read
-    free) the body relaxes towards its heated state with its own time constant (the PID
-    loop's for a held heater); then the sensor's loop, lag and smoothing.
+    In contact the thermistor follows eq. 5 (with the heater's own term); from the release
+    on (its first sample read free) the body relaxes towards its heated state with its own
+    time constant (the PID loop's for a held heater); then the sensor's loop, lag and
+    smoothing.
     """
     fs = sensor.sample_rate
     t = np.arange(round(-0.5 * fs), round((duration + after) * fs)) / fs
@@ -25,7 +25,7 @@ def touch(sensor, duration, e_obj=GLASS, t_obj=25.0, noise=0.0, seed=0, after=1.
     y = np.full(t.size, heated)
     k1 = round(duration * fs)
     inside = (t >= 0) & (np.arange(t.size) < np.searchsorted(t, 0) + k1)
-    y[inside] = contact_trace(t[inside], heated, t_obj, e_obj, sensor)
+    y[inside] = contact_reading(t[inside], heated, t_obj, e_obj, sensor, ambient=25.0)
     last = y[inside][-1]
     tau = sensor.control_time if sensor.heater == "pid" else sensor.reheat_time_constant
     free = np.flatnonzero(t >= 0)[k1:]
