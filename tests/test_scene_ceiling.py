@@ -81,6 +81,13 @@ def test_bench_scene_ceiling_is_never_below_the_run():
         assert r["steps"]["run"]["family"] == r["family"]
         assert r["ceiling_family"] >= r["ceiling"] >= r["touches"] - 2
         assert r["touches"] - r["ceiling"] == len(r["ceiling_misses"])
+        # every matched touch's taxel windows are dated; the released ones' ends within
+        # a few samples of the truth (`skin.stream.release_refine`), most of them
+        ends = [d["end"] for d in r["dating"] if d["end"] is not None]
+        assert len(r["dating"]) >= r["touches"] and len(ends) >= r["touches"] // 2
+        assert np.median(np.abs(ends)) <= 25.0
     t = out["totals"]
     assert t["ceiling"] >= t["steps"]["run"]["best"] >= t["material"]
     assert t["ceiling_per_run"]["mean"] == round(t["ceiling"] / t["runs"], 2)
+    assert abs(t["dating"]["all"]["end"]["median"]) <= 25.0
+    assert t["dating"]["short"]["end"]["n"] <= t["dating"]["all"]["end"]["n"]

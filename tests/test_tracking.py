@@ -170,3 +170,15 @@ def test_bench_tracking_counts_whole_split_and_merged_touches(capsys):
     assert main(["bench", "tracking", "--pairs", "2", "--seeds", "3", "--json"]) == 0
     row = json.loads(capsys.readouterr().out)["rows"][0]
     assert row["touches"] == row["whole"] == 6 and row["track_us_per_sample"] > 0
+
+
+def test_a_released_taxels_samples_reach_past_its_release_short_of_its_next_contact():
+    # 44 released at 1.5 s; the contact waits for 45 (released at 2.5 s); 44 is touched
+    # again at 2.0 s: its samples reach past its release (the free response, for the
+    # release's refinement), up to its next onset, and the window still ends at its release
+    events = [_onset(44, 1.0), _onset(45, 1.05), _release(44, 1.5), _onset(44, 2.0),
+              _release(45, 2.5), _release(44, 3.0)]
+    first = _track(events)[0]
+    m44, m45 = first.members
+    assert m44.release == 1.5 and m44.end == 1.5
+    assert m44.time[-1] == pytest.approx(2.0) and m45.time[-1] == pytest.approx(2.5 + 0.1)

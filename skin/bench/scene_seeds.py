@@ -113,10 +113,56 @@ def _ceiling_figures(skin, fresh, contacts: list, readings: np.ndarray,
     matches, _ = match_touches(replace(scene, touches=in_time), [c.taxels for c in contacts],
                                [c.onset for c in contacts])
     steps = ladder(fresh, matches, contacts, truths, readings, fs, scene.ambient, window)
-    return {"ceiling": sum(c == t["material"] for t, c in zip(truths, chosen, strict=True)),
+    return {"dating": dating_errors(matches, contacts, truths, fs),
+            "ceiling": sum(c == t["material"] for t, c in zip(truths, chosen, strict=True)),
             "ceiling_family": sum(table[c].family == t["family"]
                                   for t, c in zip(truths, chosen, strict=True)),
             "ceiling_misses": misses, "steps": steps}
+
+
+def dating_errors(matches: list, contacts: list, truths: list[dict[str, Any]],
+                  fs: float) -> list[dict[str, Any]]:
+    """Return each matched touch's taxel windows' dating errors, ms (estimate - truth).
+
+    One entry per window of a taxel of the touch: ``duration`` (the touch's, s), ``onset``
+    and, for a released window ending before the run's cut, ``end`` (the window's last
+    sample against the touch's end, the first sample read free), else None.
+    """
+    out = []
+    by_touch = {id(t["touch"]): t for t in truths}
+    for m in matches:
+        truth = by_touch.get(id(m.touch))
+        if m.contact_index is None or truth is None:
+            continue
+        start, end = truth["k0"] / fs, truth["k1"] / fs
+        for w in contacts[m.contact_index].windows:
+            if w.taxel not in truth["taxels"]:
+                continue
+            last = w.onset + (float(w.time[-1]) if w.time.size else 0.0)
+            out.append({"duration": round(end - start, 3),
+                        "onset": round(1e3 * (w.onset - start), 1),
+                        "end": round(1e3 * (last + 1.0 / fs - end), 1) if w.released else None})
+    return out
+
+
+def dating_summary(dating: list[dict[str, Any]], short: float = 0.6) -> dict[str, Any]:
+    """Median and 5-95 % of `dating_errors`' onset and end errors, ms, all and short touches.
+
+    ``short``: touches at most this long, s. None where there is nothing to count.
+    """
+    def spread(values: list[float]) -> dict[str, float] | None:
+        if not values:
+            return None
+        p5, p50, p95 = np.percentile(values, (5, 50, 95))
+        return {"median": round(float(p50), 1), "p5": round(float(p5), 1),
+                "p95": round(float(p95), 1), "n": len(values)}
+
+    out = {}
+    for name, keep in (("all", lambda d: True), ("short", lambda d: d["duration"] <= short)):
+        chosen = [d for d in dating if keep(d)]
+        out[name] = {"onset": spread([d["onset"] for d in chosen]),
+                     "end": spread([d["end"] for d in chosen if d["end"] is not None])}
+    return out
 
 
 def _pair(truth: str, label: str, misses: list[dict]) -> dict[str, Any]:
@@ -185,6 +231,7 @@ def run(scene: str = "default", seeds: Sequence[int] = tuple(range(10)),
         totals["steps"] = {step: {k: int(sum(r["steps"][step][k] for r in runs))
                                   for k in runs[0]["steps"][step] if k != "misses"}
                            for step in runs[0]["steps"]}
+        totals["dating"] = dating_summary([d for r in runs for d in r["dating"]])
     groups: dict[tuple[str, str], list[dict]] = {}
     for r in runs:
         for m in r["misses"]:

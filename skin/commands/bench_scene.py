@@ -113,3 +113,8 @@ def _print_ceiling(totals: dict, runs: int) -> None:
               f"{v['sure_wrong'] / runs:>10.2f}")
     print(f"{'ceiling':<12} {'':>11} {totals['ceiling'] / runs:>10.2f} {'':>6} "
           f"{totals['ceiling_family'] / runs:>11.2f}")
+    for name, what in (("all", "every touch"), ("short", "touches <= 0.6 s")):
+        d = totals["dating"][name]
+        print(f"dating, {what}: " + "; ".join(
+            f"{k} {v['median']:+.1f} ms ({v['p5']:+.1f} to {v['p95']:+.1f}, {v['n']} windows)"
+            for k, v in (("onset", d["onset"]), ("release", d["end"])) if v is not None))

@@ -9,7 +9,7 @@ assemble        `skin.stream.assembly.FrameAssembler`          frames of every b
 calibrate       `skin.stream.calibration.Calibration`          counts -> deg C and per-taxel status
 onset           `skin.stream.onset.OnsetDetector`              deg C -> onset and release events
 track           `skin.stream.tracking.ContactTracker`          deg C and events -> `DecidedContact`
-refine          `skin.stream.tracking.refine_member`           each taxel's samples -> dated onset
+refine          `skin.stream.tracking.refine_member`           samples -> dated onset and release
 classify        the classifier (`Classifier`)           `Contact` -> `MaterialEstimate`
 sinks           `skin.stream.sinks` (JSON lines, terminal...)  `ContactResult` -> wherever it goes
 ==============  ======================================  =========================================

@@ -9,8 +9,11 @@ the sensor (`join_window_for`): the coarse onsets of one touch's taxels lie with
 of it. A contact is decided when all its taxels are released or when
 ``window`` seconds have passed since its first onset, whichever comes first; the tracker then
 hands on a `DecidedContact` holding, per taxel, the samples from ``search`` seconds before its
-coarse onset to its release or the cut. `refine_member` dates each taxel's onset on those
-samples and `finish_contact` cuts the windows: steps of their own, so that the pipeline can
+coarse onset to its release or the cut (a released taxel's to the decision: the free
+response after its release). `refine_member` dates each taxel's onset on those samples, and
+a released taxel's release again (`skin.stream.release_refine`: the detector dates it at the
+reading's extreme, tens of milliseconds late), and `finish_contact` cuts the windows at the
+refined release: steps of their own, so that the pipeline can
 spread the costly refinements of many contacts decided at once over the frames that follow.
 
 The tracker's work per sample does not grow with the number of open contacts: decisions wait
@@ -29,6 +32,7 @@ from skin.contact import Contact, TaxelWindow
 from skin.formats.layout import Layout
 from skin.stream.onset import OnsetEvent
 from skin.stream.onset_refine import refine_onset
+from skin.stream.release_refine import refine_release
 
 #: Onsets of neighbours at most this far apart join one contact with the paper's sensor, s.
 #: The coarse onsets of one touch's taxels lie within 0.15 s of each other (median 0.015 s,
@@ -53,7 +57,8 @@ class TaxelSamples:
     end : float
         Last instant of the taxel's window (release, decision or cut), s.
     time, temperature, ambient : numpy.ndarray
-        The samples from ``coarse - search`` to ``end`` (copies).
+        The samples from ``coarse - search`` to ``end`` (copies); past a release, to the
+        decision (the free response after it, for `refine_member`).
     """
 
     index: int
@@ -325,7 +330,14 @@ class ContactTracker:
         members = []
         for k, m in sorted(contact.members.items()):
             end = min(m.release if m.release is not None else when, m.coarse + self.window)
-            idx = h.between(m.coarse - self.search, end)
+            # past a release: the samples up to the decision (the free response after it,
+            # for `refine_member` to date the release; the window still ends at ``end``),
+            # short of the taxel's next contact
+            stop = end if m.release is None else when
+            other = self._owner.get(k)
+            if m.release is not None and other is not None and other is not contact:
+                stop = max(end, min(stop, other.members[k].coarse))
+            idx = h.between(m.coarse - self.search, stop)
             members.append(TaxelSamples(k, m.coarse, m.baseline, m.slope, m.release, end,
                                         h.t[idx], h.y[idx, k], h.ambient[idx]))
         return DecidedContact(contact.id, when, members, final)
@@ -347,24 +359,42 @@ def join_window_for(sensor: object | None) -> float:
 
 
 def refine_member(member: TaxelSamples, depth: np.ndarray, diffusivity: np.ndarray,
-                  search: float = 0.6, sensor: object | None = None) -> tuple[float, float]:
-    """Refined onset and initial temperature of one taxel of a decided contact.
+                  search: float = 0.6, sensor: object | None = None,
+                  ) -> tuple[float, float, float]:
+    """Refined onset, initial temperature and window end of one taxel of a decided contact.
 
     ``search`` is the paper sensor's span; with a ``sensor`` description the refinement fits
     its own response over a span stretched with its response time
-    (`skin.stream.onset_refine.refine_span`: the tracker's ``search`` should be that).
+    (`skin.stream.onset_refine.refine_span`: the tracker's ``search`` should be that). The
+    onset is fitted on the samples up to ``member.end``; a released taxel's release is then
+    dated again on its samples past it (`skin.stream.release_refine.refine_release`), and
+    the window ends there (``member.end`` otherwise).
     """
     k = member.index
-    return refine_onset(member.time, member.temperature, member.coarse, member.baseline,
-                        member.slope, depth[k], diffusivity[k], search=search, sensor=sensor)
+    upto = member.time <= member.end
+    onset, initial = refine_onset(member.time[upto], member.temperature[upto], member.coarse,
+                                  member.baseline, member.slope, depth[k], diffusivity[k],
+                                  search=search, sensor=sensor)
+    end = member.end
+    if member.release is not None and member.end >= member.release:
+        release = refine_release(member.time, member.temperature, onset, member.release,
+                                 depth[k], diffusivity[k], sensor=sensor)
+        end = min(member.end, release)
+    return onset, initial, end
 
 
 def finish_contact(decided: DecidedContact, layout: Layout,
-                   refined: list[tuple[float, float]], window: float = 2.5) -> Contact:
-    """Build the `Contact` from a decided contact and its members' refined onsets."""
-    windows, onsets, ambients = [], [], []
-    for m, (onset, initial) in zip(decided.members, refined, strict=True):
-        end = min(m.end, onset + window)
+                   refined: list[tuple[float, ...]], window: float = 2.5) -> Contact:
+    """Build the `Contact` from a decided contact and its members' refined onsets.
+
+    ``refined`` holds each member's (onset, initial) or (onset, initial, end): the window
+    ends at ``end`` (`refine_member`'s refined release), else at the member's own.
+    """
+    windows, onsets, ambients, releases = [], [], [], []
+    for m, (onset, initial, *rest) in zip(decided.members, refined, strict=True):
+        end = min(rest[0] if rest else m.end, onset + window)
+        releases.append(None if m.release is None else min(m.release, rest[0]) if rest
+                        else m.release)
         sel = (m.time >= onset) & (m.time <= end)
         windows.append(TaxelWindow(
             taxel=int(layout.ids[m.index]), onset=onset, initial=initial,
@@ -373,7 +403,6 @@ def finish_contact(decided: DecidedContact, layout: Layout,
         ))
         onsets.append(onset)
         ambients.append(m.ambient[sel])
-    releases = [m.release for m in decided.members]
     amb = np.concatenate(ambients) if ambients else np.array([])
     amb = amb[np.isfinite(amb)]
     return Contact(
