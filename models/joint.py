@@ -52,10 +52,11 @@ class JointContactModel:
     noise : float or sequence of float
         Standard deviation of a reading about the model, K: the ADC's noise and what the
         model leaves out (taxel spread, onset error). Larger is softer. A sequence is a grid
-        the noise is integrated over (log-uniform prior, each material its own): a contact
+        the noise is integrated over (each material its own): a contact
         the model explains down to the reading's noise is then judged at that noise, one it
-        explains badly (a misdated onset or release) at the grid's largest. ``noise`` is then
-        the grid's largest, ``noises`` the grid.
+        explains badly (a misdated onset or release) at the grid's largest. Each of the grid's
+        noises weighs the same: a log-uniform prior when the grid is geometric. ``noise`` is
+        then the grid's largest, ``noises`` the grid.
     object_std : float
         Prior standard deviation of the object's temperature about ambient, K.
     h_points : int
@@ -78,17 +79,21 @@ class JointContactModel:
     """
 
     def __init__(self, materials: Sequence[Material], sensor: SensorConstants | None = None,
-                 noise: float = 0.1, object_std: float = 10.0, h_points: int = 7,
+                 noise: float | Sequence[float] = 0.1, object_std: float = 10.0, h_points: int = 7,
                  onset_shifts: Sequence[float] = (0.0,),
                  conductance_range: tuple[float, float] | None = None) -> None:
         if not materials:
             raise ValueError("JointContactModel needs at least one candidate material")
-        if not (np.all(np.asarray(noise) > 0) and object_std > 0 and h_points >= 1):
+        noises = np.atleast_1d(np.asarray(noise, dtype=float))
+        if noises.ndim != 1 or noises.size == 0:
+            raise ValueError(f"noise must be a number or a non-empty sequence of numbers, "
+                             f"not {noise!r}")
+        if not (np.all(noises > 0) and object_std > 0 and h_points >= 1):
             raise ValueError("noise and object_std must be positive and h_points at least 1")
         self.materials = list(materials)
         self.classes = [m.name for m in self.materials]
         self.sensor = SensorConstants() if sensor is None else sensor
-        self.noises = np.atleast_1d(np.asarray(noise, dtype=float))
+        self.noises = noises
         self.noise = float(self.noises.max())
         self.object_std = float(object_std)
         self.onset_shifts = np.asarray(onset_shifts, dtype=float)
@@ -295,7 +300,7 @@ class JointContactModel:
         log_ev = -0.5 * quad - 0.5 * np.log(tau2 * precision)
         if noises.size == 1:
             log_ev, mean = log_ev[0], mean[0]
-        else:  # the noise integrated over its grid (log-uniform): each material its own
+        else:  # the noise integrated over its grid (equal weights): each material its own
             log_ev = log_ev - d.size * np.log(noises)[:, None, None, None]
             top = log_ev.max(axis=0)
             w = np.exp(log_ev - top)

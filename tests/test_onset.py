@@ -291,5 +291,7 @@ def test_slow_channel_finds_more_contacts_among_air_currents_without_false_alarm
         return hits, false
 
     hits_cusum, false_cusum = score(slow_threshold=np.inf, gust_envelope=False)
-    hits, false = score()
+    hits, false = score(gust_envelope=False)  # the slow channel alone beside the CUSUM
     assert hits > hits_cusum + 5 and false <= false_cusum + 2
+    hits_all, false_all = score()  # and the gust envelope beside both
+    assert hits_all >= hits and false_all <= false + 2

@@ -68,9 +68,10 @@ def test_a_smooth_fall_beyond_the_gust_envelope_is_an_onset_the_cusum_misses():
         assert e.detected_at - on[k] < 3.0
 
 
+@pytest.mark.parametrize("preset", ["paper", "low-cost"])  # low-cost: its own medium average
 @pytest.mark.parametrize("sizes", [[1] * 50 + [333, 7], [4000, 1]])
-def test_gust_envelope_is_chunk_invariant(sizes):
-    sensor = load_sensor("paper")
+def test_gust_envelope_is_chunk_invariant(sizes, preset):
+    sensor = load_sensor(preset)
     t, y = _worst_disturbance(sensor, 4, seed=9)
     s = np.maximum(t - 30.0, 0.0)
     y[:, 1] -= 1.0 * (1.0 - (1.0 + s / 0.4) * np.exp(-s / 0.4))
@@ -82,7 +83,7 @@ def test_gust_envelope_is_chunk_invariant(sizes):
         events += ev
         i += size
     assert events == whole and any(e.kind == "onset" for e in whole)
-    for name in ("ref_level", "ref_slope", "ref_t", "cusum", "slow"):
+    for name in ("ref_level", "ref_slope", "ref_t", "cusum", "slow", "medium"):
         np.testing.assert_array_equal(getattr(state, name), getattr(last, name))
 
 
@@ -104,3 +105,26 @@ def test_average_noise_matches_the_noise_of_averaged_smoothed_readings(preset):
     if sensor.smoothing == "none":
         g = 1.0 - np.exp(-1.0 / (fs * 0.03))
         assert _average_noise(sensor, 0.03) == pytest.approx(np.sqrt(g / (2.0 - g)))
+
+
+def test_an_envelope_onset_as_the_slow_window_runs_out_re_bases_from_where_the_fall_began():
+    # the envelope's reference slides to now on the sample its age passes the slow channel's
+    # window; an onset raised on that very sample re-based the in-contact baseline from now
+    # (over one sample: a steep rise for a fall) instead of from where the fall began
+    sensor = load_sensor("paper")
+    fs = sensor.sample_rate
+    det = OnsetDetector(2, sensor=sensor)
+    rng = np.random.default_rng(0)
+    t = np.arange(0.0, 10.0, 1 / fs)
+    _, state = det.process(t, 39.0 + 0.01 * rng.standard_normal((t.size, 2)),
+                           det.initial_state())
+    now = t[-1] + 1 / fs
+    state = state.copy()
+    state.ref_level[:] = state.smooth + 2.0  # a fall of 2 K, deeper than any gust
+    state.ref_t[:] = [now - det.slow_tau - 0.5 / fs, now - 1.0]  # taxel 0: at the window's end
+    events, after = det.process(np.array([now]), np.array([[39.0, 39.0]]), state)
+    onsets = {e.taxel: e for e in events if e.kind == "onset"}
+    assert sorted(onsets) == [0, 1] and all(e.channel == 2 for e in onsets.values())
+    assert onsets[0].time == pytest.approx(now - det.slow_tau - 0.5 / fs)
+    # the in-contact trend of a fall, re-based over seconds: small and not rising
+    assert np.all(after.slope <= 0.0) and np.all(np.abs(after.slope) < 0.1)

@@ -79,6 +79,8 @@ def test_bench_scene_ceiling_is_never_below_the_run():
         # the run replayed through a fresh copy of its classifier names what the run named
         assert r["steps"]["run"]["label"] == r["material"]
         assert r["steps"]["run"]["family"] == r["family"]
+        # the ceiling's least over seeds 0-29 is 13 of 15 (its only misses: a 0.3 s glass
+        # touch read as porcelain, aluminium as steel, effusivities 4-9 % apart)
         assert r["ceiling_family"] >= r["ceiling"] >= r["touches"] - 2
         assert r["touches"] - r["ceiling"] == len(r["ceiling_misses"])
         # every matched touch's taxel windows are dated; the released ones' ends within
@@ -87,6 +89,7 @@ def test_bench_scene_ceiling_is_never_below_the_run():
         assert len(r["dating"]) >= r["touches"] and len(ends) >= r["touches"] // 2
         assert np.median(np.abs(ends)) <= 25.0
     t = out["totals"]
+    # not a strict bound (the ADC's steps: module docstring), but far above the run here
     assert t["ceiling"] >= t["steps"]["run"]["best"] >= t["material"]
     assert t["ceiling_per_run"]["mean"] == round(t["ceiling"] / t["runs"], 2)
     assert abs(t["dating"]["all"]["end"]["median"]) <= 25.0

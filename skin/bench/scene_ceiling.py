@@ -47,10 +47,9 @@ from typing import Any
 
 import numpy as np
 
+from skin.bench.scene_seeds import SURE
 from skin.errors import SkinError
 
-#: An answer at or above this probability is a confident one (`skin.bench.scene_seeds.SURE`).
-SURE = 0.9
 #: The gap's steps (module docstring), from the run to the truth.
 STEPS = ("run", "initial", "onset", "end", "dating", "taxels")
 #: The joint classifier's noise grid of the ``+noise`` steps, times its own noise.

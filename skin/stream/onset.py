@@ -347,8 +347,8 @@ class OnsetDetector:
         Whether the gust-envelope test runs (see the module docstring): a fall, from where the
         baseline put the reading when it began, deeper than the deepest and fastest gust of
         `GUST_DEPTH` and `GUST_RISE` plus the steepest heater step (`HEATER_STEP` through the
-        body's slowest mode) can make in the time since, and 8 noise sigmas more, is a
-        contact (channel 2, with the slow channel).
+        body's slowest mode; none for a PID-held heater) can make in the time since, and 8
+        noise sigmas more, is a contact (channel 2, with the slow channel).
 
     Every kelvin threshold left as None follows from ``sigma`` and the sensor; the figures in
     the descriptions above are the paper sensor's.
@@ -444,7 +444,9 @@ class OnsetDetector:
         slow_sigma = self.sigma * _average_noise(sensor, self.medium_tau)
         self.gust_envelope = gust_envelope
         self.gust_depth = GUST_DEPTH * rise if gust_envelope else np.inf
-        self.heater_rate = HEATER_STEP * rise / mode
+        # a PID loop holds the sensor at its setpoint: a duty step is the loop's to take up
+        # (the CUSUM's thresholds leave it out too, `quick`)
+        self.heater_rate = 0.0 if sensor.heater == "pid" else HEATER_STEP * rise / mode
         self.threshold = scaled(threshold, "threshold", True)
         self.rise_threshold = scaled(rise_threshold, "rise_threshold", True)
         self.release_rise = scaled(release_rise, "release_rise", False)
@@ -687,16 +689,17 @@ class OnsetDetector:
         # the reference slides with the baseline while the reading stays within noise of it
         # (a falling trend extrapolated, a rising one not: it decelerates), and starts again
         # after the slow channel's window (a slower fall is the slow channel's)
+        t0 = np.where(alarm, s.t_start, s.rise_start)
+        # an envelope onset re-bases the baseline from where the fall began, as a CUSUM's does
+        # (the baseline re-based from where the reading left the noise: the CUSUM may have
+        # left zero a sample ago); taken before the reference slides below, which on the
+        # sample the slow channel's window runs out would move it to now
+        t0 = np.where(deep, s.ref_t, t0)
         slide = ~(drop > 2.0 * sigma) | (since > self.slow_tau)
         np.copyto(s.ref_level, pred, where=slide)
         np.copyto(s.ref_slope, s.slope, where=slide)
         np.copyto(s.ref_t, t, where=slide)
         np.copyto(s.ref_level, np.nan, where=~(idle & armed) | slow_alarm)
-        t0 = np.where(alarm, s.t_start, s.rise_start)
-        # an envelope onset re-bases the baseline from where the fall began, as a CUSUM's does
-        # (the baseline re-based from where the reading left the noise: the CUSUM may have
-        # left zero a sample ago)
-        t0 = np.where(deep, s.ref_t, t0)
         alarm = alarm | slow_alarm
         onset = alarm | rise_alarm
         any_onset = bool(onset.any())

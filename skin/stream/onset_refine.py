@@ -28,8 +28,12 @@ DRAIN_BOUND = 1.5
 #: How much further than its response time `refine_span` stretches a slow sensor's span.
 SPAN_MORE = 2.0
 
-#: Largest AR(1) coefficient `refine_onset` whitens a slow sensor's residual by (below 1,
-#: where the whitened level would vanish).
+#: Largest AR(1) coefficient `refine_onset` whitens a slow sensor's residual by: a choice,
+#: not an estimate. On pid-logger's streams the residual's estimate sits at this clip in most
+#: contacts, so the refit is in effect on first differences, and its result depends on the
+#: clip (a review's scratch check, onset error median on 10 gusty contacts: 0.9 122 ms,
+#: 0.95 87 ms, 0.99 17 ms, 0.999 12.5 ms); the whitened level stays a constant (1 - rho),
+#: removed by centring, whatever rho. Only a slow sensor without a heater term takes this path.
 AR1_MAX = 0.99
 
 #: Contact closing rates H = h (1/e_s + 1/e_o) tried by `refine_onset`, s^-0.5 (inf: perfect).
@@ -117,6 +121,9 @@ def refine_onset(
     grid = coarse - np.arange(0.0, search + step / 2, step)[::-1]
     if t.size < 3:
         return coarse, baseline
+    # pairs of samples a sample apart (the whitening below pairs no sample across a hole)
+    gaps = np.diff(t)
+    adjacent = gaps < 1.5 * np.median(gaps)
     body = SensorConstants(depth=depth, diffusivity=diffusivity)
     pre_model = baseline + slope * (t - coarse)
     # the response is tabulated once per rate on a lag grid a fifth of a step fine and read by
@@ -159,8 +166,8 @@ def refine_onset(
         basis = np.where(lag > -lead, table[:, i] * (1 - f) + table[:, i + 1] * f, 0.0)
         z = y - slope * (t - coarse)  # (n,)
         if rho[0] > 0:  # whitened: the level's column is a constant still, 1 - rho
-            z = z[1:] - rho[0] * z[:-1]
-            basis = basis[..., 1:] - rho[0] * basis[..., :-1]
+            z = (z[1:] - rho[0] * z[:-1])[adjacent]
+            basis = (basis[..., 1:] - rho[0] * basis[..., :-1])[..., adjacent]
             zc = z - z.mean()
             bc = basis - basis.mean(-1, keepdims=True)
             num = np.einsum("rmn,n->rm", bc, zc)
@@ -271,7 +278,7 @@ def refine_onset(
         # samples whitened by it (feasible generalised least squares, AR(1)); on pid-logger's
         # synthetic streams the onset error median fell from 79-109 ms to 16-77 ms
         rho[0] = _residual_ar1(t, y - slope * (t - coarse), onset, lead, dl,
-                               tabulate(np.array([rate]))[0])
+                               tabulate(np.array([rate]))[0], adjacent)
         if rho[0] > 0:
             onset, rate = search_all()
     return onset, float(baseline + slope * (onset - coarse))
@@ -307,12 +314,13 @@ def _relative_noise(sensor: object) -> float:
 
 
 def _residual_ar1(t: np.ndarray, z: np.ndarray, onset: float, lead: float, dl: float,
-                  table: np.ndarray) -> float:
+                  table: np.ndarray, adjacent: np.ndarray) -> float:
     """Return the lag-1 autocorrelation of a fit's residual, clipped to [0, `AR1_MAX`].
 
     ``z`` is the reading less the baseline's slope, ``table`` the response at the fitted rate
     on `refine_onset`'s lag grid (step ``dl``, from ``-lead``); the level and the response's
-    size are fitted by least squares at ``onset``.
+    size are fitted by least squares at ``onset``; ``adjacent`` marks the pairs of samples
+    (``z[1:]``, ``z[:-1]``) a sample apart, the only ones it is estimated from.
     """
     x = np.maximum(t - onset + lead, 0.0) / dl
     i = np.minimum(x.astype(np.int64), len(table) - 2)
@@ -320,10 +328,11 @@ def _residual_ar1(t: np.ndarray, z: np.ndarray, onset: float, lead: float, dl: f
     col = np.where(t - onset > -lead, table[i] * (1 - f) + table[i + 1] * f, 0.0)
     a = np.column_stack([np.ones_like(z), col])
     res = z - a @ np.linalg.lstsq(a, z, rcond=None)[0]
-    energy = float(res @ res)
+    now, prev = res[1:][adjacent], res[:-1][adjacent]
+    energy = float(prev @ prev)
     if not energy > 0:
         return 0.0
-    return float(np.clip(float(res[1:] @ res[:-1]) / energy, 0.0, AR1_MAX))
+    return float(np.clip(float(now @ prev) / energy, 0.0, AR1_MAX))
 
 
 def _has_dynamics(sensor: object, step: float = 0.005) -> bool:
