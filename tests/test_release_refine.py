@@ -117,3 +117,33 @@ def test_filter_delay():
     fast = load_sensor("fast-film")
     assert filter_delay(fast) == pytest.approx((fast.smoothing_window - 1) / 2 / 1000.0)
     assert filter_delay(load_sensor("low-cost")) > load_sensor("low-cost").lag
+
+
+def test_a_short_touch_onset_is_fitted_again_up_to_the_refined_release():
+    # the detector dates a short touch's release late; the samples past the contact that the
+    # onset's fit then sees pull the onset early. `refine_member` fits it again up to the
+    # refined release.
+    from skin.stream.onset_refine import refine_onset
+    from skin.stream.tracking import TaxelSamples, refine_member
+
+    s = load_sensor("paper")
+    fs = s.sample_rate
+    depth, alpha = np.array([s.depth]), np.array([s.diffusivity])
+    first, again = [], []
+    for seed in range(12):
+        duration = (0.3, 0.4, 0.5)[seed % 3]
+        t, y = touch(s, duration, noise=noise(s), seed=seed)
+        coarse, late = 0.07, duration + 0.09  # the detector's onset and release
+        keep = t >= coarse - 0.6
+        member = TaxelSamples(index=0, coarse=coarse, baseline=25.0 + s.heated_rise,
+                              slope=0.0, release=late, end=late, time=t[keep],
+                              temperature=y[keep], ambient=np.full(keep.sum(), 25.0))
+        upto = t[keep] <= late
+        onset, _ = refine_onset(t[keep][upto], y[keep][upto], coarse, 25.0 + s.heated_rise,
+                                0.0, s.depth, s.diffusivity, sensor=s)
+        first.append(onset)
+        onset, _, end = refine_member(member, depth, alpha, sensor=s)
+        assert end < late and np.isfinite(onset)
+        again.append(onset)
+    assert np.median(np.abs(again)) <= 1.5 / fs
+    assert np.median(np.abs(again)) < np.median(np.abs(first))

@@ -23,6 +23,7 @@ import numpy as np
 
 from skin.stream.onset import OnsetDetector, OnsetEvent
 from skin.stream.onset_refine import refine_onset, refine_span
+from skin.stream.release_refine import refine_release
 from skin.summary import median_p95
 
 #: A detection may start this much before the true onset and still belong to the contact, s.
@@ -156,13 +157,25 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
             releases.setdefault(ev.taxel, []).append(ev)
     for (taxel, i), ev in found.items():
         on, _ = by_taxel[taxel][i]
-        # the samples the pipeline would refine on: up to the release, if one was detected
-        end = next((r.time for r in releases.get(taxel, []) if r.detected_at > ev.detected_at),
-                   np.inf)
+        # the samples the pipeline would refine on (`skin.stream.tracking.refine_member`): up
+        # to the release, if one was detected; then, the release dated again on the samples
+        # to its detection, up to that refined release when it is earlier
+        rel = next((r for r in releases.get(taxel, []) if r.detected_at > ev.detected_at),
+                   None)
+        end = np.inf if rel is None else rel.time
         lo, hi = np.searchsorted(times, [ev.time - search, min(ev.time + horizon, end)],
                                  side="right")
         refined, _ = refine_onset(times[lo:hi], y[lo:hi, taxel], ev.time, ev.baseline,
                                   ev.slope, depth, diffusivity, sensor=sensor)
+        if rel is not None:
+            upto = np.searchsorted(times, max(rel.detected_at, end), side="right")
+            released = refine_release(times[lo:upto], y[lo:upto, taxel], refined, end, depth,
+                                      diffusivity, sensor=sensor)
+            if released < end:
+                hi = np.searchsorted(times, min(ev.time + horizon, released), side="right")
+                refined, _ = refine_onset(times[lo:hi], y[lo:hi, taxel], ev.time,
+                                          ev.baseline, ev.slope, depth, diffusivity,
+                                          sensor=sensor)
         delay[(taxel, i)] = ev.detected_at - on
         error[(taxel, i)] = refined - on
         if (taxel, i) in visible:

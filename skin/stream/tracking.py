@@ -367,8 +367,9 @@ def refine_member(member: TaxelSamples, depth: np.ndarray, diffusivity: np.ndarr
     its own response over a span stretched with its response time
     (`skin.stream.onset_refine.refine_span`: the tracker's ``search`` should be that). The
     onset is fitted on the samples up to ``member.end``; a released taxel's release is then
-    dated again on its samples past it (`skin.stream.release_refine.refine_release`), and
-    the window ends there (``member.end`` otherwise).
+    dated again on its samples past it (`skin.stream.release_refine.refine_release`), the
+    window ends there (``member.end`` otherwise), and when that is earlier the onset is
+    fitted again on the samples up to it.
     """
     k = member.index
     upto = member.time <= member.end
@@ -380,6 +381,15 @@ def refine_member(member: TaxelSamples, depth: np.ndarray, diffusivity: np.ndarr
         release = refine_release(member.time, member.temperature, onset, member.release,
                                  depth[k], diffusivity[k], sensor=sensor)
         end = min(member.end, release)
+        if end < member.end:
+            # the onset fitted again without the samples past the contact: they pulled a
+            # short contact's fitted onset early (default scene, touches <= 0.6 s: -9 ms
+            # median, -51 ms at 5 %)
+            upto = member.time <= end
+            onset, initial = refine_onset(member.time[upto], member.temperature[upto],
+                                          member.coarse, member.baseline, member.slope,
+                                          depth[k], diffusivity[k], search=search,
+                                          sensor=sensor)
     return onset, initial, end
 
 
