@@ -1,8 +1,9 @@
 """Judge the streaming onset detector against streams whose contacts are known.
 
 `evaluate_onsets` runs `skin.stream.onset.OnsetDetector` over a multi-taxel stream in chunks, dates
-every detected onset with `skin.stream.onset_refine.refine_onset` on the samples up to the taxel's
-detected release (as the pipeline's tracker cuts them), and matches the detections to the true
+every detected onset as the pipeline does (`skin.stream.tracking.refine_member`: the onset
+on the samples up to the taxel's detected release, the release dated again, the onset
+refitted up to it when earlier), and matches the detections to the true
 contacts of the same taxel: a detection whose coarse onset falls between 0.1 s before a
 contact's onset and 0.1 s after its release (plus the sensor's lag and smoothing delay,
 `release_window`) belongs to that contact, and so does one raised while the object touches
@@ -22,8 +23,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from skin.stream.onset import OnsetDetector, OnsetEvent
-from skin.stream.onset_refine import refine_onset, refine_span
-from skin.stream.release_refine import refine_release
+from skin.stream.onset_refine import refine_span
+from skin.stream.tracking import TaxelSamples, refine_member
 from skin.summary import median_p95
 
 #: A detection may start this much before the true onset and still belong to the contact, s.
@@ -157,25 +158,20 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
             releases.setdefault(ev.taxel, []).append(ev)
     for (taxel, i), ev in found.items():
         on, _ = by_taxel[taxel][i]
-        # the samples the pipeline would refine on (`skin.stream.tracking.refine_member`): up
-        # to the release, if one was detected; then, the release dated again on the samples
-        # to its detection, up to that refined release when it is earlier
+        # refined as the pipeline refines (`skin.stream.tracking.refine_member`), on the
+        # samples it would hold: from the span before the coarse onset to the release's
+        # detection, if a release was detected (the onset on those up to the release, the
+        # release dated again, the onset refitted up to it when earlier)
         rel = next((r for r in releases.get(taxel, []) if r.detected_at > ev.detected_at),
                    None)
         end = np.inf if rel is None else rel.time
-        lo, hi = np.searchsorted(times, [ev.time - search, min(ev.time + horizon, end)],
-                                 side="right")
-        refined, _ = refine_onset(times[lo:hi], y[lo:hi, taxel], ev.time, ev.baseline,
-                                  ev.slope, depth, diffusivity, sensor=sensor)
-        if rel is not None:
-            upto = np.searchsorted(times, max(rel.detected_at, end), side="right")
-            released = refine_release(times[lo:upto], y[lo:upto, taxel], refined, end, depth,
-                                      diffusivity, sensor=sensor)
-            if released < end:
-                hi = np.searchsorted(times, min(ev.time + horizon, released), side="right")
-                refined, _ = refine_onset(times[lo:hi], y[lo:hi, taxel], ev.time,
-                                          ev.baseline, ev.slope, depth, diffusivity,
-                                          sensor=sensor)
+        stop = ev.time + horizon if rel is None else max(rel.detected_at, end)
+        lo, hi = np.searchsorted(times, [ev.time - search, stop], side="right")
+        member = TaxelSamples(0, ev.time, ev.baseline, ev.slope, None if rel is None else end,
+                              end, times[lo:hi], y[lo:hi, taxel],
+                              np.full(hi - lo, np.nan))
+        refined, _, _ = refine_member(member, np.array([depth]), np.array([diffusivity]),
+                                      sensor=sensor)
         delay[(taxel, i)] = ev.detected_at - on
         error[(taxel, i)] = refined - on
         if (taxel, i) in visible:

@@ -220,22 +220,10 @@ class DetectorState:
     recover_until: np.ndarray
     recover_dir: np.ndarray
     t_fell: np.ndarray
-    ref_level: np.ndarray = None
-    ref_t: np.ndarray = None
-    ref_slope: np.ndarray = None
-    medium: np.ndarray = None
-
-    def __post_init__(self) -> None:
-        # states built before the gust-envelope test existed start with no fall under way
-        n = self.level.shape
-        if self.ref_level is None:
-            object.__setattr__(self, "ref_level", np.full(n, np.nan))
-        if self.ref_t is None:
-            object.__setattr__(self, "ref_t", np.full(n, np.nan))
-        if self.ref_slope is None:
-            object.__setattr__(self, "ref_slope", np.zeros(n))
-        if self.medium is None:  # the slow channel's reading: the smoothed one, as before
-            object.__setattr__(self, "medium", self.smooth.copy())
+    ref_level: np.ndarray
+    ref_t: np.ndarray
+    ref_slope: np.ndarray
+    medium: np.ndarray
 
     def copy(self) -> DetectorState:
         """Return a deep copy."""
@@ -430,7 +418,6 @@ class OnsetDetector:
             level = slow_sigma if key.startswith("slow") else smoothed
             return np.maximum(floor, self.noise_threshold if cusum else 8.0 * level)
 
-        # the gust-envelope test: the deepest, fastest gust and the steepest heater step
         # what the readout noise is after the detector's averages, from the sensor's own
         # smoothing on (a smoothed reading's noise is correlated: averaging it removes less)
         self.smoothed_sigma = self.sigma * _average_noise(sensor, self.smooth_tau)
@@ -442,7 +429,7 @@ class OnsetDetector:
         if 8.0 * float(np.max(self.smoothed_sigma)) <= slow_floor:
             self.medium_tau = self.smooth_tau
         slow_sigma = self.sigma * _average_noise(sensor, self.medium_tau)
-        self.gust_envelope = gust_envelope
+        # the gust-envelope test: the deepest, fastest gust and the steepest heater step
         self.gust_depth = GUST_DEPTH * rise if gust_envelope else np.inf
         # kept for a PID-held heater too, whose loop takes a duty step up: without it the
         # envelope found more of pid-logger's 5-sigma contacts (.22/.19 -> .34/.27, seeds
@@ -690,15 +677,15 @@ class OnsetDetector:
             else:
                 events.append(OnsetEvent("onset", int(k), float(s.slow_start[k]), t,
                                          float(s.slow[k]), 0.0, -1, 2))
-        # the reference slides with the baseline while the reading stays within noise of it
-        # (a falling trend extrapolated, a rising one not: it decelerates), and starts again
-        # after the slow channel's window (a slower fall is the slow channel's)
         t0 = np.where(alarm, s.t_start, s.rise_start)
         # an envelope onset re-bases the baseline from where the fall began, as a CUSUM's does
         # (the baseline re-based from where the reading left the noise: the CUSUM may have
         # left zero a sample ago); taken before the reference slides below, which on the
         # sample the slow channel's window runs out would move it to now
         t0 = np.where(deep, s.ref_t, t0)
+        # the reference slides with the baseline while the reading stays within noise of it
+        # (a falling trend extrapolated, a rising one not: it decelerates), and starts again
+        # after the slow channel's window (a slower fall is the slow channel's)
         slide = ~(drop > 2.0 * sigma) | (since > self.slow_tau)
         np.copyto(s.ref_level, pred, where=slide)
         np.copyto(s.ref_slope, s.slope, where=slide)

@@ -394,17 +394,16 @@ def refine_member(member: TaxelSamples, depth: np.ndarray, diffusivity: np.ndarr
 
 
 def finish_contact(decided: DecidedContact, layout: Layout,
-                   refined: list[tuple[float, ...]], window: float = 2.5) -> Contact:
+                   refined: list[tuple[float, float, float]], window: float = 2.5) -> Contact:
     """Build the `Contact` from a decided contact and its members' refined onsets.
 
-    ``refined`` holds each member's (onset, initial) or (onset, initial, end): the window
-    ends at ``end`` (`refine_member`'s refined release), else at the member's own.
+    ``refined`` holds each member's (onset, initial, end) from `refine_member`: the window
+    ends at ``end`` (the refined release, or the member's own end).
     """
     windows, onsets, ambients, releases = [], [], [], []
-    for m, (onset, initial, *rest) in zip(decided.members, refined, strict=True):
-        end = min(rest[0] if rest else m.end, onset + window)
-        releases.append(None if m.release is None else min(m.release, rest[0]) if rest
-                        else m.release)
+    for m, (onset, initial, last) in zip(decided.members, refined, strict=True):
+        end = min(last, onset + window)
+        releases.append(None if m.release is None else min(m.release, last))
         sel = (m.time >= onset) & (m.time <= end)
         windows.append(TaxelWindow(
             taxel=int(layout.ids[m.index]), onset=onset, initial=initial,
