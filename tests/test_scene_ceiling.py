@@ -66,6 +66,9 @@ duration = 1.0
 """
     with pytest.raises(SkinError, match="no ceiling"):
         touch_truth(parse_scene(text, source="pid.toml"))
+    with pytest.raises(SkinError, match="finite contact has no ceiling"):
+        touch_truth(parse_scene(text.replace("pid-logger", "paper"), source="finite.toml"),
+                    contact="finite")
 
 
 def test_bench_scene_ceiling_is_never_below_the_run():

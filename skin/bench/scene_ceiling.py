@@ -58,8 +58,11 @@ NOISE_GRID = (0.3, 0.5, 1.0, 2.0)
 NOISE_STEPS = ("run+noise", "taxels+noise")
 
 
-def touch_truth(scene, duration: float | None = None) -> list[dict[str, Any]]:
+def touch_truth(scene, duration: float | None = None,
+                contact: str = "perfect") -> list[dict[str, Any]]:
     """Return what the simulation drew for each touch that begins within ``duration``.
+
+    ``contact`` is the run's contact model (`skin.drivers.sim.SkinSimulator`'s).
 
     Each: ``index`` (in the scene), ``touch`` (the `Touch`), ``material``, ``family``,
     ``effusivity``, ``t_object`` (deg C), ``k0`` and ``k1`` (first sample in contact and first
@@ -71,13 +74,17 @@ def touch_truth(scene, duration: float | None = None) -> list[dict[str, Any]]:
     ------
     SkinError
         If the scene's sensor does not read the closed form (heater switched at contact, PID
-        loop, lag or smoothing), for which the ceiling is not defined.
+        loop, lag or smoothing), or the contact is not perfect: the ceiling is not defined
+        (the simulator does not keep the conductances it draws).
     """
     from skin.drivers.sim import SkinSimulator
     from skin.models.materials import load_materials
     from skin.models.physics import SensorConstants
     from skin.models.sensors import has_dynamics
 
+    if contact != "perfect":
+        raise SkinError(f"{scene.source}: a {contact} contact has no ceiling (the conductances "
+                        f"drawn are not kept); run the scene with a perfect contact")
     sim = SkinSimulator(scene, duration=duration)
     sensor = sim.sensor
     if has_dynamics(sensor):

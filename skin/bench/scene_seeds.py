@@ -103,7 +103,7 @@ def _ceiling_figures(skin, fresh, contacts: list, readings: np.ndarray,
 
     scene, table = skin.scene, skin.materials
     window = skin.setup.window
-    truths = touch_truth(scene, skin.duration)
+    truths = touch_truth(scene, skin.duration, skin.setup.contact)
     candidates = {m.name: m.effusivity for m in fresh.model.materials}
     chosen = [touch_ceiling(t, readings, fs, scene.ambient, window, candidates) for t in truths]
     misses = [{"truth": t["material"], "chosen": c, "taxels": len(t["taxels"]),
