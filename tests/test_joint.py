@@ -242,3 +242,73 @@ def test_a_noise_grid_integrates_the_evidence_over_the_noise():
     assert np.isfinite(model.object_temperature(T, y, t0, 25.0, "glass"))
     with pytest.raises(ValueError, match="positive"):
         JointContactModel(mats, noise=(0.1, 0.0))
+
+
+
+def test_the_calibration_is_stored_with_how_it_was_fitted_and_round_trips(tmp_path):
+    from skin.models.joint import CALIBRATION_FILE, EvidenceTemperature
+
+    stored = EvidenceTemperature.load()
+    assert 0.01 <= stored.temperature <= 10.0
+    assert "skin bench fit-calibration" in stored.fitted and "log-loss" in stored.fitted
+    assert EvidenceTemperature.load(CALIBRATION_FILE) == stored
+    path = tmp_path / "calibration.toml"
+    path.write_text(EvidenceTemperature(0.25, 'say "it" \\ here').dump())
+    assert EvidenceTemperature.load(path) == EvidenceTemperature(0.25, 'say "it" \\ here')
+
+
+@pytest.mark.parametrize("text, match", [
+    ("temperature = 0.0", "from 0.01 to 10"), ("temperature = nan", "from 0.01 to 10"),
+    ("temperature = 11.0", "from 0.01 to 10"), ("temperature = true", "from 0.01 to 10"),
+    ('temperature = "0.2"', "from 0.01 to 10"), ("fitted = 'x'", "needs 'temperature'"),
+    ("temperature = 0.2\nnoise = 0.1", "needs 'temperature'"),
+    ("temperature = ", "cannot read")])
+def test_a_bad_calibration_is_refused_naming_the_file(tmp_path, text, match):
+    from skin.models.joint import EvidenceTemperature
+
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=match) as err:
+        EvidenceTemperature.load(path)
+    assert str(path) in str(err.value)
+    with pytest.raises(ValueError, match="cannot read"):
+        EvidenceTemperature.load(tmp_path / "missing.toml")
+
+
+def test_tempering_divides_the_log_evidence_and_keeps_the_ranking():
+    from skin.models.joint import EvidenceTemperature
+
+    log_ev = np.array([-3.0, 0.0, -1.0, -np.inf])
+    p = EvidenceTemperature(0.5).probabilities(log_ev)
+    expected = np.exp(2.0 * (log_ev - 0.0))
+    assert np.allclose(p, expected / expected.sum()) and p[3] == 0.0
+    assert np.array_equal(np.argsort(p), np.argsort(EvidenceTemperature(1.0).probabilities(
+        log_ev)))
+    plain = np.exp(log_ev) / np.exp(log_ev).sum()
+    assert np.allclose(EvidenceTemperature(1.0).probabilities(log_ev), plain)
+    assert EvidenceTemperature(0.5).probabilities(log_ev).max() > plain.max()
+    # huge evidences stay finite
+    assert np.all(np.isfinite(EvidenceTemperature(0.01).probabilities(np.array([1e6, 0.0]))))
+
+
+def test_joint_classifier_tempers_its_answer_by_the_stored_calibration():
+    from skin.contact import Contact, TaxelWindow
+    from skin.formats.layout import load_layout
+    from skin.models.joint import EvidenceTemperature, JointClassifier
+
+    layout = load_layout("arm")
+    assert JointClassifier(layout).calibration == EvidenceTemperature.load()
+    # fitted for the model's default settings: other settings are not tempered by it
+    assert JointClassifier(layout, noise=0.05).calibration is None
+    with pytest.raises(ValueError, match="calibration must be"):
+        JointClassifier(layout, calibration="fitted")
+    y = _reading("pine", 35.0, 25.0)
+    contact = Contact(id=1, taxels=[0], onset=1.0, release=None, ambient=25.0,
+                      windows=[TaxelWindow(0, 1.0, 35.0, T, y, False)])
+    plain = JointClassifier(layout, calibration=None).classify(contact)
+    sharp = JointClassifier(layout, calibration=EvidenceTemperature(0.5)).classify(contact)
+    names = list(plain.probabilities)
+    p = np.array([plain.probabilities[k] for k in names])
+    expected = p**2 / np.sum(p**2)
+    assert np.allclose([sharp.probabilities[k] for k in names], expected, atol=1e-9)
+    assert sharp.confidence >= plain.confidence

@@ -68,3 +68,10 @@ def test_bench_scene_counts_every_touch_and_groups_the_misses():
     assert sum(p["count"] for p in out["pairs"]) == sum(len(r["misses"]) for r in out["runs"])
     for p in out["pairs"]:
         assert p["truth"] != p["label"]
+    # the reliability of the probabilities over every detected touch of the runs
+    rel = t["reliability"]
+    assert rel["material"]["n"] == rel["family"]["n"] == sum(len(r["answers"])
+                                                              for r in out["runs"])
+    assert sum(b["count"] for b in rel["material"]["bins"]) == rel["material"]["n"]
+    assert 0.0 <= rel["material"]["ece"] <= 1.0 and rel["material"]["log_loss"] >= 0.0
+    assert rel["family"]["log_loss"] <= rel["material"]["log_loss"]

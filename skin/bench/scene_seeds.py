@@ -7,7 +7,9 @@ sample. `run` plays a scene once per seed through `skin.Skin` (as `skin run --se
 named right at material and at family level, "unknown", wrong, wrong at p >= 0.9 and false
 contacts; and every miss, grouped by what the touch was and what it was called, with the
 effusivity ratio of the two materials (a pair a few per cent apart, such as aluminium and
-steel, is one the reading cannot separate) and the touch's taxels and duration.
+steel, is one the reading cannot separate) and the touch's taxels and duration; and how far
+the answers' probabilities can be trusted over every detected touch (log-loss, Brier,
+expected calibration error and a reliability table, `skin.bench.reliability`).
 """
 
 from __future__ import annotations
@@ -18,6 +20,8 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
+
+from skin.bench.reliability import material_and_family
 
 #: An answer at or above this probability is a confident one.
 SURE = 0.9
@@ -63,6 +67,10 @@ def play(scene: str, seed: int, duration: float | None = None,
             summary = skin.finish()
         table = skin.materials
     finals = [r for r in skin.records if r["final"]]
+    clf = skin.classifier
+    classes = list(getattr(clf, "classes", None) or clf.model.classes)
+    answers = [[rec["truth"], rec.get("probabilities") or {}] for rec in finals
+               if rec.get("truth") is not None]
     touches = {(tuple(t["taxels"]), t["start"]): t for t in summary["per_touch"]}
     misses, wrong, unknown, sure_wrong = [], 0, 0, 0
     for rec in finals:
@@ -91,6 +99,8 @@ def play(scene: str, seed: int, duration: float | None = None,
             "material": summary["correct"], "family": summary["family_correct"],
             "unknown": unknown, "wrong": wrong, "sure_wrong": sure_wrong,
             "false_contacts": summary["false_contacts"], "misses": misses,
+            "answers": answers, "classes": classes,
+            "family_of": {m: table[m].family for m in classes if m in table},
             "n_touches": len(touches), "wall_s": round(time.monotonic() - started, 2),
             "cpu_s": round(time.process_time() - cpu, 2)}
 
@@ -201,7 +211,10 @@ def run(scene: str = "default", seeds: Sequence[int] = tuple(range(10)),
         ``runs`` (one `play` each), ``totals`` (sums over the runs and the share of runs
         reaching each count of touches named right) and ``pairs`` (the misses grouped by
         truth and answer: count, median confidence, effusivity ratio, median duration and
-        taxels of the touches). With ``ceiling``, ``totals`` also holds ``ceiling``,
+        taxels of the touches). ``totals["reliability"]``: the probabilities of every
+        detected touch against its truth, at material and family level
+        (`skin.bench.reliability.material_and_family`). With ``ceiling``, ``totals`` also
+        holds ``ceiling``,
         ``ceiling_family`` (sums), ``ceiling_per_run`` (mean, min, max) and ``steps`` (each
         step's counts summed over the runs, `skin.bench.scene_ceiling.ladder`).
     """
@@ -232,6 +245,9 @@ def run(scene: str = "default", seeds: Sequence[int] = tuple(range(10)),
                                   for k in runs[0]["steps"][step] if k != "misses"}
                            for step in runs[0]["steps"]}
         totals["dating"] = dating_summary([d for r in runs for d in r["dating"]])
+    totals["reliability"] = material_and_family(
+        [a[1] for r in runs for a in r["answers"]], [a[0] for r in runs for a in r["answers"]],
+        runs[0]["classes"], runs[0]["family_of"])
     groups: dict[tuple[str, str], list[dict]] = {}
     for r in runs:
         for m in r["misses"]:

@@ -27,6 +27,18 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
                             "steps (skin.bench.scene_ceiling)")
     scene.add_argument("--json", action="store_true", help="print one JSON document")
     scene.set_defaults(func=main)
+    fit = kinds.add_parser("fit-calibration", help="fit the joint classifier's calibration "
+                           "(the temperature of its evidence) by the least log-loss over a "
+                           "scene's contacts (skin.bench.calibration_fit)")
+    fit.add_argument("--scene", default="default",
+                     help="a shipped scene name or a TOML file (default)")
+    fit.add_argument("--seeds", default="0-9",
+                     help="training seeds: a range 0-9 or a list 3,7,11 (0-9)")
+    fit.add_argument("--write", action="store_true",
+                     help="store the fit where the classifier reads it "
+                          "(skin.models.joint.CALIBRATION_FILE)")
+    fit.add_argument("--json", action="store_true", help="print one JSON document")
+    fit.set_defaults(func=fit_calibration)
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -85,6 +97,7 @@ def main(args: argparse.Namespace) -> int:
           f"family {f['mean']} (min {f['min']}, max {f['max']}) of {t['touches'] // t['runs']}")
     print("runs with at least k right at material level: "
           + ", ".join(f"{k}: {n}" for k, n in t["runs_material_at_least"].items()))
+    _print_reliability(t["reliability"])
     if args.ceiling:
         _print_ceiling(t, len(seeds))
     if out["pairs"]:
@@ -97,6 +110,74 @@ def main(args: argparse.Namespace) -> int:
                   f"{p['median_confidence']:>8.2f} {p['best']:<12} {ratio:>7} "
                   f"{p['family_right']:>9} {dur:>8} {p['one_taxel']:>7}")
     return 0
+
+
+def fit_calibration(args: argparse.Namespace) -> int:
+    """Run `skin.bench.calibration_fit.fit` on the scene's seeds; print it, store with --write."""
+    import json
+    import time
+
+    from skin.bench import machine
+    from skin.bench.calibration_fit import collect, fit
+    from skin.formats.scene import load_scene
+    from skin.models.joint import CALIBRATION_FILE, EvidenceTemperature
+    from skin.progress import Progress
+
+    seeds = parse_seeds(args.seeds)
+    load_scene(args.scene)  # a missing or bad scene is named before the work
+    progress = Progress()
+    started = time.monotonic()
+    answers = collect(args.scene, seeds, lambda d, n: progress.bar(d, n, "runs", started))
+    progress.done()
+    out = fit(answers)
+    best = next(r for r in out["table"] if r["temperature"] == out["best"])
+    calibration = EvidenceTemperature(out["best"], (
+        f"skin bench fit-calibration --scene {args.scene} --seeds {args.seeds.replace(' ', '')}"
+        f" --write: least log-loss of the true material with no touch named wrong at "
+        f"p >= 0.9, {best['material']['log_loss']:.3f} over {best['material']['n']} contacts "
+        f"(untempered {out['table'][0]['material']['log_loss']:.3f})"))
+    if args.write:
+        CALIBRATION_FILE.write_text(calibration.dump(), encoding="utf-8")
+    if args.json:
+        print(json.dumps({"machine": machine(), "scene": args.scene, "seeds": seeds, **out,
+                          "written": str(CALIBRATION_FILE) if args.write else None,
+                          "wall_time": round(time.monotonic() - started, 2)}))
+        return 0
+    n = sum(len(r) for r in answers["runs"])
+    print(f"scene {args.scene}, {len(seeds)} seeds, {n} contacts; per run: named right "
+          f"(material, family), unknown, wrong at p >= 0.9")
+    print(f"{'temperature':>11} {'log-loss':>8} {'ECE':>6} {'Brier':>6} {'family LL':>9} "
+          f"{'named':>6} {'family':>6} {'unknown':>7} {'sure_wrong':>10}")
+    for r in out["table"]:
+        m = r["material"]
+        print(f"{r['temperature']:>11.4g} {m['log_loss']:>8.3f} {m['ece']:>6.3f} "
+              f"{m['brier']:>6.3f} {r['family']['log_loss']:>9.3f} {r['named']:>6.2f} "
+              f"{r['family_named']:>6.2f} {r['unknown']:>7.2f} {r['sure_wrong']:>10.2f}")
+    print(f"\nleast log-loss: temperature {out['least_log_loss']:g}; least with no touch "
+          f"named wrong at p >= 0.9 (the fit): {out['best']:g}"
+          + (f"; written to {CALIBRATION_FILE}" if args.write else " (--write stores it)"))
+    return 0
+
+
+def _print_reliability(figures: dict) -> None:
+    """Print how calibrated the answers are (`skin.bench.reliability`), material and family."""
+    from skin.bench.reliability import SURE
+
+    print("\nreliability of the answers' probabilities over every detected touch:")
+    for level in ("material", "family"):
+        r = figures[level]
+        if not r["n"]:
+            continue
+        s = r["sure"]
+        share = "-" if s["share_right"] is None else f"{100 * s['share_right']:.1f} %"
+        print(f"{level}: n {r['n']}, log-loss {r['log_loss']:.3f}, Brier {r['brier']:.3f}, "
+              f"ECE {r['ece']:.3f}, most probable right {100 * r['accuracy']:.1f} %; "
+              f"at p >= {SURE:g}: {s['count']}, {share} right")
+        print("  max p bin     count  mean p  accuracy")
+        for b in r["bins"]:
+            if b["count"]:
+                print(f"  {b['lo']:.1f}-{b['hi']:.1f}     {b['count']:>7} {b['confidence']:>7.3f}"
+                      f" {b['accuracy']:>9.3f}")
 
 
 def _print_ceiling(totals: dict, runs: int) -> None:
