@@ -240,6 +240,7 @@ def ladder(classifier, matches: list, contacts: list, truths: list[dict[str, Any
         if step != name:
             clf.model.noises = clf.model.noise * np.array(NOISE_GRID)
             clf.model.noise = float(clf.model.noises.max())
+            clf.calibration = None  # the run's temperature is fitted to the fixed noise
         queue = []  # (decision instant, run order, contact, touch position or None)
         matched = {m.contact_index: m for m in matches if m.contact_index is not None}
         for i, c in enumerate(contacts):
