@@ -388,7 +388,7 @@ class EvidenceTemperature:
         path = Path(path)
         try:
             data = tomllib.loads(path.read_text(encoding="utf-8"))
-        except (OSError, tomllib.TOMLDecodeError) as exc:
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
             raise ValueError(f"{path}: cannot read the joint classifier's calibration: "
                              f"{exc}") from None
         if set(data) - {"temperature", "fitted"} or "temperature" not in data:
@@ -512,11 +512,13 @@ class JointClassifier:
         touch, "unknown" before, is named). The other side of it: a short one-taxel pine
         touch that skin at 32 C explains as well is named skin at 0.54 on scene seeds 9 and
         11 ("unknown" at 0.31-0.33 before); seeds 7 and 10 and forearms at 30.5 or 33.5 C
-        are unchanged.
+        are unchanged. (These probabilities are the model's, before the calibration tempers
+        them.)
     calibration : EvidenceTemperature, "stored" or None
         How the posterior is tempered (`EvidenceTemperature`): ``"stored"`` (default) reads
-        the fit in `CALIBRATION_FILE` when the model keeps its default settings (no
-        ``model_options``), else none; None: the posterior as the model gives it.
+        the fit in `CALIBRATION_FILE` when the classifier keeps the settings it was fitted
+        with (no ``model_options``, the shipped materials table, the learned object prior),
+        else none; None: the posterior as the model gives it.
     **model_options
         Passed to `JointContactModel` (``noise``, ``object_std``, ``h_points``,
         ``onset_shifts``; by default the contact may have begun up to 80 ms before the
@@ -533,8 +535,10 @@ class JointClassifier:
                  **model_options) -> None:
         from skin.models.materials import load_materials
 
-        if calibration == "stored":  # fitted for the model's default settings only
-            calibration = None if model_options else EvidenceTemperature.load()
+        if calibration == "stored":  # fitted for the default settings and table only
+            default = (not model_options and object_prior == "learned"
+                       and (materials is None or materials == load_materials()))
+            calibration = EvidenceTemperature.load() if default else None
         elif calibration is not None and not isinstance(calibration, EvidenceTemperature):
             raise ValueError(f"calibration must be an EvidenceTemperature, 'stored' or None, "
                              f"got {calibration!r}")

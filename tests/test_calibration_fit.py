@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 
-from skin.bench.calibration_fit import collect, fit, score, temper
+from skin.bench.calibration_fit import collect, collect_scenes, fit, score, temper
 from skin.models.joint import CALIBRATION_FILE, EvidenceTemperature
 
 
@@ -49,12 +49,14 @@ def test_the_fit_is_deterministic_and_picks_the_least_log_loss(answers):
 
 def test_fit_calibration_command_prints_json_and_leaves_the_stored_fit_alone():
     before = CALIBRATION_FILE.read_text()
-    proc = subprocess.run([sys.executable, "-m", "skin", "bench", "fit-calibration", "--seeds",
-                           "7", "--json"], capture_output=True, text=True, timeout=300,
+    proc = subprocess.run([sys.executable, "-m", "skin", "bench", "fit-calibration",
+                           "--scene", "default", "--seeds", "7", "--json"],
+                          capture_output=True, text=True, timeout=300,
                           env={**os.environ, "OMP_NUM_THREADS": "1"})
     assert proc.returncode == 0, proc.stderr
     out = json.loads(proc.stdout)
     assert out["written"] is None and CALIBRATION_FILE.read_text() == before
+    assert out["scenes"] == ["default"]
     assert out["best"] in [r["temperature"] for r in out["table"]]
     assert out["table"][0]["temperature"] == 1.0
 
@@ -75,3 +77,28 @@ def test_the_fit_keeps_out_of_confident_mistakes_that_the_least_log_loss_would_m
     assert rows[0.25]["sure_wrong"] == 1 and rows[0.5]["sure_wrong"] == 0
     assert out["least_log_loss"] == 0.25 and out["best"] == 0.5
     assert rows[0.5]["material"]["log_loss"] < rows[1.0]["material"]["log_loss"]
+
+
+def test_one_confident_mistake_among_many_runs_still_binds_the_fit():
+    """The constraint counts mistakes, not a rounded mean per run (1 in 201 runs is 0.005)."""
+    from skin.models.materials import load_materials
+
+    table = load_materials()
+    right = ("glass", {"glass": 0.6, "porcelain": 0.4})
+    wrong = ("porcelain", {"glass": 0.7, "porcelain": 0.3})
+    runs = [[right] * 9 for _ in range(200)] + [[right] * 9 + [wrong]]
+    answers = {"runs": runs, "classes": ["glass", "porcelain"],
+               "family": {m: table[m].family for m in ("glass", "porcelain")},
+               "threshold": 0.5, "table": table}
+    out = fit(answers, (1.0, 0.5, 0.25))
+    rows = {r["temperature"]: r for r in out["table"]}
+    assert rows[0.25]["sure_wrong_count"] == 1 and rows[0.25]["sure_wrong"] == 0.0
+    assert out["best"] == 0.5
+
+
+def test_scenes_pool_into_one_fit(answers):
+    pooled = collect_scenes(["default", "default"], [7])
+    assert pooled["runs"] == answers["runs"] * 2
+    assert pooled["classes"] == answers["classes"]
+    with pytest.raises(ValueError, match="at least one scene"):
+        collect_scenes([], [7])

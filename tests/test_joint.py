@@ -273,6 +273,11 @@ def test_a_bad_calibration_is_refused_naming_the_file(tmp_path, text, match):
     assert str(path) in str(err.value)
     with pytest.raises(ValueError, match="cannot read"):
         EvidenceTemperature.load(tmp_path / "missing.toml")
+    binary = tmp_path / "binary.toml"
+    binary.write_bytes(b"\xff\xfetemperature = 0.2")
+    with pytest.raises(ValueError, match="cannot read") as err:
+        EvidenceTemperature.load(binary)
+    assert str(binary) in str(err.value)
 
 
 def test_tempering_divides_the_log_evidence_and_keeps_the_ranking():
@@ -300,6 +305,13 @@ def test_joint_classifier_tempers_its_answer_by_the_stored_calibration():
     assert JointClassifier(layout).calibration == EvidenceTemperature.load()
     # fitted for the model's default settings: other settings are not tempered by it
     assert JointClassifier(layout, noise=0.05).calibration is None
+    assert JointClassifier(layout, object_prior="fixed").calibration is None
+    from skin.models.materials import load_materials
+
+    table = load_materials()
+    assert JointClassifier(layout, table).calibration == EvidenceTemperature.load()
+    fewer = {k: m for k, m in table.items() if k != "pine"}
+    assert JointClassifier(layout, fewer).calibration is None
     with pytest.raises(ValueError, match="calibration must be"):
         JointClassifier(layout, calibration="fitted")
     y = _reading("pine", 35.0, 25.0)

@@ -1,4 +1,4 @@
-"""Fit the joint classifier's calibration (`skin.models.joint.EvidenceTemperature`) to a scene.
+"""Fit the joint classifier's calibration (`skin.models.joint.EvidenceTemperature`) to scenes.
 
 The pipeline's contacts are played as `skin run --seed N` makes them (`skin.Skin`, nothing
 written), once per training seed, and classified in order by the classifier as it stood
@@ -11,7 +11,9 @@ among the temperatures that name no training touch wrong at p >= 0.9 (the guide'
 "unknown" or the family rather than be confidently wrong; a log-loss alone trades one
 confident mistake for many sharper right answers); ties go to the temperature nearer 1. The
 unconstrained least log-loss is reported beside it. The same seeds give the same contacts and
-so the same fit.
+so the same fit. Several scenes (other sensor presets, other objects) are pooled into one fit
+(`collect_scenes`): one temperature, bound by the confident mistakes of every one of them,
+rather than one tuned to a single sensor.
 """
 
 from __future__ import annotations
@@ -25,8 +27,36 @@ import numpy as np
 
 from skin.bench.reliability import SURE, material_and_family
 
+#: The scenes pooled by default: the default scene on the paper's sensor and on `fast-film`.
+FIT_SCENES = ("default", "default-fast-film")
 #: Candidate temperatures: 1 (the model as it is) down to 0.05, log-spaced.
 TEMPERATURES = tuple(float(v) for v in np.round(np.geomspace(1.0, 0.05, 14), 4))
+
+
+def collect_scenes(scenes: Sequence[str], seeds: Sequence[int],
+                   progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+    """`collect` each of ``scenes`` over ``seeds`` and pool their runs (one fit for them all).
+
+    The scenes must share the classifier's classes (the shipped materials table).
+    """
+    if not scenes:
+        raise ValueError("give at least one scene")
+    pooled: dict[str, Any] | None = None
+    total = len(scenes) * len(seeds)
+    for k, scene in enumerate(scenes):
+        def step(done: int, _n: int, k: int = k) -> None:
+            if progress is not None:
+                progress(k * len(seeds) + done, total)
+        answers = collect(scene, seeds, step)
+        if pooled is None:
+            pooled = answers
+        elif answers["classes"] != pooled["classes"]:
+            raise ValueError(f"scene {scene}: its classifier's classes differ from those of "
+                             f"scene {scenes[0]}; one calibration cannot cover both")
+        else:
+            pooled["runs"] += answers["runs"]
+    assert pooled is not None
+    return pooled
 
 
 def collect(scene: str, seeds: Sequence[int],
@@ -107,7 +137,8 @@ def score(answers: dict[str, Any], temperature: float) -> dict[str, Any]:
     return {"temperature": float(temperature),
             **material_and_family(probs, truths, answers["classes"], answers["family"]),
             "named": round(named / n, 2), "unknown": round(unknown / n, 2),
-            "family_named": round(family / n, 2), "sure_wrong": round(sure_wrong / n, 2)}
+            "family_named": round(family / n, 2), "sure_wrong": round(sure_wrong / n, 2),
+            "sure_wrong_count": int(sure_wrong)}
 
 
 def fit(answers: dict[str, Any], temperatures: Sequence[float] = TEMPERATURES,
@@ -126,6 +157,6 @@ def fit(answers: dict[str, Any], temperatures: Sequence[float] = TEMPERATURES,
     def loss(r: dict[str, Any]) -> tuple[float, float]:
         return r["material"]["log_loss"], abs(float(np.log(r["temperature"])))
 
-    best = min(table, key=lambda r: (r["sure_wrong"], *loss(r)))
+    best = min(table, key=lambda r: (r["sure_wrong_count"], *loss(r)))
     return {"best": best["temperature"], "least_log_loss": min(table, key=loss)["temperature"],
             "table": table}

@@ -30,8 +30,9 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
     fit = kinds.add_parser("fit-calibration", help="fit the joint classifier's calibration "
                            "(the temperature of its evidence) by the least log-loss over a "
                            "scene's contacts (skin.bench.calibration_fit)")
-    fit.add_argument("--scene", default="default",
-                     help="a shipped scene name or a TOML file (default)")
+    fit.add_argument("--scene", action="append", default=None,
+                     help="a shipped scene name or a TOML file; give it again to pool scenes "
+                          "into one fit (default: default and default-fast-film)")
     fit.add_argument("--seeds", default="0-9",
                      help="training seeds: a range 0-9 or a list 3,7,11 (0-9)")
     fit.add_argument("--write", action="store_true",
@@ -118,33 +119,43 @@ def fit_calibration(args: argparse.Namespace) -> int:
     import time
 
     from skin.bench import machine
-    from skin.bench.calibration_fit import collect, fit
+    from skin.bench.calibration_fit import FIT_SCENES, collect_scenes, fit
+    from skin.errors import SkinError
     from skin.formats.scene import load_scene
     from skin.models.joint import CALIBRATION_FILE, EvidenceTemperature
     from skin.progress import Progress
 
     seeds = parse_seeds(args.seeds)
-    load_scene(args.scene)  # a missing or bad scene is named before the work
+    scenes = args.scene or list(FIT_SCENES)
+    for scene in scenes:
+        load_scene(scene)  # a missing or bad scene is named before the work
     progress = Progress()
     started = time.monotonic()
-    answers = collect(args.scene, seeds, lambda d, n: progress.bar(d, n, "runs", started))
+    answers = collect_scenes(scenes, seeds,
+                             lambda d, n: progress.bar(d, n, "runs", started))
     progress.done()
     out = fit(answers)
     best = next(r for r in out["table"] if r["temperature"] == out["best"])
     calibration = EvidenceTemperature(out["best"], (
-        f"skin bench fit-calibration --scene {args.scene} --seeds {args.seeds.replace(' ', '')}"
+        "skin bench fit-calibration " + "".join(f"--scene {s} " for s in scenes)
+        + f"--seeds {args.seeds.replace(' ', '')}"
         f" --write: least log-loss of the true material with no touch named wrong at "
         f"p >= 0.9, {best['material']['log_loss']:.3f} over {best['material']['n']} contacts "
         f"(untempered {out['table'][0]['material']['log_loss']:.3f})"))
     if args.write:
-        CALIBRATION_FILE.write_text(calibration.dump(), encoding="utf-8")
+        try:
+            CALIBRATION_FILE.write_text(calibration.dump(), encoding="utf-8")
+        except OSError as exc:
+            raise SkinError(f"{CALIBRATION_FILE}: cannot store the calibration ({exc}); "
+                            f"--write needs an editable install (pip install -e .)") from None
     if args.json:
-        print(json.dumps({"machine": machine(), "scene": args.scene, "seeds": seeds, **out,
+        print(json.dumps({"machine": machine(), "scenes": scenes, "seeds": seeds, **out,
                           "written": str(CALIBRATION_FILE) if args.write else None,
                           "wall_time": round(time.monotonic() - started, 2)}))
         return 0
     n = sum(len(r) for r in answers["runs"])
-    print(f"scene {args.scene}, {len(seeds)} seeds, {n} contacts; per run: named right "
+    print(f"scenes {', '.join(scenes)}, {len(seeds)} seeds each, {n} contacts; per run: "
+          f"named right "
           f"(material, family), unknown, wrong at p >= 0.9")
     print(f"{'temperature':>11} {'log-loss':>8} {'ECE':>6} {'Brier':>6} {'family LL':>9} "
           f"{'named':>6} {'family':>6} {'unknown':>7} {'sure_wrong':>10}")
