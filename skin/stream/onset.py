@@ -92,6 +92,9 @@ DISTURBANCE = {"threshold": 0.4 / _PAPER_RISE, "rise_threshold": 0.6 / _PAPER_RI
 GUST_DEPTH = 0.4 / _PAPER_RISE
 GUST_RISE = 1.0
 HEATER_STEP = 0.45
+#: The room's random walk, K^2/s (about 1 K per 10 minutes, as `skin.bench.streams` draws it):
+#: a loop-held sensor passes its fast part (`loop_envelope`).
+AMBIENT_DRIFT = 1.0 / 600.0
 _PAPER_RESPONSE = 2.516  # s, the paper sensor's half-response time (SensorDescription)
 _PAPER_MODE = 2.4e-4**2 / 2.796e-9  # s, the paper sensor's l^2 / alpha
 
@@ -127,6 +130,72 @@ def _average_noise(sensor: object, tau: float) -> float:
     h = smooth(impulse, sensor)
     both = lfilter([g], [1.0, g - 1.0], h)
     return float(np.sqrt(np.sum(both**2) / np.sum(h**2)))
+
+
+@functools.cache
+def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float,
+                  false_alarm_rate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return what the air, the heater and the room can move a loop-held reading by in a time.
+
+    The gust-envelope test's allowance for a PID-held heater (``sensor.heater == "pid"``),
+    whose loop cancels what moves the sensor slowly: each disturbance of the family
+    `skin.bench.streams` draws, as the reading shows it through the loop, the thermistor lag
+    and the smoothing (`skin.models.sensors.apply_dynamics`, `smooth`):
+
+    - gusts of ``gust_depth`` K at most, rising with a time constant of `GUST_RISE` to 4 s and
+      held 1 to 8 s: the loop cuts a gust's fall to about 40 % (pid-logger: 0.12 K of 0.29 K),
+      and its recovery overshoots and falls back (counted);
+    - a heater duty step of `HEATER_STEP` of the heated rise through the body's slowest mode
+      (``mode``, s), either way: at the thermistor it stays below about ``HEATER_STEP`` x the
+      rise x ``control_time / mode`` (pid-logger: 0.10 K), where a constant-power heater keeps
+      falling by ``HEATER_STEP`` x the rise / ``mode`` per second (0.07 K/s);
+    - the room's random walk (`AMBIENT_DRIFT` K^2/s): the loop passes its fast part, a
+      band-limited noise (pid-logger: 0.032 K sd, 23 times the readout's), whose fall over a
+      time has the sd ``sqrt(AMBIENT_DRIFT x sum((g(t) - g(t - s))^2) dt)`` (g: the reading's
+      response to a unit step of the room); the test allows the normal quantile of one
+      false alarm per ``1 / false_alarm_rate`` hours in windows of the loop's control time.
+
+    Returns
+    -------
+    since : numpy.ndarray
+        Times, s, from 0 to ``horizon``, a grid step apart (a sample, at least 0.02 s); each
+        figure holds for every span up to the next grid time (conservative in between).
+    fall : numpy.ndarray
+        The largest fall of a gust and of a heater step, each over any stretch up to that
+        length, summed (both may come together), K.
+    drift : numpy.ndarray
+        The quantile of the room's fall over that length, K.
+    """
+    from scipy.special import ndtri
+
+    from skin.models.sensors import apply_dynamics, smooth
+
+    fs = float(sensor.sample_rate)
+    dt = max(1.0 / fs, 0.02)
+    lags = np.unique(np.round(np.arange(0.0, horizon + 2 * dt, dt) * fs).astype(int))
+    pad = int(2.0 * fs)  # settled before the disturbance
+    t = np.arange(round((horizon + 4.0 * GUST_RISE + 8.0 + 10.0) * fs)) / fs
+    gusts = [-gust_depth * np.where(t < hold, -np.expm1(-t / rise),
+                                    -np.expm1(-hold / rise) * np.exp(-(t - hold) / rise))
+             for rise in (GUST_RISE, 2.0 * GUST_RISE, 4.0 * GUST_RISE)
+             for hold in (1.0, 2.0, 4.0, 8.0)]
+    heater = HEATER_STEP * sensor.heated_rise * -np.expm1(-t / mode)
+    room = np.ones_like(t)
+    x = np.column_stack([*gusts, -heater, heater, room])
+    x = np.concatenate([np.zeros((pad, x.shape[1])), x])
+    y = smooth(apply_dynamics(x, sensor, fs, axis=0), sensor, axis=0, fs=fs)
+    g = y[:, -1]
+    n_gust = len(gusts)
+    worst = np.zeros((lags.size, 3))
+    for i, n in enumerate(lags[lags > 0], start=int(np.sum(lags <= 0))):
+        falls = np.max(y[:-n, :-1] - y[n:, :-1], axis=0)
+        step = g.copy()
+        step[n:] -= g[:-n]
+        worst[i] = falls[:n_gust].max(), falls[n_gust:].max(), np.sum(step**2) / fs
+    worst = np.maximum.accumulate(np.maximum(worst, 0.0), axis=0)
+    z = float(ndtri(1.0 - min(0.5, false_alarm_rate * sensor.control_time / 3600.0)))
+    since = np.maximum(lags / fs - dt, 0.0)
+    return since, worst[:, 0] + worst[:, 1], z * np.sqrt(AMBIENT_DRIFT * worst[:, 2])
 
 
 def arl_threshold(arl: float | np.ndarray, k: float | np.ndarray) -> np.ndarray:
@@ -438,6 +507,10 @@ class OnsetDetector:
         # only before the coarse onset, then dated them seconds early (refined-onset error
         # median 36/16 -> 72/102 ms)
         self.heater_rate = HEATER_STEP * rise / mode
+        # a loop-held sensor's: the disturbances as its reading shows them, through the loop
+        self.envelope = (loop_envelope(sensor, slow_tau_now, float(self.gust_depth), mode,
+                                       false_alarm_rate)
+                         if gust_envelope and sensor.heater == "pid" else None)
         self.threshold = scaled(threshold, "threshold", True)
         self.rise_threshold = scaled(rise_threshold, "rise_threshold", True)
         self.release_rise = scaled(release_rise, "release_rise", False)
@@ -658,8 +731,13 @@ class OnsetDetector:
         # smooth fall as a trend, lets such a fall pass the CUSUM)
         since = t - s.ref_t
         drop = s.ref_level + np.minimum(s.ref_slope, 0.0) * since - s.smooth
-        gusty = (self.gust_depth * -np.expm1(-since / GUST_RISE) + self.heater_rate * since
-                 + 8.0 * np.maximum(sigma, self.smoothed_sigma))
+        margin = 8.0 * np.maximum(sigma, self.smoothed_sigma)
+        if self.envelope is None:
+            gusty = (self.gust_depth * -np.expm1(-since / GUST_RISE) + self.heater_rate * since
+                     + margin)
+        else:  # a loop-held sensor: the room's drift and the readout's noise are independent
+            grid, fall, drift = self.envelope
+            gusty = np.interp(since, grid, fall) + np.hypot(margin, np.interp(since, grid, drift))
         deep = idle & armed & ~alarm & ~rise_alarm & ~slow_alarm & (drop > gusty)
         slow_alarm = slow_alarm | deep
         # a fall the CUSUM has begun to gather is dated where the CUSUM left zero, as its own
@@ -671,6 +749,15 @@ class OnsetDetector:
                 events.append(OnsetEvent("onset", int(k), t0k, t,
                                          float(s.level[k] + s.slope[k] * (t0k - s.t_level[k])),
                                          float(s.slope[k]), -1, 2))
+            elif deep[k] and self.envelope is not None:
+                # a loop-held sensor's reference may date from long before the contact (the
+                # room's drift, a gust take the reading out of its noise first): dated when
+                # raised, so that `refine_onset`, which searches before the coarse onset,
+                # searches the span before the alarm (pid-logger seed 0: the envelope's
+                # onsets' refined error median 1.1 s -> 58 ms), the baseline carried there
+                events.append(OnsetEvent("onset", int(k), t, t,
+                                         float(s.ref_level[k] + s.ref_slope[k] * since[k]),
+                                         float(s.ref_slope[k]), -1, 2))
             elif deep[k]:
                 events.append(OnsetEvent("onset", int(k), float(s.ref_t[k]), t,
                                          float(s.ref_level[k]), float(s.ref_slope[k]), -1, 2))
