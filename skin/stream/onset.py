@@ -134,7 +134,7 @@ def _average_noise(sensor: object, tau: float) -> float:
 
 @functools.cache
 def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float,
-                  false_alarm_rate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                  false_alarm_rate: float) -> tuple[float, np.ndarray, np.ndarray]:
     """Return what the air, the heater and the room can move a loop-held reading by in a time.
 
     The gust-envelope test's allowance for a PID-held heater (``sensor.heater == "pid"``),
@@ -157,14 +157,14 @@ def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float
 
     Returns
     -------
-    since : numpy.ndarray
-        Times, s, from 0 to ``horizon``, a grid step apart (a sample, at least 0.02 s); each
-        figure holds for every span up to the next grid time (conservative in between).
+    step : float
+        The grid step, s: a sample, at least 0.02 s. Entry j of each table holds for every
+        span up to j steps (look up ``ceil(span / step)``: conservative between grid times).
     fall : numpy.ndarray
-        The largest fall of a gust and of a heater step, each over any stretch up to that
-        length, summed (both may come together), K.
+        The largest fall of a gust and of a heater step, each over any stretch of j steps or
+        fewer, summed (both may come together), K; from 0 to past ``horizon``.
     drift : numpy.ndarray
-        The quantile of the room's fall over that length, K.
+        The quantile of the room's fall over j steps, K.
     """
     from scipy.special import ndtri
 
@@ -172,7 +172,7 @@ def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float
 
     fs = float(sensor.sample_rate)
     dt = max(1.0 / fs, 0.02)
-    lags = np.unique(np.round(np.arange(0.0, horizon + 2 * dt, dt) * fs).astype(int))
+    lags = np.round(np.arange(0.0, horizon + 2 * dt, dt) * fs).astype(int)
     pad = int(2.0 * fs)  # settled before the disturbance
     t = np.arange(round((horizon + 4.0 * GUST_RISE + 8.0 + 10.0) * fs)) / fs
     gusts = [-gust_depth * np.where(t < hold, -np.expm1(-t / rise),
@@ -194,8 +194,7 @@ def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float
         worst[i] = falls[:n_gust].max(), falls[n_gust:].max(), np.sum(step**2) / fs
     worst = np.maximum.accumulate(np.maximum(worst, 0.0), axis=0)
     z = float(ndtri(1.0 - min(0.5, false_alarm_rate * sensor.control_time / 3600.0)))
-    since = np.maximum(lags / fs - dt, 0.0)
-    return since, worst[:, 0] + worst[:, 1], z * np.sqrt(AMBIENT_DRIFT * worst[:, 2])
+    return dt, worst[:, 0] + worst[:, 1], z * np.sqrt(AMBIENT_DRIFT * worst[:, 2])
 
 
 def arl_threshold(arl: float | np.ndarray, k: float | np.ndarray) -> np.ndarray:
@@ -736,8 +735,11 @@ class OnsetDetector:
             gusty = (self.gust_depth * -np.expm1(-since / GUST_RISE) + self.heater_rate * since
                      + margin)
         else:  # a loop-held sensor: the room's drift and the readout's noise are independent
-            grid, fall, drift = self.envelope
-            gusty = np.interp(since, grid, fall) + np.hypot(margin, np.interp(since, grid, drift))
+            step, fall, drift = self.envelope
+            j = np.ceil(since / step)
+            np.copyto(j, fall.size - 1, where=~(j < fall.size))  # no reference (NaN): unused
+            j = j.astype(np.intp)
+            gusty = fall[j] + np.sqrt(margin**2 + drift[j] ** 2)
         deep = idle & armed & ~alarm & ~rise_alarm & ~slow_alarm & (drop > gusty)
         slow_alarm = slow_alarm | deep
         # a fall the CUSUM has begun to gather is dated where the CUSUM left zero, as its own
