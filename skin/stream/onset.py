@@ -14,7 +14,10 @@ lagged thermistor), so the CUSUM sees only its curvature; the gust-envelope test
 fall itself: from where the baseline put the reading when it left the noise, a fall deeper
 than any gust of the air's family (at most `GUST_DEPTH` of the heated rise, approached with a
 time constant of at least `GUST_RISE`) plus the steepest heater step could make in the time
-since, with 8 noise sigmas to spare, is a contact.
+since, with 8 noise sigmas to spare, is a contact. A PID-held heater's loop cancels what moves
+its sensor slowly: there the gusts, the heater steps and the room's drift are taken as the
+reading shows them through the loop (`loop_envelope`), and such an onset is dated when raised
+(its reference can date from long before the contact; `refine_onset` searches before it).
 
 What rises without a contact is told apart so: the heater's duty stepping up and ambient drift
 move the reading slowly (through the taxel's ~63 s mode), and the baseline follows them; the
@@ -404,7 +407,9 @@ class OnsetDetector:
         baseline put the reading when it began, deeper than the deepest and fastest gust of
         `GUST_DEPTH` and `GUST_RISE` plus the steepest heater step (`HEATER_STEP` through the
         body's slowest mode) can make in the time since, and 8 noise sigmas more, is a
-        contact (channel 2, with the slow channel).
+        contact (channel 2, with the slow channel). A PID-held heater's (``sensor.heater ==
+        "pid"``): those disturbances and the room's drift through its loop (`loop_envelope`),
+        and the onset dated when raised.
 
     Every kelvin threshold left as None follows from ``sigma`` and the sensor; the figures in
     the descriptions above are the paper sensor's.
@@ -499,14 +504,13 @@ class OnsetDetector:
         slow_sigma = self.sigma * _average_noise(sensor, self.medium_tau)
         # the gust-envelope test: the deepest, fastest gust and the steepest heater step
         self.gust_depth = GUST_DEPTH * rise if gust_envelope else np.inf
-        # kept for a PID-held heater too, whose loop takes a duty step up: without it the
-        # envelope found more of pid-logger's 5-sigma contacts (.22/.19 -> .34/.27, seeds
-        # 0/2, false alarms unchanged) but dated them where the reading left the noise, up
-        # to 4.5 s before the contact (a gust's slow start), and `refine_onset`, which looks
-        # only before the coarse onset, then dated them seconds early (refined-onset error
-        # median 36/16 -> 72/102 ms)
         self.heater_rate = HEATER_STEP * rise / mode
         # a loop-held sensor's: the disturbances as its reading shows them, through the loop
+        # (`loop_envelope`). The closed form above over-allowed a heater step there (0.86 K
+        # over the slow window for at most 0.10 K) and a gust (0.29 K for 0.12 K), and under-
+        # allowed the room's drift the loop passes: on pid-logger's streams, seeds 0/2/4/6,
+        # detected_5sigma .22/.19/.20/.23 -> .28/.24/.23/.29, false alarms unchanged (without
+        # the room's term: .41 on seed 0, but 3 false alarms, each a 2.4-3.2 sd fall of it)
         self.envelope = (loop_envelope(sensor, slow_tau_now, float(self.gust_depth), mode,
                                        false_alarm_rate)
                          if gust_envelope and sensor.heater == "pid" else None)
