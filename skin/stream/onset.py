@@ -269,6 +269,8 @@ class DetectorState:
     fall) or maximum (after a rise) and its time.  ``recover_until`` and ``recover_dir`` mark
     the taxel's recovery after a release, during which the slow channel's average follows the
     reading in the recovery's direction (``recover_dir`` = minus the contact's direction).
+    ``t_first`` is the time of each taxel's first reading (its noise estimate is a running
+    mean of the residual's square up to ``noise_tau`` after it).
     """
 
     level: np.ndarray
@@ -295,6 +297,7 @@ class DetectorState:
     ref_t: np.ndarray
     ref_slope: np.ndarray
     medium: np.ndarray
+    t_first: np.ndarray
 
     def copy(self) -> DetectorState:
         """Return a deep copy."""
@@ -559,6 +562,7 @@ class OnsetDetector:
             ref_t=nan.copy(),
             ref_slope=np.zeros(n),
             medium=nan.copy(),
+            t_first=nan.copy(),
         )
 
     def process(
@@ -640,6 +644,7 @@ class OnsetDetector:
             s.smooth[new] = y[new]
             s.slow[new] = y[new]
             s.medium[new] = y[new]
+            s.t_first[new] = t
             s.t_level[new] = t
             s.t_last[new] = t
             s.armed_at[new] = t + self.warmup
@@ -830,7 +835,12 @@ class OnsetDetector:
         np.copyto(s.level, pred + err, where=follow)
         np.copyto(s.slope, s.slope + b * err / dt, where=follow)
         np.copyto(s.t_level, t, where=follow)
-        v = gain[5]
+        # the noise estimate starts as a running mean (the readings' own, not the floor it
+        # starts at), an exponential one after ``noise_tau``: started at the floor (pid-logger:
+        # 0.26 mK against the 3.7 mK its residual settles at, the room's drift through the
+        # loop) the CUSUM's allowance stayed too small past the warm-up, and raised onsets
+        # 2-8 s into a stream
+        v = np.maximum(gain[5], dt / np.maximum(t - s.t_first, dt))
         np.copyto(s.var, s.var + v * (resid**2 - s.var), where=follow & idle & (g == 0) & (u == 0))
 
         # release: the smoothed temperature returns clearly from its in-contact extreme, or
