@@ -269,8 +269,8 @@ class DetectorState:
     fall) or maximum (after a rise) and its time.  ``recover_until`` and ``recover_dir`` mark
     the taxel's recovery after a release, during which the slow channel's average follows the
     reading in the recovery's direction (``recover_dir`` = minus the contact's direction).
-    ``t_first`` is the time of each taxel's first reading (its noise estimate is a running
-    mean of the residual's square up to ``noise_tau`` after it).
+    ``t_first`` is the time of each taxel's first reading (a loop-held sensor's noise
+    estimate is a running mean of the residual's square up to ``noise_tau`` after it).
     """
 
     level: np.ndarray
@@ -532,6 +532,9 @@ class OnsetDetector:
         self.ends_when_stopped = sensor.heater != "off-at-contact"
         self.contact_slope_tau = 0.2 * stretch if contact_slope_tau is None else contact_slope_tau
         self.rebound = 1.0 * stretch if rebound is None else rebound
+        # a loop-held sensor has no trend of its own: its noise estimate starts as a running
+        # mean (see `_step`)
+        self.running_start = sensor.heater == "pid"
 
     def initial_state(self) -> DetectorState:
         """Return the state before the first sample."""
@@ -835,12 +838,16 @@ class OnsetDetector:
         np.copyto(s.level, pred + err, where=follow)
         np.copyto(s.slope, s.slope + b * err / dt, where=follow)
         np.copyto(s.t_level, t, where=follow)
-        # the noise estimate starts as a running mean (the readings' own, not the floor it
-        # starts at), an exponential one after ``noise_tau``: started at the floor (pid-logger:
-        # 0.26 mK against the 3.7 mK its residual settles at, the room's drift through the
-        # loop) the CUSUM's allowance stayed too small past the warm-up, and raised onsets
-        # 2-8 s into a stream
-        v = np.maximum(gain[5], dt / np.maximum(t - s.t_first, dt))
+        v = gain[5]
+        if self.running_start:
+            # a loop-held sensor's noise estimate starts as a running mean, an exponential one
+            # after ``noise_tau``: started at the floor (pid-logger: 0.26 mK against the
+            # 3.7 mK its residual settles at, the room's drift through the loop) the CUSUM's
+            # allowance stayed too small past the warm-up, and raised onsets 2-8 s into a
+            # stream. Not for a free heated taxel: its baseline still catches the reading's
+            # own trend at start, which a running mean would take for noise (the default
+            # scene's pipeline then missed its early touches)
+            v = np.maximum(v, dt / np.maximum(t - s.t_first, dt))
         np.copyto(s.var, s.var + v * (resid**2 - s.var), where=follow & idle & (g == 0) & (u == 0))
 
         # release: the smoothed temperature returns clearly from its in-contact extreme, or
