@@ -68,7 +68,8 @@ def test_a_smooth_fall_beyond_the_gust_envelope_is_an_onset_the_cusum_misses():
         assert e.detected_at - on[k] < 3.0
 
 
-@pytest.mark.parametrize("preset", ["paper", "low-cost"])  # low-cost: its own medium average
+# low-cost: its own medium average; pid-logger: the loop's envelope
+@pytest.mark.parametrize("preset", ["paper", "low-cost", "pid-logger"])
 @pytest.mark.parametrize("sizes", [[1] * 50 + [333, 7], [4000, 1]])
 def test_gust_envelope_is_chunk_invariant(sizes, preset):
     sensor = load_sensor(preset)
@@ -128,3 +129,112 @@ def test_an_envelope_onset_as_the_slow_window_runs_out_re_bases_from_where_the_f
     assert onsets[0].time == pytest.approx(now - det.slow_tau - 0.5 / fs)
     # the in-contact trend of a fall, re-based over seconds: small and not rising
     assert np.all(after.slope <= 0.0) and np.all(np.abs(after.slope) < 0.1)
+
+
+def _through_loop(x, sensor):
+    """What a loop-held sensor reads of ``x`` (n_samples, n) at its face: loop, lag, smoothing."""
+    from skin.models.sensors import apply_dynamics
+
+    return smooth(apply_dynamics(x, sensor, axis=0), sensor, axis=0)
+
+
+def test_a_heater_step_at_a_loop_held_thermistor_stays_below_its_closed_form_bound():
+    # through a first-order mode (tau) and the loop's high-pass (tc) a step A peaks at
+    # A tc / (tau - tc) (exp(-t*/tau) - exp(-t*/tc)), t* = ln(tau / tc) tau tc / (tau - tc):
+    # 0.1 K on pid-logger, where a constant-power heater keeps falling by A / tau per second
+    from dataclasses import replace
+
+    from skin.stream.onset import loop_envelope
+
+    sensor = replace(load_sensor("pid-logger"), lag=0.0, smoothing="none")
+    tau, tc = 62.5, sensor.control_time
+    a = HEATER_STEP * sensor.heated_rise
+    peak_t = np.log(tau / tc) * tau * tc / (tau - tc)
+    peak = a * tc / (tau - tc) * (np.exp(-peak_t / tau) - np.exp(-peak_t / tc))
+    _, fall, drift = loop_envelope(sensor, 40.0, 0.0, tau, 0.1)
+    assert fall[-1] == pytest.approx(peak, rel=0.01)
+    assert np.all(np.diff(fall) >= 0) and np.all(np.diff(drift) >= 0)
+    assert fall[-1] < 0.15 * a / tau * 12.0  # the old allowance over the slow window: 0.86 K
+
+
+def test_the_loop_envelope_bounds_every_gust_and_heater_step_the_stream_draws():
+    # each gust of the simulator's family (depth, rise 1-4 s, hold 1-8 s) with a heater step
+    # down at the same instant, through pid-logger's loop, lag and smoothing: its fall over
+    # any span stays within the envelope's (the room's drift aside)
+    from skin.stream.onset import loop_envelope
+
+    sensor = load_sensor("pid-logger")
+    fs = sensor.sample_rate
+    det = OnsetDetector(1, sensor=sensor)
+    step, fall, _ = loop_envelope(sensor, det.slow_tau, float(det.gust_depth), 62.5, 0.1)
+    t = np.arange(round(40.0 * fs)) / fs
+    s = np.maximum(t - 5.0, 0.0)
+    cases = []
+    for rise in (1.0, 1.7, 2.5, 4.0):
+        for hold in (1.0, 3.3, 5.2, 8.0):
+            gust = np.where(s < hold, -np.expm1(-s / rise),
+                            -np.expm1(-hold / rise) * np.exp(-(s - hold) / rise))
+            cases.append(-det.gust_depth * gust
+                         - HEATER_STEP * sensor.heated_rise * -np.expm1(-s / 62.5))
+    y = _through_loop(np.array(cases).T, sensor)
+    for n in range(1, round(det.slow_tau * fs)):
+        worst = float(np.max(y[:-n] - y[n:]))
+        assert worst <= fall[int(np.ceil(n / fs / step - 1e-9))] + 1e-9
+
+
+def test_loop_held_contacts_in_the_rooms_drift_are_found_by_the_envelope_and_dated_late():
+    # contacts through pid-logger (0.42 K at their deepest) in its readout noise and the
+    # room's random walk through the loop (0.03 K sd): the CUSUM finds half; the envelope,
+    # set by the loop's own bounds on gusts and heater steps, the rest; an envelope onset is
+    # dated when raised (its reference may date from long before), and `refine_onset`, which
+    # searches before it, dates it (median 0.2 s in this strong drift). With the old
+    # envelope (a heater step falling at 0.07 K/s on a loop-held sensor) 8 of 16 were found
+    from skin.models.physics import SensorConstants
+    from skin.stream.onset import AMBIENT_DRIFT
+    from skin.stream.onset_refine import refine_onset, refine_span, sensor_response
+
+    sensor = load_sensor("pid-logger")
+    fs = sensor.sample_rate
+    n = 16
+    t = np.arange(round(40.0 * fs)) / fs
+    on = 25.0 + np.linspace(0.0, 1.0, n)
+    body = SensorConstants(depth=sensor.depth, diffusivity=sensor.diffusivity)
+    response = np.stack([sensor_response(t - o, np.array([np.inf]), body, sensor)[0]
+                         for o in on], axis=1)
+    rng = np.random.default_rng(3)
+    room = np.cumsum(rng.normal(0.0, np.sqrt(AMBIENT_DRIFT / fs), (t.size, n)), axis=0)
+    y = (35.0 - 4.0 * response + _through_loop(room, sensor)
+         + smooth(rng.normal(0.0, sensor.noise_kelvin(35.0), (t.size, n)), sensor, axis=0))
+    det = OnsetDetector(n, sensor=sensor)
+    events, _ = det.process(t, y, det.initial_state())
+    falls = {e.taxel: e for e in events if e.kind == "onset" and e.direction == -1
+             and on[e.taxel] - 0.1 <= e.time <= on[e.taxel] + 4.0}
+    assert len(falls) >= 14
+    envelope = [e for e in falls.values() if e.channel == 2]
+    assert envelope and all(e.time == e.detected_at >= on[e.taxel] for e in envelope)
+    search, horizon = refine_span(sensor)
+    errors = []
+    for e in envelope:
+        keep = (t >= e.time - search) & (t <= e.time + horizon)
+        onset, _ = refine_onset(t[keep], y[keep, e.taxel], e.time, e.baseline, e.slope,
+                                sensor.depth, sensor.diffusivity, sensor=sensor)
+        errors.append(onset - on[e.taxel])
+    assert np.median(np.abs(errors)) < 0.3
+
+
+def test_the_worst_loop_held_disturbance_raises_no_envelope_onset():
+    sensor = load_sensor("pid-logger")
+    fs = sensor.sample_rate
+    det = OnsetDetector(16, sensor=sensor)
+    t = np.arange(round(40.0 * fs)) / fs
+    start = 15.0 + np.linspace(0.0, 1.0, 16)
+    s = np.maximum(t[:, None] - start[None, :], 0.0)
+    hold = np.linspace(1.0, 8.0, 16)[None, :]
+    gust = np.where(s < hold, -np.expm1(-s / GUST_RISE),
+                    -np.expm1(-hold / GUST_RISE) * np.exp(-(s - hold) / GUST_RISE))
+    heater = HEATER_STEP * sensor.heated_rise * -np.expm1(-s / 62.5)
+    rng = np.random.default_rng(6)
+    y = (35.0 + _through_loop(-det.gust_depth * gust - heater, sensor)
+         + smooth(rng.normal(0.0, sensor.noise_kelvin(35.0), (t.size, 16)), sensor, axis=0))
+    events, _ = det.process(t, y, det.initial_state())
+    assert [e for e in events if e.kind == "onset" and e.channel == 2] == []

@@ -344,3 +344,24 @@ def test_every_sensor_contact_has_a_delay_bound_from_its_onset_on():
         assert any(np.isfinite(c.bound_after) for c in st.contacts)
         for c in st.contacts:
             assert c.bound_after >= 0.0
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_the_noise_estimate_starts_from_the_readings_not_the_floor(seed):
+    # pid-logger's residual is mostly the room's drift through its loop (3 mK against a floor
+    # of 0.26 mK): started at the floor, the estimate stayed too small past the 2 s warm-up
+    # and the CUSUM raised 4 onsets in 64 quiet taxels' first 12 s; a running mean at start
+    from skin.models.sensors import apply_dynamics, smooth
+    from skin.stream.onset import AMBIENT_DRIFT
+
+    sensor = load_sensor("pid-logger")
+    fs = sensor.sample_rate
+    rng = np.random.default_rng(seed)
+    t = np.arange(round(12.0 * fs)) / fs
+    room = np.cumsum(rng.normal(0.0, np.sqrt(AMBIENT_DRIFT / fs), (t.size, 64)), axis=0)
+    y = (35.0 + smooth(apply_dynamics(room, sensor, axis=0), sensor, axis=0)
+         + smooth(rng.normal(0.0, sensor.noise_kelvin(35.0), (t.size, 64)), sensor, axis=0))
+    det = OnsetDetector(64, sensor=sensor)
+    events, state = det.process(t, y, det.initial_state())
+    assert len([e for e in events if e.kind == "onset"]) <= 1
+    assert np.median(np.sqrt(state.var)) > 10 * float(np.median(det.noise_floor))

@@ -14,7 +14,10 @@ lagged thermistor), so the CUSUM sees only its curvature; the gust-envelope test
 fall itself: from where the baseline put the reading when it left the noise, a fall deeper
 than any gust of the air's family (at most `GUST_DEPTH` of the heated rise, approached with a
 time constant of at least `GUST_RISE`) plus the steepest heater step could make in the time
-since, with 8 noise sigmas to spare, is a contact.
+since, with 8 noise sigmas to spare, is a contact. A PID-held heater's loop cancels what moves
+its sensor slowly: there the gusts, the heater steps and the room's drift are taken as the
+reading shows them through the loop (`loop_envelope`), and such an onset is dated when raised
+(its reference can date from long before the contact; `refine_onset` searches before it).
 
 What rises without a contact is told apart so: the heater's duty stepping up and ambient drift
 move the reading slowly (through the taxel's ~63 s mode), and the baseline follows them; the
@@ -92,6 +95,9 @@ DISTURBANCE = {"threshold": 0.4 / _PAPER_RISE, "rise_threshold": 0.6 / _PAPER_RI
 GUST_DEPTH = 0.4 / _PAPER_RISE
 GUST_RISE = 1.0
 HEATER_STEP = 0.45
+#: The room's random walk, K^2/s (about 1 K per 10 minutes, as `skin.bench.streams` draws it):
+#: a loop-held sensor passes its fast part (`loop_envelope`).
+AMBIENT_DRIFT = 1.0 / 600.0
 _PAPER_RESPONSE = 2.516  # s, the paper sensor's half-response time (SensorDescription)
 _PAPER_MODE = 2.4e-4**2 / 2.796e-9  # s, the paper sensor's l^2 / alpha
 
@@ -127,6 +133,71 @@ def _average_noise(sensor: object, tau: float) -> float:
     h = smooth(impulse, sensor)
     both = lfilter([g], [1.0, g - 1.0], h)
     return float(np.sqrt(np.sum(both**2) / np.sum(h**2)))
+
+
+@functools.cache
+def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float,
+                  false_alarm_rate: float) -> tuple[float, np.ndarray, np.ndarray]:
+    """Return what the air, the heater and the room can move a loop-held reading by in a time.
+
+    The gust-envelope test's allowance for a PID-held heater (``sensor.heater == "pid"``),
+    whose loop cancels what moves the sensor slowly: each disturbance of the family
+    `skin.bench.streams` draws, as the reading shows it through the loop, the thermistor lag
+    and the smoothing (`skin.models.sensors.apply_dynamics`, `smooth`):
+
+    - gusts of ``gust_depth`` K at most, rising with a time constant of `GUST_RISE` to 4 s and
+      held 1 to 8 s: the loop cuts a gust's fall to about 40 % (pid-logger: 0.12 K of 0.29 K),
+      and its recovery overshoots and falls back (counted);
+    - a heater duty step of `HEATER_STEP` of the heated rise through the body's slowest mode
+      (``mode``, s), either way: at the thermistor it stays below about ``HEATER_STEP`` x the
+      rise x ``control_time / mode`` (pid-logger: 0.10 K), where a constant-power heater keeps
+      falling by ``HEATER_STEP`` x the rise / ``mode`` per second (0.07 K/s);
+    - the room's random walk (`AMBIENT_DRIFT` K^2/s): the loop passes its fast part, a
+      band-limited noise (pid-logger: 0.032 K sd, 23 times the readout's), whose fall over a
+      time has the sd ``sqrt(AMBIENT_DRIFT x sum((g(t) - g(t - s))^2) dt)`` (g: the reading's
+      response to a unit step of the room); the test allows the normal quantile of one
+      false alarm per ``1 / false_alarm_rate`` hours in windows of the loop's control time.
+
+    Returns
+    -------
+    step : float
+        The grid step, s: a sample, at least 0.02 s. Entry j of each table holds for every
+        span up to j steps (look up ``ceil(span / step)``: conservative between grid times).
+    fall : numpy.ndarray
+        The largest fall of a gust and of a heater step, each over any stretch of j steps or
+        fewer, summed (both may come together), K; from 0 to past ``horizon``.
+    drift : numpy.ndarray
+        The quantile of the room's fall over j steps, K.
+    """
+    from scipy.special import ndtri
+
+    from skin.models.sensors import apply_dynamics, smooth
+
+    fs = float(sensor.sample_rate)
+    dt = max(1.0 / fs, 0.02)
+    lags = np.round(np.arange(0.0, horizon + 2 * dt, dt) * fs).astype(int)
+    pad = int(2.0 * fs)  # settled before the disturbance
+    t = np.arange(round((horizon + 4.0 * GUST_RISE + 8.0 + 10.0) * fs)) / fs
+    gusts = [-gust_depth * np.where(t < hold, -np.expm1(-t / rise),
+                                    -np.expm1(-hold / rise) * np.exp(-(t - hold) / rise))
+             for rise in (GUST_RISE, 2.0 * GUST_RISE, 4.0 * GUST_RISE)
+             for hold in (1.0, 2.0, 4.0, 8.0)]
+    heater = HEATER_STEP * sensor.heated_rise * -np.expm1(-t / mode)
+    room = np.ones_like(t)
+    x = np.column_stack([*gusts, -heater, heater, room])
+    x = np.concatenate([np.zeros((pad, x.shape[1])), x])
+    y = smooth(apply_dynamics(x, sensor, fs, axis=0), sensor, axis=0, fs=fs)
+    g = y[:, -1]
+    n_gust = len(gusts)
+    worst = np.zeros((lags.size, 3))
+    for i, n in enumerate(lags[lags > 0], start=int(np.sum(lags <= 0))):
+        falls = np.max(y[:-n, :-1] - y[n:, :-1], axis=0)
+        step = g.copy()
+        step[n:] -= g[:-n]
+        worst[i] = falls[:n_gust].max(), falls[n_gust:].max(), np.sum(step**2) / fs
+    worst = np.maximum.accumulate(np.maximum(worst, 0.0), axis=0)
+    z = float(ndtri(1.0 - min(0.5, false_alarm_rate * sensor.control_time / 3600.0)))
+    return dt, worst[:, 0] + worst[:, 1], z * np.sqrt(AMBIENT_DRIFT * worst[:, 2])
 
 
 def arl_threshold(arl: float | np.ndarray, k: float | np.ndarray) -> np.ndarray:
@@ -198,6 +269,8 @@ class DetectorState:
     fall) or maximum (after a rise) and its time.  ``recover_until`` and ``recover_dir`` mark
     the taxel's recovery after a release, during which the slow channel's average follows the
     reading in the recovery's direction (``recover_dir`` = minus the contact's direction).
+    ``t_first`` is the time of each taxel's first reading (a loop-held sensor's noise
+    estimate is a running mean of the residual's square up to ``noise_tau`` after it).
     """
 
     level: np.ndarray
@@ -224,6 +297,7 @@ class DetectorState:
     ref_t: np.ndarray
     ref_slope: np.ndarray
     medium: np.ndarray
+    t_first: np.ndarray
 
     def copy(self) -> DetectorState:
         """Return a deep copy."""
@@ -336,7 +410,9 @@ class OnsetDetector:
         baseline put the reading when it began, deeper than the deepest and fastest gust of
         `GUST_DEPTH` and `GUST_RISE` plus the steepest heater step (`HEATER_STEP` through the
         body's slowest mode) can make in the time since, and 8 noise sigmas more, is a
-        contact (channel 2, with the slow channel).
+        contact (channel 2, with the slow channel). A PID-held heater's (``sensor.heater ==
+        "pid"``): those disturbances and the room's drift through its loop (`loop_envelope`),
+        and the onset dated when raised.
 
     Every kelvin threshold left as None follows from ``sigma`` and the sensor; the figures in
     the descriptions above are the paper sensor's.
@@ -431,13 +507,16 @@ class OnsetDetector:
         slow_sigma = self.sigma * _average_noise(sensor, self.medium_tau)
         # the gust-envelope test: the deepest, fastest gust and the steepest heater step
         self.gust_depth = GUST_DEPTH * rise if gust_envelope else np.inf
-        # kept for a PID-held heater too, whose loop takes a duty step up: without it the
-        # envelope found more of pid-logger's 5-sigma contacts (.22/.19 -> .34/.27, seeds
-        # 0/2, false alarms unchanged) but dated them where the reading left the noise, up
-        # to 4.5 s before the contact (a gust's slow start), and `refine_onset`, which looks
-        # only before the coarse onset, then dated them seconds early (refined-onset error
-        # median 36/16 -> 72/102 ms)
         self.heater_rate = HEATER_STEP * rise / mode
+        # a loop-held sensor's: the disturbances as its reading shows them, through the loop
+        # (`loop_envelope`). The closed form above over-allowed a heater step there (0.86 K
+        # over the slow window for at most 0.10 K) and a gust (0.29 K for 0.12 K), and under-
+        # allowed the room's drift the loop passes: on pid-logger's streams, seeds 0/2/4/6,
+        # detected_5sigma .22/.19/.20/.23 -> .28/.24/.23/.29, false alarms unchanged (without
+        # the room's term: .41 on seed 0, but 3 false alarms, each a 2.4-3.2 sd fall of it)
+        self.envelope = (loop_envelope(sensor, slow_tau_now, float(self.gust_depth), mode,
+                                       false_alarm_rate)
+                         if gust_envelope and sensor.heater == "pid" else None)
         self.threshold = scaled(threshold, "threshold", True)
         self.rise_threshold = scaled(rise_threshold, "rise_threshold", True)
         self.release_rise = scaled(release_rise, "release_rise", False)
@@ -453,6 +532,9 @@ class OnsetDetector:
         self.ends_when_stopped = sensor.heater != "off-at-contact"
         self.contact_slope_tau = 0.2 * stretch if contact_slope_tau is None else contact_slope_tau
         self.rebound = 1.0 * stretch if rebound is None else rebound
+        # a loop-held sensor has no trend of its own: its noise estimate starts as a running
+        # mean (see `_step`)
+        self.running_start = sensor.heater == "pid"
 
     def initial_state(self) -> DetectorState:
         """Return the state before the first sample."""
@@ -483,6 +565,7 @@ class OnsetDetector:
             ref_t=nan.copy(),
             ref_slope=np.zeros(n),
             medium=nan.copy(),
+            t_first=nan.copy(),
         )
 
     def process(
@@ -564,6 +647,7 @@ class OnsetDetector:
             s.smooth[new] = y[new]
             s.slow[new] = y[new]
             s.medium[new] = y[new]
+            s.t_first[new] = t
             s.t_level[new] = t
             s.t_last[new] = t
             s.armed_at[new] = t + self.warmup
@@ -658,8 +742,16 @@ class OnsetDetector:
         # smooth fall as a trend, lets such a fall pass the CUSUM)
         since = t - s.ref_t
         drop = s.ref_level + np.minimum(s.ref_slope, 0.0) * since - s.smooth
-        gusty = (self.gust_depth * -np.expm1(-since / GUST_RISE) + self.heater_rate * since
-                 + 8.0 * np.maximum(sigma, self.smoothed_sigma))
+        margin = 8.0 * np.maximum(sigma, self.smoothed_sigma)
+        if self.envelope is None:
+            gusty = (self.gust_depth * -np.expm1(-since / GUST_RISE) + self.heater_rate * since
+                     + margin)
+        else:  # a loop-held sensor: the room's drift and the readout's noise are independent
+            step, fall, drift = self.envelope
+            j = np.ceil(since / step)
+            np.copyto(j, fall.size - 1, where=~(j < fall.size))  # no reference (NaN): unused
+            j = j.astype(np.intp)
+            gusty = fall[j] + np.sqrt(margin**2 + drift[j] ** 2)
         deep = idle & armed & ~alarm & ~rise_alarm & ~slow_alarm & (drop > gusty)
         slow_alarm = slow_alarm | deep
         # a fall the CUSUM has begun to gather is dated where the CUSUM left zero, as its own
@@ -671,6 +763,15 @@ class OnsetDetector:
                 events.append(OnsetEvent("onset", int(k), t0k, t,
                                          float(s.level[k] + s.slope[k] * (t0k - s.t_level[k])),
                                          float(s.slope[k]), -1, 2))
+            elif deep[k] and self.envelope is not None:
+                # a loop-held sensor's reference may date from long before the contact (the
+                # room's drift, a gust take the reading out of its noise first): dated when
+                # raised, so that `refine_onset`, which searches before the coarse onset,
+                # searches the span before the alarm (pid-logger seed 0: the envelope's
+                # onsets' refined error median 1.1 s -> 58 ms), the baseline carried there
+                events.append(OnsetEvent("onset", int(k), t, t,
+                                         float(s.ref_level[k] + s.ref_slope[k] * since[k]),
+                                         float(s.ref_slope[k]), -1, 2))
             elif deep[k]:
                 events.append(OnsetEvent("onset", int(k), float(s.ref_t[k]), t,
                                          float(s.ref_level[k]), float(s.ref_slope[k]), -1, 2))
@@ -738,6 +839,15 @@ class OnsetDetector:
         np.copyto(s.slope, s.slope + b * err / dt, where=follow)
         np.copyto(s.t_level, t, where=follow)
         v = gain[5]
+        if self.running_start:
+            # a loop-held sensor's noise estimate starts as a running mean, an exponential one
+            # after ``noise_tau``: started at the floor (pid-logger: 0.26 mK against the
+            # 3.7 mK its residual settles at, the room's drift through the loop) the CUSUM's
+            # allowance stayed too small past the warm-up, and raised onsets 2-8 s into a
+            # stream. Not for a free heated taxel: its baseline still catches the reading's
+            # own trend at start, which a running mean would take for noise (the default
+            # scene's pipeline then missed its early touches)
+            v = np.maximum(v, dt / np.maximum(t - s.t_first, dt))
         np.copyto(s.var, s.var + v * (resid**2 - s.var), where=follow & idle & (g == 0) & (u == 0))
 
         # release: the smoothed temperature returns clearly from its in-contact extreme, or
