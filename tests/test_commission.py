@@ -487,3 +487,54 @@ def test_fast_film_reference_touches_are_dated_with_their_heater_drain():
     err = np.array([on - starts[np.argmin(np.abs(starts - on))] for _, on, *_ in touches])
     assert np.all(np.abs(err) <= 0.010) and abs(np.median(err)) <= 0.004
     assert 0.010 < onset_search(sensors[0])  # the fit can take it from there
+
+
+def test_paired_gap_counts_the_contacts_one_arm_names_right_and_the_other_wrong():
+    """McNemar's standard error of a gap on the same contacts, one discordant contact added."""
+    from skin.bench.commission import _paired
+
+    a = np.array([True] * 6 + [False] * 4)
+    b = np.array([True] * 4 + [False] * 2 + [True] * 1 + [False] * 3)
+    got = _paired(a, b)
+    assert got["gap"] == pytest.approx(0.1)  # 2 right only in a, 1 only in b, of 10
+    assert got["std"] == pytest.approx(np.sqrt(2 + 1 + 1 - 0.1) / 10, abs=1e-4)
+    same = _paired(a, a)  # no discordant contact: not a gap known to zero
+    assert same["gap"] == 0 and same["std"] == pytest.approx(0.1)
+
+
+def test_bench_commission_classify_gives_true_and_commissioned_constants_alike(capsys):
+    """`skin bench commission --classify`: issue 4's benchmark recorded by the commissioned
+    unit's own taxels (the trial generator draws the simulator's constants taxel by taxel),
+    classified with the true, the commissioned, another unit's and the nominal constants."""
+    from dataclasses import replace
+
+    from skin.bench.commission import scene_text
+    from skin.drivers.sim import SkinSimulator
+    from skin.formats.scene import parse_scene
+    from skin.models import load_materials
+    from skin.models.trials import PAPER_MATERIALS, Protocol, simulate_trials
+
+    sim = SkinSimulator(parse_scene(scene_text("fast-film", 7, 3, 6, 3.0, 5.0, 0.1), "s.toml"))
+    data = simulate_trials([load_materials()[PAPER_MATERIALS[0]]],
+                           replace(Protocol(), trials=3, n_taxels=3, duration=0.5),
+                           sensor="fast-film", seed=1, skin_seed=[7, 11])
+    for k in range(3):
+        i = int(np.flatnonzero(data.taxel[:, 0] == k)[0])
+        assert data.extra["true_sensor_depth"][i] == pytest.approx(sim.taxel_sensor.depth[k])
+        assert data.extra["true_sensor_diffusivity"][i] == pytest.approx(
+            sim.taxel_sensor.diffusivity[k])
+    assert skin_main(["bench", "commission", "--classify", "--sensor", "paper", "--taxels", "2",
+                      "--trials", "2", "--durations", "1", "--labelled", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["commissioning"]["own"]["taxels_fitted"] == 2
+    assert doc["commissioning"]["own"]["response_time"]["median"] < 0.02
+    (row,) = doc["rows"]
+    assert row["contacts"] == 22 and row["duration"] == 1.0
+    for arm in ("true", "commissioned", "other_unit", "nominal"):
+        assert 0 <= row[arm]["accuracy"] <= 1 and row[arm]["std"] >= 0
+    gap = row["commissioned_gap"]
+    assert gap["gap"] == pytest.approx(row["true"]["accuracy"]
+                                       - row["commissioned"]["accuracy"], abs=1e-3)
+    assert abs(gap["gap"]) <= 0.1 and not gap["resolved"]  # 22 contacts resolve no 3 points
+    assert skin_main(["bench", "commission", "--classify", "--durations", "x"]) == 2
+    assert "--durations" in capsys.readouterr().err
