@@ -48,15 +48,22 @@ def _errors(got: np.ndarray, want: np.ndarray) -> dict[str, float]:
 
 def commission_unit(sensor: str = "paper", seed: int = 7, taxels: int = 8, touches: int = 6,
                     hold: float | None = None, rest: float | None = None,
-                    spread: float = 0.10, labelled: bool = False) -> dict[str, Any]:
+                    spread: float = 0.10, labelled: bool = False,
+                    contact: str = "perfect") -> dict[str, Any]:
     """Simulate one unit's reference touches and commission them (`run`'s work).
+
+    ``contact``: the touches' contact, ``"perfect"`` or ``"finite"`` (each touch a
+    conductance from its material's range, as issue 4's benchmark draws them:
+    `SkinSimulator`'s ``contact``).
 
     Returns
     -------
     dict
         ``sim`` (the `SkinSimulator`, its truth in ``taxel_sensor``), ``layout``, ``fits``
-        and ``counts`` (`commission_response`), ``nominal`` (the layout's sensors), ``hold``,
-        ``rest``, ``recording_seconds``, ``fit_seconds`` and ``fit_cpu_seconds``.
+        and ``counts`` (`commission_response`), ``nominal`` (the layout's sensors),
+        ``quiet_noise`` (the touched taxels' median reading noise about a straight line
+        before the first touch, K), ``hold``, ``rest``, ``recording_seconds``,
+        ``fit_seconds`` and ``fit_cpu_seconds``.
     """
     from skin.drivers.sim import SkinSimulator
     from skin.formats.calibration_file import CalibrationFile
@@ -72,7 +79,7 @@ def commission_unit(sensor: str = "paper", seed: int = 7, taxels: int = 8, touch
     rest = advised[1] if rest is None else rest
     scene = parse_scene(scene_text(preset.name, seed, taxels, touches, hold, rest, spread),
                         f"commission-{preset.name}.toml")
-    sim = SkinSimulator(scene)
+    sim = SkinSimulator(scene, contact=contact)
     frames = list(sim.frames())
     y, _ = sim.calibration.temperature(np.array([f.counts for f in frames])[:, sim._addr])
     t = np.array([f.device_time for f in frames])
@@ -85,7 +92,12 @@ def commission_unit(sensor: str = "paper", seed: int = 7, taxels: int = 8, touch
     started, cpu = time.perf_counter(), time.process_time()
     fits, counts = commission_response(t, y, scene.layout, {m: table[m] for m in REFERENCES},
                                        nominal, scene.ambient, labels=labels)
+    quiet = t < scene.touches[0].start - 0.5  # before the first touch: the quiet stretch
+    x = t[quiet] - t[quiet].mean()
+    line = np.polynomial.polynomial.polyfit(x, y[quiet][:, :taxels], 1)
+    resid = y[quiet][:, :taxels] - (line[0] + np.outer(x, line[1]))
     return {"sim": sim, "layout": scene.layout, "fits": fits, "counts": counts,
+            "quiet_noise": float(np.median(resid.std(axis=0, ddof=2))),
             "nominal": nominal, "hold": hold, "rest": rest,
             "recording_seconds": round(float(t[-1] - t[0]), 1),
             "fit_seconds": round(time.perf_counter() - started, 2),
@@ -94,8 +106,10 @@ def commission_unit(sensor: str = "paper", seed: int = 7, taxels: int = 8, touch
 
 def run(sensor: str = "paper", seed: int = 7, taxels: int = 8, touches: int = 6,
         hold: float | None = None, rest: float | None = None, spread: float = 0.10,
-        labelled: bool = False) -> dict[str, Any]:
+        labelled: bool = False, contact: str = "perfect") -> dict[str, Any]:
     """Simulate the reference touches, commission them, compare with the truth.
+
+    ``contact``: the touches' contact (`commission_unit`).
 
     Returns
     -------
@@ -109,7 +123,8 @@ def run(sensor: str = "paper", seed: int = 7, taxels: int = 8, touches: int = 6,
     from skin.models.commission import described
     from skin.models.sensors import load_sensor
 
-    unit = commission_unit(sensor, seed, taxels, touches, hold, rest, spread, labelled)
+    unit = commission_unit(sensor, seed, taxels, touches, hold, rest, spread, labelled,
+                           contact)
     layout, fits, truth = unit["layout"], unit["fits"], unit["sim"].taxel_sensor
     columns = np.array(sorted(int(k) for f in fits if f.scope == "taxel" for k in f.columns))
     got_tau = np.full(len(layout), np.nan)
@@ -122,7 +137,7 @@ def run(sensor: str = "paper", seed: int = 7, taxels: int = 8, touches: int = 6,
         "sensor": load_sensor(sensor).name, "seed": seed, "spread": spread,
         "hold": unit["hold"], "rest": unit["rest"],
         "touches": touches, "taxels_touched": taxels, "labelled": labelled,
-        "counts": {**unit["counts"], "taxels_fitted": int(columns.size)},
+        "contact": contact, "counts": {**unit["counts"], "taxels_fitted": int(columns.size)},
         **{k: unit[k] for k in ("recording_seconds", "fit_seconds", "fit_cpu_seconds")}}
     if columns.size == 0:
         return doc
@@ -165,7 +180,7 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
              trials: int = 40, durations: tuple[float, ...] = (0.5, 1.0, 2.5),
              taxels: int = 8, touches: int = 6, spread: float = 0.10,
              labelled: bool = False, object_std: float = 10.0, noise: str = "model",
-             progress: Any = None) -> dict[str, Any]:
+             contact: str = "perfect", progress: Any = None) -> dict[str, Any]:
     """Issue 16's classification target: the same classifier, true against commissioned constants.
 
     The unit ``seed`` (its first ``taxels`` taxels, spread +-``spread`` as `SkinSimulator`
@@ -185,10 +200,12 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
       it knows nothing of this unit's own taxels);
     - ``nominal``: the preset's constants.
 
-    ``noise``: the classifier's reading noise, ``"model"`` (its default, 0.1 K, which on a
-    quiet sensor such as pid-logger's hides most of what the reading says) or
-    ``"measured"``: a grid from the noise measured before the contacts
-    (`skin.bench.ceiling.reading_noise`, what a quiet stretch gives) up to 0.1 K, integrated
+    ``contact``: the reference touches' contact (`commission_unit`; the benchmark's are
+    finite either way). ``noise``: the classifier's reading noise, ``"model"`` (its
+    default, 0.1 K, which on a quiet sensor such as pid-logger's hides most of what the
+    reading says) or
+    ``"measured"``: a grid from the noise measured on the commissioning recording's quiet
+    stretch before its first touch (``quiet_noise``) up to 0.1 K, integrated
     over (`JointContactModel`'s ``noise`` grid): each contact judged at the noise its model
     explains it to.
 
@@ -204,7 +221,7 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     """
     from dataclasses import replace
 
-    from skin.bench.ceiling import _joint_log_evidence, reading_noise
+    from skin.bench.ceiling import _joint_log_evidence
     from skin.bench.spread import design
     from skin.models import load_materials
     from skin.models.joint import JointContactModel
@@ -215,10 +232,11 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     other_seed = seed + 1 if other_seed is None else other_seed
     say = progress or (lambda _: None)
     say(f"commissioning unit {seed}")
-    own = commission_unit(preset.name, seed, taxels, touches, spread=spread, labelled=labelled)
+    own = commission_unit(preset.name, seed, taxels, touches, spread=spread, labelled=labelled,
+                          contact=contact)
     say(f"commissioning unit {other_seed}")
     other = commission_unit(preset.name, other_seed, taxels, touches, spread=spread,
-                            labelled=labelled)
+                            labelled=labelled, contact=contact)
     layout = own["layout"]
     fitted = _constants_of(own["fits"], layout)
     theirs = _constants_of(other["fits"], layout, own_only=True) or _constants_of(
@@ -226,7 +244,7 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     doc: dict[str, Any] = {
         "sensor": preset.name, "seed": seed, "other_seed": other_seed, "trials": trials,
         "taxels": taxels, "touches": touches, "labelled": labelled, "spread": spread,
-        "object_std": object_std,
+        "object_std": object_std, "contact": contact,
         "commissioning": {}}
     for key, unit in (("own", own), ("other", other)):
         truth = unit["sim"].taxel_sensor
@@ -255,9 +273,9 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
             "other_unit": ("calibrated", {int(i): mid for i in layout.ids}),
             "nominal": ("nominal", None)}
     truth = np.searchsorted(data.classes, data.label)
-    measured = reading_noise(data)
-    doc["reading_noise"] = round(measured, 5)
-    grid = 0.1 if noise == "model" else np.geomspace(min(measured, 0.1), 0.1, 5)
+    measured = own["quiet_noise"]
+    doc["quiet_noise"] = round(measured, 6)
+    grid = 0.1 if noise == "model" else np.geomspace(min(max(measured, 1e-4), 0.1), 0.1, 5)
     doc["noise"] = noise
     model = JointContactModel([table[c] for c in data.classes], noise=grid,
                               object_std=object_std,

@@ -206,6 +206,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                      help="relative spread of each taxel's constants (0.10)")
     com.add_argument("--labelled", action="store_true",
                      help="fit from the scripted touch times (as --labels), not detected ones")
+    com.add_argument("--contact", choices=("perfect", "finite"), default="perfect",
+                     help="the reference touches' contact: perfect (default) or finite, a "
+                          "conductance from each material's range (as skin simulate trials)")
     com.add_argument("--classify", action="store_true",
                      help="issue 16's target instead: issue 4's benchmark recorded by this "
                           "unit's taxels, classified by the joint classifier told the true, "
@@ -219,8 +222,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                      help="with --classify: the other unit commissioned (default seed + 1)")
     com.add_argument("--noise", choices=("model", "measured"), default="model",
                      help="with --classify: the classifier's reading noise, its default 0.1 K "
-                          "(model) or a grid from the noise measured before the contacts up "
-                          "to 0.1 K (measured)")
+                          "(model) or a grid from the noise of the commissioning recording's quiet "
+                          "stretch up to 0.1 K (measured)")
     com.add_argument("--object-std", type=float, default=10.0,
                      help="with --classify: the classifier's prior std of the object's "
                           "temperature about ambient, K (10)")
@@ -511,7 +514,7 @@ def main_commission(args: argparse.Namespace) -> int:
     print("simulating and commissioning...", file=sys.stderr, flush=True)
     doc = {"machine": bench.machine(),
            **run(args.sensor, args.seed, args.taxels, args.touches, args.hold, args.rest,
-                 args.spread, args.labelled)}
+                 args.spread, args.labelled, args.contact)}
     if args.json:
         print(json.dumps(doc))
         return 0
@@ -552,7 +555,8 @@ def _commission_classify(args: argparse.Namespace) -> int:
     doc = {"machine": bench.machine(),
            **classify(args.sensor, args.seed, args.other_seed, args.trials, durations,
                       args.taxels, args.touches, args.spread, args.labelled,
-                      args.object_std, args.noise, progress=progress.message)}
+                      args.object_std, args.noise, args.contact,
+                      progress=progress.message)}
     doc["wall_time"] = round(time.monotonic() - started, 1)
     progress.done()
     if args.json:
@@ -560,8 +564,9 @@ def _commission_classify(args: argparse.Namespace) -> int:
         return 0
     com = doc["commissioning"]
     print(f"{doc['sensor']}: unit {doc['seed']} commissioned from {doc['touches']} "
-          f"{'labelled' if doc['labelled'] else 'detected'} touches ({com['own']['taxels_fitted']}"
-          f" of {doc['taxels']} taxels fitted), unit {doc['other_seed']} likewise "
+          f"{'labelled' if doc['labelled'] else 'detected'} {doc['contact']}-contact touches "
+          f"({com['own']['taxels_fitted']} of {doc['taxels']} taxels fitted), unit "
+          f"{doc['other_seed']} likewise "
           f"({com['other']['taxels_fitted']}); response-time error median "
           + ", ".join(f"{k} {v['response_time']['median']:.3f}" for k, v in com.items()
                       if "response_time" in v))
