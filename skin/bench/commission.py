@@ -9,6 +9,16 @@ onset detector finds (or, with ``labelled``, from the scripted touch times, as
 ``skin commission --labels`` does). Reported per fitted taxel against the simulator's truth:
 the relative error of the response time (depth^2 / diffusivity) and of the effusivity, with
 the preset's nominal constants and with the fitted ones, and what the fit cost.
+
+``contact="finite"`` touches through each material's air gap (a conductance from its range,
+as issue 4's benchmark draws them) instead of a perfect contact; ``references`` names other
+materials. An air gap's conductance and the response time trade against each other (both
+add a 1/sqrt(t) tail to the reading), so touches of aluminium and pine through their gaps
+leave the response time some 10 % off on the paper's sensor, where conforming references
+(water, neoprene: gaps under 2 um) pin it as a perfect contact does.
+
+`classify` measures issue 16's classification target with it: the same classifier told the
+true and the commissioned constants on issue 4's benchmark recorded by the same taxels.
 """
 
 from __future__ import annotations
@@ -23,7 +33,7 @@ REFERENCES = ("aluminium", "pine")
 
 
 def scene_text(sensor: str, seed: int, taxels: int, touches: int, hold: float, rest: float,
-               spread: float) -> str:
+               spread: float, references: tuple[str, ...] = REFERENCES) -> str:
     """Return the reference-touch scene (TOML) for one sensor preset."""
     ids = list(range(taxels))
     period = hold + rest
@@ -31,10 +41,11 @@ def scene_text(sensor: str, seed: int, taxels: int, touches: int, hold: float, r
              f"duration = {3.0 + touches * period + 2.0}", "ambient = 25.0", f"seed = {seed}",
              f"taxel_spread = {spread}", "initial_temperature = [34.0, 38.9]",
              f'sensor = "{sensor}"']
-    for name in REFERENCES:
+    for name in references:
         lines += ["[[objects]]", f'name = "{name}"', f'material = "{name}"']
     for k in range(touches):
-        lines += ["[[touches]]", f'object = "{REFERENCES[k % 2]}"', f"taxels = {ids}",
+        lines += ["[[touches]]", f'object = "{references[k % len(references)]}"',
+                  f"taxels = {ids}",
                   f"start = {3.0 + k * period}", f"duration = {hold}"]
     return "\n".join(lines) + "\n"
 
@@ -49,12 +60,13 @@ def _errors(got: np.ndarray, want: np.ndarray) -> dict[str, float]:
 def commission_unit(sensor: str = "paper", seed: int = 7, taxels: int = 8, touches: int = 6,
                     hold: float | None = None, rest: float | None = None,
                     spread: float = 0.10, labelled: bool = False,
-                    contact: str = "perfect") -> dict[str, Any]:
+                    contact: str = "perfect", references: tuple[str, ...] = REFERENCES,
+                    ) -> dict[str, Any]:
     """Simulate one unit's reference touches and commission them (`run`'s work).
 
     ``contact``: the touches' contact, ``"perfect"`` or ``"finite"`` (each touch a
     conductance from its material's range, as issue 4's benchmark draws them:
-    `SkinSimulator`'s ``contact``).
+    `SkinSimulator`'s ``contact``). ``references``: the materials touched, in turn.
 
     Returns
     -------
@@ -77,8 +89,8 @@ def commission_unit(sensor: str = "paper", seed: int = 7, taxels: int = 8, touch
     advised = hold_and_rest([preset])
     hold = advised[0] if hold is None else hold
     rest = advised[1] if rest is None else rest
-    scene = parse_scene(scene_text(preset.name, seed, taxels, touches, hold, rest, spread),
-                        f"commission-{preset.name}.toml")
+    scene = parse_scene(scene_text(preset.name, seed, taxels, touches, hold, rest, spread,
+                                   tuple(references)), f"commission-{preset.name}.toml")
     sim = SkinSimulator(scene, contact=contact)
     frames = list(sim.frames())
     y, _ = sim.calibration.temperature(np.array([f.counts for f in frames])[:, sim._addr])
@@ -90,7 +102,7 @@ def commission_unit(sensor: str = "paper", seed: int = 7, taxels: int = 8, touch
         labels = [TouchLabel(tc.start, scene.objects[tc.object].material, tuple(tc.taxels))
                   for tc in scene.touches]
     started, cpu = time.perf_counter(), time.process_time()
-    fits, counts = commission_response(t, y, scene.layout, {m: table[m] for m in REFERENCES},
+    fits, counts = commission_response(t, y, scene.layout, {m: table[m] for m in references},
                                        nominal, scene.ambient, labels=labels)
     quiet = t < scene.touches[0].start - 0.5  # before the first touch: the quiet stretch
     x = t[quiet] - t[quiet].mean()
@@ -106,10 +118,11 @@ def commission_unit(sensor: str = "paper", seed: int = 7, taxels: int = 8, touch
 
 def run(sensor: str = "paper", seed: int = 7, taxels: int = 8, touches: int = 6,
         hold: float | None = None, rest: float | None = None, spread: float = 0.10,
-        labelled: bool = False, contact: str = "perfect") -> dict[str, Any]:
+        labelled: bool = False, contact: str = "perfect",
+        references: tuple[str, ...] = REFERENCES) -> dict[str, Any]:
     """Simulate the reference touches, commission them, compare with the truth.
 
-    ``contact``: the touches' contact (`commission_unit`).
+    ``contact`` and ``references``: the touches' contact and materials (`commission_unit`).
 
     Returns
     -------
@@ -124,7 +137,7 @@ def run(sensor: str = "paper", seed: int = 7, taxels: int = 8, touches: int = 6,
     from skin.models.sensors import load_sensor
 
     unit = commission_unit(sensor, seed, taxels, touches, hold, rest, spread, labelled,
-                           contact)
+                           contact, references)
     layout, fits, truth = unit["layout"], unit["fits"], unit["sim"].taxel_sensor
     columns = np.array(sorted(int(k) for f in fits if f.scope == "taxel" for k in f.columns))
     got_tau = np.full(len(layout), np.nan)
@@ -137,7 +150,8 @@ def run(sensor: str = "paper", seed: int = 7, taxels: int = 8, touches: int = 6,
         "sensor": load_sensor(sensor).name, "seed": seed, "spread": spread,
         "hold": unit["hold"], "rest": unit["rest"],
         "touches": touches, "taxels_touched": taxels, "labelled": labelled,
-        "contact": contact, "counts": {**unit["counts"], "taxels_fitted": int(columns.size)},
+        "contact": contact, "references": list(references),
+        "counts": {**unit["counts"], "taxels_fitted": int(columns.size)},
         **{k: unit[k] for k in ("recording_seconds", "fit_seconds", "fit_cpu_seconds")}}
     if columns.size == 0:
         return doc
@@ -180,7 +194,8 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
              trials: int = 40, durations: tuple[float, ...] = (0.5, 1.0, 2.5),
              taxels: int = 8, touches: int = 6, spread: float = 0.10,
              labelled: bool = False, object_std: float = 10.0, noise: str = "model",
-             contact: str = "perfect", progress: Any = None) -> dict[str, Any]:
+             contact: str = "perfect", references: tuple[str, ...] = REFERENCES,
+             progress: Any = None) -> dict[str, Any]:
     """Issue 16's classification target: the same classifier, true against commissioned constants.
 
     The unit ``seed`` (its first ``taxels`` taxels, spread +-``spread`` as `SkinSimulator`
@@ -200,10 +215,10 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
       it knows nothing of this unit's own taxels);
     - ``nominal``: the preset's constants.
 
-    ``contact``: the reference touches' contact (`commission_unit`; the benchmark's are
-    finite either way). ``noise``: the classifier's reading noise, ``"model"`` (its
-    default, 0.1 K, which on a quiet sensor such as pid-logger's hides most of what the
-    reading says) or
+    ``contact`` and ``references``: the reference touches' contact and materials
+    (`commission_unit`; the benchmark's contacts are finite either way). ``noise``: the
+    classifier's reading noise, ``"model"`` (its default, 0.1 K, which on a quiet sensor
+    such as pid-logger's hides most of what the reading says) or
     ``"measured"``: a grid from the noise measured on the commissioning recording's quiet
     stretch before its first touch (``quiet_noise``) up to 0.1 K, integrated
     over (`JointContactModel`'s ``noise`` grid): each contact judged at the noise its model
@@ -212,6 +227,9 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     Returns
     -------
     dict
+        ``commissioning``: per unit (``own``, ``other``) the taxels fitted from their own
+        touches, those given their board's pooled fit, the touch counts, the fit's CPU time
+        and the response-time error of the taxels fitted from their own touches.
         Per duration (``rows``): each arm's accuracy and binomial standard error, and the
         gap ``true - commissioned`` (and ``true - other_unit``) on the same contacts with
         its paired standard error (McNemar's: from the contacts one arm names right and the
@@ -233,10 +251,10 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     say = progress or (lambda _: None)
     say(f"commissioning unit {seed}")
     own = commission_unit(preset.name, seed, taxels, touches, spread=spread, labelled=labelled,
-                          contact=contact)
+                          contact=contact, references=references)
     say(f"commissioning unit {other_seed}")
     other = commission_unit(preset.name, other_seed, taxels, touches, spread=spread,
-                            labelled=labelled, contact=contact)
+                            labelled=labelled, contact=contact, references=references)
     layout = own["layout"]
     fitted = _constants_of(own["fits"], layout)
     theirs = _constants_of(other["fits"], layout, own_only=True) or _constants_of(
@@ -244,15 +262,16 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     doc: dict[str, Any] = {
         "sensor": preset.name, "seed": seed, "other_seed": other_seed, "trials": trials,
         "taxels": taxels, "touches": touches, "labelled": labelled, "spread": spread,
-        "object_std": object_std, "contact": contact,
+        "object_std": object_std, "contact": contact, "references": list(references),
         "commissioning": {}}
     for key, unit in (("own", own), ("other", other)):
         truth = unit["sim"].taxel_sensor
-        got = _constants_of(unit["fits"], unit["layout"])
+        got = _constants_of(unit["fits"], unit["layout"], own_only=True)
         cols = np.array([unit["layout"].index(i) for i in sorted(got)], dtype=int)
         tau = np.array([got[i].depth ** 2 / got[i].diffusivity for i in sorted(got)])
+        pooled = sum(len(f.columns) for f in unit["fits"] if f.scope != "taxel")
         doc["commissioning"][key] = {
-            "taxels_fitted": int(cols.size), **unit["counts"],
+            "taxels_fitted": int(cols.size), "board_fitted": pooled, **unit["counts"],
             "fit_cpu_seconds": unit["fit_cpu_seconds"],
             **({"response_time": _errors(tau, truth.depth[cols] ** 2
                                          / truth.diffusivity[cols])} if cols.size else {})}

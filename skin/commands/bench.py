@@ -209,6 +209,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     com.add_argument("--contact", choices=("perfect", "finite"), default="perfect",
                      help="the reference touches' contact: perfect (default) or finite, a "
                           "conductance from each material's range (as skin simulate trials)")
+    com.add_argument("--references", default="aluminium,pine", metavar="A,B",
+                     help="reference materials touched in turn (aluminium,pine); conforming "
+                          "ones such as water,neoprene make a near-perfect contact")
     com.add_argument("--classify", action="store_true",
                      help="issue 16's target instead: issue 4's benchmark recorded by this "
                           "unit's taxels, classified by the joint classifier told the true, "
@@ -509,12 +512,16 @@ def main_commission(args: argparse.Namespace) -> int:
     for name in ("hold", "rest"):
         if getattr(args, name) is not None and getattr(args, name) <= 0:
             raise SkinError(f"--{name} must be positive")
+    from skin.commands.commission import _reference_names
+    from skin.models import load_materials
+
+    args.reference_list = tuple(_reference_names(args.references, load_materials()))
     if args.classify:
         return _commission_classify(args)
     print("simulating and commissioning...", file=sys.stderr, flush=True)
     doc = {"machine": bench.machine(),
            **run(args.sensor, args.seed, args.taxels, args.touches, args.hold, args.rest,
-                 args.spread, args.labelled, args.contact)}
+                 args.spread, args.labelled, args.contact, args.reference_list)}
     if args.json:
         print(json.dumps(doc))
         return 0
@@ -555,7 +562,7 @@ def _commission_classify(args: argparse.Namespace) -> int:
     doc = {"machine": bench.machine(),
            **classify(args.sensor, args.seed, args.other_seed, args.trials, durations,
                       args.taxels, args.touches, args.spread, args.labelled,
-                      args.object_std, args.noise, args.contact,
+                      args.object_std, args.noise, args.contact, args.reference_list,
                       progress=progress.message)}
     doc["wall_time"] = round(time.monotonic() - started, 1)
     progress.done()

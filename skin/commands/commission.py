@@ -21,6 +21,14 @@ falls short is refused with how long to hold and rest): touches found by the pip
 detector (or given by ``--labels``), named by the
 reference they fit best, each touch's onset, baseline and contact conductance fitted with
 the constants. A taxel with too few touches gets its board's pooled fit.
+
+Prefer references that conform: water (in a thin bag), neoprene or rubber. Through a hard
+object's air gap the contact conductance and the response time trade against each other
+(both slow the reading's approach by a 1/sqrt(t) tail), so touches of aluminium and pine
+through their gaps leave the response time some 10 % off on the paper's sensor, and a
+classifier told those constants 8-9 points below one told the true ones; water and
+neoprene pin it to 0.5 % (`skin bench commission --contact finite [--classify]
+--references water,neoprene`).
 """
 
 from __future__ import annotations
@@ -54,7 +62,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     cmd.add_argument("--touches", metavar="MATERIALS", default=None,
                      help="instead of the noise, fit each taxel's sensor response from touches "
                           "of these reference materials at room temperature in the recording, "
-                          "e.g. aluminium,pine (at least 3 touches of each of 2, held 2.5 s, "
+                          "e.g. water,neoprene or aluminium,pine (at least 3 touches of each "
+                          "of 2, held 2.5 s, "
                           "longer on a slower sensor, with 0.4 s of quiet before each); each "
                           "touch's onset is fitted with "
                           "the constants")
