@@ -536,6 +536,7 @@ def test_bench_commission_classify_gives_true_and_commissioned_constants_alike(c
     assert gap["gap"] == pytest.approx(row["true"]["accuracy"]
                                        - row["commissioned"]["accuracy"], abs=1e-3)
     assert abs(gap["gap"]) <= 0.1 and not gap["resolved"]  # 22 contacts resolve no 3 points
+    assert gap["met"] == (abs(gap["gap"]) <= 0.03)  # within 3 points either way
     assert skin_main(["bench", "commission", "--classify", "--durations", "x"]) == 2
     assert "--durations" in capsys.readouterr().err
 
