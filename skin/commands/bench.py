@@ -51,7 +51,10 @@ with the fit time per taxel. ``skin bench commission --sensor PRESET`` does the 
 `skin commission --touches` on a unit of any sensor preset: reference touches of aluminium
 and pine through the preset's ADC and smoothing, detected (or ``--labelled``) and fitted,
 with the response time's and the effusivity's error against the unit's truth, nominal and
-fitted, beside the fit's CPU time (`skin.bench.commission`).
+fitted, beside the fit's CPU time (`skin.bench.commission`); ``--contact finite`` touches
+through each reference's air gap, ``--references`` names them, and ``--classify`` measures
+issue 16's target: issue 4's benchmark recorded by the same taxels, classified with their
+true and their commissioned constants (`skin.bench.commission.classify`).
 
 ``skin bench map`` runs the shared map service with several robots publishing contacts and
 reports lost contacts, the time from a contact's decision to its query visibility, and a
