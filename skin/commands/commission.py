@@ -25,10 +25,11 @@ the constants. A taxel with too few touches gets its board's pooled fit.
 Prefer references that conform: water (in a thin bag), neoprene or rubber. Through a hard
 object's air gap the contact conductance and the response time trade against each other
 (both slow the reading's approach by a 1/sqrt(t) tail), so touches of aluminium and pine
-through their gaps leave the response time some 10 % off on the paper's sensor, and a
-classifier told those constants 8-9 points below one told the true ones; water and
-neoprene pin it to 0.5 % (`skin bench commission --contact finite [--classify]
---references water,neoprene`).
+through their gaps leave the response time 8-10 % off on the paper's sensor (25 % on
+fast-film), and a classifier told those constants 6-9 points below one told the true ones
+at 1 and 2.5 s (13-27 on fast-film); water and neoprene pin it to 0.5-1 % and the gap to
+under 2 points (`skin bench commission --contact finite [--classify] --references
+water,neoprene`).
 """
 
 from __future__ import annotations
