@@ -165,7 +165,9 @@ def test_skin_commission_fits_each_taxels_response_from_reference_touches(tmp_pa
     scene = _reference_scene(path)
     assert skin_main(["commission", "--port", f"sim://{path}?speed=0", "--touches",
                       "aluminium,pine", "-o", str(cal), "--json"]) == 0
-    doc = json.loads(capsys.readouterr().out)
+    out = capsys.readouterr()
+    doc = json.loads(out.out)
+    assert "aluminium, pine touch through air gaps of up to 50 um" in out.err
     n = REFERENCE_TAXELS
     assert doc["fitted"] == doc["per_taxel"] == n and doc["detected"] >= n * 6
     assert doc["ambiguous"] == 0 and abs(doc["room_c"] - 25.0) < 0.05
@@ -565,3 +567,13 @@ def test_conforming_references_pin_the_response_time_through_a_finite_contact():
 
     assert np.all(tau_error(("aluminium", "pine")) > 0.05)
     assert np.all(tau_error(("water", "neoprene")) < 0.02)
+
+
+def test_only_references_that_conform_pass_without_the_air_gap_note():
+    from skin.commands.commission import air_gap_note
+    from skin.models import load_materials
+
+    table = load_materials()
+    assert air_gap_note(["water", "neoprene"], table) is None
+    note = air_gap_note(["water", "aluminium"], table)
+    assert note.startswith("note: aluminium touch through air gaps of up to 10 um")
