@@ -222,6 +222,9 @@ def _dataset(args: argparse.Namespace, layout: object, progress: Progress) -> in
     table = load_materials()
     names = list(dict.fromkeys(str(m) for m in trials.label))
     _reference_names(",".join(names), table)
+    note = air_gap_note(names, table)
+    if note:
+        progress.message(note)
     out = Path(args.out)
     cal_file = load_calibration(out) if out.exists() else CalibrationFile()
     _, sensors = cal_file.apply(layout)
