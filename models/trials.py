@@ -223,7 +223,7 @@ def simulate_trials(
     seed: int = 0,
     progress: Callable[[int, int], None] | None = None,
     sensor: SensorDescription | str | None = None,
-    skin_seed: int | None = None,
+    skin_seed: int | Sequence[int] | None = None,
 ) -> TrialSet:
     """Simulate the paper's protocol for each material; return a trial dataset.
 
@@ -242,10 +242,12 @@ def simulate_trials(
     sensor : SensorDescription or str, optional
         The sensor (a description, preset name or file; default the paper's). Its sample
         rate and ADC noise replace the protocol's ``fs`` and ``adc_noise``.
-    skin_seed : int, optional
+    skin_seed : int or sequence of int, optional
         Seed of the taxels' constants alone: datasets with one ``skin_seed`` are recorded by
         the same skin (a model trained on one and tested on another meets the taxels it was
         trained with, as on a robot). Default: drawn from ``seed`` like everything else.
+        ``[scene_seed, 11]`` gives the taxels `skin.drivers.sim.SkinSimulator` draws for a
+        scene of that seed (its first ``n_taxels``, in layout order).
 
     Returns
     -------

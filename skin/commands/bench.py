@@ -51,7 +51,10 @@ with the fit time per taxel. ``skin bench commission --sensor PRESET`` does the 
 `skin commission --touches` on a unit of any sensor preset: reference touches of aluminium
 and pine through the preset's ADC and smoothing, detected (or ``--labelled``) and fitted,
 with the response time's and the effusivity's error against the unit's truth, nominal and
-fitted, beside the fit's CPU time (`skin.bench.commission`).
+fitted, beside the fit's CPU time (`skin.bench.commission`); ``--contact finite`` touches
+through each reference's air gap, ``--references`` names them, and ``--classify`` measures
+issue 16's target: issue 4's benchmark recorded by the same taxels, classified with their
+true and their commissioned constants (`skin.bench.commission.classify`).
 
 ``skin bench map`` runs the shared map service with several robots publishing contacts and
 reports lost contacts, the time from a contact's decision to its query visibility, and a
@@ -206,6 +209,30 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                      help="relative spread of each taxel's constants (0.10)")
     com.add_argument("--labelled", action="store_true",
                      help="fit from the scripted touch times (as --labels), not detected ones")
+    com.add_argument("--contact", choices=("perfect", "finite"), default="perfect",
+                     help="the reference touches' contact: perfect (default) or finite, a "
+                          "conductance from each material's range (as skin simulate trials)")
+    com.add_argument("--references", default="aluminium,pine", metavar="A,B",
+                     help="reference materials touched in turn (aluminium,pine); conforming "
+                          "ones such as water,neoprene make a near-perfect contact")
+    com.add_argument("--classify", action="store_true",
+                     help="issue 16's target instead: issue 4's benchmark recorded by this "
+                          "unit's taxels, classified by the joint classifier told the true, "
+                          "the commissioned, another unit's (--other-seed) and the nominal "
+                          "constants, with each gap's paired standard error")
+    com.add_argument("--trials", type=int, default=40,
+                     help="with --classify: trials per material (40; 11 materials)")
+    com.add_argument("--durations", default="0.5,1,2.5",
+                     help="with --classify: windows, s (0.5,1,2.5)")
+    com.add_argument("--other-seed", type=int, default=None,
+                     help="with --classify: the other unit commissioned (default seed + 1)")
+    com.add_argument("--noise", choices=("model", "measured"), default="model",
+                     help="with --classify: the classifier's reading noise, its default 0.1 K "
+                          "(model) or a grid from the noise of the commissioning recording's quiet "
+                          "stretch up to 0.1 K (measured)")
+    com.add_argument("--object-std", type=float, default=10.0,
+                     help="with --classify: the classifier's prior std of the object's "
+                          "temperature about ambient, K (10)")
     com.add_argument("--json", action="store_true", help="print one JSON document")
     com.set_defaults(func=main_commission)
     nui = kinds.add_parser("nuisance", help="what each nuisance of the synthetic benchmark "
@@ -488,10 +515,16 @@ def main_commission(args: argparse.Namespace) -> int:
     for name in ("hold", "rest"):
         if getattr(args, name) is not None and getattr(args, name) <= 0:
             raise SkinError(f"--{name} must be positive")
+    from skin.commands.commission import _reference_names
+    from skin.models import load_materials
+
+    args.reference_list = tuple(_reference_names(args.references, load_materials()))
+    if args.classify:
+        return _commission_classify(args)
     print("simulating and commissioning...", file=sys.stderr, flush=True)
     doc = {"machine": bench.machine(),
            **run(args.sensor, args.seed, args.taxels, args.touches, args.hold, args.rest,
-                 args.spread, args.labelled)}
+                 args.spread, args.labelled, args.contact, args.reference_list)}
     if args.json:
         print(json.dumps(doc))
         return 0
@@ -510,6 +543,57 @@ def main_commission(args: argparse.Namespace) -> int:
         cells = [f"{e['median']:.3f} (p90 {e['p90']:.3f})" for e in
                  (doc[key]["nominal"], doc[key]["fitted"])]
         print(f"{key.replace('_', ' '):<16} {cells[0]:>22} {cells[1]:>22}")
+    return 0
+
+
+def _commission_classify(args: argparse.Namespace) -> int:
+    """``skin bench commission --classify``: `skin.bench.commission.classify`, printed."""
+    from skin import bench
+    from skin.bench.commission import classify
+    from skin.errors import SkinError
+
+    try:
+        durations = tuple(float(s) for s in args.durations.split(",") if s.strip())
+    except ValueError:
+        raise SkinError("--durations must be seconds separated by commas") from None
+    if args.trials < 1 or not durations or any(not 0.05 <= d <= 30 for d in durations) \
+            or not args.object_std > 0:
+        raise SkinError("--trials must be at least 1, --durations within 0.05-30 s and "
+                        "--object-std positive")
+    progress = Progress()
+    started = time.monotonic()
+    doc = {"machine": bench.machine(),
+           **classify(args.sensor, args.seed, args.other_seed, args.trials, durations,
+                      args.taxels, args.touches, args.spread, args.labelled,
+                      args.object_std, args.noise, args.contact, args.reference_list,
+                      progress=progress.message)}
+    doc["wall_time"] = round(time.monotonic() - started, 1)
+    progress.done()
+    if args.json:
+        print(json.dumps(doc))
+        return 0
+    com = doc["commissioning"]
+    print(f"{doc['sensor']}: unit {doc['seed']} commissioned from {doc['touches']} "
+          f"{'labelled' if doc['labelled'] else 'detected'} {doc['contact']}-contact touches "
+          f"({com['own']['taxels_fitted']} of {doc['taxels']} taxels fitted), unit "
+          f"{doc['other_seed']} likewise "
+          f"({com['other']['taxels_fitted']}); response-time error median "
+          + ", ".join(f"{k} {v['response_time']['median']:.3f}" for k, v in com.items()
+                      if "response_time" in v))
+    if not doc["rows"]:
+        print("no taxel fitted: nothing classified")
+        return 0
+    print(f"joint classifier, {doc['rows'][0]['contacts']} contacts, accuracy (std); gap "
+          f"true - arm (paired std) ({doc['machine']['cpus']} cores, {doc['wall_time']:g} s)")
+    print(f"{'window s':>8} {'true':>14} {'commissioned':>14} {'other unit':>14} "
+          f"{'nominal':>14} {'gap comm.':>15} {'gap other':>15} {'ms':>6}")
+    for r in doc["rows"]:
+        cells = [f"{r[k]['accuracy']:.3f} ({r[k]['std']:.3f})"
+                 for k in ("true", "commissioned", "other_unit", "nominal")]
+        gaps = [f"{r[k]['gap']:+.3f} ({r[k]['std']:.3f})"
+                for k in ("commissioned_gap", "other_unit_gap")]
+        print(f"{r['duration']:>8g} {cells[0]:>14} {cells[1]:>14} {cells[2]:>14} "
+              f"{cells[3]:>14} {gaps[0]:>15} {gaps[1]:>15} {r['ms_per_contact']:>6.2f}")
     return 0
 
 
