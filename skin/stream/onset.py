@@ -169,7 +169,8 @@ def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float
     Returns
     -------
     step : float
-        The grid step, s: a sample, at least 0.02 s. Entry j of each table holds for every
+        The grid step, s: whole samples, at least 0.02 s and a thousandth of ``horizon``
+        (the tables' cost grows with their length). Entry j of each table holds for every
         span up to j steps (look up ``ceil(span / step)``: conservative between grid times).
     fall : numpy.ndarray
         The largest fall of a gust and of a heater step, each over any stretch of j steps or
@@ -180,8 +181,9 @@ def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float
     from skin.models.sensors import apply_dynamics, smooth
 
     fs = float(sensor.sample_rate)
-    dt = max(1.0 / fs, 0.02)
-    lags = np.round(np.arange(0.0, horizon + 2 * dt, dt) * fs).astype(int)
+    every = max(1, math.ceil(max(0.02, horizon / 1000.0) * fs - 1e-9))  # samples a step
+    dt = every / fs
+    lags = every * np.arange(math.ceil(horizon / dt) + 2)
     pad = int(2.0 * fs)  # settled before the disturbance
     t = np.arange(round((horizon + 4.0 * GUST_RISE + 8.0 + 10.0) * fs)) / fs
     gusts = [-gust_depth * np.where(t < hold, -np.expm1(-t / rise),
@@ -229,7 +231,7 @@ def _room_quantile(sensor: object, lags: np.ndarray, sd: np.ndarray, false_alarm
     from skin.models.sensors import apply_dynamics, smooth
 
     fs = float(sensor.sample_rate)
-    every = max(1, int(lags[1]) if lags.size > 1 else 1)  # the table's grid, in samples
+    every = int(lags[1])  # the table's grid, in samples
     settle = round(60.0 * fs)
     n = round(hours * 3600.0 * fs) + settle
     steps = np.random.default_rng(0).normal(0.0, math.sqrt(AMBIENT_DRIFT / fs), n)
