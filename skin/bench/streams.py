@@ -8,7 +8,8 @@ detectors are judged on it (`skin evaluate-onset`). Per taxel, the free reading 
   through the taxel's slowest thermal mode (a first-order lag of `tau`, about 63 s); the duty
   switches at random between levels every 20-120 s (a controller changing its setpoint), so
   the reading drifts by several kelvin over a minute, but slowly;
-- **ambient drift**: the room wanders (a random walk of about 1 K per 10 minutes);
+- **ambient drift**: the room wanders (a random walk of about 1 K per 10 minutes,
+  `skin.stream.onset.AMBIENT_DRIFT`: the rate the onset detector assumes by default);
 - **air currents**: gusts that cool the face by 0.05-0.4 K over 1-4 s and let it recover,
   and a small turbulent flutter (band-limited noise of 0.01 K);
 - **the readout**: 0.5 LSB of ADC noise and 10-bit quantisation through the paper's divider.
@@ -57,6 +58,7 @@ import numpy as np
 from skin.models.materials import Material
 from skin.models.physics import SensorConstants, contact_trace, heated_temperature
 from skin.models.trials import adc_readings
+from skin.stream.onset import AMBIENT_DRIFT
 
 #: A change of the reading that stands out of its noise (about 3 x 0.5 LSB at 39 C), K.
 VISIBLE = 0.1
@@ -600,7 +602,9 @@ disturbances, tau, warm, warm_margin
         m = b - a
         times = np.arange(a, b) / fs
         if disturbances:
-            steps = amb_rng.normal(0.0, 1.0 / np.sqrt(600.0 * fs), m)
+            # the room drifts at the rate the onset detector assumes by default (written so
+            # that it gives 1 / sqrt(600 fs) to the bit at every preset's rate)
+            steps = amb_rng.normal(0.0, 1.0 / np.sqrt(fs / AMBIENT_DRIFT), m)
             cum = np.cumsum(np.concatenate(([amb_sum], steps)))[1:]
             amb_sum = cum[-1]
             amb = ambient + cum

@@ -95,8 +95,10 @@ DISTURBANCE = {"threshold": 0.4 / _PAPER_RISE, "rise_threshold": 0.6 / _PAPER_RI
 GUST_DEPTH = 0.4 / _PAPER_RISE
 GUST_RISE = 1.0
 HEATER_STEP = 0.45
-#: The room's random walk, K^2/s (about 1 K per 10 minutes, as `skin.bench.streams` draws it):
-#: a loop-held sensor passes its fast part (`loop_envelope`).
+#: The room's random walk assumed when none is commissioned, K^2/s (about 1 K per 10 minutes):
+#: a loop-held sensor passes its fast part (`loop_envelope`). The one default: the simulated
+#: room of `skin.bench.streams` drifts at this rate, the rate the detector assumes. (The
+#: commissioned ``drift`` of `skin.models.commission` is a taxel's trend, K/s, not this.)
 AMBIENT_DRIFT = 1.0 / 600.0
 _PAPER_RESPONSE = 2.516  # s, the paper sensor's half-response time (SensorDescription)
 _PAPER_MODE = 2.4e-4**2 / 2.796e-9  # s, the paper sensor's l^2 / alpha
@@ -155,13 +157,20 @@ def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float
     - the room's random walk (`AMBIENT_DRIFT` K^2/s): the loop passes its fast part, a
       band-limited noise (pid-logger: 0.032 K sd, 23 times the readout's), whose fall over a
       time has the sd ``sqrt(AMBIENT_DRIFT x sum((g(t) - g(t - s))^2) dt)`` (g: the reading's
-      response to a unit step of the room); the test allows the normal quantile of one
-      false alarm per ``1 / false_alarm_rate`` hours in windows of the loop's control time.
+      response to a unit step of the room); the test allows z of those sd, with z set so that
+      the room's fall over *any* span up to ``horizon``, tested on every sample, passes it
+      ``false_alarm_rate`` times per taxel-hour (`_room_quantile`; pid-logger: z = 4.84, where
+      one span's quantile, 3.93, let it pass 4.4 times per taxel-hour).
+
+    The gusts are taken one at a time: a gust that begins while the reading still recovers
+    from the previous one (about 18 % of the simulator's begin within 12 s of the previous)
+    can fall further than the table allows.
 
     Returns
     -------
     step : float
-        The grid step, s: a sample, at least 0.02 s. Entry j of each table holds for every
+        The grid step, s: whole samples, at least 0.02 s and a thousandth of ``horizon``
+        (the tables' cost grows with their length). Entry j of each table holds for every
         span up to j steps (look up ``ceil(span / step)``: conservative between grid times).
     fall : numpy.ndarray
         The largest fall of a gust and of a heater step, each over any stretch of j steps or
@@ -169,13 +178,12 @@ def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float
     drift : numpy.ndarray
         The quantile of the room's fall over j steps, K.
     """
-    from scipy.special import ndtri
-
     from skin.models.sensors import apply_dynamics, smooth
 
     fs = float(sensor.sample_rate)
-    dt = max(1.0 / fs, 0.02)
-    lags = np.round(np.arange(0.0, horizon + 2 * dt, dt) * fs).astype(int)
+    every = max(1, math.ceil(max(0.02, horizon / 1000.0) * fs - 1e-9))  # samples a step
+    dt = every / fs
+    lags = every * np.arange(math.ceil(horizon / dt) + 2)
     pad = int(2.0 * fs)  # settled before the disturbance
     t = np.arange(round((horizon + 4.0 * GUST_RISE + 8.0 + 10.0) * fs)) / fs
     gusts = [-gust_depth * np.where(t < hold, -np.expm1(-t / rise),
@@ -190,14 +198,57 @@ def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float
     g = y[:, -1]
     n_gust = len(gusts)
     worst = np.zeros((lags.size, 3))
+    # the room's fall over n samples, per unit of its K^2/s: sum((g(t) - g(t - n))^2) / fs,
+    # for every n at once from g's autocorrelation (g is 0 before the step)
+    g2 = np.concatenate(([0.0], np.cumsum(g**2)))
+    auto = np.correlate(g, g, mode="full")[g.size - 1:]
     for i, n in enumerate(lags[lags > 0], start=int(np.sum(lags <= 0))):
         falls = np.max(y[:-n, :-1] - y[n:, :-1], axis=0)
-        step = g.copy()
-        step[n:] -= g[:-n]
-        worst[i] = falls[:n_gust].max(), falls[n_gust:].max(), np.sum(step**2) / fs
+        worst[i] = (falls[:n_gust].max(), falls[n_gust:].max(),
+                    (g2[-1] + g2[g.size - n] - 2.0 * auto[n]) / fs)
     worst = np.maximum.accumulate(np.maximum(worst, 0.0), axis=0)
-    z = float(ndtri(1.0 - min(0.5, false_alarm_rate * sensor.control_time / 3600.0)))
-    return dt, worst[:, 0] + worst[:, 1], z * np.sqrt(AMBIENT_DRIFT * worst[:, 2])
+    sd = np.sqrt(AMBIENT_DRIFT * worst[:, 2])
+    z = _room_quantile(sensor, lags, sd, false_alarm_rate)
+    fall, drift = worst[:, 0] + worst[:, 1], z * sd
+    fall.setflags(write=False)  # cached: shared by every detector of the sensor
+    drift.setflags(write=False)
+    return dt, fall, drift
+
+
+def _room_quantile(sensor: object, lags: np.ndarray, sd: np.ndarray, false_alarm_rate: float,
+                   hours: float = 1.0, level: float = 3.0) -> float:
+    """Return z: the room's fall through the loop passes z sd over some span this rarely.
+
+    The gust-envelope test compares the fall over every span up to its horizon, on every
+    sample, so the quantile of one span's fall (``ndtri(1 - rate x window)``) under-counts
+    (pid-logger: z = 3.93 for 0.1 false alarms per taxel-hour let 4.4 through). A fixed-seed
+    simulation of the room's random walk (`AMBIENT_DRIFT`) through the sensor's loop, lag
+    and smoothing counts the up-crossings of ``level`` by the largest fall over the spans
+    ``lags`` (samples), each in units of its sd ``sd``; the tail of a Gaussian field over
+    time and span, rate(z) = A z exp(-z^2 / 2) (its Euler characteristic; A measured at
+    ``level``), carries that rate to ``false_alarm_rate`` per taxel-hour.
+    """
+    from skin.models.sensors import apply_dynamics, smooth
+
+    fs = float(sensor.sample_rate)
+    every = int(lags[1])  # the table's grid, in samples
+    settle = round(60.0 * fs)
+    n = round(hours * 3600.0 * fs) + settle
+    steps = np.random.default_rng(0).normal(0.0, math.sqrt(AMBIENT_DRIFT / fs), n)
+    reading = smooth(apply_dynamics(np.cumsum(steps), sensor, fs), sensor, fs=fs)
+    r = reading[settle::every]
+    best = np.full(r.size, -np.inf)
+    for j in range(1, min(sd.size, r.size)):
+        if sd[j] > 0.0:
+            np.maximum(best[j:], (r[:-j] - r[j:]) / sd[j], out=best[j:])
+    above = best > level
+    rate = max(int(np.count_nonzero(above[1:] & ~above[:-1])), 1) / hours
+    a = rate * math.exp(0.5 * level**2) / level
+    target = max(false_alarm_rate, 1e-12)
+    z = level
+    for _ in range(50):  # z = sqrt(2 ln(a z / target)): a contraction for z > 1
+        z = math.sqrt(2.0 * max(math.log(a * z / target), 0.5 * level**2))
+    return z
 
 
 def arl_threshold(arl: float | np.ndarray, k: float | np.ndarray) -> np.ndarray:
@@ -232,7 +283,11 @@ class OnsetEvent:
         Array index of the taxel (layout order).
     time : float
         Estimated instant of the event, s (device time): for an onset, when the temperature
-        left its baseline; for a release, when it stopped moving away from it.
+        left its baseline; for a release, when it stopped moving away from it. Except a
+        loop-held sensor's onset raised by the gust-envelope test alone (channel 2, the CUSUM
+        not begun): dated when raised (``time == detected_at``), after the contact began;
+        `skin.stream.onset_refine.refine_onset` dates it (it searches before the coarse
+        onset).
     detected_at : float
         Time of the sample at which the event was recognised, s.
     baseline : float
@@ -746,12 +801,16 @@ class OnsetDetector:
         if self.envelope is None:
             gusty = (self.gust_depth * -np.expm1(-since / GUST_RISE) + self.heater_rate * since
                      + margin)
-        else:  # a loop-held sensor: the room's drift and the readout's noise are independent
-            step, fall, drift = self.envelope
+        else:
+            # a loop-held sensor: the room's drift and the noise added in quadrature (taken as
+            # independent). ``sigma`` is the CUSUM's running noise estimate, which on a
+            # loop-held sensor is mostly the room's leftover, not the readout's: the room is
+            # counted twice there (the safe side: fewer onsets, never more false alarms)
+            step, loop_fall, drift = self.envelope
             j = np.ceil(since / step)
-            np.copyto(j, fall.size - 1, where=~(j < fall.size))  # no reference (NaN): unused
+            np.copyto(j, loop_fall.size - 1, where=~(j < loop_fall.size))  # no reference: unused
             j = j.astype(np.intp)
-            gusty = fall[j] + np.sqrt(margin**2 + drift[j] ** 2)
+            gusty = loop_fall[j] + np.sqrt(margin**2 + drift[j] ** 2)
         deep = idle & armed & ~alarm & ~rise_alarm & ~slow_alarm & (drop > gusty)
         slow_alarm = slow_alarm | deep
         # a fall the CUSUM has begun to gather is dated where the CUSUM left zero, as its own
@@ -769,9 +828,10 @@ class OnsetDetector:
                 # raised, so that `refine_onset`, which searches before the coarse onset,
                 # searches the span before the alarm (pid-logger seed 0: the envelope's
                 # onsets' refined error median 1.1 s -> 58 ms), the baseline carried there
+                # along the reference's trend as ``drop`` does (a falling one, a rising not)
+                trend = min(float(s.ref_slope[k]), 0.0)
                 events.append(OnsetEvent("onset", int(k), t, t,
-                                         float(s.ref_level[k] + s.ref_slope[k] * since[k]),
-                                         float(s.ref_slope[k]), -1, 2))
+                                         float(s.ref_level[k] + trend * since[k]), trend, -1, 2))
             elif deep[k]:
                 events.append(OnsetEvent("onset", int(k), float(s.ref_t[k]), t,
                                          float(s.ref_level[k]), float(s.ref_slope[k]), -1, 2))
