@@ -31,7 +31,7 @@ def _board(n=16, seconds=120.0, fall=0.6, fall_at=60.0, fall_over=13.0, touched=
 
 
 def _onsets(t, y, sensor, chunk=20, **kw):
-    d = OnsetDetector(y.shape[1], sensor=sensor, **kw)
+    d = OnsetDetector(y.shape[1], sensor=sensor, **{"common_mode": True, **kw})
     state = d.initial_state()
     events = []
     for k in range(0, t.size, chunk):
@@ -69,9 +69,8 @@ def test_no_room_change_no_common_mode():
     assert [(e.taxel, e.time, e.detected_at) for e in on] == \
         [(e.taxel, e.time, e.detected_at) for e in off]
     np.testing.assert_allclose([e.baseline for e in on], [e.baseline for e in off], atol=1e-3)
-    # a PID-held heater has none by default (the loop holds its setpoint)
-    assert not OnsetDetector(4, sensor="pid-logger").common_mode
-    assert OnsetDetector(4, sensor="pid-logger", common_mode=True).common_mode
+    # none unless asked for
+    assert not OnsetDetector(4, sensor="low-cost").common_mode
 
 
 def test_the_common_mode_is_each_boards_own():
@@ -83,7 +82,7 @@ def test_the_common_mode_is_each_boards_own():
     boards = np.repeat([0, 1], 16)
     on, _ = _onsets(t, both, s, boards=boards)
     assert [e for e in on if e.time > 55.0] == []
-    d = OnsetDetector(32, sensor=s, boards=boards)
+    d = OnsetDetector(32, sensor=s, boards=boards, common_mode=True)
     st = d.initial_state()
     falling = np.flatnonzero((t > 62.0) & (t < 72.0))
     common = []
@@ -93,7 +92,7 @@ def test_the_common_mode_is_each_boards_own():
             common.append(st.common.copy())
     common = np.array(common)
     assert np.min(common[:, :16]) < -0.1 and np.all(common[:, 16:] == 0.0)
-    small = OnsetDetector(COMMON_MIN - 1, sensor=s)
+    small = OnsetDetector(COMMON_MIN - 1, sensor=s, common_mode=True)
     _, st = small.process(t, y[:, :COMMON_MIN - 1], small.initial_state())
     assert np.all(st.common == 0.0)
 

@@ -116,28 +116,24 @@ def test_skin_run_with_workers_gives_the_events_of_one_process(tmp_path):
             shards = skin.pipeline.onset_workers
             procs = [] if shards is None else [p for p in shards._procs if p is not None]
         assert all(not p.is_alive() for p in procs)  # closed with the Skin
-        # shard 0 is detected in this process; the detector's common mode is a board's, so the
-        # default skin's one board is one shard however many workers are asked for
-        boards = len(skin.pipeline.layout.boards)
-        assert len(procs) == min(workers, boards) - 1
+        assert len(procs) == (2 if workers == 3 else 0)  # shard 0 is detected in this process
     assert len(got[1]) >= 5
     assert _key(got[3]) == _key(got[1])
 
 
 def test_a_worker_that_dies_is_named_and_the_blocks_before_were_observed():
     scene = load_scene("default")
-    # two boards: the detector's common mode keeps each board whole in one shard
-    layout, frames = _two_boards(scene, list(SkinSimulator(scene, duration=2.0).frames()))
-    pipe = Pipeline(layout, HistogramClassifier(layout), workers=2).start()
+    frames = list(SkinSimulator(scene, duration=2.0).frames())
+    pipe = Pipeline(scene.layout, HistogramClassifier(scene.layout), workers=2).start()
     seen = []
     pipe.observers.append(lambda times, temperature, host: seen.append(len(times)))
     try:
-        pipe.process(frames[:40])  # two boards' frames per sample
+        pipe.process(frames[:20])
         pid = pipe.onset_workers._procs[1].pid
         os.kill(pid, signal.SIGKILL)
         with pytest.raises(SkinError, match=rf"onset worker 1 \(pid {pid}, 36 taxels of "
-                                            r"board 1\) died \(exit code -9\)"):
-            pipe.process(frames[40:80])
+                                            r"board 0\) died \(exit code -9\)"):
+            pipe.process(frames[20:40])
         assert seen == [20, 20]  # the block the dead worker missed was calibrated and observed
     finally:
         pipe.close()

@@ -355,21 +355,23 @@ class OnsetDetector:
         contact (channel 2, with the slow channel).
     boards : array_like of int, optional
         Each taxel's board (default: all on one). The common mode is a board's.
-    common_mode : bool, optional
-        Whether a change shared by (nearly) every free taxel of a board is taken off their
-        readings before anything else (default: yes, but for a PID-held heater,
-        ``sensor.heater == "pid"``). The room warming or cooling moves every heated taxel
-        alike; a touch moves the taxels it covers. Per board, each free taxel's departure (its
-        reading averaged as the slow channel's) from its own level (followed with
-        ``slow_tau``, the common mode taken off, and the room's change with `COMMON_FORGET`
-        times ``slow_tau``), plus `COMMON_MARGIN` of that average's noise
-        sigmas: when the ``1 - COMMON_SHARE`` quantile of those is below 0 (a fall shared by
-        all but the top ``COMMON_SHARE`` of the board's free taxels, beyond their noise), that
-        quantile is the common mode (for a rise: the `COMMON_SHARE` quantile of the departures
-        less the margin, when above 0); else 0, so that noise and a touch covering part of a
-        board leave the readings alone. A touch that covers more than ``1 - COMMON_SHARE`` of
-        a board's free taxels at once is taken for the room. Boards of fewer than
-        `COMMON_MIN` free taxels have none.
+    common_mode : bool
+        Whether a change shared by (nearly) every free taxel of a board is taken off their readings
+        before anything else (default: no). Not for a PID-held heater: the loop high-passes the
+        room, and the common mode's own jitter raised pid-logger's false alarms (0/.25/.75 ->
+        8.5/3.25/6.5 per taxel-hour, seeds 0/2/4). Nor, as it stands, for a skin whose taxels warm
+        up together (the default scene's first seconds: taken for the room, it changed one contact
+        of scene seed 8). The room warming or cooling moves every heated taxel alike; a touch moves
+        the taxels it covers. Per board, each free taxel's departure (its reading averaged as the
+        slow channel's) from its own level (followed with ``slow_tau``, the common mode taken off,
+        and the room's change with `COMMON_FORGET` times ``slow_tau``), plus `COMMON_MARGIN` of that
+        average's noise sigmas: when the ``1 - COMMON_SHARE`` quantile of those is below 0 (a fall
+        shared by all but the top ``COMMON_SHARE`` of the board's free taxels, beyond their noise),
+        that quantile is the common mode (for a rise: the `COMMON_SHARE` quantile of the departures
+        less the margin, when above 0); else 0, so that noise and a touch covering part of a board
+        leave the readings alone. A touch that covers more than ``1 - COMMON_SHARE`` of a board's
+        free taxels at once is taken for the room. Boards of fewer than `COMMON_MIN` free taxels
+        have none.
 
     Every kelvin threshold left as None follows from ``sigma`` and the sensor; the figures in
     the descriptions above are the paper sensor's.
@@ -402,7 +404,7 @@ class OnsetDetector:
         false_alarm_rate: float = 0.1,
         gust_envelope: bool = True,
         boards: np.ndarray | None = None,
-        common_mode: bool | None = None,
+        common_mode: bool = False,
     ) -> None:
         from skin.models.sensors import load_sensor
 
@@ -494,10 +496,7 @@ class OnsetDetector:
         self._common_margin = COMMON_MARGIN * np.broadcast_to(slow_sigma, (n_taxels,))
         self.board = (np.zeros(n_taxels, dtype=np.int64) if boards is None
                       else np.asarray(boards, dtype=np.int64).reshape(n_taxels).copy())
-        # a PID loop holds each taxel at its setpoint: the room reaches its reading only
-        # through the loop (high-passed), and the common mode's own noise then raised
-        # pid-logger's false alarms (0/.25/.75 -> 8.5/3.25/6.5 per taxel-hour, seeds 0/2/4)
-        self.common_mode = sensor.heater != "pid" if common_mode is None else common_mode
+        self.common_mode = common_mode
 
     def initial_state(self) -> DetectorState:
         """Return the state before the first sample."""

@@ -3,16 +3,14 @@
 Onset detection is the per-taxel streaming stage that costs most (`skin.bench.pipeline`'s
 stages), and each taxel's detector is independent of the others'. `OnsetShards` splits the
 taxels into ``workers`` shards - whole boards when there are at least as many boards as
-workers, else even runs of taxels; always whole boards (no more shards than boards) for a
-detector with a common mode, which is a board's - and runs one
-`skin.stream.onset.OnsetDetector` per shard in a process of its own (the standard library's
-``multiprocessing``, ``spawn`` start method: safe with the drivers' reader threads) - except
-shard 0, which the pipeline's process detects itself while the workers detect theirs. The
-pipeline's process keeps everything else: assembling frames, calibrating (so observers such as
-a recording have every block before it is sent), tracking, refining and classifying. Each
-block's events come back and are merged in the detector's own order (sample,
-`OnsetEvent.channel`, taxel), so the results are those of one process by construction, and
-contacts that span shards are tracked in the parent as always.
+workers, else even runs of taxels - and runs one `skin.stream.onset.OnsetDetector` per shard in
+a process of its own (the standard library's ``multiprocessing``, ``spawn`` start method: safe
+with the drivers' reader threads) - except shard 0, which the pipeline's process detects itself
+while the workers detect theirs. The pipeline's process keeps everything else: assembling
+frames, calibrating (so observers such as a recording have every block before it is sent),
+tracking, refining and classifying. Each block's events come back and are merged in the
+detector's own order (sample, `OnsetEvent.channel`, taxel), so the results are those of one
+process by construction, and contacts that span shards are tracked in the parent as always.
 
 A worker that dies or fails raises `skin.errors.SkinError` naming it (its number, process id,
 exit code and taxels); the block it was given has already been calibrated and observed.
@@ -124,10 +122,7 @@ class OnsetShards:
         if workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
         self.n_taxels = detector.n_taxels
-        # a detector with a common mode (a board's, `OnsetDetector`'s ``common_mode``) needs
-        # each board whole in one shard: no more shards than boards then
-        self.shards = shard_taxels(layout, min(workers, len(layout.boards))
-                                   if detector.common_mode else workers)
+        self.shards = shard_taxels(layout, workers)
         self.in_contact = np.zeros(self.n_taxels, dtype=bool)
         self.busy = np.zeros((len(self.shards), 2))
         context = multiprocessing.get_context("spawn")
