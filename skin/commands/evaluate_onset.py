@@ -71,6 +71,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--why", action="store_true",
                     help="give every missed contact (the 5-sigma ones with --sensor) and every "
                          "false alarm its cause (`skin.bench.onset_why`; simulated streams)")
+    ev.add_argument("--common-mode", action="store_true",
+                    help="take a change shared by nearly every taxel (the room) off the readings "
+                         "first (the detector's common_mode; with --sensor or --calibration)")
     ev.add_argument("--json", action="store_true", help="print one JSON document")
     ev.set_defaults(func=main)
 
@@ -256,7 +259,8 @@ def main(args: argparse.Namespace) -> int:
     if args.sensor is not None or sigma is not None:
         from skin.stream.onset import OnsetDetector
 
-        detector = OnsetDetector(temperature.shape[1], sensor=sensor, sigma=sigma)
+        detector = OnsetDetector(temperature.shape[1], sensor=sensor, sigma=sigma,
+                                 common_mode=args.common_mode)
         source += "" if sensor is None else f", sensor {sensor.name}"
     result = evaluate_onsets(times, temperature, truth, fs, min_duration=args.min_duration,
                              progress=lambda d, n: progress.bar(d, n, "samples", started),

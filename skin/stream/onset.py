@@ -100,6 +100,16 @@ HEATER_STEP = 0.45
 #: room of `skin.bench.streams` drifts at this rate, the rate the detector assumes. (The
 #: commissioned ``drift`` of `skin.models.commission` is a taxel's trend, K/s, not this.)
 AMBIENT_DRIFT = 1.0 / 600.0
+#: The common mode (`OnsetDetector`'s ``common_mode``) is a change shared by all but this
+#: share of a board's free taxels (its quantile of their departures), and needs at least
+#: `COMMON_MIN` of them.
+COMMON_SHARE = 0.1
+COMMON_MIN = 4
+#: ... and departs from each taxel's level by more than this many noise sigmas of the reading
+#: it looks at (the slow channel's; that much of it is left on the readings).
+COMMON_MARGIN = 2.0
+#: ... and is forgotten (each taxel's level follows the room) within this many ``slow_tau``.
+COMMON_FORGET = 10.0
 _PAPER_RESPONSE = 2.516  # s, the paper sensor's half-response time (SensorDescription)
 _PAPER_MODE = 2.4e-4**2 / 2.796e-9  # s, the paper sensor's l^2 / alpha
 
@@ -326,6 +336,9 @@ class DetectorState:
     reading in the recovery's direction (``recover_dir`` = minus the contact's direction).
     ``t_first`` is the time of each taxel's first reading (a loop-held sensor's noise
     estimate is a running mean of the residual's square up to ``noise_tau`` after it).
+    ``common_smooth`` and ``common_level`` are each taxel's averaged raw reading and its level
+    with the board's common mode taken off (`OnsetDetector`'s ``common_mode``); ``common`` the
+    common mode taken off its last reading (its board's), K.
     """
 
     level: np.ndarray
@@ -353,6 +366,9 @@ class DetectorState:
     ref_slope: np.ndarray
     medium: np.ndarray
     t_first: np.ndarray
+    common_smooth: np.ndarray
+    common_level: np.ndarray
+    common: np.ndarray
 
     def copy(self) -> DetectorState:
         """Return a deep copy."""
@@ -468,6 +484,25 @@ class OnsetDetector:
         contact (channel 2, with the slow channel). A PID-held heater's (``sensor.heater ==
         "pid"``): those disturbances and the room's drift through its loop (`loop_envelope`),
         and the onset dated when raised.
+    boards : array_like of int, optional
+        Each taxel's board (default: all on one). The common mode is a board's.
+    common_mode : bool
+        Whether a change shared by (nearly) every free taxel of a board is taken off their readings
+        before anything else (default: no). Not for a PID-held heater: the loop high-passes the
+        room, and the common mode's own jitter raised pid-logger's false alarms (0/.25/.75 ->
+        8.5/3.25/6.5 per taxel-hour, seeds 0/2/4). Nor, as it stands, for a skin whose taxels warm
+        up together (the default scene's first seconds: taken for the room, it changed one contact
+        of scene seed 8). The room warming or cooling moves every heated taxel alike; a touch moves
+        the taxels it covers. Per board, each free taxel's departure (its reading averaged as the
+        slow channel's) from its own level (followed with ``slow_tau``, the common mode taken off,
+        and the room's change with `COMMON_FORGET` times ``slow_tau``), plus `COMMON_MARGIN` of that
+        average's noise sigmas: when the ``1 - COMMON_SHARE`` quantile of those is below 0 (a fall
+        shared by all but the top ``COMMON_SHARE`` of the board's free taxels, beyond their noise),
+        that quantile is the common mode (for a rise: the `COMMON_SHARE` quantile of the departures
+        less the margin, when above 0); else 0, so that noise and a touch covering part of a board
+        leave the readings alone. A touch that covers more than ``1 - COMMON_SHARE`` of a board's
+        free taxels at once is taken for the room. Boards of fewer than `COMMON_MIN` free taxels
+        have none.
 
     Every kelvin threshold left as None follows from ``sigma`` and the sensor; the figures in
     the descriptions above are the paper sensor's.
@@ -499,6 +534,8 @@ class OnsetDetector:
         sigma: float | np.ndarray | None = None,
         false_alarm_rate: float = 0.1,
         gust_envelope: bool = True,
+        boards: np.ndarray | None = None,
+        common_mode: bool = False,
     ) -> None:
         from skin.models.sensors import load_sensor
 
@@ -590,6 +627,13 @@ class OnsetDetector:
         # a loop-held sensor has no trend of its own: its noise estimate starts as a running
         # mean (see `_step`)
         self.running_start = sensor.heater == "pid"
+        # the common mode looks at the slow channel's reading (averaged over a tenth of its
+        # window): the same 0.6 K room fall, a tighter margin (low-cost seed 0: 3 false alarms
+        # -> 1 against 3 -> 3 on the smoothed reading with its own margin)
+        self._common_margin = COMMON_MARGIN * np.broadcast_to(slow_sigma, (n_taxels,))
+        self.board = (np.zeros(n_taxels, dtype=np.int64) if boards is None
+                      else np.asarray(boards, dtype=np.int64).reshape(n_taxels).copy())
+        self.common_mode = common_mode
 
     def initial_state(self) -> DetectorState:
         """Return the state before the first sample."""
@@ -621,6 +665,9 @@ class OnsetDetector:
             ref_slope=np.zeros(n),
             medium=nan.copy(),
             t_first=nan.copy(),
+            common_smooth=nan.copy(),
+            common_level=nan.copy(),
+            common=np.zeros(n),
         )
 
     def process(
@@ -648,9 +695,11 @@ class OnsetDetector:
         events: list[OnsetEvent] = []
         temperature = np.asarray(temperature, dtype=float).reshape(len(times), self.n_taxels)
         taus = np.array([self.smooth_tau, self.slow_tau, self.level_tau, self.slope_tau,
-                         self.contact_slope_tau, self.noise_tau, self.medium_tau])[:, None]
+                         self.contact_slope_tau, self.noise_tau, self.medium_tau,
+                         COMMON_FORGET * self.slow_tau])[:, None]
+        groups = self._groups()
         for t, y in zip(np.asarray(times, dtype=float), temperature, strict=True):
-            self._step(float(t), y, s, events, taus)
+            self._step(float(t), y, s, events, taus, groups)
         return events, s
 
     def trace(
@@ -682,15 +731,104 @@ class OnsetDetector:
         slope = np.empty_like(temperature)
         events: list[OnsetEvent] = []
         taus = np.array([self.smooth_tau, self.slow_tau, self.level_tau, self.slope_tau,
-                         self.contact_slope_tau, self.noise_tau, self.medium_tau])[:, None]
+                         self.contact_slope_tau, self.noise_tau, self.medium_tau,
+                         COMMON_FORGET * self.slow_tau])[:, None]
+        groups = self._groups()
         for i, (t, y) in enumerate(zip(times, temperature, strict=True)):
-            self._step(float(t), y, s, events, taus)
+            self._step(float(t), y, s, events, taus, groups)
             smooth[i] = s.smooth
             slope[i] = s.slope
         return DetectorTrace(times, smooth, slope, events, s)
 
+    def _groups(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Return each board's taxel indices (a row each, padded with n) and each taxel's row.
+
+        None when the common mode is off or no board has `COMMON_MIN` taxels.
+        """
+        if not self.common_mode:
+            return None
+        ids, row, counts = np.unique(self.board, return_inverse=True, return_counts=True)
+        if counts.max(initial=0) < COMMON_MIN:
+            return None
+        order = np.argsort(row, kind="stable")
+        table = np.full((ids.size, int(counts.max())), self.n_taxels, dtype=np.int64)
+        start = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        col = np.arange(self.n_taxels) - np.repeat(start, counts)
+        table[row[order], col] = order
+        return table, row
+
+    def _common(self, t: float, y: np.ndarray, s: DetectorState, live: np.ndarray,
+                gain: np.ndarray, groups: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+        """Return the readings with their board's common mode taken off (``common_mode``)."""
+        table, row = groups
+        np.copyto(s.common_smooth, s.common_smooth + (y - s.common_smooth) * gain[6],
+                  where=live)
+        part = s.common_smooth - s.common_level
+        # beyond the noise: a board's noise alone (all its taxels a little low at once) is
+        # taken for nothing, and the common mode stays continuous as it leaves 0
+        fall_part, rise_part = part + self._common_margin, part - self._common_margin
+        # a taxel in contact, or recovering from one, is no free taxel: one that rejoined at
+        # its release, far from its level, switched a room's rise off at once (paper seed 4:
+        # 12 taxels' rise alarms)
+        use = live & ~s.in_contact & (t >= s.recover_until)
+        # the quantiles can leave 0 only when nearly every free taxel moved the same way:
+        # counted first, sorted only then (a free board's departures are noise, half each way)
+        if table.shape[0] == 1:
+            count = np.array([np.count_nonzero(use)])
+            down = np.array([np.count_nonzero(use & (fall_part < 0))])
+            up = np.array([np.count_nonzero(use & (rise_part > 0))])
+        else:
+            size = table.shape[0]
+            count = np.bincount(row, weights=use, minlength=size)
+            down = np.bincount(row, weights=use & (fall_part < 0), minlength=size)
+            up = np.bincount(row, weights=use & (rise_part > 0), minlength=size)
+        last = np.maximum(count - 1, 0)
+        # the fall quantile is below 0 only if its lower order statistic is; the rise
+        # quantile above 0 only if its upper one is
+        fall_lo = np.floor((1.0 - COMMON_SHARE) * last)
+        rise_hi = np.minimum(np.floor(COMMON_SHARE * last) + 1, last)
+        moved = (count >= COMMON_MIN) & ((down >= fall_lo + 1) | (up >= count - rise_hi))
+        if moved.any():
+            common = self._board_common(fall_part, rise_part, use, table, row, count)
+        else:
+            common = 0.0
+        np.copyto(s.common, common, where=live)
+        # the level follows the reading with the common mode taken off, and slowly the room
+        # too: a room that settled elsewhere is each taxel's new level (the common mode, and
+        # its noise, gone again); slower changes reach the baseline as a trend
+        np.copyto(s.common_level, s.common_level
+                  + (s.common_smooth - common - s.common_level) * gain[1]
+                  + common * gain[7], where=live)
+        return y - common if moved.any() else y
+
+    @staticmethod
+    def _board_common(fall_part: np.ndarray, rise_part: np.ndarray, use: np.ndarray,
+                      table: np.ndarray, row: np.ndarray, count: np.ndarray) -> np.ndarray:
+        """Return each taxel's board's common mode from its free taxels' departures.
+
+        ``fall_part`` and ``rise_part``: the departures with the noise margin added, taken off.
+        """
+        last = np.maximum(count - 1, 0).astype(np.int64)
+
+        def quantile(part: np.ndarray, q: float) -> np.ndarray:  # linear, as numpy's
+            values = np.append(np.where(use, part, np.nan), np.nan)[table]  # NaN: not counted
+            values.sort(axis=1)  # NaN last
+            at = q * last
+            lo = np.floor(at).astype(np.int64)
+            hi = np.minimum(lo + 1, last)
+            v_lo = np.take_along_axis(values, lo[:, None], 1)[:, 0]
+            v_hi = np.take_along_axis(values, hi[:, None], 1)[:, 0]
+            return v_lo + (at - lo) * (v_hi - v_lo)
+
+        with np.errstate(invalid="ignore"):
+            fall = quantile(fall_part, 1.0 - COMMON_SHARE)
+            rise = quantile(rise_part, COMMON_SHARE)
+            board = np.where(fall < 0, fall, np.where(rise > 0, rise, 0.0))
+        board = np.where(count >= COMMON_MIN, np.nan_to_num(board), 0.0)
+        return board[row]
+
     def _step(self, t: float, y: np.ndarray, s: DetectorState, events: list[OnsetEvent],
-              taus: np.ndarray) -> None:
+              taus: np.ndarray, groups: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         # Whole-array updates selected with `np.copyto(..., where=)` (the same arithmetic,
         # element by element, as masked updates, at a fraction of the calls), and the rare
         # branches (new taxels, holes, onsets, contacts) skipped when no taxel takes them:
@@ -698,6 +836,7 @@ class OnsetDetector:
         valid = np.isfinite(y)
         new = valid & np.isnan(s.level)
         if new.any():
+            s.common_smooth[new] = s.common_level[new] = y[new]
             s.level[new] = y[new]
             s.smooth[new] = y[new]
             s.slow[new] = y[new]
@@ -724,9 +863,14 @@ class OnsetDetector:
             s.slow_start[back] = np.nan
             s.ref_level[back] = np.nan
             s.armed_at[back] = t + self.warmup
+            s.common_smooth[back] = y[back]
+            s.common_level[back] = y[back] - s.common[back]
         dt = np.maximum(np.where(live, t - s.t_last, 1.0), 1e-9)
         # every smoothing gain at once: smooth, slow, level, slope (free, in contact), noise
         gain = 1 - np.exp(-dt / taus)
+        if groups is not None:
+            # the room's change, shared by every free taxel of a board, taken off first
+            y = self._common(t, y, s, live, gain, groups)
         # the smoothed reading averages noise and dithered ADC steps; everything runs on it
         np.copyto(s.smooth, s.smooth + (y - s.smooth) * gain[0], where=live)
         # the slow channel's reading: averaged over a tenth of its window

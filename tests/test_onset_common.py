@@ -1,0 +1,109 @@
+"""The onset detector's common mode: the room's change, shared by a board's taxels, is no touch."""
+
+import numpy as np
+import pytest
+
+from skin.models.sensors import apply_dynamics, contact_reading, load_sensor, smooth
+from skin.stream.onset import COMMON_MIN, OnsetDetector
+
+FS = 20.0  # the low-cost preset's sample rate
+
+
+def _board(n=16, seconds=120.0, fall=0.6, fall_at=60.0, fall_over=13.0, touched=(),
+           touch_at=70.0, touch_for=4.0, seed=0, sensor="low-cost"):
+    """A low-cost board: heated taxels with the sensor's noise, the room falling ``fall`` K
+    over ``fall_over`` s from ``fall_at``, faster and faster (every taxel alike), and an
+    aluminium block touching the taxels ``touched`` from ``touch_at`` for ``touch_for`` s."""
+    s = load_sensor(sensor)
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * s.sample_rate)) / s.sample_rate
+    heated = 25.0 + s.heated_rise
+    # accelerating, as the stream's room did on seed 6 (a random walk's 0.6 K in 13 s)
+    room = -fall * np.clip((t - fall_at) / fall_over, 0.0, 1.0) ** 3
+    y = np.full((t.size, n), heated) + room[:, None]
+    inside = (t >= touch_at) & (t < touch_at + touch_for)
+    for k in touched:
+        y[inside, k] = contact_reading(t[inside] - touch_at, heated, 22.0, 2.4e4, s,
+                                       ambient=25.0) + room[inside]
+        y[t >= touch_at + touch_for, k] = y[inside, k][-1] + room[t >= touch_at + touch_for]
+    y = apply_dynamics(y, s, axis=0) + rng.normal(0.0, s.noise, y.shape)
+    return t, smooth(y, s, axis=0), s
+
+
+def _onsets(t, y, sensor, chunk=20, **kw):
+    d = OnsetDetector(y.shape[1], sensor=sensor, **{"common_mode": True, **kw})
+    state = d.initial_state()
+    events = []
+    for k in range(0, t.size, chunk):
+        new, state = d.process(t[k:k + chunk], y[k:k + chunk], state)
+        events += new
+    return [e for e in events if e.kind == "onset"], state
+
+
+def test_a_room_fall_shared_by_the_board_is_no_contact():
+    t, y, s = _board(seconds=240.0)
+    off, _ = _onsets(t, y, s, common_mode=False)
+    on, state = _onsets(t, y, s)
+    # without the common mode the 0.6 K fall in 13 s (seed 6 of the low-cost stream) alarms
+    assert len({e.taxel for e in off if e.time > 55.0}) >= 4
+    assert [e for e in on if e.time > 55.0] == []
+    # the common mode is forgotten once the room settled (each taxel's level follows it)
+    assert np.all(np.abs(state.common) < 0.05)
+
+
+@pytest.mark.parametrize("touched", [range(4), range(12)])
+def test_a_touch_covering_part_of_a_board_is_still_a_contact(touched):
+    # a touch of 4 or 12 of 16 taxels, alone and while the room falls
+    for fall in (0.0, 0.6):
+        t, y, s = _board(touched=tuple(touched), fall=fall, fall_at=65.0)
+        on, _ = _onsets(t, y, s)
+        hit = {e.taxel for e in on if 70.0 <= e.time <= 76.0}
+        assert hit == set(touched)
+        assert [e for e in on if e.taxel not in touched and e.time > 55.0] == []
+
+
+def test_no_room_change_no_common_mode():
+    # a touch of 4 of 16 taxels: the same onsets as without the common mode
+    t, y, s = _board(touched=(0, 1, 2, 3), fall=0.0)
+    on, off = _onsets(t, y, s)[0], _onsets(t, y, s, common_mode=False)[0]
+    assert [(e.taxel, e.time, e.detected_at) for e in on] == \
+        [(e.taxel, e.time, e.detected_at) for e in off]
+    np.testing.assert_allclose([e.baseline for e in on], [e.baseline for e in off], atol=1e-3)
+    # none unless asked for
+    assert not OnsetDetector(4, sensor="low-cost").common_mode
+
+
+def test_the_common_mode_is_each_boards_own():
+    # two boards: the fall on the first one only (its own air); the second's taxels are
+    # left alone, and the common mode of a board of fewer than COMMON_MIN taxels is 0
+    t, y, s = _board(n=16)
+    quiet = _board(n=16, fall=0.0, seed=1)[1]
+    both = np.concatenate([y, quiet], axis=1)
+    boards = np.repeat([0, 1], 16)
+    on, _ = _onsets(t, both, s, boards=boards)
+    assert [e for e in on if e.time > 55.0] == []
+    d = OnsetDetector(32, sensor=s, boards=boards, common_mode=True)
+    st = d.initial_state()
+    falling = np.flatnonzero((t > 62.0) & (t < 72.0))
+    common = []
+    for k in range(falling[-1] + 1):
+        _, st = d.process(t[k:k + 1], both[k:k + 1], st)
+        if k in falling:
+            common.append(st.common.copy())
+    common = np.array(common)
+    assert np.min(common[:, :16]) < -0.1 and np.all(common[:, 16:] == 0.0)
+    small = OnsetDetector(COMMON_MIN - 1, sensor=s, common_mode=True)
+    _, st = small.process(t, y[:, :COMMON_MIN - 1], small.initial_state())
+    assert np.all(st.common == 0.0)
+
+
+def test_chunks_of_any_size_give_the_same_events():
+    t, y, s = _board(touched=(2, 3, 4), fall=0.6, fall_at=65.0)
+    y[500:540, 5] = np.nan  # a hole in one taxel
+    whole, st_whole = _onsets(t, y, s, chunk=t.size)
+    for chunk in (1, 7, 64):
+        got, st = _onsets(t, y, s, chunk=chunk)
+        assert got == whole
+        np.testing.assert_allclose(st.common, st_whole.common, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(st.common_level, st_whole.common_level, rtol=1e-9,
+                                   atol=1e-12)
