@@ -102,3 +102,18 @@ def test_scenes_pool_into_one_fit(answers):
     assert pooled["classes"] == answers["classes"]
     with pytest.raises(ValueError, match="at least one scene"):
         collect_scenes([], [7])
+
+
+def test_the_cold_warm_scene_is_the_generated_one():
+    """The shipped cold-warm scene is what its header says generates it."""
+    from pathlib import Path
+
+    import skin
+    from skin.bench.calibration_fit import FIT_SCENES
+    from skin.bench.object_prior import random_scene_text
+
+    text = (Path(skin.__file__).parent / "data" / "scenes" / "cold-warm.toml").read_text()
+    body = "\n".join(line for line in text.splitlines() if not line.startswith("#")) + "\n"
+    want = random_scene_text(touches=40, single=0.4, off=0.3, offset=8.0, seed=100)
+    assert body == want.replace('name = "object-prior"', 'name = "cold-warm"')
+    assert "cold-warm" in FIT_SCENES and "temperature = 17.0" in body

@@ -27,8 +27,9 @@ import numpy as np
 
 from skin.bench.reliability import SURE, material_and_family
 
-#: The scenes pooled by default: the default scene on the paper's sensor and on `fast-film`.
-FIT_SCENES = ("default", "default-fast-film")
+#: The scenes pooled by default: the default scene on the paper's sensor and on `fast-film`, and
+#: objects 8 K colder or warmer than the room (`cold-warm`).
+FIT_SCENES = ("default", "default-fast-film", "cold-warm")
 #: Candidate temperatures: 1 (the model as it is) down to 0.05, log-spaced.
 TEMPERATURES = tuple(float(v) for v in np.round(np.geomspace(1.0, 0.05, 14), 4))
 

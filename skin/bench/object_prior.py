@@ -27,6 +27,13 @@ def random_scene(touches: int = 60, single: float = 0.4, off: float = 0.0,
     share ``off`` of the touches is of an object ``offset`` K colder or warmer than the room.
     Human skin (at 32 C, its own warmth) is one of the objects.
     """
+    return parse_scene(random_scene_text(touches, single, off, offset, seed),
+                       "object-prior-scene.toml")
+
+
+def random_scene_text(touches: int = 60, single: float = 0.4, off: float = 0.0,
+                      offset: float = 8.0, seed: int = 0) -> str:
+    """Return `random_scene`'s scene as TOML text."""
     from skin.formats.layout import load_layout
     from skin.models import load_materials
 
@@ -54,7 +61,7 @@ def random_scene(touches: int = 60, single: float = 0.4, off: float = 0.0,
             m = f"{'cold' if rng.uniform() < 0.5 else 'warm'} {m}"
         lines += ["[[touches]]", f'object = "{m}"', f"taxels = {ids}",
                   f"start = {1.0 + 3.0 * k}", f"duration = {float(rng.uniform(0.4, 2.5)):.3f}"]
-    return parse_scene("\n".join(lines) + "\n", "object-prior-scene.toml")
+    return "\n".join(lines) + "\n"
 
 
 def play(scene: Scene, object_prior: str) -> dict:

@@ -32,7 +32,7 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
                            "scene's contacts (skin.bench.calibration_fit)")
     fit.add_argument("--scene", action="append", default=None,
                      help="a shipped scene name or a TOML file; give it again to pool scenes "
-                          "into one fit (default: default and default-fast-film)")
+                          "into one fit (default: default, default-fast-film and cold-warm)")
     fit.add_argument("--seeds", default="0-9",
                      help="training seeds: a range 0-9 or a list 3,7,11 (0-9)")
     fit.add_argument("--write", action="store_true",
