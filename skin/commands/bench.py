@@ -219,7 +219,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                      help="issue 16's target instead: issue 4's benchmark recorded by this "
                           "unit's taxels, classified by the joint classifier told the true, "
                           "the commissioned, another unit's (--other-seed) and the nominal "
-                          "constants, with each gap's paired standard error")
+                          "constants, with each gap's paired standard error and verdict "
+                          "(met, not met or unresolved by its 95 %% interval against 3 points)")
     com.add_argument("--trials", type=int, default=40,
                      help="with --classify: trials per material (40; 11 materials)")
     com.add_argument("--durations", default="0.5,1,2.5",
@@ -229,7 +230,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     com.add_argument("--noise", choices=("model", "measured"), default="model",
                      help="with --classify: the classifier's reading noise, its default 0.1 K "
                           "(model) or a grid from the noise of the commissioning recording's quiet "
-                          "stretch up to 0.1 K (measured)")
+                          "stretch (the 2.5 s before its first touch) to 0.1 K (measured)")
     com.add_argument("--object-std", type=float, default=10.0,
                      help="with --classify: the classifier's prior std of the object's "
                           "temperature about ambient, K (10)")
