@@ -49,6 +49,11 @@ from skin.stream.calibration import Calibration
 CHUNK = 1000
 
 
+#: Key of the scene seed's stream each taxel's spread is drawn from (``[seed, SPREAD_STREAM]``):
+#: `skin.models.trials.simulate_trials` given ``skin_seed=[seed, SPREAD_STREAM]`` draws the
+#: same taxels.
+SPREAD_STREAM = 11
+
 class SkinSimulator:
     """Simulate every taxel of a scene's layout, in bounded chunks as the frames are taken.
 
@@ -124,7 +129,8 @@ class SkinSimulator:
         spread = self.scene.taxel_spread
         if spread == 0:
             return self.sensor
-        f = 1.0 + np.random.default_rng([self.scene.seed, 11]).uniform(-spread, spread, (n, 3))
+        rng = np.random.default_rng([self.scene.seed, SPREAD_STREAM])
+        f = 1.0 + rng.uniform(-spread, spread, (n, 3))
         s = self.sensor
         return replace(s, depth=s.depth * f[:, 0], diffusivity=s.diffusivity * f[:, 1],
                        conductivity=s.conductivity * f[:, 2])

@@ -219,7 +219,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                      help="issue 16's target instead: issue 4's benchmark recorded by this "
                           "unit's taxels, classified by the joint classifier told the true, "
                           "the commissioned, another unit's (--other-seed) and the nominal "
-                          "constants, with each gap's paired standard error")
+                          "constants, with each gap's paired standard error and verdict "
+                          "(met, not met or unresolved by its 95 %% interval against 3 points)")
     com.add_argument("--trials", type=int, default=40,
                      help="with --classify: trials per material (40; 11 materials)")
     com.add_argument("--durations", default="0.5,1,2.5",
@@ -229,7 +230,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     com.add_argument("--noise", choices=("model", "measured"), default="model",
                      help="with --classify: the classifier's reading noise, its default 0.1 K "
                           "(model) or a grid from the noise of the commissioning recording's quiet "
-                          "stretch up to 0.1 K (measured)")
+                          "stretch (the 2.5 s before its first touch) to 0.1 K (measured)")
     com.add_argument("--object-std", type=float, default=10.0,
                      help="with --classify: the classifier's prior std of the object's "
                           "temperature about ambient, K (10)")
@@ -518,7 +519,8 @@ def main_commission(args: argparse.Namespace) -> int:
     from skin.commands.commission import _reference_names
     from skin.models import load_materials
 
-    args.reference_list = tuple(_reference_names(args.references, load_materials()))
+    args.reference_list = tuple(_reference_names(args.references, load_materials(),
+                                                 option="--references"))
     if args.classify:
         return _commission_classify(args)
     print("simulating and commissioning...", file=sys.stderr, flush=True)
@@ -566,7 +568,7 @@ def _commission_classify(args: argparse.Namespace) -> int:
            **classify(args.sensor, args.seed, args.other_seed, args.trials, durations,
                       args.taxels, args.touches, args.spread, args.labelled,
                       args.object_std, args.noise, args.contact, args.reference_list,
-                      progress=progress.message)}
+                      args.hold, args.rest, progress=progress.message)}
     doc["wall_time"] = round(time.monotonic() - started, 1)
     progress.done()
     if args.json:
@@ -586,14 +588,16 @@ def _commission_classify(args: argparse.Namespace) -> int:
     print(f"joint classifier, {doc['rows'][0]['contacts']} contacts, accuracy (std); gap "
           f"true - arm (paired std) ({doc['machine']['cpus']} cores, {doc['wall_time']:g} s)")
     print(f"{'window s':>8} {'true':>14} {'commissioned':>14} {'other unit':>14} "
-          f"{'nominal':>14} {'gap comm.':>15} {'gap other':>15} {'ms':>6}")
+          f"{'nominal':>14} {'gap comm.':>28} {'gap other':>28} {'ms':>6}")
     for r in doc["rows"]:
         cells = [f"{r[k]['accuracy']:.3f} ({r[k]['std']:.3f})"
                  for k in ("true", "commissioned", "other_unit", "nominal")]
-        gaps = [f"{r[k]['gap']:+.3f} ({r[k]['std']:.3f})"
+        gaps = [f"{r[k]['gap']:+.3f} ({r[k]['std']:.3f}) {r[k]['verdict']}"
                 for k in ("commissioned_gap", "other_unit_gap")]
         print(f"{r['duration']:>8g} {cells[0]:>14} {cells[1]:>14} {cells[2]:>14} "
-              f"{cells[3]:>14} {gaps[0]:>15} {gaps[1]:>15} {r['ms_per_contact']:>6.2f}")
+              f"{cells[3]:>14} {gaps[0]:>28} {gaps[1]:>28} {r['ms_per_contact']:>6.2f}")
+    print("verdict: within 3 points either way met when gap +- 1.96 std lies within, not met "
+          "when wholly outside, else unresolved")
     return 0
 
 
