@@ -518,7 +518,10 @@ class JointClassifier:
         How the posterior is tempered (`EvidenceTemperature`): ``"stored"`` (default) reads
         the fit in `CALIBRATION_FILE` when the classifier keeps the settings it was fitted
         with (no ``model_options``, the shipped materials table, the learned object prior),
-        else none; None: the posterior as the model gives it.
+        else none; None: the posterior as the model gives it. The stored temperature is one
+        for every sensor: fitted on the paper and fast-film presets (`skin bench
+        fit-calibration`), it is applied unchecked to the others (low-cost, pid-logger) and
+        to commissioned constants.
     **model_options
         Passed to `JointContactModel` (``noise``, ``object_std``, ``h_points``,
         ``onset_shifts``; by default the contact may have begun up to 80 ms before the

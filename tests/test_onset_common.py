@@ -107,3 +107,21 @@ def test_chunks_of_any_size_give_the_same_events():
         np.testing.assert_allclose(st.common, st_whole.common, rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(st.common_level, st_whole.common_level, rtol=1e-9,
                                    atol=1e-12)
+
+
+@pytest.mark.parametrize("n, touched", [(4, 3), (8, 7), (16, 14)])
+def test_a_touch_of_all_but_one_or_two_taxels_leaves_the_others_alone(n, touched):
+    """A common mode needs ceil(0.9 n) of n free taxels (4 of 4, 8 of 8, 15 of 16): a touch of
+    fewer, with the room still, moves no untouched taxel's reading (the interpolated quantile
+    took 3 of 4 or 14 of 16 touched taxels for a room fall of 0.04-0.24 K)."""
+    from skin.stream.onset import _shared
+
+    assert [int(_shared(k)) for k in (4, 8, 16, 20)] == [4, 8, 15, 18]
+    t, y, s = _board(n=n, fall=0.0, touched=tuple(range(touched)), touch_at=70.0)
+    d = OnsetDetector(n, sensor=s, common_mode=True)
+    state = d.initial_state()
+    worst = 0.0
+    for k in range(0, t.size, 20):
+        _, state = d.process(t[k:k + 20], y[k:k + 20], state)
+        worst = max(worst, float(np.max(np.abs(state.common))))
+    assert worst == 0.0

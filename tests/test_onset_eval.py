@@ -160,6 +160,9 @@ def test_evaluate_onset_command_on_a_stream_and_on_trials(tmp_path):
     assert doc["contacts"] == 12 and doc["detection_rate"] > 0.8
     out = skin("evaluate-onset", "--materials", "unobtainium")
     assert out.returncode == 2 and "unobtainium" in out.stderr
+    # the common mode is the detector's: refused where the evaluation sets no detector
+    out = skin("evaluate-onset", "--data", str(tmp_path / "t.npz"), "--common-mode")
+    assert out.returncode == 2 and "--common-mode" in out.stderr
 
 
 def test_sensor_constants_are_recovered_from_reference_contacts():

@@ -51,9 +51,10 @@ def collect_scenes(scenes: Sequence[str], seeds: Sequence[int],
         answers = collect(scene, seeds, step)
         if pooled is None:
             pooled = answers
-        elif answers["classes"] != pooled["classes"]:
-            raise ValueError(f"scene {scene}: its classifier's classes differ from those of "
-                             f"scene {scenes[0]}; one calibration cannot cover both")
+        elif any(answers[k] != pooled[k] for k in ("classes", "family", "threshold")):
+            raise ValueError(f"scene {scene}: its classifier's classes, families or threshold "
+                             f"differ from those of scene {scenes[0]}; one calibration cannot "
+                             f"cover both")
         else:
             pooled["runs"] += answers["runs"]
     assert pooled is not None

@@ -139,8 +139,10 @@ def fit_calibration(args: argparse.Namespace) -> int:
     calibration = EvidenceTemperature(out["best"], (
         "skin bench fit-calibration " + "".join(f"--scene {s} " for s in scenes)
         + f"--seeds {args.seeds.replace(' ', '')}"
-        f" --write: least log-loss of the true material with no touch named wrong at "
-        f"p >= 0.9, {best['material']['log_loss']:.3f} over {best['material']['n']} contacts "
+        f" --write: least log-loss of the true material "
+        + ("with no touch named wrong at p >= 0.9" if not best["sure_wrong_count"] else
+           f"with the fewest touches named wrong at p >= 0.9 ({best['sure_wrong_count']})")
+        + f", {best['material']['log_loss']:.3f} over {best['material']['n']} contacts "
         f"(untempered {out['table'][0]['material']['log_loss']:.3f})"))
     if args.write:
         try:

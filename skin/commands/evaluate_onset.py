@@ -73,7 +73,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                          "false alarm its cause (`skin.bench.onset_why`; simulated streams)")
     ev.add_argument("--common-mode", action="store_true",
                     help="take a change shared by nearly every taxel (the room) off the readings "
-                         "first (the detector's common_mode; with --sensor or --calibration)")
+                         "first (the detector's common_mode; every column is one board; with "
+                         "--sensor, --calibration or --commissioned; not for a PID-held heater)")
     ev.add_argument("--json", action="store_true", help="print one JSON document")
     ev.set_defaults(func=main)
 
@@ -207,6 +208,10 @@ def main(args: argparse.Namespace) -> int:
     from skin.bench.onset_eval import evaluate_onsets, release_window
     from skin.bench.streams import GUST_DEPTH
 
+    if args.common_mode and args.sensor is None and not args.calibration \
+            and not args.commissioned:
+        raise SkinError("--common-mode sets the detector's common mode: give --sensor, "
+                        "--calibration or --commissioned too")
     if args.commissioned and (args.data or args.calibration):
         raise SkinError("--commissioned simulates its own quiet stretch: not with --data or "
                         "--calibration")
@@ -262,6 +267,7 @@ def main(args: argparse.Namespace) -> int:
         detector = OnsetDetector(temperature.shape[1], sensor=sensor, sigma=sigma,
                                  common_mode=args.common_mode)
         source += "" if sensor is None else f", sensor {sensor.name}"
+        source += ", common mode" if args.common_mode else ""
     result = evaluate_onsets(times, temperature, truth, fs, min_duration=args.min_duration,
                              progress=lambda d, n: progress.bar(d, n, "samples", started),
                              directions=None if args.data else directions, detector=detector,

@@ -101,8 +101,8 @@ HEATER_STEP = 0.45
 #: commissioned ``drift`` of `skin.models.commission` is a taxel's trend, K/s, not this.)
 AMBIENT_DRIFT = 1.0 / 600.0
 #: The common mode (`OnsetDetector`'s ``common_mode``) is a change shared by all but this
-#: share of a board's free taxels (its quantile of their departures), and needs at least
-#: `COMMON_MIN` of them.
+#: share of a board's free taxels, rounded up (`_shared`), and needs at least `COMMON_MIN` of
+#: them.
 COMMON_SHARE = 0.1
 COMMON_MIN = 4
 #: ... and departs from each taxel's level by more than this many noise sigmas of the reading
@@ -110,6 +110,15 @@ COMMON_MIN = 4
 COMMON_MARGIN = 2.0
 #: ... and is forgotten (each taxel's level follows the room) within this many ``slow_tau``.
 COMMON_FORGET = 10.0
+
+
+def _shared(count: np.ndarray) -> np.ndarray:
+    """Return how many of a board's ``count`` free taxels a common mode needs.
+
+    All but `COMMON_SHARE`, rounded up: 4 of 4, 8 of 8, 15 of 16, 18 of 20.
+    """
+    return np.ceil((1.0 - COMMON_SHARE) * np.asarray(count, dtype=float) - 1e-9)
+
 _PAPER_RESPONSE = 2.516  # s, the paper sensor's half-response time (SensorDescription)
 _PAPER_MODE = 2.4e-4**2 / 2.796e-9  # s, the paper sensor's l^2 / alpha
 
@@ -496,13 +505,12 @@ class OnsetDetector:
         the taxels it covers. Per board, each free taxel's departure (its reading averaged as the
         slow channel's) from its own level (followed with ``slow_tau``, the common mode taken off,
         and the room's change with `COMMON_FORGET` times ``slow_tau``), plus `COMMON_MARGIN` of that
-        average's noise sigmas: when the ``1 - COMMON_SHARE`` quantile of those is below 0 (a fall
-        shared by all but the top ``COMMON_SHARE`` of the board's free taxels, beyond their noise),
-        that quantile is the common mode (for a rise: the `COMMON_SHARE` quantile of the departures
-        less the margin, when above 0); else 0, so that noise and a touch covering part of a board
-        leave the readings alone. A touch that covers more than ``1 - COMMON_SHARE`` of a board's
-        free taxels at once is taken for the room. Boards of fewer than `COMMON_MIN` free taxels
-        have none.
+        average's noise sigmas: when at least k of the board's n free taxels fell beyond their
+        noise, k = ceil((1 - `COMMON_SHARE`) n) (`_shared`: 4 of 4, 15 of 16), the k-th largest
+        fall is the common mode (for a rise: the k-th largest rise less the margin); else 0, so
+        that noise and a touch covering fewer than k of a board's free taxels leave the readings
+        alone. A touch that covers k or more of them at once is taken for the room. Boards of
+        fewer than `COMMON_MIN` free taxels have none.
 
     Every kelvin threshold left as None follows from ``sigma`` and the sensor; the figures in
     the descriptions above are the paper sensor's.
@@ -782,12 +790,8 @@ class OnsetDetector:
             count = np.bincount(row, weights=use, minlength=size)
             down = np.bincount(row, weights=use & (fall_part < 0), minlength=size)
             up = np.bincount(row, weights=use & (rise_part > 0), minlength=size)
-        last = np.maximum(count - 1, 0)
-        # the fall quantile is below 0 only if its lower order statistic is; the rise
-        # quantile above 0 only if its upper one is
-        fall_lo = np.floor((1.0 - COMMON_SHARE) * last)
-        rise_hi = np.minimum(np.floor(COMMON_SHARE * last) + 1, last)
-        moved = (count >= COMMON_MIN) & ((down >= fall_lo + 1) | (up >= count - rise_hi))
+        # a common fall (rise) needs at least `_shared` of the free taxels below (above) 0
+        moved = (count >= COMMON_MIN) & ((down >= _shared(count)) | (up >= _shared(count)))
         if moved.any():
             common = self._board_common(fall_part, rise_part, use, table, row, count)
         else:
@@ -808,21 +812,19 @@ class OnsetDetector:
 
         ``fall_part`` and ``rise_part``: the departures with the noise margin added, taken off.
         """
+        k = np.maximum(_shared(count), 1).astype(np.int64)
         last = np.maximum(count - 1, 0).astype(np.int64)
 
-        def quantile(part: np.ndarray, q: float) -> np.ndarray:  # linear, as numpy's
+        def order(part: np.ndarray, at: np.ndarray) -> np.ndarray:
+            """Return the ``at``-th smallest (from 0) of each board's free taxels' ``part``."""
             values = np.append(np.where(use, part, np.nan), np.nan)[table]  # NaN: not counted
             values.sort(axis=1)  # NaN last
-            at = q * last
-            lo = np.floor(at).astype(np.int64)
-            hi = np.minimum(lo + 1, last)
-            v_lo = np.take_along_axis(values, lo[:, None], 1)[:, 0]
-            v_hi = np.take_along_axis(values, hi[:, None], 1)[:, 0]
-            return v_lo + (at - lo) * (v_hi - v_lo)
+            return np.take_along_axis(values, np.clip(at, 0, last)[:, None], 1)[:, 0]
 
         with np.errstate(invalid="ignore"):
-            fall = quantile(fall_part, 1.0 - COMMON_SHARE)
-            rise = quantile(rise_part, COMMON_SHARE)
+            # below 0 only when k or more fell beyond their noise; above 0 only when k rose
+            fall = order(fall_part, k - 1)
+            rise = order(rise_part, count.astype(np.int64) - k)
             board = np.where(fall < 0, fall, np.where(rise > 0, rise, 0.0))
         board = np.where(count >= COMMON_MIN, np.nan_to_num(board), 0.0)
         return board[row]
