@@ -132,6 +132,7 @@ CI_SIZES = [
     (("skin", "bench", "onset-shape"), ["--minutes", "1", "--taxels", "2"]),
     (("skin", "bench", "tracking"), ["--pairs", "2"]),
     (("skin", "bench", "scene"), ["--seeds", "7", "--duration", "6"]),
+    (("skin", "bench", "fit-calibration"), ["--scene", "default", "--seeds", "7"]),
 ]
 #: Lines not run, with the reason (hardware, a window, another machine, other extras).
 SKIPPED = {
