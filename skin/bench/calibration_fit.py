@@ -102,14 +102,14 @@ def collect(scene: str, seeds: Sequence[int],
 
 def temper(probabilities: dict[str, float], temperature: float) -> dict[str, float]:
     """Return ``probabilities`` tempered: each to the power 1 / temperature, renormalised."""
+    from skin.models.joint import EvidenceTemperature
+
     if not probabilities:
         return {}
-    names = list(probabilities)
-    p = np.array([probabilities[k] for k in names], dtype=float)
-    with np.errstate(divide="ignore"):
-        z = np.log(p) / temperature
-    q = np.exp(z - z.max())
-    return dict(zip(names, (q / q.sum()).tolist(), strict=True))
+    with np.errstate(divide="ignore"):  # a probability of 0 stays 0
+        log_p = np.log(np.array(list(probabilities.values()), dtype=float))
+    q = EvidenceTemperature(temperature).probabilities(log_p)
+    return dict(zip(probabilities, q.tolist(), strict=True))
 
 
 def score(answers: dict[str, Any], temperature: float) -> dict[str, Any]:

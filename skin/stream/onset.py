@@ -702,10 +702,8 @@ class OnsetDetector:
         s = state.copy()
         events: list[OnsetEvent] = []
         temperature = np.asarray(temperature, dtype=float).reshape(len(times), self.n_taxels)
-        taus = np.array([self.smooth_tau, self.slow_tau, self.level_tau, self.slope_tau,
-                         self.contact_slope_tau, self.noise_tau, self.medium_tau,
-                         COMMON_FORGET * self.slow_tau])[:, None]
         groups = self._groups()
+        taus = self._taus(groups)
         for t, y in zip(np.asarray(times, dtype=float), temperature, strict=True):
             self._step(float(t), y, s, events, taus, groups)
         return events, s
@@ -738,15 +736,25 @@ class OnsetDetector:
         smooth = np.empty_like(temperature)
         slope = np.empty_like(temperature)
         events: list[OnsetEvent] = []
-        taus = np.array([self.smooth_tau, self.slow_tau, self.level_tau, self.slope_tau,
-                         self.contact_slope_tau, self.noise_tau, self.medium_tau,
-                         COMMON_FORGET * self.slow_tau])[:, None]
         groups = self._groups()
+        taus = self._taus(groups)
         for i, (t, y) in enumerate(zip(times, temperature, strict=True)):
             self._step(float(t), y, s, events, taus, groups)
             smooth[i] = s.smooth
             slope[i] = s.slope
         return DetectorTrace(times, smooth, slope, events, s)
+
+    def _taus(self, groups: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
+        """Return the smoothing time constants of `_step`'s gains, a row each.
+
+        Smooth, slow, level, slope (free, in contact), noise, medium, and, with a common mode
+        (``groups``), how fast the room's change is forgotten.
+        """
+        taus = [self.smooth_tau, self.slow_tau, self.level_tau, self.slope_tau,
+                self.contact_slope_tau, self.noise_tau, self.medium_tau]
+        if groups is not None:
+            taus.append(COMMON_FORGET * self.slow_tau)
+        return np.array(taus)[:, None]
 
     def _groups(self) -> tuple[np.ndarray, np.ndarray] | None:
         """Return each board's taxel indices (a row each, padded with n) and each taxel's row.
