@@ -85,6 +85,8 @@ def test_a_restarted_test_counts_each_alarm_once() -> None:
     alarms = np.array([-1, 4, 3, -1, -1, -1, 8, 7, -1, -1])
     assert count_alarms(alarms) == 2  # at 3, then (onsets after 3) at 7
     assert count_alarms(np.full(5, -1)) == 0
+    thresholds, b = fit_thresholds([])  # a stream without a contact with a floor
+    assert thresholds.size == 0 and b == 0.0
 
 
 def test_the_fit_carries_counts_of_an_exact_tail_to_its_threshold() -> None:
