@@ -10,6 +10,7 @@ from scipy.stats import invgauss
 from skin.bench.delay_bound import (
     _json_ratio,
     contact_delays,
+    delay_bound,
     count_alarms,
     false_alarm_counts,
     fit_thresholds,
@@ -120,3 +121,13 @@ def test_the_streams_templates_are_the_contacts_own_change() -> None:
     which = [k for k, c in enumerate(stream.contacts) if np.isfinite(c.visible_after)][:2]
     out = contact_delays(stream, sensor, which, np.random.default_rng(2), budget=5e5)
     assert len(out["delay_s"]) == len(which) and not np.isnan(out["delay_s"]).any()
+
+
+def test_a_stream_without_contacts_gives_none_figures_not_an_error() -> None:
+    # one minute on two taxels of the paper sensor, seed 0: no contact at all
+    out = delay_bound(load_sensor("paper"), seed=0, minutes=1.0, taxels=2, check_hours=0.01,
+                      detector=True)
+    assert out["contacts"] == 0 and out["contacts_with_floor"] == 0
+    assert out["oracle_ratio_median"] is None and out["oracle_ratio_p25_p75"] is None
+    assert out["false_alarm_check"] is None and out["detector_ratio_median"] is None
+    assert out["raw_noise_k"] > 0

@@ -331,8 +331,9 @@ def contact_delays(stream: object, sensor: object, which: Sequence[int],
     stream : skin.bench.streams.Stream
         A described sensor's stream (its ``templates``).
     sensor : skin.models.sensors.SensorDescription
-        Its sensor: the raw noise (``noise_kelvin`` at its heated temperature over 25 C, as
-        the stream draws it) and the smoothing's look-ahead (`lookahead`).
+        Its sensor: the smoothing's look-ahead (`lookahead`). The raw noise is the stream's
+        own (``Stream.raw_noise``: ``noise_kelvin`` at the heated taxel over the stream's
+        ambient, as the stream draws it).
     which : sequence of int
         Indices of ``stream.contacts``.
     rng : numpy.random.Generator
@@ -353,9 +354,17 @@ def contact_delays(stream: object, sensor: object, which: Sequence[int],
         ``lags``,
         ``b`` (the shared tail exponent), ``runs`` (`noise_counts` per contact), ``sigma``.
     """
-    if not stream.templates:
-        raise ValueError("the stream carries no templates: simulate it with a sensor")
-    sigma = sensor.noise_kelvin(25.0 + sensor.heated_rise)
+    if stream.contacts and len(stream.templates) != len(stream.contacts):
+        from skin.errors import SkinError
+
+        raise SkinError(f"the stream has {len(stream.contacts)} contacts but "
+                        f"{len(stream.templates)} templates: simulate it with a sensor "
+                        "(skin.bench.streams.simulate_stream(..., sensor=...))")
+    sigma = float(stream.raw_noise)
+    if not sigma > 0:
+        from skin.errors import SkinError
+
+        raise SkinError("the stream carries no raw noise: simulate it with a sensor")
     fs = stream.fs
     ahead = lookahead(sensor)
     runs = []

@@ -182,6 +182,10 @@ class Stream:
         every sample from the first one at or after the onset to the end of the window in
         which an alarm still counts as the contact's (as ``detectable_after`` sees it);
         empty without one.
+    raw_noise : float
+        With a sensor description: the white noise of a raw sample before the smoothing, K
+        (``noise_kelvin`` at the heated taxel's temperature over the stream's ambient, as the
+        stream draws it); NaN without one.
     """
 
     times: np.ndarray
@@ -192,6 +196,7 @@ class Stream:
     gusts: list[tuple[float, int, float, float, float]] = field(default_factory=list)
     switches: list[tuple[float, int, float]] = field(default_factory=list)
     templates: list[np.ndarray] = field(default_factory=list)
+    raw_noise: float = float("nan")
 
     @property
     def taxel_hours(self) -> float:
@@ -288,7 +293,8 @@ def _sensor_stream(materials: Sequence[Material], n_taxels: int, duration: float
                                warm_margin, chunk=max(1, round(duration * fs)),
                                sensor=sensor, _rng=rng))
     if not parts:
-        return Stream(np.zeros(0), np.zeros((0, n_taxels)), np.zeros(0), [], fs)
+        return Stream(np.zeros(0), np.zeros((0, n_taxels)), np.zeros(0), [], fs,
+                      raw_noise=sensor.noise_kelvin(ambient + sensor.heated_rise))
     (part,) = parts
     reading = apply_dynamics(part.temperature, sensor, fs, axis=0)  # noise-free still
     raw = sensor.noise_kelvin(ambient + sensor.heated_rise)
@@ -333,7 +339,7 @@ def _sensor_stream(materials: Sequence[Material], n_taxels: int, duration: float
                          sensor, axis=0, fs=fs)
     truth.sort(key=lambda ct: (ct[0].onset, ct[0].taxel))
     return Stream(part.times, temperature, part.ambient, [c for c, _ in truth], fs, part.gusts,
-                  part.switches, [m for _, m in truth])
+                  part.switches, [m for _, m in truth], raw)
 
 
 def recovery_shape(after: np.ndarray, tau: float) -> np.ndarray:
