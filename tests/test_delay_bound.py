@@ -10,8 +10,8 @@ from scipy.stats import invgauss
 from skin.bench.delay_bound import (
     _json_ratio,
     contact_delays,
-    delay_bound,
     count_alarms,
+    delay_bound,
     false_alarm_counts,
     fit_thresholds,
     lookahead,
