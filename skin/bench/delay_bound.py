@@ -32,11 +32,13 @@ reports the rate it actually gave.
 
 The oracle's delay (the first alarm at or after the onset, on fresh noise; ``inf`` if none by
 the end of the window in which `skin evaluate-onset` still credits an alarm to the contact)
-over the contact's floor is reported per contact. Since the oracle knows more than a real
-detector and meets no disturbance, its median is a lower bound on what a real detector held to
-the same false-alarm rate can reach (up to the threshold's extrapolation, and the GLR being
-near-optimal rather than provably optimal for a finite threshold; see the caveats of the
-command's output).
+over the contact's floor is reported per contact. The oracle knows more than a real detector
+and meets no disturbance, but it is near-optimal, not provably optimal: the GLR is
+asymptotically optimal for the mean delay (Lai 1998), not for the median at a finite
+threshold, and the threshold is an extrapolation (checked against Siegmund's closed form for
+a step and by the noise-only runs). So a median above 1.5 makes issue 16's target very
+unlikely for the sensor, not provably impossible; a median below it says the target is not
+ruled out.
 """
 
 from __future__ import annotations
@@ -283,9 +285,10 @@ def false_alarm_check(template: np.ndarray, sigma: float, fs: float, threshold: 
                       below: Sequence[float] = (0.0, 2.0, 4.0)) -> list[dict]:
     """Run the test on ``hours`` of pure noise and count its alarms at the threshold.
 
-    Also at the threshold lowered by each of ``below`` nats, where the fitted tail says the
-    rate is ``exp(below)`` times the target's (a check of the extrapolation with more alarms
-    than the target rate gives). The noise comes in blocks, so memory stays bounded.
+    Also at the threshold lowered by each of ``below`` nats, where the fitted tail
+    (`tail_rate`) says the rate is about ``exp(below)`` times the target's (a check of the
+    extrapolation with more alarms than the target rate gives). The noise comes in blocks,
+    so memory stays bounded.
 
     Returns
     -------
