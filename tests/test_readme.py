@@ -134,6 +134,8 @@ CI_SIZES = [
     (("skin", "bench", "gap"), ["--trials", "8", "--seeds", "7", "--durations", "0.5",
                                 "--reference-trials", "4", "--points", "3"]),
     (("skin", "bench", "onset-shape"), ["--minutes", "1", "--taxels", "2"]),
+    (("skin", "bench", "delay-bound"), ["--minutes", "1", "--taxels", "2", "--check-hours",
+                                        "0.01"]),
     (("skin", "bench", "tracking"), ["--pairs", "2"]),
     (("skin", "bench", "scene"), ["--seeds", "7", "--duration", "6"]),
     (("skin", "bench", "fit-calibration"), ["--scene", "default", "--seeds", "7"]),

@@ -176,6 +176,16 @@ class Stream:
     switches : list of (time, taxel, duty)
         Every heater duty switch (s, column, duty), in time order (the first of each taxel
         at 0 s).
+    templates : list of numpy.ndarray
+        With a sensor description: for each contact of ``contacts``, its own noise-free change
+        of the reading through the sensor's loop and lag, before smoothing, K (signed), at
+        every sample from the first one at or after the onset to the end of the window in
+        which an alarm still counts as the contact's (as ``detectable_after`` sees it);
+        empty without one.
+    raw_noise : float
+        With a sensor description: the white noise of a raw sample before the smoothing, K
+        (``noise_kelvin`` at the heated taxel's temperature over the stream's ambient, as the
+        stream draws it); NaN without one.
     """
 
     times: np.ndarray
@@ -185,6 +195,8 @@ class Stream:
     fs: float
     gusts: list[tuple[float, int, float, float, float]] = field(default_factory=list)
     switches: list[tuple[float, int, float]] = field(default_factory=list)
+    templates: list[np.ndarray] = field(default_factory=list)
+    raw_noise: float = float("nan")
 
     @property
     def taxel_hours(self) -> float:
@@ -281,7 +293,8 @@ def _sensor_stream(materials: Sequence[Material], n_taxels: int, duration: float
                                warm_margin, chunk=max(1, round(duration * fs)),
                                sensor=sensor, _rng=rng))
     if not parts:
-        return Stream(np.zeros(0), np.zeros((0, n_taxels)), np.zeros(0), [], fs)
+        return Stream(np.zeros(0), np.zeros((0, n_taxels)), np.zeros(0), [], fs,
+                      raw_noise=sensor.noise_kelvin(ambient + sensor.heated_rise))
     (part,) = parts
     reading = apply_dynamics(part.temperature, sensor, fs, axis=0)  # noise-free still
     raw = sensor.noise_kelvin(ambient + sensor.heated_rise)
@@ -311,20 +324,22 @@ def _sensor_stream(materials: Sequence[Material], n_taxels: int, duration: float
                               * recovery_shape(since, recovery)])
         detectable, information = detectability(own, part.times[k0:k2] - c.onset, sensor,
                                                 raw, fs)
-        truth.append(replace(c, sensor_temperature=t0,
+        template = apply_dynamics(own, sensor, fs)[1:]
+        truth.append((replace(c, sensor_temperature=t0,
                              visible_after=_first_at(moved, when, 3.0 * sigma),
                              peak_change=float(moved.max()) if moved.size else 0.0,
                              five_sigma_after=_first_at(moved, when, 5.0 * sigma),
                              bound_after=delay_bound(moved, when, raw, fs),
                              detectable_after=detectable, information=information,
                              onset_sd_bound=onset_bound(change, part.times[k0 - 1:k1] - c.onset,
-                                                        raw)))
+                                                        raw)), template))
     if sensor.noise > 0:
         reading = reading + rng.normal(0.0, sensor.noise, reading.shape)
     temperature = smooth(adc_readings(reading, rng, sensor.adc_noise, sensor.adc_bits),
                          sensor, axis=0, fs=fs)
-    truth.sort(key=lambda c: (c.onset, c.taxel))
-    return Stream(part.times, temperature, part.ambient, truth, fs, part.gusts, part.switches)
+    truth.sort(key=lambda ct: (ct[0].onset, ct[0].taxel))
+    return Stream(part.times, temperature, part.ambient, [c for c, _ in truth], fs, part.gusts,
+                  part.switches, [m for _, m in truth], raw)
 
 
 def recovery_shape(after: np.ndarray, tau: float) -> np.ndarray:

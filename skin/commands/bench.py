@@ -74,6 +74,7 @@ import time
 from pathlib import Path
 
 from skin.commands import (
+    bench_delay_bound,
     bench_drivers,
     bench_forward,
     bench_gap,
@@ -266,6 +267,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     bench_view.add_parsers(kinds)
     bench_map.add_parsers(kinds)
     bench_onset_shape.add_parsers(kinds)
+    bench_delay_bound.add_parsers(kinds)
     bench_tracking.add_parsers(kinds)
     bench_scene.add_parsers(kinds)
     bench_forward.add_parsers(kinds)
