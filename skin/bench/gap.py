@@ -49,13 +49,39 @@ def commission(data, reference, duration: float = 1.5) -> dict:
     return {t: f.sensor for t, f in fits.items() if t in seen}
 
 
+def binomial_se(accuracy: float, n: int) -> float:
+    """Return the sampling error of an accuracy measured on ``n`` contacts (binomial)."""
+    return float(np.sqrt(max(accuracy * (1 - accuracy), 0.0) / max(n, 1)))
+
+
+def paired_se(*weighted: tuple[float, np.ndarray]) -> float:
+    """Return the sampling error of sum(w * mean(correct)) over the same contacts.
+
+    Each argument is (weight, bool per contact); the contacts are shared, so the error is
+    the spread of the per-contact sum (what correlated methods share cancels).
+    """
+    d = sum(w * np.asarray(c, dtype=float) for w, c in weighted)
+    return float(np.std(d, ddof=1) / np.sqrt(d.size))
+
+
 def gap_table(trials: int = 100, seeds: Sequence[int] = (7, 13),
               durations: Sequence[float] = (0.25, 0.5, 1.0, 1.5, 2.5), folds: int = 3,
               reference_trials: int = 20, points: int = 9,
-              progress: Callable[[str], None] | None = None) -> list[dict]:
+              progress: Callable[[str], None] | None = None, reach_only: bool = False,
+              taxel_prior: str = "box") -> list[dict]:
     """Measure the target of issue 17 (module docstring); one row per (seed, duration).
 
-    ``points``: grid points of each untold nuisance's range (`told_less_ceiling`).
+    ``points``: grid points of each untold nuisance's range (`told_less_ceiling`);
+    ``taxel_prior``: its weighting of the taxel grid. ``reach_only``: leave out the
+    commissioned evaluations and the told-less ceilings other than ``reachable`` and
+    ``reachable_commissioned`` (their keys are then None and ``told_less`` is empty).
+
+    Every accuracy comes with its binomial sampling error (``se``, name -> error), and
+    ``margin`` = ``reachable`` - ``target`` with its paired error ``margin_se`` (the same
+    contacts' reach, ceiling and svm-pca answers). ``ruled_out`` needs the margin below
+    -2 ``margin_se``: ``reachable`` is the accuracy of one decision rule (an estimate,
+    lower than the best rule's where its grids or priors fall short), so a margin within
+    the error rules nothing out.
 
     Returns
     -------
@@ -63,9 +89,11 @@ def gap_table(trials: int = 100, seeds: Sequence[int] = (7, 13),
         ``seed``, ``duration``, ``svm``, ``default``, ``svm_commissioned``,
         ``default_commissioned``, ``ceiling``, ``target``, ``met``, ``met_commissioned``,
         ``reachable`` (all of `ALL_UNKNOWN` untold), ``reachable_commissioned``
-        (`COMMISSIONED_UNKNOWN` untold, the commissioned constants told), ``ruled_out``
-        (``reachable`` < ``target``), ``ruled_out_commissioned``, ``told_less`` (name ->
-        accuracy), the predict cost of each method (ms per contact) and ``noise`` (K).
+        (`COMMISSIONED_UNKNOWN` untold, the commissioned constants told), ``margin``,
+        ``margin_se``, ``ruled_out`` (``margin`` < -2 ``margin_se``),
+        ``ruled_out_commissioned`` (the same with ``reachable_commissioned``), ``se``,
+        ``told_less`` (name -> accuracy), the predict cost of each method (ms per contact)
+        and ``noise`` (K).
     """
     from skin.bench.ceiling import known_nuisance_ceiling, told_less_ceiling
     from skin.commands.evaluate import evaluate
@@ -86,29 +114,53 @@ def gap_table(trials: int = 100, seeds: Sequence[int] = (7, 13),
         sensors = commission(data, reference)
         warped = warp_to_nominal(data, sensors)
         for d in durations:
-            say(f"seed {seed}, {d:g} s: svm-pca and default, plain and commissioned")
-            r = {key: evaluate(ds, m, d, folds) for key, ds, m in (
-                ("svm", data, "svm-pca"), ("default", data, "default"),
-                ("svm_commissioned", warped, "svm-pca"),
-                ("default_commissioned", warped, "default"))}
+            say(f"seed {seed}, {d:g} s: svm-pca and default"
+                + ("" if reach_only else ", plain and commissioned"))
+            runs = (("svm", data, "svm-pca"), ("default", data, "default"))
+            if not reach_only:
+                runs += (("svm_commissioned", warped, "svm-pca"),
+                         ("default_commissioned", warped, "default"))
+            r = {key: evaluate(ds, m, d, folds, per_trial=True) for key, ds, m in runs}
             say(f"seed {seed}, {d:g} s: ceilings")
-            ceiling = known_nuisance_ceiling(data, d)["accuracy"]
-            told = {"+".join(u): told_less_ceiling(data, d, u, points=points)
-                    for u in TOLD_LESS}
+            known = known_nuisance_ceiling(data, d, per_trial=True)
+            ceiling = known["accuracy"]
+            sets = (ALL_UNKNOWN,) if reach_only else TOLD_LESS
+            told = {"+".join(u): told_less_ceiling(data, d, u, points=points,
+                                                   taxel_prior=taxel_prior, per_trial=True)
+                    for u in sets}
             commissioned = told_less_ceiling(data, d, COMMISSIONED_UNKNOWN, sensors=sensors,
-                                             points=points)
+                                             points=points, taxel_prior=taxel_prior,
+                                             per_trial=True)
             svm = r["svm"]["accuracy"]
             target = svm + 2.0 / 3.0 * (ceiling - svm)
-            reach = told["+".join(ALL_UNKNOWN)]["accuracy"]
-            reach_c = commissioned["accuracy"]
+            full = told["+".join(ALL_UNKNOWN)]
+            reach, reach_c = full["accuracy"], commissioned["accuracy"]
+            # reach - target = reach - svm / 3 - 2/3 ceiling, per contact
+            right = {"svm": r["svm"]["correct"], "ceiling": known["correct"]}
+            margin_se = paired_se((1.0, full["correct"]), (-1 / 3, right["svm"]),
+                                  (-2 / 3, right["ceiling"]))
+            margin_se_c = paired_se((1.0, commissioned["correct"]), (-1 / 3, right["svm"]),
+                                    (-2 / 3, right["ceiling"]))
+            n = len(data)
+            acc = {**{k: v["accuracy"] for k, v in r.items()}, "ceiling": ceiling,
+                   "reachable": reach, "reachable_commissioned": reach_c}
             rows.append({
-                "seed": seed, "duration": d, **{k: v["accuracy"] for k, v in r.items()},
+                "seed": seed, "duration": d,
+                **{k: None for k in ("svm_commissioned", "default_commissioned")},
+                **{k: v["accuracy"] for k, v in r.items()},
                 "ceiling": ceiling, "target": round(target, 4),
                 "met": r["default"]["accuracy"] >= target,
-                "met_commissioned": r["default_commissioned"]["accuracy"] >= target,
+                "met_commissioned": (None if reach_only
+                                     else r["default_commissioned"]["accuracy"] >= target),
                 "reachable": reach, "reachable_commissioned": reach_c,
-                "ruled_out": reach < target, "ruled_out_commissioned": reach_c < target,
-                "told_less": {k: v["accuracy"] for k, v in told.items()},
+                "margin": round(reach - target, 4), "margin_se": round(margin_se, 4),
+                "margin_commissioned": round(reach_c - target, 4),
+                "margin_commissioned_se": round(margin_se_c, 4),
+                "ruled_out": reach - target < -2 * margin_se,
+                "ruled_out_commissioned": reach_c - target < -2 * margin_se_c,
+                "se": {k: round(binomial_se(v, n), 4) for k, v in acc.items()},
+                "told_less": {} if reach_only else {k: v["accuracy"] for k, v in told.items()},
                 "predict_ms_per_trial": {k: v["predict_ms_per_trial"] for k, v in r.items()},
-                "noise": commissioned["noise"], "commissioned_taxels": len(sensors)})
+                "noise": commissioned["noise"], "commissioned_taxels": len(sensors),
+                "points": points, "taxel_prior": taxel_prior})
     return rows
