@@ -14,7 +14,7 @@ from skin.bench.ceiling import (
     known_nuisance_ceiling,
     told_less_ceiling,
 )
-from skin.bench.gap import binomial_se, paired_se
+from skin.bench.gap import binomial_se, clustered_se, paired_se
 from skin.models.materials import load_materials
 from skin.models.physics import SensorConstants, contact_trace
 from skin.models.timescale import warp_to_nominal
@@ -86,7 +86,10 @@ def test_bench_gap_prints_the_target_line_and_the_decomposition():
                                           abs=1e-4)
     assert row["met"] == (row["default"] >= row["target"])
     assert row["margin"] == pytest.approx(row["reachable"] - row["target"], abs=2e-4)
-    assert row["ruled_out"] == (row["margin"] < -2 * row["margin_se"])
+    assert row["margin_t"] == pytest.approx(2.365, abs=1e-3)  # t, 7 degrees of freedom
+    assert row["ruled_out"] == (row["margin"] < -row["margin_t"] * row["margin_se"])
+    assert row["margin_se_kind"].startswith("clustered by the folds' groups")
+    assert "taxel: 8 clusters" in row["margin_se_kind"]
     assert 0 < row["margin_se"] < 0.5 and 0 < row["se"]["svm"] < 0.2
     assert row["reachable"] == row["told_less"][
         "taxel_constants+object_temperature+conductance+onset"]
@@ -165,3 +168,48 @@ def test_errors_are_binomial_and_paired_ones_cancel_what_the_methods_share():
     assert np.mean(told["correct"]) == pytest.approx(told["accuracy"], abs=1e-4)
     known = known_nuisance_ceiling(ds, 0.5, per_trial=True)
     assert np.mean(known["correct"]) == pytest.approx(known["accuracy"], abs=1e-4)
+
+
+def test_the_margin_error_is_clustered_by_taxel_with_a_t_threshold():
+    rng = np.random.default_rng(2)
+    a, b = rng.random(400) < 0.4, rng.random(400) < 0.6
+    one_each = np.arange(400)  # every contact its own cluster: the independent error
+    se, t = clustered_se(one_each, (1.0, a), (-1.0, b))
+    assert se == pytest.approx(paired_se((1.0, a), (-1.0, b)))
+    assert t == pytest.approx(1.966, abs=1e-3)
+    # answers that agree within a cluster: the clustered error is far above the independent
+    taxel = np.repeat(np.arange(8), 50)
+    agree = np.repeat(rng.random(8) < 0.5, 50)
+    se, t = clustered_se(taxel, (1.0, agree))
+    r = agree - agree.mean()
+    want = np.sqrt(8 / 7 * np.sum(np.bincount(taxel, weights=r) ** 2)) / 400
+    assert se == pytest.approx(want) and se > 5 * paired_se((1.0, agree))
+    assert t == pytest.approx(2.365, abs=1e-3)
+    with pytest.raises(ValueError, match="at least 2 clusters"):
+        clustered_se(np.zeros(400), (1.0, a))
+    with pytest.raises(ValueError, match="cluster labels"):
+        clustered_se(np.arange(3), (1.0, a))
+
+
+def test_bench_gap_reach_only_with_the_range_prior_prints_reach_minus_target():
+    # 6 trials: the default's calibration needs 3 per class in each training fold
+    cmd = [sys.executable, "-m", "skin", "bench", "gap", "--trials", "6", "--seeds", "7",
+           "--durations", "0.5", "--reference-trials", "2", "--points", "3", "--reach-only",
+           "--taxel-prior", "range"]
+    out = subprocess.run([*cmd, "--json"], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout)
+    (row,) = doc["rows"]
+    assert doc["taxel_prior"] == row["taxel_prior"] == "range" and row["points"] == 3
+    assert row["told_less"] == {} and row["svm_commissioned"] is None
+    assert row["default_commissioned"] is None and row["met_commissioned"] is None
+    assert 0 <= row["reachable"] <= 1 and 0 <= row["reachable_commissioned"] <= 1
+    text = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert text.returncode == 0, text.stderr
+    lines = text.stdout.splitlines()
+    head = next(ln.split() for ln in lines if ln.split()[:2] == ["seed", "dur"])
+    assert head[-5:] == ["reach-target", "+-", "reach-c", "out", "out-c"]
+    cells = next(ln.split() for ln in lines if ln.split()[:1] == ["7"])
+    assert len(cells) == len(head) - 1  # "dur s" is one column
+    assert float(cells[head.index("reach-target") - 1]) == pytest.approx(row["margin"], abs=6e-4)
+    assert cells[-1] == ("yes" if row["ruled_out_commissioned"] else "no")

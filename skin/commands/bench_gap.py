@@ -79,23 +79,26 @@ def main(args: argparse.Namespace) -> int:
           f"reach = ceiling told less ({'+'.join(ALL_UNKNOWN)} integrated over their ranges), "
           f"reach-c = the same told the commissioned constants; {wall:.0f} s")
     head = ("seed", "dur s", "svm", "default", "svm-c", "default-c", "ceiling", "target",
-            "met", "met-c", "reach", "+-", "reach-c", "out")
+            "met", "met-c", "reach", "reach-target", "+-", "reach-c", "out", "out-c")
+    width = [max(10, len(h) + 2) for h in head]
 
     def cell(v) -> str:
         return "-" if v is None else ("yes" if v is True else "no" if v is False
                                       else f"{v:.3f}")
 
-    print("".join(f"{h:>10}" for h in head))
+    print("".join(f"{h:>{w}}" for h, w in zip(head, width, strict=True)))
     for r in rows:
         cells = [r["seed"], f"{r['duration']:g}", *(cell(r[k]) for k in (
             "svm", "default", "svm_commissioned", "default_commissioned", "ceiling", "target",
-            "met", "met_commissioned", "reachable", "margin_se", "reachable_commissioned",
-            "ruled_out"))]
-        print("".join(f"{c:>10}" for c in cells))
+            "met", "met_commissioned", "reachable", "margin", "margin_se",
+            "reachable_commissioned", "ruled_out", "ruled_out_commissioned"))]
+        print("".join(f"{c:>{w}}" for c, w in zip(cells, width, strict=True)))
     worst = max(v for r in rows for v in r["se"].values())
-    print(f"+- : sampling error of reach - target (paired: the same contacts); out: reach "
-          f"below the target by more than twice it; one accuracy's binomial error <= "
-          f"{worst:.3f}")
+    t = max(r["margin_t"] for r in rows)
+    print(f"+- : sampling error of reach - target (paired: the same contacts; clustered by "
+          f"taxel, the contacts of one taxel are not independent); out: reach - target below "
+          f"-{t:.2f} times it (Student's t, taxels - 1 degrees of freedom); out-c: the same "
+          f"with reach-c; one accuracy's binomial error <= {worst:.3f}")
     if any(r["told_less"] for r in rows):
         print("ceiling told less (untold nuisances integrated over their ranges):")
     names = ["+".join(u) for u in TOLD_LESS]
