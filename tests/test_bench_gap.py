@@ -191,6 +191,17 @@ def test_the_margin_error_is_clustered_by_taxel_with_a_t_threshold():
         clustered_se(np.arange(3), (1.0, a))
 
 
+def test_a_material_with_one_trial_is_refused_by_name():
+    ds = _data()
+    glass = np.flatnonzero(ds.label == "glass")
+    keep = np.ones(len(ds), dtype=bool)
+    keep[glass[1:]] = False
+    with pytest.raises(ValueError, match=r"at least 2 trials per material, got glass \(1\)"):
+        told_less_ceiling(ds.subset(keep), 0.5, ("onset",))
+    with pytest.raises(ValueError, match="sample of one"):
+        _log_density(np.array([0.3]))(np.array([0.3]), np.array([True]))
+
+
 def test_bench_gap_reach_only_with_the_range_prior_prints_reach_minus_target():
     # 6 trials: the default's calibration needs 3 per class in each training fold
     cmd = [sys.executable, "-m", "skin", "bench", "gap", "--trials", "6", "--seeds", "7",

@@ -420,12 +420,14 @@ def _log_density(sample: np.ndarray):
         d2 = d * d
         kept = np.full(d.shape[0], sample.size)
         if own is not None and np.any(own):
+            if sample.size < 2:
+                raise ValueError("leaving a value out of a sample of one leaves no estimate")
             rows = np.flatnonzero(own)
             self_at = np.argmin(np.abs(d[rows]), axis=1)
             if np.any(d[rows, self_at] != 0):
                 raise ValueError("a value marked own is not in the sample")
             d2[rows, self_at] = np.inf
-            kept[rows] = max(sample.size - 1, 1)
+            kept[rows] = sample.size - 1
         low = np.min(d2, axis=1, keepdims=True)
         return (-low[:, 0] / 2 + np.log(np.sum(np.exp(-(d2 - low) / 2), axis=1) / kept)
                 - np.log(width * np.sqrt(2 * np.pi)))
@@ -509,6 +511,11 @@ def told_less_ceiling(data: TrialSet, duration: float, unknown: tuple[str, ...] 
     start = t0 - data.ambient
     # the object's warmth above ambient, as the sensor's start predicts it (both come from the
     # touches before): a straight line per material, and the spread about it
+    few = [f"{c} ({int(np.sum(truth == m))})" for m, c in enumerate(classes)
+           if np.sum(truth == m) < 2]
+    if few:  # each trial's start density leaves its own kernel out: one trial leaves none
+        raise ValueError(f"{data.source}: the ceiling told less needs at least 2 trials per "
+                         f"material, got {', '.join(few)}")
     prior_mean, prior_slope, prior_std = (np.empty(len(classes)) for _ in range(3))
     for m in range(len(classes)):
         a, b = start[truth == m], rise[truth == m]
