@@ -202,6 +202,23 @@ def test_a_material_with_one_trial_is_refused_by_name():
         _log_density(np.array([0.3]))(np.array([0.3]), np.array([True]))
 
 
+def test_the_taxel_grid_is_weighted_by_the_box_and_the_answers_do_not_depend_on_parts():
+    ds = _data()
+    untold = ("taxel_constants",)
+    box, rng_, even, given, parts = (
+        told_less_ceiling(ds, 0.5, untold, points=5, per_trial=True, **kw) for kw in (
+            {"taxel_prior": "box"}, {"taxel_prior": "range"},
+            {"taxel_prior": np.ones(25)},  # equal weights: the range prior
+            {"taxel_prior": _taxel_weights(0.10, 5)},  # the box's weights, given
+            {"part_cells": 1}))  # one trial per part
+    assert np.sum(box["correct"] != rng_["correct"]) >= 3  # the weights change answers
+    assert np.array_equal(even["correct"], rng_["correct"])
+    assert np.array_equal(given["correct"], box["correct"])
+    assert np.array_equal(parts["correct"], box["correct"])
+    with pytest.raises(ValueError, match="25 non-negative"):
+        told_less_ceiling(ds, 0.5, untold, points=5, taxel_prior=np.ones(9))
+
+
 def test_bench_gap_reach_only_with_the_range_prior_prints_reach_minus_target():
     # 6 trials: the default's calibration needs 3 per class in each training fold
     cmd = [sys.executable, "-m", "skin", "bench", "gap", "--trials", "6", "--seeds", "7",

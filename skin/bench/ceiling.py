@@ -437,8 +437,8 @@ def _log_density(sample: np.ndarray):
 
 def told_less_ceiling(data: TrialSet, duration: float, unknown: tuple[str, ...] = (),
                      sensors: dict | None = None, taxel_spread: float = 0.10,
-                     points: int = 9, taxel_prior: str = "box",
-                     per_trial: bool = False) -> dict:
+                     points: int = 9, taxel_prior: str | np.ndarray = "box",
+                     per_trial: bool = False, part_cells: int = 4_000_000) -> dict:
     """Accuracy of the best material choice when some nuisances are only known by their range.
 
     `known_nuisance_ceiling` told less by plugging in a guess (the nominal constants, an
@@ -455,7 +455,8 @@ def told_less_ceiling(data: TrialSet, duration: float, unknown: tuple[str, ...] 
       diffusivity and conductivity (``points`` x ``points`` grid, `_taxel_grid`), each
       point weighted by the mass the box uniform gives it (``taxel_prior="box"``, how the
       simulation draws taxels, `_taxel_weights`) or all alike (``"range"``: uniform over
-      the combinations' range, which overweights the corners: lower);
+      the combinations' range, which overweights the corners: lower), or by given weights
+      (``points`` x ``points`` values, root-time index major, as `_taxel_weights` returns);
     - ``"conductance"``: anywhere in the material's range of contact conductance in the
       dataset (``points`` log-spaced values);
     - ``"onset"``: anywhere in the dataset's range of onset error (``max(points, 9)``
@@ -467,16 +468,27 @@ def told_less_ceiling(data: TrialSet, duration: float, unknown: tuple[str, ...] 
     starting temperature above ambient adds its per-material density (a kernel estimate,
     each trial left out of its own: `_log_density`).
 
-    It is the accuracy of one decision rule (approximately Bayes under these priors), an
-    estimate of what the information allows rather than a strict bound: it is told the
-    sensor's true starting temperature and fits the object-temperature prior on the
-    dataset's truth (a little optimistic), but its priors are simplified (Gaussian object
-    warmth, a kernel density of the start) and it ignores what else the stretch before
-    contact shows (the reheating slope), so a learned model may do better. Measured (seed
-    7, 0.25 s, all four untold): the code before the box weights and the leave-one-out
-    start density gave .314 / .321 / .325 with 9 / 13 / 17 points (not converged, and
-    some 4 points too high from each trial's own kernel); now .308 / .308 / .309
-    (`skin bench gap --durations 0.25 --seeds 7 --reach-only --points 9|13|17`).
+    It is the accuracy of one decision rule under these priors, a floor of unknown slack
+    rather than the Bayes accuracy or a bound: it is told the sensor's true starting
+    temperature and fits the object-temperature prior on the dataset's truth (a little
+    optimistic), but its priors are simplified (Gaussian object warmth, a kernel density of
+    the start) and it ignores what else the stretch before contact shows (the reheating
+    slope), so a learned model may do better. Its figures are not even monotone in what is
+    told: seed 7, 0.25 s, only the taxel constants untold gives .219 (9 points) / .206 (17),
+    below all four untold (.308) and all told (.345), which a Bayes rule could not. Its grid
+    has converged (seed 7, 0.25 s, all four untold: .308 / .308 / .309 with 9 / 13 / 17
+    points, `skin bench gap --durations 0.25 --seeds 7 --reach-only --points 9|13|17`);
+    that says nothing of its priors. Main's code before the box weights and the
+    leave-one-out start density gave .314 / .321 / .325 there (reproducible only by running
+    that code, not by an option here: ``taxel_prior="range"`` keeps the old weights but not
+    the in-sample start); of the difference, some 4 points came from each trial's own
+    kernel (measured on seed 7 alone: .354 -> .308 with the box weights, 9 points).
+
+    ``part_cells``: trials are scored in parts of at most this many (trial, combination)
+    cells (memory); the answers do not depend on it.
+
+    Raises ValueError for an unknown nuisance or prior, or a material with fewer than 2
+    trials (the start density leaves each trial's own kernel out).
 
     Returns
     -------
@@ -490,8 +502,17 @@ def told_less_ceiling(data: TrialSet, duration: float, unknown: tuple[str, ...] 
     if bad:
         raise ValueError(f"unknown nuisance(s) {', '.join(bad)}; choose from "
                          f"{', '.join(PROFILABLE)}")
-    if taxel_prior not in ("box", "range"):
-        raise ValueError(f"taxel_prior {taxel_prior!r}: choose box or range")
+    if isinstance(taxel_prior, str):
+        if taxel_prior not in ("box", "range"):
+            raise ValueError(f"taxel_prior {taxel_prior!r}: choose box or range")
+        taxel_mass = (_taxel_weights(taxel_spread, points) if taxel_prior == "box"
+                      else np.full(points * points, 1.0 / points**2))
+    else:
+        taxel_mass = np.asarray(taxel_prior, dtype=float).ravel()
+        if (taxel_mass.size != points * points or not np.all(np.isfinite(taxel_mass))
+                or np.any(taxel_mass < 0) or taxel_mass.sum() <= 0):
+            raise ValueError(f"taxel_prior weights: give {points * points} non-negative "
+                             f"finite values (points x points), not all zero")
     check_ceiling(data)
     if sensors is not None and data.taxel is None:
         raise SkinError(f"{data.source}: commissioned constants need the 'taxel' column")
@@ -524,8 +545,6 @@ def told_less_ceiling(data: TrialSet, duration: float, unknown: tuple[str, ...] 
         prior_std[m] = max(float(np.std(b - prior_mean[m] - slope * a)), 0.05)
     start_density = [_log_density(start[truth == m]) for m in range(len(classes))]
     taxel_grid = _taxel_grid(taxel_spread, points) if "taxel_constants" in unknown else None
-    taxel_mass = (_taxel_weights(taxel_spread, points) if taxel_prior == "box"
-                  else np.full(points * points, 1.0 / points**2))
     shift_grid = np.linspace(shift_true.min(), shift_true.max(), max(points, 9))
     h_grid = np.array([np.geomspace(h_true[truth == m].min(), h_true[truth == m].max(), points)
                        if np.all(np.isfinite(h_true[truth == m])) else np.full(points, np.inf)
@@ -575,7 +594,7 @@ def told_less_ceiling(data: TrialSet, duration: float, unknown: tuple[str, ...] 
             log_w = np.log(np.maximum(mass / mass.sum(), 1e-300))[None]
             pp = np.sum(phi * phi, axis=1)[None] / noise**2
             # the trials in parts, so that a fine grid's (trials x combinations) fits memory
-            step = max(1, int(4e6 // phi.shape[0]))
+            step = max(1, int(part_cells // phi.shape[0]))
             for lo in range(0, rows.size, step):
                 part = rows[lo:lo + step]
                 dot = z[lo:lo + step] @ phi.T / noise**2  # (trials, combinations)
