@@ -14,10 +14,11 @@ and reports per duration:
   like the design);
 - the known-nuisance ceiling and the target line ``svm + 2/3 (ceiling - svm)``;
 - the ceiling told less (`skin.bench.ceiling.told_less_ceiling`: each untold nuisance
-  integrated over its range): what the information a classifier has allows, without the
-  taxels' constants (``reachable``) and with the commissioned ones (``reachable
-  commissioned``). Where these lie below the target line, the target asks for information
-  the contact does not carry.
+  integrated over its range): one decision rule's accuracy with the information a
+  classifier has, without the taxels' constants (``reachable``) and with the commissioned
+  ones (``reachable commissioned``); a floor of unknown slack, not the best rule's. Where
+  these lie below the target line by more than their error, the target asks for more than
+  that rule reaches (and, as far as it is near the best, more than the contact carries).
 """
 
 from __future__ import annotations
