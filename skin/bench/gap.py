@@ -110,13 +110,14 @@ def gap_table(trials: int = 100, seeds: Sequence[int] = (7, 13),
     contacts' reach, ceiling and svm-pca answers), clustered by the groups the folds keep
     apart (the taxels: 1,100 contacts come from 8 taxels and answers agree within a taxel;
     `clustered_se`; ``margin_se_kind`` says so, ``margin_se_independent`` is the error if
-    the contacts were independent, about half as large). ``ruled_out`` needs the margin
-    below -``margin_t`` ``margin_se`` (Student's t, clusters - 1 degrees of freedom: 2.36
-    for 8 taxels): ``reachable`` is the accuracy of one decision rule (a floor of unknown
-    slack, lower than the best rule's where its grids or priors fall short), so a margin
-    within the error rules nothing out. Not in the error: the fold split moves svm-pca
-    (and so the target) by up to ~.009 at 0.25 s (fold seeds 0-3 on seed 29: .270 / .262 /
-    .253 / .244 is up to .026 on svm, .009 on the target, which takes a third of it).
+    the contacts were independent: 1.1-2.0x smaller at 0.25 s on seeds 7-29, though with 8
+    clusters the clustered error is itself noisy and can come out smaller). ``ruled_out``
+    needs the margin below -``margin_t`` ``margin_se`` (Student's t, clusters - 1 degrees
+    of freedom: 2.36 for 8 taxels): ``reachable`` is the accuracy of one decision rule (a
+    floor of unknown slack, lower than the best rule's where its grids or priors fall
+    short), so a margin within the error rules nothing out. Not in the error: the fold
+    split moves svm-pca by up to .026 at 0.25 s (fold seeds 0-3 on seed 29: .270 / .262 /
+    .253 / .244), and so the target, which takes a third of it, by up to ~.009.
 
     Returns
     -------
