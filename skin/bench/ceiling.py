@@ -87,7 +87,8 @@ def channel_truth(data: TrialSet) -> dict[str, np.ndarray]:
 
 def known_nuisance_ceiling(data: TrialSet, duration: float,
                            unknown: tuple[str, ...] = (),
-                           candidates: dict[str, float] | None = None) -> dict:
+                           candidates: dict[str, float] | None = None,
+                           per_trial: bool = False) -> dict:
     """Accuracy of the least-squares material choice when every nuisance is known.
 
     Every channel of a contact is used where the simulation stored each channel's truth
@@ -107,6 +108,8 @@ def known_nuisance_ceiling(data: TrialSet, duration: float,
         Material name -> effusivity to choose among: a classifier's candidates, of which the
         dataset may hold a few (a scene's touches, `skin.bench.scene_ceiling`). Default: the
         dataset's classes, each with its simulated effusivity.
+    per_trial : bool
+        Also return ``correct``: whether each trial's choice is right (paired errors).
 
     Returns
     -------
@@ -173,11 +176,15 @@ def known_nuisance_ceiling(data: TrialSet, duration: float,
     conf = np.zeros((len(classes), len(classes)), dtype=int)
     np.add.at(conf, (truth, chosen), 1)
     recall = conf.diagonal() / np.maximum(conf.sum(axis=1), 1)
-    return {"method": "ceiling" + "".join(f" ({u} unknown)" for u in unknown), "duration": duration,
-            "accuracy": round(float(np.mean(chosen == truth)), 4), "accuracy_std": 0.0,
-            "recall": {c: round(float(r), 4) for c, r in zip(classes, recall, strict=True)},
-            "confusion": conf.tolist(), "classes": classes, "unknown": 0,
-            "fit_ms_per_trial": 0.0, "predict_ms_per_trial": 0.0}
+    out = {"method": "ceiling" + "".join(f" ({u} unknown)" for u in unknown),
+           "duration": duration,
+           "accuracy": round(float(np.mean(chosen == truth)), 4), "accuracy_std": 0.0,
+           "recall": {c: round(float(r), 4) for c, r in zip(classes, recall, strict=True)},
+           "confusion": conf.tolist(), "classes": classes, "unknown": 0,
+           "fit_ms_per_trial": 0.0, "predict_ms_per_trial": 0.0}
+    if per_trial:
+        out["correct"] = chosen == truth
+    return out
 
 
 def joint_fit_accuracy(data: TrialSet, duration: float, constants: str = "true",
@@ -376,15 +383,53 @@ def _taxel_grid(spread: float, points: int) -> list:
             for a in f for b in f]
 
 
+def _taxel_weights(spread: float, points: int, cells: int = 64) -> np.ndarray:
+    """Return the prior mass of each `_taxel_grid` sensor when the constants are uniform.
+
+    `skin.models.trials.spread_sensors` draws depth, diffusivity and conductivity uniformly
+    within +-``spread``; the two combinations the trace depends on then crowd the middle of
+    their range (the corners need all three at an extreme). Each grid point gets the mass of
+    the box that lies nearest it in (log root, log effusivity), from a ``cells``^3 midpoint
+    rule over the box (deterministic). Order: `_taxel_grid`'s (root outer, effusivity inner).
+    """
+    u = -spread + (np.arange(cells) + 0.5) * (2 * spread / cells)
+    d, a, c = np.meshgrid(u, u, u, indexing="ij")
+    lo, hi = (1 - spread) / np.sqrt(1 + spread), (1 + spread) / np.sqrt(1 - spread)
+    step = np.log(hi / lo) / max(points - 1, 1)
+
+    def cell(v: np.ndarray) -> np.ndarray:
+        return np.clip(np.rint((np.log(v) - np.log(lo)) / step), 0, points - 1).astype(int)
+
+    root, effusivity = cell((1 + d) / np.sqrt(1 + a)), cell((1 + c) / np.sqrt(1 + a))
+    mass = np.bincount((root * points + effusivity).ravel(), minlength=points * points)
+    return mass / mass.sum()
+
+
 def _log_density(sample: np.ndarray):
-    """Return a function: the log density of a Gaussian kernel estimate of ``sample``."""
+    """Return a function: the log density of a Gaussian kernel estimate of ``sample``.
+
+    ``own`` marks values that are themselves in the sample: each is left out of its own
+    estimate once (leave-one-out: a classifier's prior comes from other contacts than the
+    one it names). Values of other trials equal to it stay (rested taxels start alike).
+    """
     sample = np.asarray(sample, dtype=float)
     width = max(1.06 * float(np.std(sample)) * sample.size ** -0.2, 1e-3)
 
-    def log_p(v: np.ndarray) -> np.ndarray:
+    def log_p(v: np.ndarray, own: np.ndarray | None = None) -> np.ndarray:
         d = (np.asarray(v, dtype=float)[:, None] - sample[None]) / width
-        low = np.min(d * d, axis=1, keepdims=True)
-        return (-low[:, 0] / 2 + np.log(np.mean(np.exp(-(d * d - low) / 2), axis=1))
+        d2 = d * d
+        kept = np.full(d.shape[0], sample.size)
+        if own is not None and np.any(own):
+            if sample.size < 2:
+                raise ValueError("leaving a value out of a sample of one leaves no estimate")
+            rows = np.flatnonzero(own)
+            self_at = np.argmin(np.abs(d[rows]), axis=1)
+            if np.any(d[rows, self_at] != 0):
+                raise ValueError("a value marked own is not in the sample")
+            d2[rows, self_at] = np.inf
+            kept[rows] = sample.size - 1
+        low = np.min(d2, axis=1, keepdims=True)
+        return (-low[:, 0] / 2 + np.log(np.sum(np.exp(-(d2 - low) / 2), axis=1) / kept)
                 - np.log(width * np.sqrt(2 * np.pi)))
 
     return log_p
@@ -392,13 +437,14 @@ def _log_density(sample: np.ndarray):
 
 def told_less_ceiling(data: TrialSet, duration: float, unknown: tuple[str, ...] = (),
                      sensors: dict | None = None, taxel_spread: float = 0.10,
-                     points: int = 9) -> dict:
+                     points: int = 9, taxel_prior: str | np.ndarray = "box",
+                     per_trial: bool = False, part_cells: int = 4_000_000) -> dict:
     """Accuracy of the best material choice when some nuisances are only known by their range.
 
     `known_nuisance_ceiling` told less by plugging in a guess (the nominal constants, an
     unconstrained object temperature) falls below methods that learned the nuisances'
-    ranges, so it bounds nothing. Here each untold nuisance is fitted within what a
-    classifier could know of it, jointly with the others, for every material (profile
+    ranges, so it bounds nothing. Here each untold nuisance is integrated over what a
+    classifier could know of it, jointly with the others, for every material (marginal
     likelihood, Gaussian reading noise measured before contact, `reading_noise`):
 
     - ``"object_temperature"``: a Gaussian prior per material, integrated exactly: the
@@ -406,26 +452,49 @@ def told_less_ceiling(data: TrialSet, duration: float, unknown: tuple[str, ...] 
       straight line in the sensor's starting temperature (the same touches cool it) and
       the spread about it;
     - ``"taxel_constants"``: anywhere in the +-``taxel_spread`` box of the taxels' depth,
-      diffusivity and conductivity (``points`` x ``points`` grid, `_taxel_grid`);
+      diffusivity and conductivity (``points`` x ``points`` grid, `_taxel_grid`), each
+      point weighted by the mass the box uniform gives it (``taxel_prior="box"``, how the
+      simulation draws taxels, `_taxel_weights`) or all alike (``"range"``: uniform over
+      the combinations' range, which overweights the corners: lower), or by given weights
+      (``points`` x ``points`` values, root-time index major, as `_taxel_weights` returns);
     - ``"conductance"``: anywhere in the material's range of contact conductance in the
       dataset (``points`` log-spaced values);
-    - ``"onset"``: anywhere in the dataset's range of onset error (9 shifts).
+    - ``"onset"``: anywhere in the dataset's range of onset error (``max(points, 9)``
+      shifts).
 
     What is told is the simulation's truth, except the taxel constants when ``sensors``
     (taxel id -> `SensorConstants`, e.g. a calibration file's) is given: then each taxel has
-    those, as a commissioned skin does. The primary channel alone is read. Profiling, not
-    integrating, over the nuisances and coarse grids make it an estimate of what the
-    information allows, not a strict Bayes bound: the priors are fitted to the dataset's
-    truth (a little optimistic) but simplified (a learned model may use the nuisances'
-    joint distribution better), and a coarse grid leaves a misfit that the trace's many
-    samples magnify (seed 7, 2.5 s, taxel constants and object temperature untold: .40
-    with 5 points, .58 with 9; all four untold .637 / .647), hence 9 points.
+    those, as a commissioned skin does. The primary channel alone is read; the sensor's
+    starting temperature above ambient adds its per-material density (a kernel estimate,
+    each trial left out of its own: `_log_density`).
+
+    It is the accuracy of one decision rule under these priors, a floor of unknown slack
+    rather than the Bayes accuracy or a bound: it is told the sensor's true starting
+    temperature and fits the object-temperature prior on the dataset's truth (a little
+    optimistic), but its priors are simplified (Gaussian object warmth, a kernel density of
+    the start) and it ignores what else the stretch before contact shows (the reheating
+    slope), so a learned model may do better. Its figures are not even monotone in what is
+    told: seed 7, 0.25 s, only the taxel constants untold gives .219 (9 points) / .206 (17),
+    below all four untold (.308) and all told (.345), which a Bayes rule could not. Its grid
+    has converged (seed 7, 0.25 s, all four untold: .308 / .308 / .309 with 9 / 13 / 17
+    points, `skin bench gap --durations 0.25 --seeds 7 --reach-only --points 9|13|17`);
+    that says nothing of its priors. Main's code before the box weights and the
+    leave-one-out start density gave .314 / .321 / .325 there (reproducible only by running
+    that code, not by an option here: ``taxel_prior="range"`` keeps the old weights but not
+    the in-sample start); of the difference, some 4 points came from each trial's own
+    kernel (measured on seed 7 alone: .354 -> .308 with the box weights, 9 points).
+
+    ``part_cells``: trials are scored in parts of at most this many (trial, combination)
+    cells (memory); the answers do not depend on it.
+
+    Raises ValueError for an unknown nuisance or prior, or a material with fewer than 2
+    trials (the start density leaves each trial's own kernel out).
 
     Returns
     -------
     dict
         The layout of `known_nuisance_ceiling`, with ``unknown`` (the untold nuisances) as
-        ``told_less`` and ``noise`` (K).
+        ``told_less`` and ``noise`` (K); with ``per_trial``, ``correct`` (bool per trial).
     """
     from skin.models.physics import SensorConstants, conductance_rate, contact_response
 
@@ -433,6 +502,17 @@ def told_less_ceiling(data: TrialSet, duration: float, unknown: tuple[str, ...] 
     if bad:
         raise ValueError(f"unknown nuisance(s) {', '.join(bad)}; choose from "
                          f"{', '.join(PROFILABLE)}")
+    if isinstance(taxel_prior, str):
+        if taxel_prior not in ("box", "range"):
+            raise ValueError(f"taxel_prior {taxel_prior!r}: choose box or range")
+        taxel_mass = (_taxel_weights(taxel_spread, points) if taxel_prior == "box"
+                      else np.full(points * points, 1.0 / points**2))
+    else:
+        taxel_mass = np.asarray(taxel_prior, dtype=float).ravel()
+        if (taxel_mass.size != points * points or not np.all(np.isfinite(taxel_mass))
+                or np.any(taxel_mass < 0) or taxel_mass.sum() <= 0):
+            raise ValueError(f"taxel_prior weights: give {points * points} non-negative "
+                             f"finite values (points x points), not all zero")
     check_ceiling(data)
     if sensors is not None and data.taxel is None:
         raise SkinError(f"{data.source}: commissioned constants need the 'taxel' column")
@@ -452,6 +532,11 @@ def told_less_ceiling(data: TrialSet, duration: float, unknown: tuple[str, ...] 
     start = t0 - data.ambient
     # the object's warmth above ambient, as the sensor's start predicts it (both come from the
     # touches before): a straight line per material, and the spread about it
+    few = [f"{c} ({int(np.sum(truth == m))})" for m, c in enumerate(classes)
+           if np.sum(truth == m) < 2]
+    if few:  # each trial's start density leaves its own kernel out: one trial leaves none
+        raise ValueError(f"{data.source}: the ceiling told less needs at least 2 trials per "
+                         f"material, got {', '.join(few)}")
     prior_mean, prior_slope, prior_std = (np.empty(len(classes)) for _ in range(3))
     for m in range(len(classes)):
         a, b = start[truth == m], rise[truth == m]
@@ -460,7 +545,7 @@ def told_less_ceiling(data: TrialSet, duration: float, unknown: tuple[str, ...] 
         prior_std[m] = max(float(np.std(b - prior_mean[m] - slope * a)), 0.05)
     start_density = [_log_density(start[truth == m]) for m in range(len(classes))]
     taxel_grid = _taxel_grid(taxel_spread, points) if "taxel_constants" in unknown else None
-    shift_grid = np.linspace(shift_true.min(), shift_true.max(), 9)
+    shift_grid = np.linspace(shift_true.min(), shift_true.max(), max(points, 9))
     h_grid = np.array([np.geomspace(h_true[truth == m].min(), h_true[truth == m].max(), points)
                        if np.all(np.isfinite(h_true[truth == m])) else np.full(points, np.inf)
                        for m in range(len(classes))])
@@ -503,20 +588,30 @@ def told_less_ceiling(data: TrialSet, duration: float, unknown: tuple[str, ...] 
             phi = np.stack([e_o / (s.effusivity + e_o) * contact_response(
                 t[None], conductance_rate(h[m], s.effusivity, e_o)[:, None, None], s)
                 for s in sens]).reshape(-1, n)  # (sensors x h x shifts, n)
-            dot = z @ phi.T / noise**2  # (trials, combinations)
+            # each combination's prior mass: the taxel grid's (the rest uniform)
+            mass = np.repeat(taxel_mass if taxel_grid is not None else [1.0],
+                             h.shape[1] * shifts.size)
+            log_w = np.log(np.maximum(mass / mass.sum(), 1e-300))[None]
             pp = np.sum(phi * phi, axis=1)[None] / noise**2
-            if "object_temperature" in unknown:  # integrated over its Gaussian prior
-                a0 = (data.ambient[rows] + prior_mean[m] + prior_slope[m] * start[rows]
-                      - t0[rows])[:, None]
-                w = 1.0 / prior_std[m] ** 2
-                cost = (zz + a0 * a0 * w - (dot + a0 * w) ** 2 / (pp + w)
-                        + np.log((pp + w) / w))
-            else:
-                a = (t_obj[rows] - t0[rows])[:, None]
-                cost = zz - 2 * a * dot + a * a * pp
-            low = cost.min(axis=1, keepdims=True)
-            evidence[:, m] = (low[:, 0] - 2 * np.log(np.mean(np.exp(-(cost - low) / 2), axis=1))
-                              - 2 * start_density[m](start[rows]))
+            # the trials in parts, so that a fine grid's (trials x combinations) fits memory
+            step = max(1, int(part_cells // phi.shape[0]))
+            for lo in range(0, rows.size, step):
+                part = rows[lo:lo + step]
+                dot = z[lo:lo + step] @ phi.T / noise**2  # (trials, combinations)
+                if "object_temperature" in unknown:  # integrated over its Gaussian prior
+                    a0 = (data.ambient[part] + prior_mean[m] + prior_slope[m] * start[part]
+                          - t0[part])[:, None]
+                    w = 1.0 / prior_std[m] ** 2
+                    cost = (zz[lo:lo + step] + a0 * a0 * w - (dot + a0 * w) ** 2 / (pp + w)
+                            + np.log((pp + w) / w))
+                else:
+                    a = (t_obj[part] - t0[part])[:, None]
+                    cost = zz[lo:lo + step] - 2 * a * dot + a * a * pp
+                cost = cost - 2 * log_w  # the combinations summed under their prior mass
+                low = cost.min(axis=1, keepdims=True)
+                evidence[lo:lo + step, m] = (
+                    low[:, 0] - 2 * np.log(np.sum(np.exp(-(cost - low) / 2), axis=1))
+                    - 2 * start_density[m](start[part], truth[part] == m))
         chosen[rows] = np.argmin(evidence, axis=1)
     conf = np.zeros((len(classes), len(classes)), dtype=int)
     np.add.at(conf, (truth, chosen), 1)
@@ -528,4 +623,5 @@ def told_less_ceiling(data: TrialSet, duration: float, unknown: tuple[str, ...] 
             "accuracy": round(float(np.mean(chosen == truth)), 4), "accuracy_std": 0.0,
             "recall": {c: round(float(r), 4) for c, r in zip(classes, recall, strict=True)},
             "confusion": conf.tolist(), "classes": classes, "unknown": 0,
-            "noise": round(noise, 5), "fit_ms_per_trial": 0.0, "predict_ms_per_trial": 0.0}
+            "noise": round(noise, 5), "fit_ms_per_trial": 0.0, "predict_ms_per_trial": 0.0,
+            **({"correct": chosen == truth} if per_trial else {})}

@@ -25,6 +25,13 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
     gap.add_argument("--points", type=int, default=9,
                      help="grid points over each untold nuisance's range in the ceiling told "
                           "less (9; fewer is faster and lower)")
+    gap.add_argument("--taxel-prior", choices=("box", "range"), default="box",
+                     help="weights of the taxel grid in the ceiling told less: the mass the "
+                          "simulated +-10%% box of constants gives each point (box, default) or "
+                          "all alike (range: overweights extreme taxels, lower)")
+    gap.add_argument("--reach-only", action="store_true",
+                     help="only svm-pca, default, the ceiling and the two reaches (no "
+                          "commissioned evaluations, no other told-less ceilings): faster")
     gap.add_argument("--json", action="store_true", help="print one JSON document")
     gap.set_defaults(func=main)
 
@@ -54,13 +61,14 @@ def main(args: argparse.Namespace) -> int:
     progress = Progress()
     started = time.monotonic()
     rows = gap_table(args.trials, seeds, durations, args.cv, args.reference_trials,
-                     args.points, progress=progress.message)
+                     args.points, progress=progress.message, reach_only=args.reach_only,
+                     taxel_prior=args.taxel_prior)
     wall = time.monotonic() - started
     progress.done()
     if args.json:
         print(json.dumps({"machine": machine(), "trials": args.trials, "cv": args.cv,
                           "reference_trials": args.reference_trials,
-                          "points": args.points,
+                          "points": args.points, "taxel_prior": args.taxel_prior,
                           "reachable_unknown": list(ALL_UNKNOWN),
                           "reachable_commissioned_unknown": list(COMMISSIONED_UNKNOWN),
                           "wall_s": round(wall, 1), "rows": rows}))
@@ -71,17 +79,32 @@ def main(args: argparse.Namespace) -> int:
           f"reach = ceiling told less ({'+'.join(ALL_UNKNOWN)} integrated over their ranges), "
           f"reach-c = the same told the commissioned constants; {wall:.0f} s")
     head = ("seed", "dur s", "svm", "default", "svm-c", "default-c", "ceiling", "target",
-            "met", "met-c", "reach", "reach-c")
-    print("".join(f"{h:>10}" for h in head))
+            "met", "met-c", "reach", "reach-target", "+-", "reach-c", "out", "out-c")
+    width = [max(10, len(h) + 2) for h in head]
+
+    def cell(v) -> str:
+        return "-" if v is None else ("yes" if v is True else "no" if v is False
+                                      else f"{v:.3f}")
+
+    print("".join(f"{h:>{w}}" for h, w in zip(head, width, strict=True)))
     for r in rows:
-        cells = [r["seed"], f"{r['duration']:g}", *(f"{r[k]:.3f}" for k in (
-            "svm", "default", "svm_commissioned", "default_commissioned", "ceiling", "target")),
-            "yes" if r["met"] else "no", "yes" if r["met_commissioned"] else "no",
-            f"{r['reachable']:.3f}", f"{r['reachable_commissioned']:.3f}"]
-        print("".join(f"{c:>10}" for c in cells))
-    print("ceiling told less (untold nuisances integrated over their ranges):")
+        cells = [r["seed"], f"{r['duration']:g}", *(cell(r[k]) for k in (
+            "svm", "default", "svm_commissioned", "default_commissioned", "ceiling", "target",
+            "met", "met_commissioned", "reachable", "margin", "margin_se",
+            "reachable_commissioned", "ruled_out", "ruled_out_commissioned"))]
+        print("".join(f"{c:>{w}}" for c, w in zip(cells, width, strict=True)))
+    worst = max(v for r in rows for v in r["se"].values())
+    t = max(r["margin_t"] for r in rows)
+    print(f"+- : sampling error of reach - target (paired: the same contacts; clustered by "
+          f"taxel, the contacts of one taxel are not independent); out: reach - target below "
+          f"-{t:.2f} times it (Student's t, taxels - 1 degrees of freedom); out-c: the same "
+          f"with reach-c; one accuracy's binomial error <= {worst:.3f}")
+    if any(r["told_less"] for r in rows):
+        print("ceiling told less (untold nuisances integrated over their ranges):")
     names = ["+".join(u) for u in TOLD_LESS]
     for r in rows:
+        if not r["told_less"]:
+            continue
         print(f"  seed {r['seed']} {r['duration']:g} s: " + ", ".join(
             f"{n} {r['told_less'][n]:.3f}" for n in names))
     return 0

@@ -222,10 +222,12 @@ def split_folds(data, folds: int, split: str = "grouped", seed: int = 0
 
 
 def evaluate(data, method: str, duration: float, folds: int, split: str = "grouped",
-             seed: int = 0) -> dict:
+             seed: int = 0, per_trial: bool = False) -> dict:
     """Cross-validate ``method`` on the first ``duration`` s after onset; return the figures.
 
     ``split``: `split_folds`'s; the result's ``split`` says how the folds were made.
+    ``per_trial``: also return ``correct``, whether each trial was named right when it was
+    in the test fold (bool per trial, for paired errors).
     """
     from sklearn.metrics import confusion_matrix
 
@@ -245,6 +247,7 @@ def evaluate(data, method: str, duration: float, folds: int, split: str = "group
     unknown = 0
     conf = np.zeros((len(classes), len(classes)), dtype=int)
     top, right = [], []  # most probable class's probability, and whether it was right
+    correct = np.zeros(len(y), dtype=bool)
     for train, test in splits:
         model = make_method(method, fs=data.fs, channels=data.n_channels)
         t0 = time.perf_counter()
@@ -260,6 +263,7 @@ def evaluate(data, method: str, duration: float, folds: int, split: str = "group
             pred = model.predict(x[test])
         t2 = time.perf_counter()
         acc.append(float(np.mean(pred == y[test])))
+        correct[test] = pred == y[test]
         fit_t.append((t1 - t0) / len(train))
         pred_t.append((t2 - t1) / len(test))
         conf += confusion_matrix(y[test], pred, labels=classes)
@@ -278,6 +282,8 @@ def evaluate(data, method: str, duration: float, folds: int, split: str = "group
         out["selective"] = selective(top, right)
         out["calibration_error"] = round(calibration_error(top, right), 4)
         out["confident_wrong"] = round(confident_wrong(top, right), 4)
+    if per_trial:
+        out["correct"] = correct
     return out
 
 
