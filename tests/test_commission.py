@@ -134,11 +134,12 @@ def test_evaluate_onset_commissioned_on_another_unit(capsys):
 REFERENCE_TAXELS = 16
 
 
-def _reference_scene(path=None):
+def _reference_scene(path=None, materials=None):
     """The shipped reference-touches scene with its touches on `REFERENCE_TAXELS` taxels.
 
     The same unit (seed, spread: each taxel's constants as in the shipped scene), the same
-    touches and times. Written to ``path`` when given; returns the parsed scene.
+    touches and times; ``materials`` (two names) in place of its water and neoprene. Written
+    to ``path`` when given; returns the parsed scene.
     """
     import re
     from importlib.resources import files
@@ -148,32 +149,39 @@ def _reference_scene(path=None):
     text = (files("skin") / "data" / "scenes" / "reference-touches.toml").read_text()
     text = re.sub(r"^taxels = \[[0-9, ]+\]$", f"taxels = {list(range(REFERENCE_TAXELS))}",
                   text, flags=re.M)
+    if materials is not None:
+        text = text.replace('material = "water"', f'material = "{materials[0]}"')
+        text = text.replace('material = "neoprene"', f'material = "{materials[1]}"')
     if path is not None:
         path.write_text(text)
     return parse_scene(text, "reference-touches-16.toml")
 
 
 def test_skin_commission_fits_each_taxels_response_from_reference_touches(tmp_path, capsys):
-    """Every taxel touched gets its own fit, closer to the truth than nominal.
+    """Every taxel touched gets a fit, closer to the truth than nominal, and no air-gap note.
 
-    Through sim:// (10-bit ADC) with onsets detected by the pipeline: measured response-time
-    error median 0.129 nominal -> 0.009 fitted over the shipped scene's 72 taxels (seed 7,
-    the scene's)."""
+    The shipped scene: water and neoprene through their air gaps (finite contacts), through
+    sim:// (10-bit ADC) with onsets detected by the pipeline. Measured over its 72 taxels
+    (seed 7, the scene's): response-time error median 0.129 nominal -> 0.0062 fitted (64
+    taxels fitted alone, 8 from their board's pool: one of their touches fitted water and
+    neoprene alike with the nominal constants); the same scene with aluminium and pine
+    through their gaps: see CHANGELOG."""
     from skin.drivers.sim import SkinSimulator
 
     cal, path = tmp_path / "cal.json", tmp_path / "ref.toml"
     scene = _reference_scene(path)
+    assert scene.contact == "finite"
     assert skin_main(["commission", "--port", f"sim://{path}?speed=0", "--touches",
-                      "aluminium,pine", "-o", str(cal), "--json"]) == 0
+                      "water,neoprene", "-o", str(cal), "--json"]) == 0
     out = capsys.readouterr()
     doc = json.loads(out.out)
-    assert "the air gap of aluminium, pine slows the contact" in out.err
+    assert "air gap" not in out.err and "air_gap_note" not in doc
     n = REFERENCE_TAXELS
-    assert doc["fitted"] == doc["per_taxel"] == n and doc["detected"] >= n * 6
-    assert doc["ambiguous"] == 0 and abs(doc["room_c"] - 25.0) < 0.05
+    assert doc["fitted"] == n and doc["per_taxel"] >= n - 2 and doc["detected"] >= n * 6
+    assert doc["ambiguous"] <= 2 and abs(doc["room_c"] - 25.0) < 0.05
     entry = json.loads(cal.read_text())["taxels"]["0"]
     assert entry["thermal_scope"] == "taxel" and entry["thermal_contacts"] == 6
-    assert "pine" in json.loads(cal.read_text())["references"]["thermal"]
+    assert "neoprene" in json.loads(cal.read_text())["references"]["thermal"]
     truth = SkinSimulator(scene).taxel_sensor
     _, fitted = load_calibration(cal).apply(scene.layout)
     fitted = fitted[:n]
@@ -187,23 +195,25 @@ def test_skin_commission_fits_each_taxels_response_from_reference_touches(tmp_pa
 
 
 def test_soft_reference_touches_are_dated_and_fitted():
-    """Finite contact conductances (light touches), readings without the ADC: the fit dates
-    each onset itself (the detector's refined onsets are tens of ms late) and the response
-    time comes closer to the truth than nominal (measured here, seed 7: 0.129 -> 0.092;
-    through sim:// with the ADC, seed 11: 0.098 -> 0.059). Soft contacts pin the response
-    less well than firm ones (0.129 -> 0.002)."""
+    """Hard references (aluminium, pine) through finite contact conductances (their air gaps),
+    readings without the ADC: the fit dates each onset itself (the detector's refined onsets
+    are tens of ms late) and the response time comes closer to the truth than nominal
+    (measured here, seed 7: 0.129 -> 0.092; through sim:// with the ADC, seed 11: 0.098 ->
+    0.059), but not close: the gap trades against the response time. Perfect contacts pin it
+    (0.129 -> 0.002), and so do conforming references through their gaps (the shipped
+    scene's water and neoprene: `test_skin_commission_fits_each_taxels_response_from_...`)."""
     from skin.drivers.sim import SkinSimulator
     from skin.models import load_materials
     from skin.models.commission import commission_response
 
-    scene = _reference_scene()
+    scene = _reference_scene(materials=("aluminium", "pine"))
     n = REFERENCE_TAXELS
     sim = SkinSimulator(scene, contact="finite")
     y = sim.temperatures()
     y = y + np.random.default_rng(0).normal(0.0, 0.02, y.shape)
     t = np.arange(y.shape[0]) / sim.sample_rate
     _, sensors = CalibrationFile().apply(scene.layout)
-    mats = {m: load_materials()[m] for m in ("aluminium", "pine")}
+    mats = {o.material: load_materials()[o.material] for o in scene.objects.values()}
     fits, counts = commission_response(t, y, scene.layout, mats, sensors, scene.ambient)
     assert counts["detected"] >= n * 6 - 2 and sum(len(f.columns) for f in fits) >= n - 1
     truth = sim.taxel_sensor
@@ -279,7 +289,7 @@ def test_labelled_touches_are_fitted_without_the_detector(tmp_path):
     y = y + np.random.default_rng(1).normal(0.0, 0.02, y.shape)
     t = np.arange(y.shape[0]) / sim.sample_rate
     _, sensors = CalibrationFile().apply(scene.layout)
-    mats = {m: table[m] for m in ("aluminium", "pine")}
+    mats = {o.material: table[o.material] for o in scene.objects.values()}
     fits, counts = commission_response(t, y, scene.layout, mats, sensors, 25.0, labels=parsed)
     assert counts == {"detected": 12, "left_out": 0, "ambiguous": 0}
     assert [int(f.columns[0]) for f in fits] == [0, 1] and all(f.scope == "taxel" for f in fits)
@@ -337,7 +347,7 @@ def test_skin_commission_fits_the_response_from_a_trial_dataset(tmp_path, capsys
     assert skin_main(["commission", "--data", str(path), "-o", str(cal), "--json"]) == 0
     out = capsys.readouterr()
     doc = json.loads(out.out)
-    assert "the air gap of" in out.err  # aluminium and pine: the note on stderr, not the JSON
+    assert "air gap" not in out.err  # water and neoprene conform: no note
     assert doc["fitted"] == doc["per_taxel"] == 2 and doc["detected"] == 12
     _, fitted = load_calibration(cal).apply(scene.layout)
     truth = sim.taxel_sensor
@@ -666,6 +676,8 @@ def test_only_references_whose_air_gap_slows_the_contact_on_the_sensors_time_sca
         note = air_gap_note(["water", "aluminium"], table, sensors)
         assert note.startswith("note: the air gap of aluminium slows the contact "
                                "(aluminium 0.059 s)")
+        # it says what to record instead
+        assert "record the touches again" in note and "--touches water,neoprene" in note
     # acrylic's gap (0.0035 s) is 0.14 % of the paper sensor's 2.5 s, 1.4 % of fast-film's
     assert air_gap_note(["acrylic", "water"], table, [paper]) is None
     assert "acrylic" in air_gap_note(["acrylic", "water"], table, [fast])
