@@ -378,6 +378,12 @@ def dataset_touches(trials: object, layout: object) -> tuple[list[ReferenceTouch
     return out, short
 
 
+#: Response times (relative to the taxel's current constants) each reference is tried at
+#: when naming a touch (`assign_materials`): the +-10 % units of a board's design give
+#: response times some 0.7-1.35 x nominal (depth^2 / diffusivity).
+ASSIGN_RESPONSE_SCALES = (0.7, 0.8, 0.9, 1.0, 1.12, 1.25, 1.4)
+
+
 def assign_materials(touches: list, materials: dict, sensors: list, room: float,
                      ) -> tuple[list[ReferenceTouch], list[tuple[int, float]]]:
     """Name each touch's reference: the material whose contact response fits it best.
@@ -399,13 +405,18 @@ def assign_materials(touches: list, materials: dict, sensors: list, room: float,
     assigned, ambiguous = [], []
     for k, onset, initial, tt, yy in touches:
         after = tt > 0
+        # the unit's response time is not yet known: each candidate is tried over the
+        # plausible spread of it (depth scaled, effusivity kept), so that a taxel faster
+        # or slower than nominal does not blur the references apart
+        units = [dataclasses.replace(sensors[k], depth=sensors[k].depth * np.sqrt(f))
+                 for f in ASSIGN_RESPONSE_SCALES]
         rms = []
         for name in names:
             m = materials[name]
             h = np.logspace(*np.log10(m.conductance_range), 24)[:, None]
-            model = reference_reading(tt[None, :], initial, room, m.effusivity, sensors[k], h)
-            rms.append(float(np.sqrt(np.mean((model[:, after] - yy[after]) ** 2,
-                                             axis=1)).min()))
+            rms.append(min(float(np.sqrt(np.mean(
+                (reference_reading(tt[None, :], initial, room, m.effusivity, unit, h)[:, after]
+                 - yy[after]) ** 2, axis=1)).min()) for unit in units))
         order = np.argsort(rms)
         if len(names) > 1 and rms[order[1]] < 2.0 * rms[order[0]]:
             ambiguous.append((k, onset))
