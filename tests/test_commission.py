@@ -162,10 +162,11 @@ def test_skin_commission_fits_each_taxels_response_from_reference_touches(tmp_pa
 
     The shipped scene: water and neoprene through their air gaps (finite contacts), through
     sim:// (10-bit ADC) with onsets detected by the pipeline. Measured over its 72 taxels
-    (seed 7, the scene's): response-time error median 0.129 nominal -> 0.0062 fitted (64
-    taxels fitted alone, 8 from their board's pool: one of their touches fitted water and
-    neoprene alike with the nominal constants); the same scene with aluminium and pine
-    through their gaps: see CHANGELOG."""
+    (seed 7, the scene's): response-time error median 0.129 nominal -> 0.0054 fitted (p90
+    0.010; every taxel fitted alone, no touch ambiguous). Before `ASSIGN_RESPONSE_SCALES`, 22
+    of its 432 touches fitted water and neoprene alike with the nominal constants and 8 taxels
+    took their board's pool (p90 0.21). The same scene with aluminium and pine through their
+    gaps: 0.094 (p90 0.14), the air gap trading against the response time."""
     from skin.drivers.sim import SkinSimulator
 
     cal, path = tmp_path / "cal.json", tmp_path / "ref.toml"
