@@ -325,7 +325,7 @@ def air_gap_note(names: list[str], table: dict, sensors: list) -> str | None:
             f"{100 * GAP_TIME_FRACTION:g} % of the sensor's half-response time "
             f"({tau:.3g} s), so its conductance trades against the response time and the "
             f"fitted response time may be off (in simulation aluminium and pine through "
-            f"their gaps left it 8.5-10 % off on the paper's sensor and 24-25 % on "
+            f"their gaps left it 8.5-10 % off on the paper's sensor and 20-25 % on "
             f"fast-film). On real hardware every contact has such a gap: record the "
             f"touches again with references that conform, at least 3 each of a thin bag "
             f"of water and a neoprene or rubber pad at room temperature, and give "
