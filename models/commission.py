@@ -504,7 +504,8 @@ def _left_out_said(left: dict, sensors: list) -> str:
         "rising": "warmed the taxel (the reference must rest at room temperature)",
         "incomplete": "had missing samples or ran past the recording's end",
         "ambiguous": "fitted two references alike (choose references that differ in "
-                     "effusivity, such as a metal and a wood)"}
+                     "effusivity and conform, such as water in a thin bag and neoprene, or "
+                     "give their times with --labels)"}
     parts = [f"{left[k]} {said[k]}" for k in said if left.get(k)]
     return (", and of the touches left out " + "; ".join(parts)) if parts else ""
 
