@@ -321,16 +321,14 @@ def test_bad_touch_labels_name_the_file_and_line(tmp_path, capsys, body, problem
     assert not out.exists()
 
 
-def test_skin_commission_fits_the_response_from_a_trial_dataset(tmp_path, capsys):
-    """--data: labelled reference contacts with onsets and taxel ids (dataset version 2)."""
+def _reference_dataset(scene, path, seed=2):
+    """The scene's touches of taxels 0 and 1 as a trial dataset (version 2) at ``path``."""
     from skin.drivers.sim import SkinSimulator
     from skin.formats.dataset import TrialSet
-    from skin.formats.scene import load_scene
 
-    scene = load_scene("reference-touches")
     sim = SkinSimulator(scene)
     y = sim.temperatures()
-    y = y + np.random.default_rng(2).normal(0.0, 0.02, y.shape)
+    y = y + np.random.default_rng(seed).normal(0.0, 0.02, y.shape)
     fs = sim.sample_rate
     temps, labels, taxels = [], [], []
     for tc in scene.touches:
@@ -343,12 +341,21 @@ def test_skin_commission_fits_the_response_from_a_trial_dataset(tmp_path, capsys
     data = TrialSet(np.array(temps)[:, None, :], fs, np.array(labels), np.full(n, 200),
                     ambient=np.full(n, 25.0), group=np.zeros(n, dtype=int),
                     taxel=np.array(taxels)[:, None])
-    path = data.save(tmp_path / "refs.npz")
+    return sim, data.save(path)
+
+
+def test_skin_commission_fits_the_response_from_a_trial_dataset(tmp_path, capsys):
+    """--data: labelled reference contacts with onsets and taxel ids (dataset version 2)."""
+    from skin.formats.scene import load_scene
+
+    scene = load_scene("reference-touches")
+    sim, path = _reference_dataset(scene, tmp_path / "refs.npz")
     cal = tmp_path / "cal.json"
     assert skin_main(["commission", "--data", str(path), "-o", str(cal), "--json"]) == 0
     out = capsys.readouterr()
     doc = json.loads(out.out)
     assert "air gap" not in out.err  # water and neoprene conform: no note
+    assert "air_gap_note" not in doc
     assert doc["fitted"] == doc["per_taxel"] == 2 and doc["detected"] == 12
     _, fitted = load_calibration(cal).apply(scene.layout)
     truth = sim.taxel_sensor
@@ -358,6 +365,25 @@ def test_skin_commission_fits_the_response_from_a_trial_dataset(tmp_path, capsys
     assert skin_main(["commission", "--data", str(path), "--touches", "aluminium,pine", "-o",
                       str(cal)]) != 0
     assert "no --labels or --touches" in capsys.readouterr().err
+
+
+def test_a_dataset_of_hard_references_through_their_gaps_gets_the_air_gap_note(tmp_path,
+                                                                                capsys):
+    """Aluminium and pine through their air gaps (the scene's finite contacts), given with
+    --data: the fit runs, and the note (on stderr and as ``air_gap_note`` in --json) says to
+    log a dataset of water and neoprene contacts (--data takes no --touches)."""
+    scene = _reference_scene(materials=("aluminium", "pine"))
+    assert scene.contact == "finite"
+    _, path = _reference_dataset(scene, tmp_path / "hard.npz")
+    cal = tmp_path / "cal.json"
+    assert skin_main(["commission", "--data", str(path), "-o", str(cal), "--json"]) == 0
+    out = capsys.readouterr()
+    doc = json.loads(out.out)
+    assert doc["fitted"] == 2
+    note = doc["air_gap_note"]
+    assert note in out.err and note.startswith("note: the air gap of aluminium, pine")
+    assert "log a dataset of water and neoprene contacts" in note and "--data" in note
+    assert "--touches" not in note
 
 
 def test_bench_spread_classifies_with_a_given_calibration(tmp_path, capsys):
@@ -718,6 +744,8 @@ def test_only_references_whose_air_gap_slows_the_contact_on_the_sensors_time_sca
                                "(aluminium 0.059 s)")
         # it says what to record instead
         assert "record the touches again" in note and "--touches water,neoprene" in note
+        assert "--touches" not in air_gap_note(["water", "aluminium"], table, sensors,
+                                               dataset=True)
     # acrylic's gap (0.0035 s) is 0.14 % of the paper sensor's 2.5 s, 1.4 % of fast-film's
     assert air_gap_note(["acrylic", "water"], table, [paper]) is None
     assert "acrylic" in air_gap_note(["acrylic", "water"], table, [fast])

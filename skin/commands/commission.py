@@ -204,14 +204,13 @@ def _touches(args: argparse.Namespace, layout: object, cal_file: object, out: ob
     note = air_gap_note(names, table, described(layout, sensors))
     if note:
         progress.message(note)
-        args.air_gap_note = note
     progress.message(f"fitting the response from touches of {', '.join(names)}")
     fits, counts = commission_response(times, temps, layout, {m: table[m] for m in names},
                                        sensors, room, noise=noise_sigma(cal_file, layout),
                                        labels=getattr(args, "label_list", None))
     return _write_response(args, layout, cal_file, out, fits, counts,
                            f"touches of {', '.join(names)} at {room:.2f} C in {args.port}",
-                           room, started, progress)
+                           room, started, progress, note)
 
 
 def _dataset(args: argparse.Namespace, layout: object, progress: Progress) -> int:
@@ -234,10 +233,9 @@ def _dataset(args: argparse.Namespace, layout: object, progress: Progress) -> in
     out = Path(args.out)
     cal_file = load_calibration(out) if out.exists() else CalibrationFile()
     _, sensors = cal_file.apply(layout)
-    note = air_gap_note(names, table, described(layout, sensors))
+    note = air_gap_note(names, table, described(layout, sensors), dataset=True)
     if note:
         progress.message(note)
-        args.air_gap_note = note
     progress.message(f"fitting the response from {len(trials)} trials of {', '.join(names)}")
     touches, short = dataset_touches(trials, layout)
     room = float(np.nanmedian(trials.ambient))
@@ -246,13 +244,16 @@ def _dataset(args: argparse.Namespace, layout: object, progress: Progress) -> in
     counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": 0}
     return _write_response(args, layout, cal_file, out, fits, counts,
                            f"{len(touches)} contacts of {', '.join(names)} in {args.data}",
-                           room, started, progress)
+                           room, started, progress, note)
 
 
 def _write_response(args: argparse.Namespace, layout: object, cal_file: object, out: object,
                     fits: list, counts: dict, reference: str, room: float, started: float,
-                    progress: Progress) -> int:
-    """Write the fitted responses into the calibration file and report them."""
+                    progress: Progress, note: str | None = None) -> int:
+    """Write the fitted responses into the calibration file and report them.
+
+    ``note``: the air-gap note (`air_gap_note`), in ``--json`` as ``air_gap_note``.
+    """
     for f in fits:
         for k in f.columns:
             cal_file.taxels.setdefault(int(layout.ids[k]), {}).update(
@@ -270,8 +271,8 @@ def _write_response(args: argparse.Namespace, layout: object, cal_file: object, 
            "room_c": round(room, 3), **counts,
            "thermal_rms_k": _stats(np.array([f.fit.rms for f in fits])),
            "wall_time": round(time.monotonic() - started, 2)}
-    if getattr(args, "air_gap_note", None):
-        doc["air_gap_note"] = args.air_gap_note
+    if note:
+        doc["air_gap_note"] = note
     if args.json:
         print(json.dumps(doc))
         return 0
@@ -306,13 +307,16 @@ def gap_seconds(material: object, sensor_effusivity: float) -> float:
     return float((e / material.conductance_range[0]) ** 2)
 
 
-def air_gap_note(names: list[str], table: dict, sensors: list) -> str | None:
+def air_gap_note(names: list[str], table: dict, sensors: list,
+                 dataset: bool = False) -> str | None:
     """Name the references whose air gap slows the contact on the sensor's own time scale.
 
     A reference is named when `gap_seconds` (with the taxels' median effusivity) exceeds
     `GAP_TIME_FRACTION` of the fastest taxel's half-response time (``sensors``: each taxel's
     `SensorDescription`): its contact conductance then trades against the response time
-    (`skin.bench.commission`). None when no reference is.
+    (`skin.bench.commission`). None when no reference is. The note says what to record
+    instead: touches given with ``--touches water,neoprene``, or with ``dataset`` (the
+    ``--data`` path, which takes no ``--touches``) a dataset of such contacts.
     """
     e_s = float(np.median([s.effusivity for s in sensors]))
     tau = float(min(s.response_time for s in sensors))
@@ -321,15 +325,17 @@ def air_gap_note(names: list[str], table: dict, sensors: list) -> str | None:
     if not slow:
         return None
     said = ", ".join(f"{m} {t:.2g} s" for m, t in slow.items())
+    conform = ("references that conform, at least 3 each of a thin bag of water and a "
+               "neoprene or rubber pad at room temperature")
+    instead = (f"log a dataset of water and neoprene contacts instead ({conform}) and give "
+               f"it with --data" if dataset else
+               f"record the touches again with {conform}, and give --touches water,neoprene")
     return (f"note: the air gap of {', '.join(slow)} slows the contact ({said}) by more than "
             f"{100 * GAP_TIME_FRACTION:g} % of the sensor's half-response time "
             f"({tau:.3g} s), so its conductance trades against the response time and the "
             f"fitted response time may be off (in simulation aluminium and pine through "
             f"their gaps left it 8.5-10 % off on the paper's sensor and 20-25 % on "
-            f"fast-film). On real hardware every contact has such a gap: record the "
-            f"touches again with references that conform, at least 3 each of a thin bag "
-            f"of water and a neoprene or rubber pad at room temperature, and give "
-            f"--touches water,neoprene")
+            f"fast-film). On real hardware every contact has such a gap: " + instead)
 
 
 def _reference_names(touches: str, table: dict, option: str = "--touches") -> list[str]:
