@@ -161,12 +161,11 @@ def test_skin_commission_fits_each_taxels_response_from_reference_touches(tmp_pa
     """Every taxel touched gets a fit, closer to the truth than nominal, and no air-gap note.
 
     The shipped scene: water and neoprene through their air gaps (finite contacts), through
-    sim:// (10-bit ADC) with onsets detected by the pipeline. Measured over its 72 taxels
-    (seed 7, the scene's): response-time error median 0.129 nominal -> 0.0054 fitted (p90
-    0.010; every taxel fitted alone, no touch ambiguous). Before `ASSIGN_RESPONSE_SCALES`, 22
-    of its 432 touches fitted water and neoprene alike with the nominal constants and 8 taxels
-    took their board's pool (p90 0.21). The same scene with aluminium and pine through their
-    gaps: 0.094 (p90 0.14), the air gap trading against the response time."""
+    sim:// (10-bit ADC) with onsets detected by the pipeline; here its first 16 taxels.
+    Over all 72 (`skin commission --port "sim://reference-touches?speed=0" --touches
+    water,neoprene --json`): every taxel fitted alone, no touch ambiguous; before
+    `ASSIGN_RESPONSE_SCALES` 22 of its 432 touches fitted water and neoprene alike with the
+    nominal constants and 8 taxels took their board's pool."""
     from skin.drivers.sim import SkinSimulator
 
     cal, path = tmp_path / "cal.json", tmp_path / "ref.toml"
@@ -498,6 +497,10 @@ def test_bench_commission_fits_a_fast_film_unit_from_detected_touches(capsys):
     for key in ("response_time", "effusivity"):
         assert doc[key]["fitted"]["median"] < doc[key]["nominal"]["median"] / 3
     assert doc["fit_cpu_seconds"] > 0
+    # the same touches named over the response-time sweep, and at nominal alone: counted
+    swept = doc["assignment"]["swept"]
+    assert swept["ambiguous"] == 0 and swept["wrong"] == 0 and swept["cpu_seconds"] > 0
+    assert set(doc["assignment"]["nominal"]) == {"ambiguous", "wrong", "cpu_seconds"}
     assert skin_main(["bench", "commission", "--touches", "1"]) == 2
     assert "--touches at least 2" in capsys.readouterr().err
 

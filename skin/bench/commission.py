@@ -77,7 +77,8 @@ def commission_unit(sensor: str = "paper", seed: int = 7, taxels: int = 8, touch
     Returns
     -------
     dict
-        ``sim`` (the `SkinSimulator`, its truth in ``taxel_sensor``), ``layout``, ``fits``
+        ``sim`` (the `SkinSimulator`, its truth in ``taxel_sensor``), ``scene``, ``times``
+        and ``readings`` (deg C, as read), ``layout``, ``fits``
         and ``counts`` (`commission_response`), ``nominal`` (the layout's sensors),
         ``quiet_noise`` (the touched taxels' median reading noise about a straight line
         before the first touch, K), ``hold``, ``rest``, ``recording_seconds``,
@@ -115,6 +116,7 @@ def commission_unit(sensor: str = "paper", seed: int = 7, taxels: int = 8, touch
     line = np.polynomial.polynomial.polyfit(x, y[quiet][:, :taxels], 1)
     resid = y[quiet][:, :taxels] - (line[0] + np.outer(x, line[1]))
     return {"sim": sim, "layout": scene.layout, "fits": fits, "counts": counts,
+            "times": t, "readings": y, "scene": scene,
             "quiet_noise": float(np.median(resid.std(axis=0, ddof=2))),
             "nominal": nominal, "hold": hold, "rest": rest,
             "recording_seconds": round(float(t[-1] - t[0]), 1),
@@ -137,7 +139,10 @@ def run(sensor: str = "paper", seed: int = 7, taxels: int = 8, touches: int = 6,
         ``response_time`` and ``effusivity``: ``nominal`` and ``fitted`` relative errors
         (median, p90, signed median over the fitted taxels), and ``fit_seconds`` and
         ``fit_cpu_seconds`` (the commissioning's wall and CPU time) beside
-        ``recording_seconds``.
+        ``recording_seconds``; with detected touches, ``assignment``: each touch's reference
+        named (`assign_materials`) over `ASSIGN_RESPONSE_SCALES` (``swept``) and at the
+        nominal response time alone (``nominal``), each with its touches ``ambiguous``,
+        ``wrong`` (named another reference than the scene touched) and ``cpu_seconds``.
     """
     from skin.models.commission import described
     from skin.models.sensors import load_sensor
@@ -159,6 +164,8 @@ def run(sensor: str = "paper", seed: int = 7, taxels: int = 8, touches: int = 6,
         "contact": contact, "references": list(references),
         "counts": {**unit["counts"], "taxels_fitted": int(columns.size)},
         **{k: unit[k] for k in ("recording_seconds", "fit_seconds", "fit_cpu_seconds")}}
+    if not labelled:
+        doc["assignment"] = _assignment(unit, references)
     if columns.size == 0:
         return doc
     ref = described(layout, unit["nominal"])
@@ -170,6 +177,36 @@ def run(sensor: str = "paper", seed: int = 7, taxels: int = 8, touches: int = 6,
     doc["effusivity"] = {"nominal": _errors(nom_e, truth.effusivity[columns]),
                          "fitted": _errors(got_e[columns], truth.effusivity[columns])}
     return doc
+
+
+def _assignment(unit: dict, references: tuple[str, ...]) -> dict[str, Any]:
+    """Name the unit's detected touches with and without the response-time sweep (`run`)."""
+    from skin.models import load_materials
+    from skin.models.commission import (
+        ASSIGN_RESPONSE_SCALES,
+        assign_materials,
+        described,
+        find_touches,
+    )
+
+    scene, layout = unit["scene"], unit["layout"]
+    sensors = described(layout, unit["nominal"])
+    touches, _ = find_touches(unit["times"], unit["readings"], layout, sensors)
+    table = load_materials()
+    mats = {m: table[m] for m in references}
+    out = {}
+    for key, scales in (("swept", ASSIGN_RESPONSE_SCALES), ("nominal", (1.0,))):
+        cpu = time.process_time()
+        assigned, ambiguous = assign_materials(touches, mats, sensors, scene.ambient, scales)
+        cpu = time.process_time() - cpu
+        wrong = 0
+        for a in assigned:  # the scene's touch of that taxel that began nearest the onset
+            of = [tc for tc in scene.touches if layout.ids[a.column] in tc.taxels]
+            near = min(of, key=lambda tc, a=a: abs(tc.start - a.onset))
+            wrong += scene.material_of(near) != a.material
+        out[key] = {"ambiguous": len(ambiguous), "wrong": int(wrong),
+                    "cpu_seconds": round(cpu, 3)}
+    return out
 
 
 def _paired(right_a: np.ndarray, right_b: np.ndarray) -> dict[str, float]:

@@ -540,6 +540,12 @@ def main_commission(args: argparse.Namespace) -> int:
           f"{c['left_out']} left out, {c['ambiguous']} ambiguous; {c['taxels_fitted']} taxels "
           f"fitted in {doc['fit_cpu_seconds']:g} CPU s ({doc['recording_seconds']:g} s "
           f"recorded; {doc['machine']['cpus']} cores)")
+    if "assignment" in doc:
+        a = doc["assignment"]
+        print("touches named over the response-time sweep: {ambiguous} ambiguous, {wrong} "
+              "wrong, {cpu_seconds:g} CPU s".format(**a["swept"])
+              + "; at the nominal response time alone: {ambiguous} ambiguous, {wrong} wrong, "
+              "{cpu_seconds:g} CPU s".format(**a["nominal"]))
     if "response_time" not in doc:
         print("no taxel fitted")
         return 0
