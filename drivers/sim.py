@@ -63,19 +63,21 @@ class SkinSimulator:
         What touches what, when.
     duration : float, optional
         Simulated time, s; the scene's duration by default.
-    contact : str
-        ``"perfect"`` (default): the paper's eq. 5 (h = infinity); ``"finite"``: each taxel's
-        contact conductance drawn from the material's range.
+    contact : str, optional
+        ``"perfect"``: the paper's eq. 5 (h = infinity); ``"finite"``: each taxel's contact
+        conductance drawn from the material's range; None (default): the scene's
+        (`Scene.contact`, perfect unless the scene says finite).
     """
 
     def __init__(self, scene: Scene, duration: float | None = None,
-                 contact: str = "perfect") -> None:
+                 contact: str | None = None) -> None:
         import scipy.signal  # noqa: F401  (the frames' filters: loaded here, not at the first frame)
 
         from skin.models.materials import load_materials
         from skin.models.physics import heated_temperature
         from skin.models.sensors import SensorDescription
 
+        contact = scene.contact if contact is None else contact
         if contact not in ("finite", "perfect"):
             raise ValueError(f"contact must be 'finite' or 'perfect', got {contact!r}")
         self.scene = scene

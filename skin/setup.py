@@ -76,8 +76,9 @@ class Setup:
         Seconds to run (default: the scene's; 20 for a device; a recording to its end).
     speed : float
         Simulation pace relative to real time; 0 as fast as possible.
-    contact : str
-        Simulated contact: ``perfect`` or ``finite``.
+    contact : str or None
+        Simulated contact: ``perfect`` or ``finite``; None: the scene's (perfect unless the
+        scene says ``contact = "finite"``).
     calibration : str or None
         Calibration file from ``skin calibrate``.
     model : str or None
@@ -145,7 +146,7 @@ class Setup:
     layout: str | None = None
     duration: float | None = None
     speed: float = 1.0
-    contact: str = "perfect"
+    contact: str | None = None
     calibration: str | None = None
     model: str | None = None
     classifier: str = "joint"

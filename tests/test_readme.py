@@ -161,7 +161,7 @@ SKIPPED = {
     "skin calibrate thermistors --data refs.csv": "the user's own reference readings",
     "skin dataset import trials.csv": "the user's own recordings",
     "skin commission --port": "the user's own quiet recording (tests/test_commission.py)",
-    "--touches aluminium,pine": "1-3 min of fitting (tests/test_commission.py runs it)",
+    "--touches water,neoprene": "1-3 min of fitting (tests/test_commission.py runs it)",
     "--calibration ref.json": "the file of the --touches line (skipped above)",
     "skin commission --data": "the user's own dataset (tests/test_commission.py)",
     "skin bench commission": "a minute of fitting (tests/test_commission.py runs one taxel)",

@@ -185,3 +185,22 @@ def test_an_unknown_material_names_the_line_of_its_object(tmp_path):
     with pytest.raises(SceneError, match=rf"s\.toml:{line}: object 'board': unknown material "
                                          r"'unobtainium'"):
         SkinSimulator(scene)
+
+
+def test_a_scene_says_how_its_touches_meet_the_skin():
+    """``contact``: perfect unless the scene says finite; the simulator follows it unless told."""
+    from skin.drivers.sim import SkinSimulator
+
+    assert parse_scene(HEAD + touch(), source="s.toml").contact == "perfect"
+    scene = parse_scene('contact = "finite"\n' + HEAD + touch(), source="s.toml")
+    assert scene.contact == "finite"
+    assert SkinSimulator(scene, duration=0.0).contact == "finite"
+    assert SkinSimulator(scene, duration=0.0, contact="perfect").contact == "perfect"
+    msg = scene_error('contact = "sticky"\n' + HEAD + touch())
+    assert "s.toml: field 'contact'" in msg and "'sticky'" in msg
+    shipped = load_scene("reference-touches")
+    assert shipped.contact == "finite"
+    assert {o.material for o in shipped.objects.values()} == {"water", "neoprene"}
+    for material in ("water", "neoprene"):  # >= 3 touches of each, with quiet before the first
+        assert sum(shipped.material_of(t) == material for t in shipped.touches) >= 3
+    assert shipped.touches[0].start >= 2.5 and shipped.duration <= 60.0

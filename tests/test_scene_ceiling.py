@@ -69,6 +69,12 @@ duration = 1.0
     with pytest.raises(SkinError, match="finite contact has no ceiling"):
         touch_truth(parse_scene(text.replace("pid-logger", "paper"), source="finite.toml"),
                     contact="finite")
+    # a scene whose touches meet the skin through their gaps: its contact is the default one
+    finite = text.replace("pid-logger", "paper").replace(
+        "duration = 3.0", 'duration = 3.0\ncontact = "finite"', 1)
+    with pytest.raises(SkinError, match="finite contact has no ceiling"):
+        touch_truth(parse_scene(finite, source="finite.toml"))
+    assert touch_truth(parse_scene(finite, source="finite.toml"), contact="perfect")
 
 
 def test_bench_scene_ceiling_is_never_below_the_run():

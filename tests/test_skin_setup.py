@@ -153,8 +153,12 @@ def test_config_show_prints_a_skin_file_that_reads_back():
 
     setup = Setup().updated({"port": ["sim://default"], "provisional": [0.5, 1.0],
                              "layout": "arm", "map": False}, "command line")
-    again = parse_skin_file(setup_text(setup), "shown.toml")
+    text = setup_text(setup)
+    again = parse_skin_file(text, "shown.toml")
     assert again.as_dict() == setup.as_dict()
+    # an unset value says what it means: the scene's contact, not "none"
+    assert "# contact = (the scene's)" in text and "# calibration = (none)" in text
+    assert "# contact = (none)" not in text
     assert again.where("map").startswith("shown.toml:")
 
 

@@ -59,10 +59,11 @@ NOISE_STEPS = ("run+noise", "taxels+noise")
 
 
 def touch_truth(scene, duration: float | None = None,
-                contact: str = "perfect") -> list[dict[str, Any]]:
+                contact: str | None = None) -> list[dict[str, Any]]:
     """Return what the simulation drew for each touch that begins within ``duration``.
 
-    ``contact`` is the run's contact model (`skin.drivers.sim.SkinSimulator`'s).
+    ``contact`` is the run's contact model (`skin.drivers.sim.SkinSimulator`'s); None: the
+    scene's (``Scene.contact``).
 
     Each: ``index`` (in the scene), ``touch`` (the `Touch`), ``material``, ``family``,
     ``effusivity``, ``t_object`` (deg C), ``k0`` and ``k1`` (first sample in contact and first
@@ -82,10 +83,11 @@ def touch_truth(scene, duration: float | None = None,
     from skin.models.physics import SensorConstants
     from skin.models.sensors import has_dynamics
 
+    contact = scene.contact if contact is None else contact
     if contact != "perfect":
         raise SkinError(f"{scene.source}: a {contact} contact has no ceiling (the conductances "
                         f"drawn are not kept); run the scene with a perfect contact")
-    sim = SkinSimulator(scene, duration=duration)
+    sim = SkinSimulator(scene, duration=duration, contact=contact)
     sensor = sim.sensor
     if has_dynamics(sensor):
         raise SkinError(f"{scene.source}: the scene's sensor ({sensor.heater} heater, with its "

@@ -12,7 +12,7 @@ sample jitter and a spectrum summary. `skin run --calibration` and `skin evaluat
 --calibration` then set the onset detector's thresholds from each taxel's own noise. A stretch
 that is too short or not quiet is refused with what to record instead.
 
-With ``--touches aluminium,pine`` it fits each taxel's sensor response (diffusivity and
+With ``--touches water,neoprene`` it fits each taxel's sensor response (diffusivity and
 conductivity; the depth too when the heater is switched off or left on at contact, else it
 is kept: a semi-infinite body shows depth^2 / diffusivity and the effusivity) from touches
 of those references at room temperature, at least 3 of each held 2.5 s on the paper's
@@ -22,12 +22,13 @@ detector (or given by ``--labels``), named by the
 reference they fit best, each touch's onset, baseline and contact conductance fitted with
 the constants. A taxel with too few touches gets its board's pooled fit.
 
-Prefer references that conform: water (in a thin bag), neoprene or rubber. Through a hard
-object's air gap the contact conductance and the response time trade against each other
-(both slow the reading's approach by a 1/sqrt(t) tail); a note on stderr names references
-whose gap slows the contact by more than 1 % of the sensor's half-response time
-(`GAP_TIME_FRACTION`). Measured in simulation (`skin bench commission --contact finite
-[--classify] --references water,neoprene`, 8 taxels, seeds 7 and 11): aluminium and pine
+Touch references that conform: water (in a thin bag), neoprene or rubber. Through a hard
+object's air gap (aluminium, wood) the contact conductance and the response time trade
+against each other (both slow the reading's approach by a 1/sqrt(t) tail), and every real
+contact has that gap; a note on stderr (and ``air_gap_note`` in ``--json``) names
+references whose gap slows the contact by more than 1 % of the sensor's half-response time
+(`GAP_TIME_FRACTION`) and says what to record instead. Measured in simulation (`skin bench
+commission [--classify]`, finite contacts, 8 taxels, seeds 7 and 11): aluminium and pine
 through their gaps leave the response time 8.5-10 % off on the paper's sensor and 24-25 %
 on fast-film, and a classifier told those constants 5.7-9.1 points below one told the true
 ones at 1 and 2.5 s on paper (not met at seed 7, unresolved at seed 11), 13-27 on
@@ -70,7 +71,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     cmd.add_argument("--touches", metavar="MATERIALS", default=None,
                      help="instead of the noise, fit each taxel's sensor response from touches "
                           "of these reference materials at room temperature in the recording, "
-                          "e.g. water,neoprene or aluminium,pine (at least 3 touches of each "
+                          "e.g. water,neoprene (at least 3 touches of each "
                           "of 2, held 2.5 s, "
                           "longer on a slower sensor, with 0.4 s of quiet before each); each "
                           "touch's onset is fitted with "
@@ -209,7 +210,7 @@ def _touches(args: argparse.Namespace, layout: object, cal_file: object, out: ob
                                        labels=getattr(args, "label_list", None))
     return _write_response(args, layout, cal_file, out, fits, counts,
                            f"touches of {', '.join(names)} at {room:.2f} C in {args.port}",
-                           room, started, progress)
+                           room, started, progress, note)
 
 
 def _dataset(args: argparse.Namespace, layout: object, progress: Progress) -> int:
@@ -232,7 +233,7 @@ def _dataset(args: argparse.Namespace, layout: object, progress: Progress) -> in
     out = Path(args.out)
     cal_file = load_calibration(out) if out.exists() else CalibrationFile()
     _, sensors = cal_file.apply(layout)
-    note = air_gap_note(names, table, described(layout, sensors))
+    note = air_gap_note(names, table, described(layout, sensors), dataset=True)
     if note:
         progress.message(note)
     progress.message(f"fitting the response from {len(trials)} trials of {', '.join(names)}")
@@ -243,13 +244,16 @@ def _dataset(args: argparse.Namespace, layout: object, progress: Progress) -> in
     counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": 0}
     return _write_response(args, layout, cal_file, out, fits, counts,
                            f"{len(touches)} contacts of {', '.join(names)} in {args.data}",
-                           room, started, progress)
+                           room, started, progress, note)
 
 
 def _write_response(args: argparse.Namespace, layout: object, cal_file: object, out: object,
                     fits: list, counts: dict, reference: str, room: float, started: float,
-                    progress: Progress) -> int:
-    """Write the fitted responses into the calibration file and report them."""
+                    progress: Progress, note: str | None = None) -> int:
+    """Write the fitted responses into the calibration file and report them.
+
+    ``note``: the air-gap note (`air_gap_note`), in ``--json`` as ``air_gap_note``.
+    """
     for f in fits:
         for k in f.columns:
             cal_file.taxels.setdefault(int(layout.ids[k]), {}).update(
@@ -267,6 +271,8 @@ def _write_response(args: argparse.Namespace, layout: object, cal_file: object, 
            "room_c": round(room, 3), **counts,
            "thermal_rms_k": _stats(np.array([f.fit.rms for f in fits])),
            "wall_time": round(time.monotonic() - started, 2)}
+    if note:
+        doc["air_gap_note"] = note
     if args.json:
         print(json.dumps(doc))
         return 0
@@ -301,13 +307,16 @@ def gap_seconds(material: object, sensor_effusivity: float) -> float:
     return float((e / material.conductance_range[0]) ** 2)
 
 
-def air_gap_note(names: list[str], table: dict, sensors: list) -> str | None:
+def air_gap_note(names: list[str], table: dict, sensors: list,
+                 dataset: bool = False) -> str | None:
     """Name the references whose air gap slows the contact on the sensor's own time scale.
 
     A reference is named when `gap_seconds` (with the taxels' median effusivity) exceeds
     `GAP_TIME_FRACTION` of the fastest taxel's half-response time (``sensors``: each taxel's
     `SensorDescription`): its contact conductance then trades against the response time
-    (`skin.bench.commission`). None when no reference is.
+    (`skin.bench.commission`). None when no reference is. The note says what to record
+    instead: touches given with ``--touches water,neoprene``, or with ``dataset`` (the
+    ``--data`` path, which takes no ``--touches``) a dataset of such contacts.
     """
     e_s = float(np.median([s.effusivity for s in sensors]))
     tau = float(min(s.response_time for s in sensors))
@@ -316,12 +325,17 @@ def air_gap_note(names: list[str], table: dict, sensors: list) -> str | None:
     if not slow:
         return None
     said = ", ".join(f"{m} {t:.2g} s" for m, t in slow.items())
+    conform = ("references that conform, at least 3 each of a thin bag of water and a "
+               "neoprene or rubber pad at room temperature")
+    instead = (f"log a dataset of water and neoprene contacts instead ({conform}) and give "
+               f"it with --data" if dataset else
+               f"record the touches again with {conform}, and give --touches water,neoprene")
     return (f"note: the air gap of {', '.join(slow)} slows the contact ({said}) by more than "
             f"{100 * GAP_TIME_FRACTION:g} % of the sensor's half-response time "
-            f"({tau:.3g} s), so its conductance trades against the response time (in "
-            f"simulation aluminium and pine left it 8.5-10 % off on the paper's sensor and "
-            f"24-25 % on fast-film); references that conform, such as water in a thin bag, "
-            f"neoprene or rubber, pin it")
+            f"({tau:.3g} s), so its conductance trades against the response time and the "
+            f"fitted response time may be off (in simulation aluminium and pine through "
+            f"their gaps left it 8.5-10 % off on the paper's sensor and 20-25 % on "
+            f"fast-film). On real hardware every contact has such a gap: " + instead)
 
 
 def _reference_names(touches: str, table: dict, option: str = "--touches") -> list[str]:

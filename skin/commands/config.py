@@ -43,6 +43,12 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
+#: What an unset value means where it is not simply none (`setup_text`).
+UNSET = {"contact": "(the scene's)", "seed": "(the scene's)",
+         "duration": "(the scene's; 20 s for a device; a recording to its end)",
+         "layout": "(the scene's, the recording's, or arm)"}
+
+
 def setup_text(setup: Setup) -> str:
     """Return ``setup`` as a skin file, each value's origin in a comment (unset ones too)."""
     from skin.formats.toml_text import toml_value
@@ -52,6 +58,7 @@ def setup_text(setup: Setup) -> str:
         lines += ["", f"[{group}]"]
         for name in names:
             value = getattr(setup, name)
-            text = f"# {name} = (none)" if value is None else f"{name} = {toml_value(value)}"
+            text = (f"# {name} = {UNSET.get(name, '(none)')}" if value is None
+                    else f"{name} = {toml_value(value)}")
             lines.append(f"{text:<48} # {setup.where(name)}")
     return "\n".join(lines)

@@ -62,8 +62,9 @@ def add_setup_options(run: argparse.ArgumentParser) -> None:
     run.add_argument("--speed", type=float,
                      help="simulation pace relative to real time; 0 = as fast as possible")
     run.add_argument("--contact", choices=("perfect", "finite"),
-                     help="simulated contact: perfect (eq. 5, default) or finite, with each "
-                          "material's contact conductance")
+                     help="simulated contact: perfect (eq. 5) or finite, with each "
+                          "material's contact conductance (default: the scene's, perfect "
+                          "unless it says contact = \"finite\")")
     run.add_argument("--out", help="output folder (default: out/run)")
     run.add_argument("--model", metavar="FILE",
                      help="classify with a model file from `skin train` (taxels' evidence "

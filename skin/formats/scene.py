@@ -78,6 +78,9 @@ class Scene:
     ``taxel_spread`` spreads each taxel's thermistor depth, diffusivity and conductivity
     uniformly within +- that fraction of its board's (seeded: units differ, as real ones do;
     what commissioning and ``skin run --calibration`` correct). 0: every taxel is nominal.
+    ``contact`` is how the touches meet the skin when the simulation is not told otherwise
+    (``skin run --contact``): ``"perfect"`` (the paper's eq. 5) or ``"finite"`` (through each
+    material's air gap, a conductance drawn from its range, as real contacts are).
     """
 
     name: str
@@ -92,6 +95,7 @@ class Scene:
     touches: tuple[Touch, ...]
     sensor: str = ""
     taxel_spread: float = 0.0
+    contact: str = "perfect"
 
     def material_of(self, touch: Touch) -> str:
         """Material of the object of a touch."""
@@ -166,6 +170,10 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
     spread = _number(data, "taxel_spread", source, 0.0)
     if not 0 <= spread < 1:
         raise SceneError(f"{source}: field 'taxel_spread' must be within [0, 1), got {spread!r}")
+    contact = data.get("contact", "perfect")
+    if contact not in ("perfect", "finite"):
+        raise SceneError(f"{source}: field 'contact' must be \"perfect\" or \"finite\", got "
+                         f"{contact!r}")
     init = data.get("initial_temperature", [ambient + 6.0, ambient + 14.0])
     if not (
         isinstance(init, list)
@@ -233,6 +241,7 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
         touches=tuple(touches),
         sensor=sensor,
         taxel_spread=spread,
+        contact=contact,
     )
 
 
