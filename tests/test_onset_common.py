@@ -125,3 +125,68 @@ def test_a_touch_of_all_but_one_or_two_taxels_leaves_the_others_alone(n, touched
         _, state = d.process(t[k:k + 20], y[k:k + 20], state)
         worst = max(worst, float(np.max(np.abs(state.common))))
     assert worst == 0.0
+
+
+def _loop_board(n=16, seconds=240.0, touched=(), touch_at=150.0, touch_for=4.0, seed=0):
+    """A pid-logger board: the room's random walk (`AMBIENT_DRIFT`, the same for every taxel)
+    through the loop, lag and smoothing, each taxel's readout noise, and an aluminium block
+    touching the taxels ``touched``. Returns the times, readings, sensor and the room's
+    component of the readings (noise-free, no touch)."""
+    from skin.stream.onset import AMBIENT_DRIFT
+
+    s = load_sensor("pid-logger")
+    fs = s.sample_rate
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * fs)) / fs
+    heated = 25.0 + s.heated_rise
+    room = np.cumsum(rng.normal(0.0, np.sqrt(AMBIENT_DRIFT / fs), t.size))
+    face = np.full((t.size, n), heated) + room[:, None]
+    inside = (t >= touch_at) & (t < touch_at + touch_for)
+    for k in touched:
+        face[inside, k] = contact_reading(t[inside] - touch_at, heated, 22.0, 2.4e4, s,
+                                          ambient=25.0) + room[inside]
+    y = apply_dynamics(face, s, fs, axis=0) + rng.normal(0.0, s.noise, face.shape)
+    through = smooth(apply_dynamics(heated + room, s, fs), s, fs=fs)
+    return t, smooth(y, s, axis=0, fs=fs), s, through
+
+
+def test_a_loop_held_boards_common_mode_is_the_room_through_the_loop():
+    """The loop passes the room as a band-limited noise, the same in every taxel: the median
+    common mode follows it, and the envelope's room allowance shrinks to what it leaves."""
+    t, y, s, through = _loop_board()
+    d = OnsetDetector(16, sensor=s, common_mode=True)
+    assert d.loop_common and not OnsetDetector(16, sensor=s).loop_common
+    assert not OnsetDetector(16, sensor="low-cost", common_mode=True).loop_common
+    st = d.initial_state()
+    common = np.empty(t.size // 10)
+    for k in range(common.size):
+        _, st = d.process(t[10 * k:10 * k + 10], y[10 * k:10 * k + 10], st)
+        common[k] = st.common[0]
+    through = through[9::10]
+    late = t[9::10] > 60.0
+    room = through[late] - through[late].mean()
+    est = common[late] - common[late].mean()
+    assert np.std(room) > 0.01  # the room moves the readings by hundredths of a kelvin
+    assert np.corrcoef(room, est)[0, 1] > 0.95
+    assert np.std(room - est) < 0.3 * np.std(room)
+    # what the common mode leaves is far below the room's own variance through the loop
+    assert np.all(st.common_var < 0.1 * d._room_var)
+
+
+def test_a_loop_held_touch_of_a_few_taxels_is_found_and_leaves_the_others_alone():
+    t, y, s, _ = _loop_board(touched=(0, 1, 2))
+    on, _ = _onsets(t, y, s)
+    assert {e.taxel for e in on if 150.0 <= e.detected_at <= 170.0} == {0, 1, 2}
+    assert [e for e in on if e.taxel > 2] == []
+
+
+def test_a_loop_held_boards_common_mode_is_chunk_invariant():
+    t, y, s, _ = _loop_board(seconds=180.0, touched=(4, 5), touch_at=120.0)
+    y[3000:3100, 7] = np.nan  # a hole in one taxel
+    whole, st_whole = _onsets(t, y, s, chunk=t.size)
+    for chunk in (1, 13):
+        got, st = _onsets(t, y, s, chunk=chunk)
+        assert got == whole
+        for name in ("common", "common_var", "room_noise", "var"):
+            np.testing.assert_allclose(getattr(st, name), getattr(st_whole, name),
+                                       rtol=1e-9, atol=1e-15)

@@ -234,6 +234,24 @@ def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float
     return dt, fall, drift
 
 
+@functools.cache
+def _room_variance(sensor: object) -> float:
+    """Return the variance of the room's random walk as a loop-held reading shows it, K^2.
+
+    `AMBIENT_DRIFT` times the integral of the square of g, the reading's response to a unit
+    step of the room (through the loop, the lag and the smoothing; g returns to 0, the loop
+    holding its setpoint): pid-logger 0.032 K sd. The largest span of `loop_envelope`'s room
+    table has sd sqrt(2) times this.
+    """
+    from skin.models.sensors import apply_dynamics, smooth
+
+    fs = float(sensor.sample_rate)
+    pad = int(2.0 * fs)
+    step = np.concatenate([np.zeros(pad), np.ones(round(600.0 * fs))])
+    g = smooth(apply_dynamics(step, sensor, fs), sensor, fs=fs)
+    return float(AMBIENT_DRIFT * np.sum(g**2) / fs)
+
+
 def _room_quantile(sensor: object, lags: np.ndarray, sd: np.ndarray, false_alarm_rate: float,
                    hours: float = 1.0, level: float = 3.0) -> float:
     """Return z: the room's fall through the loop passes z sd over some span this rarely.
@@ -347,7 +365,11 @@ class DetectorState:
     estimate is a running mean of the residual's square up to ``noise_tau`` after it).
     ``common_smooth`` and ``common_level`` are each taxel's averaged raw reading and its level
     with the board's common mode taken off (`OnsetDetector`'s ``common_mode``); ``common`` the
-    common mode taken off its last reading (its board's), K.
+    common mode taken off its last reading (its board's), K; ``common_var`` (a loop-held
+    board's) the variance of what the common mode leaves of a free taxel's departure, K^2;
+    ``room_smooth``, ``room_level`` and ``room_slope`` the baseline run on the common mode
+    alone, and ``room_noise`` the CUSUM's noise variance with the common mode's share put
+    back (a loop-held board's, `OnsetDetector._loop_common`).
     """
 
     level: np.ndarray
@@ -378,6 +400,11 @@ class DetectorState:
     common_smooth: np.ndarray
     common_level: np.ndarray
     common: np.ndarray
+    common_var: np.ndarray
+    room_smooth: np.ndarray
+    room_level: np.ndarray
+    room_slope: np.ndarray
+    room_noise: np.ndarray
 
     def copy(self) -> DetectorState:
         """Return a deep copy."""
@@ -497,9 +524,14 @@ class OnsetDetector:
         Each taxel's board (default: all on one). The common mode is a board's.
     common_mode : bool
         Whether a change shared by (nearly) every free taxel of a board is taken off their readings
-        before anything else (default: no). Not for a PID-held heater: the loop high-passes the
-        room, and the common mode's own jitter raised pid-logger's false alarms (0/.25/.75 ->
-        8.5/3.25/6.5 per taxel-hour, seeds 0/2/4). Nor, as it stands, for a skin whose taxels warm
+        before anything else (default: no). A PID-held heater's board (``sensor.heater ==
+        "pid"``, with the gust-envelope test) has its own (`_loop_common`): the loop high-passes
+        the room into a band-limited noise that never moves (nearly) every taxel beyond its
+        noise at once, so the gated form below switched on and off with it, a step in every
+        reading of the board (pid-logger seed 0: 1.25 false alarms per taxel-hour, three at
+        one instant); there the median of the free taxels' departures is taken off on every
+        sample, the envelope's room allowance scaled by what it leaves, and the CUSUM's
+        allowance keeps the room's share. Nor, as it stands, for a skin whose taxels warm
         up together (the default scene's first seconds: taken for the room, it changed one contact
         of scene seed 8). The room warming or cooling moves every heated taxel alike; a touch moves
         the taxels it covers. Per board, each free taxel's departure (its reading averaged as the
@@ -642,6 +674,11 @@ class OnsetDetector:
         self.board = (np.zeros(n_taxels, dtype=np.int64) if boards is None
                       else np.asarray(boards, dtype=np.int64).reshape(n_taxels).copy())
         self.common_mode = common_mode
+        # a loop-held board's common mode (`_loop_common`): the median of its free taxels'
+        # departures, always taken off; the envelope's room allowance then scaled by what it
+        # leaves (``common_var``) against the room's own variance through the loop
+        self.loop_common = bool(common_mode and self.envelope is not None)
+        self._room_var = _room_variance(sensor) if self.envelope is not None else 0.0
 
     def initial_state(self) -> DetectorState:
         """Return the state before the first sample."""
@@ -676,6 +713,12 @@ class OnsetDetector:
             common_smooth=nan.copy(),
             common_level=nan.copy(),
             common=np.zeros(n),
+            common_var=np.full(n, self._room_var),
+            room_smooth=np.zeros(n),
+            room_level=np.zeros(n),
+            room_slope=np.zeros(n),
+            room_noise=np.broadcast_to(np.asarray(self.noise_floor, dtype=float) ** 2,
+                                       (n,)).copy(),
         )
 
     def process(
@@ -777,6 +820,8 @@ class OnsetDetector:
                 gain: np.ndarray, groups: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
         """Return the readings with their board's common mode taken off (``common_mode``)."""
         table, row = groups
+        if self.loop_common:
+            return self._loop_common(t, y, s, live, gain, table, row)
         np.copyto(s.common_smooth, s.common_smooth + (y - s.common_smooth) * gain[6],
                   where=live)
         part = s.common_smooth - s.common_level
@@ -812,6 +857,42 @@ class OnsetDetector:
                   + (s.common_smooth - common - s.common_level) * gain[1]
                   + common * gain[7], where=live)
         return y - common if moved.any() else y
+
+    def _loop_common(self, t: float, y: np.ndarray, s: DetectorState, live: np.ndarray,
+                     gain: np.ndarray, table: np.ndarray, row: np.ndarray) -> np.ndarray:
+        """Return the readings with a loop-held board's common mode taken off.
+
+        A PID loop high-passes the room: what reaches every taxel of a board is a band-limited
+        noise (pid-logger: 0.032 K sd), the same in each (one room, one loop design), never a
+        step that (nearly) every taxel shows beyond its noise, so the gated common mode of
+        `_common` switched on and off with it. Here the common mode is the median of the free
+        taxels' departures (each taxel's averaged reading from its own level), taken off
+        every reading of the board on every sample: a touch moves the median of n taxels by a
+        step of the others' spread, not by the touch. ``common_var`` follows the square of
+        what it leaves of each free taxel's departure (`COMMON_FORGET` ``slow_tau``).
+        """
+        np.copyto(s.common_smooth, s.common_smooth + (y - s.common_smooth) * gain[6],
+                  where=live)
+        part = s.common_smooth - s.common_level
+        use = live & ~s.in_contact & (t >= s.recover_until)
+        values = np.append(np.where(use, part, np.nan), np.nan)[table]
+        values.sort(axis=1)  # NaN last
+        count = np.count_nonzero(np.isfinite(values), axis=1)
+        lo = np.clip((count - 1) // 2, 0, values.shape[1] - 1)[:, None]
+        hi = np.clip(count // 2, 0, values.shape[1] - 1)[:, None]
+        median = 0.5 * (np.take_along_axis(values, lo, 1) + np.take_along_axis(values, hi, 1))
+        board = np.where(count >= COMMON_MIN, median[:, 0], 0.0)
+        common = np.nan_to_num(board)[row]
+        np.copyto(s.common, common, where=live)
+        left = part - common
+        # a running mean first, an exponential one after `COMMON_FORGET` ``slow_tau`` (from
+        # the room's own variance, the allowance on main, it took minutes to come down)
+        dt = np.maximum(t - s.t_last, 1e-9)
+        v = np.maximum(gain[7], dt / np.maximum(t - s.t_first + dt, dt))
+        np.copyto(s.common_var, s.common_var + (left**2 - s.common_var) * v, where=use)
+        np.copyto(s.common_level, s.common_level + left * gain[1] + common * gain[7],
+                  where=live)
+        return y - common
 
     @staticmethod
     def _board_common(fall_part: np.ndarray, rise_part: np.ndarray, use: np.ndarray,
@@ -874,6 +955,8 @@ class OnsetDetector:
             s.ref_level[back] = np.nan
             s.armed_at[back] = t + self.warmup
             s.common_smooth[back] = y[back]
+            s.room_smooth[back] = s.room_level[back] = s.common[back]
+            s.room_slope[back] = 0.0
             s.common_level[back] = y[back] - s.common[back]
         dt = np.maximum(np.where(live, t - s.t_last, 1.0), 1e-9)
         # every smoothing gain at once: smooth, slow, level, slope (free, in contact), noise
@@ -888,7 +971,20 @@ class OnsetDetector:
         pred = s.level + s.slope * (t - s.t_level)
         resid = np.where(live, s.smooth - pred, 0.0)
         sigma = np.sqrt(np.maximum(s.var, self.noise_floor**2))
-        allowance = np.maximum(self.drift, 4.0 * sigma)
+        if self.loop_common:
+            # the CUSUM's allowance keeps the common mode's share of the baseline's residual
+            # (a baseline run on the common mode alone; linear, so the two residuals add up
+            # to the raw reading's): the room's leftover had covered the fastest gusts, which
+            # the CUSUM of the room-free reading took for contacts (pid-logger seed 2: 14 of
+            # 15 false alarms, each within 0.5 s of a gust's start)
+            np.copyto(s.room_smooth, s.room_smooth + (s.common - s.room_smooth) * gain[0],
+                      where=live)
+            room_pred = s.room_level + s.room_slope * (t - s.t_level)
+            room_resid = np.where(live, s.room_smooth - room_pred, 0.0)
+            cusum_sigma = np.sqrt(np.maximum(s.room_noise, self.noise_floor**2))
+        else:
+            cusum_sigma = sigma
+        allowance = np.maximum(self.drift, 4.0 * cusum_sigma)
         idle = live & free
         armed = t >= s.armed_at
         # in contact the baseline follows the reading's in-contact trend, and the CUSUM of the
@@ -964,7 +1060,12 @@ class OnsetDetector:
             j = np.ceil(since / step)
             np.copyto(j, loop_fall.size - 1, where=~(j < loop_fall.size))  # no reference: unused
             j = j.astype(np.intp)
-            gusty = loop_fall[j] + np.sqrt(margin**2 + drift[j] ** 2)
+            room = drift[j]
+            if self.loop_common:
+                # what the board's common mode leaves of the room (and of the other taxels'
+                # own disturbances, through the median), measured, against the room alone
+                room = room * np.sqrt(np.minimum(s.common_var / self._room_var, 1.0))
+            gusty = loop_fall[j] + np.sqrt(margin**2 + room**2)
         deep = idle & armed & ~alarm & ~rise_alarm & ~slow_alarm & (drop > gusty)
         slow_alarm = slow_alarm | deep
         # a fall the CUSUM has begun to gather is dated where the CUSUM left zero, as its own
@@ -1051,6 +1152,10 @@ class OnsetDetector:
         err = gain[2] * resid
         np.copyto(s.level, pred + err, where=follow)
         np.copyto(s.slope, s.slope + b * err / dt, where=follow)
+        if self.loop_common:
+            room_err = gain[2] * room_resid
+            np.copyto(s.room_level, room_pred + room_err, where=follow)
+            np.copyto(s.room_slope, s.room_slope + b * room_err / dt, where=follow)
         np.copyto(s.t_level, t, where=follow)
         v = gain[5]
         if self.running_start:
@@ -1062,7 +1167,11 @@ class OnsetDetector:
             # own trend at start, which a running mean would take for noise (the default
             # scene's pipeline then missed its early touches)
             v = np.maximum(v, dt / np.maximum(t - s.t_first, dt))
-        np.copyto(s.var, s.var + v * (resid**2 - s.var), where=follow & idle & (g == 0) & (u == 0))
+        quiet = follow & idle & (g == 0) & (u == 0)
+        np.copyto(s.var, s.var + v * (resid**2 - s.var), where=quiet)
+        if self.loop_common:
+            np.copyto(s.room_noise, s.room_noise + v * ((resid + room_resid) ** 2 - s.room_noise),
+                      where=quiet)
 
         # release: the smoothed temperature returns clearly from its in-contact extreme, or
         # its departure stops short of the in-contact trend
