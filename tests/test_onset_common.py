@@ -190,3 +190,22 @@ def test_a_loop_held_boards_common_mode_is_chunk_invariant():
         for name in ("common", "common_var", "room_noise", "var"):
             np.testing.assert_allclose(getattr(st, name), getattr(st_whole, name),
                                        rtol=1e-9, atol=1e-15)
+
+
+
+@pytest.mark.parametrize("n, touched, separable", [(16, 6, True), (4, 3, False)])
+def test_a_loop_held_touch_of_fewer_than_half_a_board_leaves_the_others_alone(n, touched,
+                                                                               separable):
+    """The median holds while fewer than half of a board's free taxels are touched together:
+    6 of 16 leave the other 10 alone. 3 of 4 are taken for the room in the touch's first
+    second (their falls still within the room's reach), and the free taxel's reading rises by
+    what the median took: a false rise (measured; the room cannot be told from such a touch)."""
+    t, y, s, _ = _loop_board(n=n, seconds=180.0, touched=tuple(range(touched)),
+                             touch_at=120.0, touch_for=20.0)
+    on, _ = _onsets(t, y, s)
+    assert {e.taxel for e in on if 120.0 <= e.time <= 122.0 and e.direction < 0} \
+        >= set(range(touched))
+    others = [e for e in on if e.taxel >= touched]
+    assert (others == []) == separable
+    off, _ = _onsets(t, y, s, common_mode=False)
+    assert [e for e in off if e.taxel >= touched] == []

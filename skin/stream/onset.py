@@ -884,6 +884,9 @@ class OnsetDetector:
         board = np.where(count >= COMMON_MIN, median[:, 0], 0.0)
         common = np.nan_to_num(board)[row]
         np.copyto(s.common, common, where=live)
+        # a board with fewer than `COMMON_MIN` free taxels (a touch covering most of it) has
+        # no common mode: the room is back in full in its readings, and so in the allowance
+        np.copyto(s.common_var, self._room_var, where=live & (count < COMMON_MIN)[row])
         left = part - common
         # a running mean first, an exponential one after `COMMON_FORGET` ``slow_tau`` (from
         # the room's own variance, the allowance on main, it took minutes to come down)
