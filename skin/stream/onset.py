@@ -252,6 +252,52 @@ def _room_variance(sensor: object) -> float:
     return float(AMBIENT_DRIFT * np.sum(g**2) / fs)
 
 
+@functools.cache
+def _gust_allowance(sensor: object, gust_depth: float, smooth_tau: float, level_tau: float,
+                    slope_tau: float, threshold: float, rise_threshold: float) -> float:
+    """Return the least CUSUM allowance, K, at which no gust of the family raises the CUSUM.
+
+    The gusts of `loop_envelope` (``gust_depth`` K, rising with 1 to 4 `GUST_RISE`, held 1
+    to 8 s), noise-free, through the sensor's loop, lag and smoothing, then the detector's
+    smoothing, baseline (level and slope, following while the CUSUM is below a quarter of
+    ``threshold``) and falling CUSUM: bisection on the allowance.
+    """
+    from skin.models.sensors import apply_dynamics, smooth
+
+    fs = float(sensor.sample_rate)
+    t = np.arange(round((4.0 * GUST_RISE + 8.0 + 20.0) * fs)) / fs
+    gusts = [-gust_depth * np.where(t < hold, -np.expm1(-t / rise),
+                                    -np.expm1(-hold / rise) * np.exp(-(t - hold) / rise))
+             for rise in (GUST_RISE, 2.0 * GUST_RISE, 4.0 * GUST_RISE)
+             for hold in (1.0, 2.0, 4.0, 8.0)]
+    x = np.concatenate([np.zeros((int(2.0 * fs), len(gusts))), np.column_stack(gusts)])
+    y = smooth(apply_dynamics(x, sensor, fs, axis=0), sensor, axis=0, fs=fs)
+    a_s, a_l, a_b = (-math.expm1(-1.0 / (fs * tau)) for tau in (smooth_tau, level_tau, slope_tau))
+
+    def peak(k: float) -> float:
+        sm = level = slope = g = u = np.zeros(y.shape[1])
+        top = 0.0
+        for row in y:
+            sm = sm + (row - sm) * a_s
+            pred = level + slope / fs
+            resid = sm - pred
+            g = np.maximum(0.0, g - resid - k)
+            u = np.maximum(0.0, u + resid - k)
+            top = max(top, float(g.max()))
+            u = np.where(u > rise_threshold, 0.0, u)  # the recovery: a rebound, reset
+            follow = (g <= threshold / 4.0) & (u <= rise_threshold / 4.0)
+            err = a_l * resid
+            level = np.where(follow, pred + err, level + slope / fs)
+            slope = np.where(follow, slope + a_b * err * fs, slope)
+        return top
+
+    lo, hi = 0.0, float(gust_depth)
+    for _ in range(30):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if peak(mid) >= threshold else (lo, mid)
+    return hi
+
+
 def _room_quantile(sensor: object, lags: np.ndarray, sd: np.ndarray, false_alarm_rate: float,
                    hours: float = 1.0, level: float = 3.0) -> float:
     """Return z: the room's fall through the loop passes z sd over some span this rarely.
@@ -366,10 +412,7 @@ class DetectorState:
     ``common_smooth`` and ``common_level`` are each taxel's averaged raw reading and its level
     with the board's common mode taken off (`OnsetDetector`'s ``common_mode``); ``common`` the
     common mode taken off its last reading (its board's), K; ``common_var`` (a loop-held
-    board's) the variance of what the common mode leaves of a free taxel's departure, K^2;
-    ``room_smooth``, ``room_level`` and ``room_slope`` the baseline run on the common mode
-    alone, and ``room_noise`` the CUSUM's noise variance with the common mode's share put
-    back (a loop-held board's, `OnsetDetector._loop_common`).
+    board's) the variance of what the common mode leaves of a free taxel's departure, K^2.
     """
 
     level: np.ndarray
@@ -401,10 +444,6 @@ class DetectorState:
     common_level: np.ndarray
     common: np.ndarray
     common_var: np.ndarray
-    room_smooth: np.ndarray
-    room_level: np.ndarray
-    room_slope: np.ndarray
-    room_noise: np.ndarray
 
     def copy(self) -> DetectorState:
         """Return a deep copy."""
@@ -524,25 +563,25 @@ class OnsetDetector:
         Each taxel's board (default: all on one). The common mode is a board's.
     common_mode : bool
         Whether a change shared by (nearly) every free taxel of a board is taken off their readings
-        before anything else (default: no). A PID-held heater's board (``sensor.heater ==
-        "pid"``, with the gust-envelope test) has its own (`_loop_common`): the loop high-passes
-        the room into a band-limited noise that never moves (nearly) every taxel beyond its
-        noise at once, so the gated form below switched on and off with it, a step in every
-        reading of the board (pid-logger seed 0: 1.25 false alarms per taxel-hour, three at
-        one instant); there the median of the free taxels' departures is taken off on every
-        sample, the envelope's room allowance scaled by what it leaves, and the CUSUM's
-        allowance keeps the room's share. Nor, as it stands, for a skin whose taxels warm
+        before anything else (default: no). A PID-held heater's board (``sensor.heater == "pid"``,
+        with the gust-envelope test) has its own (`_loop_common`): the loop high-passes the room
+        into a band-limited noise that never moves (nearly) every taxel beyond its noise at once, so
+        the gated form below switched on and off with it, a step in every reading of the board
+        (pid-logger seed 0: 1.25 false alarms per taxel-hour, three at one instant); there the
+        median of the free taxels' departures is taken off on every sample, the envelope's room
+        allowance scaled by what it leaves, and the CUSUM's allowance made to hold the family's
+        gusts through the loop (`_gust_allowance`). Nor, as it stands, for a skin whose taxels warm
         up together (the default scene's first seconds: taken for the room, it changed one contact
         of scene seed 8). The room warming or cooling moves every heated taxel alike; a touch moves
         the taxels it covers. Per board, each free taxel's departure (its reading averaged as the
         slow channel's) from its own level (followed with ``slow_tau``, the common mode taken off,
         and the room's change with `COMMON_FORGET` times ``slow_tau``), plus `COMMON_MARGIN` of that
         average's noise sigmas: when at least k of the board's n free taxels fell beyond their
-        noise, k = ceil((1 - `COMMON_SHARE`) n) (`_shared`: 4 of 4, 15 of 16), the k-th largest
-        fall is the common mode (for a rise: the k-th largest rise less the margin); else 0, so
-        that noise and a touch covering fewer than k of a board's free taxels leave the readings
-        alone. A touch that covers k or more of them at once is taken for the room. Boards of
-        fewer than `COMMON_MIN` free taxels have none.
+        noise, k = ceil((1 - `COMMON_SHARE`) n) (`_shared`: 4 of 4, 15 of 16), the k-th largest fall
+        is the common mode (for a rise: the k-th largest rise less the margin); else 0, so that
+        noise and a touch covering fewer than k of a board's free taxels leave the readings alone. A
+        touch that covers k or more of them at once is taken for the room. Boards of fewer than
+        `COMMON_MIN` free taxels have none.
 
     Every kelvin threshold left as None follows from ``sigma`` and the sensor; the figures in
     the descriptions above are the paper sensor's.
@@ -679,6 +718,11 @@ class OnsetDetector:
         # leaves (``common_var``) against the room's own variance through the loop
         self.loop_common = bool(common_mode and self.envelope is not None)
         self._room_var = _room_variance(sensor) if self.envelope is not None else 0.0
+        self._gust_k = (_gust_allowance(sensor, float(self.gust_depth), self.smooth_tau,
+                                        self.level_tau, self.slope_tau,
+                                        float(np.min(self.threshold)),
+                                        float(np.min(self.rise_threshold)))
+                        if self.loop_common else 0.0)
 
     def initial_state(self) -> DetectorState:
         """Return the state before the first sample."""
@@ -714,11 +758,6 @@ class OnsetDetector:
             common_level=nan.copy(),
             common=np.zeros(n),
             common_var=np.full(n, self._room_var),
-            room_smooth=np.zeros(n),
-            room_level=np.zeros(n),
-            room_slope=np.zeros(n),
-            room_noise=np.broadcast_to(np.asarray(self.noise_floor, dtype=float) ** 2,
-                                       (n,)).copy(),
         )
 
     def process(
@@ -958,8 +997,6 @@ class OnsetDetector:
             s.ref_level[back] = np.nan
             s.armed_at[back] = t + self.warmup
             s.common_smooth[back] = y[back]
-            s.room_smooth[back] = s.room_level[back] = s.common[back]
-            s.room_slope[back] = 0.0
             s.common_level[back] = y[back] - s.common[back]
         dt = np.maximum(np.where(live, t - s.t_last, 1.0), 1e-9)
         # every smoothing gain at once: smooth, slow, level, slope (free, in contact), noise
@@ -975,19 +1012,13 @@ class OnsetDetector:
         resid = np.where(live, s.smooth - pred, 0.0)
         sigma = np.sqrt(np.maximum(s.var, self.noise_floor**2))
         if self.loop_common:
-            # the CUSUM's allowance keeps the common mode's share of the baseline's residual
-            # (a baseline run on the common mode alone; linear, so the two residuals add up
-            # to the raw reading's): the room's leftover had covered the fastest gusts, which
+            # the room's leftover in the noise estimate had covered the fastest gusts, which
             # the CUSUM of the room-free reading took for contacts (pid-logger seed 2: 14 of
-            # 15 false alarms, each within 0.5 s of a gust's start)
-            np.copyto(s.room_smooth, s.room_smooth + (s.common - s.room_smooth) * gain[0],
-                      where=live)
-            room_pred = s.room_level + s.room_slope * (t - s.t_level)
-            room_resid = np.where(live, s.room_smooth - room_pred, 0.0)
-            cusum_sigma = np.sqrt(np.maximum(s.room_noise, self.noise_floor**2))
+            # 15 false alarms, each within 0.5 s of a gust's start): the allowance adds what
+            # the family's gusts need through the loop (`_gust_allowance`), in quadrature
+            allowance = np.maximum(self.drift, np.hypot(4.0 * sigma, self._gust_k))
         else:
-            cusum_sigma = sigma
-        allowance = np.maximum(self.drift, 4.0 * cusum_sigma)
+            allowance = np.maximum(self.drift, 4.0 * sigma)
         idle = live & free
         armed = t >= s.armed_at
         # in contact the baseline follows the reading's in-contact trend, and the CUSUM of the
@@ -1155,10 +1186,6 @@ class OnsetDetector:
         err = gain[2] * resid
         np.copyto(s.level, pred + err, where=follow)
         np.copyto(s.slope, s.slope + b * err / dt, where=follow)
-        if self.loop_common:
-            room_err = gain[2] * room_resid
-            np.copyto(s.room_level, room_pred + room_err, where=follow)
-            np.copyto(s.room_slope, s.room_slope + b * room_err / dt, where=follow)
         np.copyto(s.t_level, t, where=follow)
         v = gain[5]
         if self.running_start:
@@ -1170,11 +1197,7 @@ class OnsetDetector:
             # own trend at start, which a running mean would take for noise (the default
             # scene's pipeline then missed its early touches)
             v = np.maximum(v, dt / np.maximum(t - s.t_first, dt))
-        quiet = follow & idle & (g == 0) & (u == 0)
-        np.copyto(s.var, s.var + v * (resid**2 - s.var), where=quiet)
-        if self.loop_common:
-            np.copyto(s.room_noise, s.room_noise + v * ((resid + room_resid) ** 2 - s.room_noise),
-                      where=quiet)
+        np.copyto(s.var, s.var + v * (resid**2 - s.var), where=follow & idle & (g == 0) & (u == 0))
 
         # release: the smoothed temperature returns clearly from its in-contact extreme, or
         # its departure stops short of the in-contact trend
