@@ -209,3 +209,27 @@ def test_a_loop_held_touch_of_fewer_than_half_a_board_leaves_the_others_alone(n,
     assert (others == []) == separable
     off, _ = _onsets(t, y, s, common_mode=False)
     assert [e for e in off if e.taxel >= touched] == []
+
+
+@pytest.mark.parametrize("rise, hold", [(1.0, 1.0), (1.0, 8.0), (4.0, 4.0)])
+def test_a_loop_held_boards_gust_is_no_contact(rise, hold):
+    """The room-free CUSUM takes the family's fastest gusts for contacts unless its allowance
+    holds them through the loop (`_gust_allowance`; pid-logger seed 2: 14 false alarms)."""
+    from skin.stream.onset import _gust_allowance
+
+    s = load_sensor("pid-logger")
+    fs = s.sample_rate
+    d = OnsetDetector(16, sensor=s, common_mode=True)
+    assert 0.0 < d._gust_k < float(d.gust_depth)
+    assert _gust_allowance.cache_info().currsize >= 1
+    t = np.arange(int(120.0 * fs)) / fs
+    since = np.maximum(t - 90.0, 0.0)
+    shape = np.where(since < hold, -np.expm1(-since / rise),
+                     -np.expm1(-hold / rise) * np.exp(-(since - hold) / rise))
+    face = np.full((t.size, 16), 25.0 + s.heated_rise)
+    face[:, 0] -= float(d.gust_depth) * shape
+    rng = np.random.default_rng(3)
+    y = smooth(apply_dynamics(face, s, fs, axis=0) + rng.normal(0.0, s.noise, face.shape), s,
+               axis=0, fs=fs)
+    on, _ = _onsets(t, y, s)
+    assert on == []
