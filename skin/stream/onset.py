@@ -920,12 +920,15 @@ class OnsetDetector:
         lo = np.clip((count - 1) // 2, 0, values.shape[1] - 1)[:, None]
         hi = np.clip(count // 2, 0, values.shape[1] - 1)[:, None]
         median = 0.5 * (np.take_along_axis(values, lo, 1) + np.take_along_axis(values, hi, 1))
-        board = np.where(count >= COMMON_MIN, median[:, 0], 0.0)
-        common = np.nan_to_num(board)[row]
-        np.copyto(s.common, common, where=live)
+        few = (count < COMMON_MIN)[row]
         # a board with fewer than `COMMON_MIN` free taxels (a touch covering most of it) has
-        # no common mode: the room is back in full in its readings, and so in the allowance
-        np.copyto(s.common_var, self._room_var, where=live & (count < COMMON_MIN)[row])
+        # no median to trust: it holds its last common mode, which fades as each taxel's level
+        # absorbs it (`COMMON_FORGET` ``slow_tau``, below), rather than dropping to 0 (a step of
+        # the room's tens of mK in every reading left: false onsets); the room's change since
+        # is back in the readings, and so in full in the allowance
+        common = np.where(few, s.common * (1.0 - gain[7]), np.nan_to_num(median[:, 0])[row])
+        np.copyto(s.common, common, where=live)
+        np.copyto(s.common_var, self._room_var, where=live & few)
         left = part - common
         # a running mean first, an exponential one after `COMMON_FORGET` ``slow_tau`` (from
         # the room's own variance, the allowance on main, it took minutes to come down)
