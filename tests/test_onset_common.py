@@ -256,3 +256,38 @@ def test_a_loop_held_board_with_most_taxels_missing_holds_its_common_mode():
     y[(t >= 120.0) & (t < 132.0), :13] = np.nan
     on, _ = _onsets(t, y, s)
     assert on == []
+
+
+def test_the_gust_allowance_holds_the_family_through_the_detector_itself():
+    """`_gust_allowance` runs a copy of the detector's baseline and CUSUM: the detector itself,
+    over the family's 12 gusts noise-free (each on a board of its own with 4 flat taxels, so
+    that the median leaves it), raises no onset either way at that allowance, and does at
+    half of it (the allowance is what holds them)."""
+    from skin.stream.onset import GUST_RISE
+
+    s = load_sensor("pid-logger")
+    fs = s.sample_rate
+    shapes = [(rise * GUST_RISE, hold) for rise in (1.0, 2.0, 4.0) for hold in (1.0, 2.0, 4.0, 8.0)]
+    n = 5 * len(shapes)
+    boards = np.repeat(np.arange(len(shapes)), 5)
+    t = np.arange(int(90.0 * fs)) / fs
+    since = np.maximum(t - 60.0, 0.0)
+    face = np.full((t.size, n), 25.0 + s.heated_rise)
+    d = OnsetDetector(n, sensor=s, common_mode=True, boards=boards)
+    for i, (rise, hold) in enumerate(shapes):
+        face[:, 5 * i] -= float(d.gust_depth) * np.where(
+            since < hold, -np.expm1(-since / rise),
+            -np.expm1(-hold / rise) * np.exp(-(since - hold) / rise))
+    y = smooth(apply_dynamics(face, s, fs, axis=0), s, axis=0, fs=fs)
+    found = {}
+    for scale in (1.0, 0.5):
+        d = OnsetDetector(n, sensor=s, common_mode=True, boards=boards)
+        d._gust_k *= scale
+        state = d.initial_state()
+        events = []
+        for k in range(0, t.size, 50):
+            new, state = d.process(t[k:k + 50], y[k:k + 50], state)
+            events += new
+        found[scale] = [e for e in events if e.kind == "onset"]
+    assert found[1.0] == []
+    assert {e.taxel for e in found[0.5]} <= set(range(0, n, 5)) and found[0.5]

@@ -235,13 +235,15 @@ def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float
 
 
 @functools.cache
-def _room_variance(sensor: object) -> float:
-    """Return the variance of the room's random walk as a loop-held reading shows it, K^2.
+def _room_variance(sensor: object, medium_tau: float, slow_tau: float) -> float:
+    """Return the variance of the room's random walk in a loop-held taxel's departure, K^2.
 
-    `AMBIENT_DRIFT` times the integral of the square of g, the reading's response to a unit
-    step of the room (through the loop, the lag and the smoothing; g returns to 0, the loop
-    holding its setpoint): pid-logger 0.032 K sd. The largest span of `loop_envelope`'s room
-    table has sd sqrt(2) times this.
+    The departure is what `OnsetDetector._loop_common` measures: the reading averaged with
+    ``medium_tau`` less its own level, followed with ``slow_tau``. `AMBIENT_DRIFT` times the
+    integral of the square of g, the departure's response to a unit step of the room (through
+    the loop, the lag, the smoothing and these two filters; g returns to 0): pid-logger
+    0.028 K sd, 0.86 of the variance of the reading itself (0.030 K sd). The reference that
+    ``common_var``, measured through the same filters, is set against.
     """
     from skin.models.sensors import apply_dynamics, smooth
 
@@ -249,7 +251,20 @@ def _room_variance(sensor: object) -> float:
     pad = int(2.0 * fs)
     step = np.concatenate([np.zeros(pad), np.ones(round(600.0 * fs))])
     g = smooth(apply_dynamics(step, sensor, fs), sensor, fs=fs)
+    a_m, a_s = (-math.expm1(-1.0 / (fs * tau)) for tau in (medium_tau, slow_tau))
+    m = _ema(g, a_m)
+    g = m - _ema(m, a_s)
     return float(AMBIENT_DRIFT * np.sum(g**2) / fs)
+
+
+def _ema(x: np.ndarray, a: float) -> np.ndarray:
+    """Return the exponential average y[i] = y[i-1] + a (x[i] - y[i-1]), y[-1] = 0, of ``x``."""
+    y = np.empty_like(x)
+    acc = 0.0
+    for i, v in enumerate(x):
+        acc += a * (v - acc)
+        y[i] = acc
+    return y
 
 
 @functools.cache
@@ -260,7 +275,23 @@ def _gust_allowance(sensor: object, gust_depth: float, smooth_tau: float, level_
     The gusts of `loop_envelope` (``gust_depth`` K, rising with 1 to 4 `GUST_RISE`, held 1
     to 8 s), noise-free, through the sensor's loop, lag and smoothing, then the detector's
     smoothing, baseline (level and slope, following while the CUSUM is below a quarter of
-    ``threshold``) and falling CUSUM: bisection on the allowance.
+    ``threshold``) and falling CUSUM; 15 allowances at once (a column each), three rounds,
+    each on the 16th of the last one's bracket (to 1/4096 of ``gust_depth``).
+
+    The family is the simulator's (`skin.bench.streams`: `GUST_DEPTH` of the heated rise,
+    rising in 1 to 4 s, held 1 to 8 s), not a commissioned figure: the false-alarm figures
+    measured on its streams are measured on the very family this allowance was made for, and
+    are optimistic for real air. A gust that rises faster than `GUST_RISE` (a fan switched
+    on: under a second) is not covered.
+
+    This is a copy of `OnsetDetector._step`'s baseline and CUSUM, not the detector itself:
+    no stale reset, warm-up, rebound window or rise alarm (the rise CUSUM is only reset past
+    ``rise_threshold``, as a rebound would be). Running the detector instead needs each gust
+    on a board of its own with `COMMON_MIN` flat taxels (or the median takes it off), 60
+    taxels for 12 gusts, and a run per allowance or a taxel per allowance (900 taxels for 15),
+    through its per-sample path: several times this one's cost, paid by every detector built
+    on a new sensor. ``tests/test_onset_common.py`` runs the detector itself over the family,
+    noise-free, at the allowance this returns, falls and rises.
     """
     from skin.models.sensors import apply_dynamics, smooth
 
@@ -273,28 +304,33 @@ def _gust_allowance(sensor: object, gust_depth: float, smooth_tau: float, level_
     x = np.concatenate([np.zeros((int(2.0 * fs), len(gusts))), np.column_stack(gusts)])
     y = smooth(apply_dynamics(x, sensor, fs, axis=0), sensor, axis=0, fs=fs)
     a_s, a_l, a_b = (-math.expm1(-1.0 / (fs * tau)) for tau in (smooth_tau, level_tau, slope_tau))
+    n = y.shape[1]
 
-    def peak(k: float) -> float:
-        sm = level = slope = g = u = np.zeros(y.shape[1])
-        top = 0.0
-        for row in y:
+    def peaks(ks: np.ndarray) -> np.ndarray:
+        """Return the CUSUM's highest point over every gust, for each allowance of ``ks``."""
+        k = np.repeat(ks, n)
+        sm = level = slope = g = u = top = np.zeros(k.size)
+        for row in np.tile(y, (1, ks.size)):
             sm = sm + (row - sm) * a_s
             pred = level + slope / fs
             resid = sm - pred
             g = np.maximum(0.0, g - resid - k)
             u = np.maximum(0.0, u + resid - k)
-            top = max(top, float(g.max()))
+            top = np.maximum(top, g)
             u = np.where(u > rise_threshold, 0.0, u)  # the recovery: a rebound, reset
             follow = (g <= threshold / 4.0) & (u <= rise_threshold / 4.0)
             err = a_l * resid
             level = np.where(follow, pred + err, level + slope / fs)
             slope = np.where(follow, slope + a_b * err * fs, slope)
-        return top
+        return top.reshape(ks.size, n).max(axis=1)
 
     lo, hi = 0.0, float(gust_depth)
-    for _ in range(30):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if peak(mid) >= threshold else (lo, mid)
+    for _ in range(3):
+        ks = lo + (hi - lo) * np.arange(1, 16) / 16.0
+        held = np.flatnonzero(peaks(ks) < threshold)  # the peak falls as the allowance grows
+        lo, hi = (float(ks[held[0] - 1]) if held.size and held[0] > 0 else
+                  lo if held.size else float(ks[-1]),
+                  float(ks[held[0]]) if held.size else hi)
     return hi
 
 
@@ -562,26 +598,29 @@ class OnsetDetector:
     boards : array_like of int, optional
         Each taxel's board (default: all on one). The common mode is a board's.
     common_mode : bool
-        Whether a change shared by (nearly) every free taxel of a board is taken off their readings
-        before anything else (default: no). A PID-held heater's board (``sensor.heater == "pid"``,
-        with the gust-envelope test) has its own (`_loop_common`): the loop high-passes the room
-        into a band-limited noise that never moves (nearly) every taxel beyond its noise at once, so
-        the gated form below switched on and off with it, a step in every reading of the board
-        (pid-logger seed 0: 1.25 false alarms per taxel-hour, three at one instant); there the
-        median of the free taxels' departures is taken off on every sample, the envelope's room
-        allowance scaled by what it leaves, and the CUSUM's allowance made to hold the family's
-        gusts through the loop (`_gust_allowance`). Nor, as it stands, for a skin whose taxels warm
-        up together (the default scene's first seconds: taken for the room, it changed one contact
-        of scene seed 8). The room warming or cooling moves every heated taxel alike; a touch moves
-        the taxels it covers. Per board, each free taxel's departure (its reading averaged as the
-        slow channel's) from its own level (followed with ``slow_tau``, the common mode taken off,
-        and the room's change with `COMMON_FORGET` times ``slow_tau``), plus `COMMON_MARGIN` of that
-        average's noise sigmas: when at least k of the board's n free taxels fell beyond their
-        noise, k = ceil((1 - `COMMON_SHARE`) n) (`_shared`: 4 of 4, 15 of 16), the k-th largest fall
-        is the common mode (for a rise: the k-th largest rise less the margin); else 0, so that
-        noise and a touch covering fewer than k of a board's free taxels leave the readings alone. A
-        touch that covers k or more of them at once is taken for the room. Boards of fewer than
-        `COMMON_MIN` free taxels have none.
+        Whether a change shared by (nearly) every free taxel of a board is taken off their
+        readings before anything else (default: no). A PID-held heater's board (``sensor.heater
+        == "pid"``, with the gust-envelope test) has its own (`_loop_common`): the loop
+        high-passes the room into a band-limited noise that never moves (nearly) every taxel
+        beyond its noise at once, so the gated form below switched on and off with it, a step in
+        every reading of the board (pid-logger seed 0: 1.25 false alarms per taxel-hour, three
+        at one instant); there the median of the free taxels' departures is taken off on every
+        sample, the envelope's room allowance scaled by what it leaves, and the CUSUM's
+        allowance made to hold the family's gusts through the loop (`_gust_allowance`); it needs
+        a board of `COMMON_MIN` taxels or more (with none, neither it nor the gust allowance is
+        used). The gated form is not, as it stands, for a skin whose taxels warm up together
+        (the default scene's first seconds: taken for the room, it changed one contact of scene
+        seed 8). The room warming or cooling moves every heated taxel alike; a touch moves the
+        taxels it covers. Per board, each free taxel's departure (its reading averaged as the
+        slow channel's) from its own level (followed with ``slow_tau``, the common mode taken
+        off, and the room's change with `COMMON_FORGET` times ``slow_tau``), plus
+        `COMMON_MARGIN` of that average's noise sigmas: when at least k of the board's n free
+        taxels fell beyond their noise, k = ceil((1 - `COMMON_SHARE`) n) (`_shared`: 4 of 4, 15
+        of 16), the k-th largest fall is the common mode (for a rise: the k-th largest rise less
+        the margin); else 0, so that noise and a touch covering fewer than k of a board's free
+        taxels leave the readings alone. A touch that covers k or more of them at once is taken
+        for the room. Boards of fewer than `COMMON_MIN` free taxels have none (a loop-held
+        board's holds its last one, fading).
 
     Every kelvin threshold left as None follows from ``sigma`` and the sensor; the figures in
     the descriptions above are the paper sensor's.
@@ -716,8 +755,11 @@ class OnsetDetector:
         # a loop-held board's common mode (`_loop_common`): the median of its free taxels'
         # departures, always taken off; the envelope's room allowance then scaled by what it
         # leaves (``common_var``) against the room's own variance through the loop
-        self.loop_common = bool(common_mode and self.envelope is not None)
-        self._room_var = _room_variance(sensor) if self.envelope is not None else 0.0
+        # (none when no board has `COMMON_MIN` taxels: then neither is the gust allowance)
+        self.loop_common = bool(common_mode and self.envelope is not None
+                                and self._groups() is not None)
+        self._room_var = (_room_variance(sensor, self.medium_tau, self.slow_tau)
+                          if self.envelope is not None else 0.0)
         self._gust_k = (_gust_allowance(sensor, float(self.gust_depth), self.smooth_tau,
                                         self.level_tau, self.slope_tau,
                                         float(np.min(self.threshold)),
