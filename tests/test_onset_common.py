@@ -182,7 +182,9 @@ def test_a_loop_held_touch_of_a_few_taxels_is_found_and_leaves_the_others_alone(
 
 def test_a_loop_held_boards_common_mode_is_chunk_invariant():
     t, y, s, _ = _loop_board(seconds=180.0, touched=(4, 5), touch_at=120.0)
-    y[3000:3100, 7] = np.nan  # a hole in one taxel
+    y[3000:3100, 7] = np.nan  # a hole in one taxel, shorter than the warm-up (2.07 s)
+    y[4000:4300, 9] = np.nan  # one of 6 s, longer: the taxel restarts (stale, warm-up again)
+    y[:1000, 11] = np.nan  # a taxel that starts 20 s late
     whole, st_whole = _onsets(t, y, s, chunk=t.size)
     for chunk in (1, 13):
         got, st = _onsets(t, y, s, chunk=chunk)
