@@ -293,3 +293,16 @@ def test_the_gust_allowance_holds_the_family_through_the_detector_itself():
         found[scale] = [e for e in events if e.kind == "onset"]
     assert found[1.0] == []
     assert {e.taxel for e in found[0.5]} <= set(range(0, n, 5)) and found[0.5]
+
+
+def test_the_gust_family_is_the_detectors_to_set():
+    """The simulator's gusts are the default, not a property of real air: a deeper or faster
+    gust family asks for a larger allowance, a shallower one for less."""
+    s = load_sensor("pid-logger")
+    base = OnsetDetector(16, sensor=s, common_mode=True)
+    fast = OnsetDetector(16, sensor=s, common_mode=True, gust_rise=0.5)
+    shallow = OnsetDetector(16, sensor=s, common_mode=True, gust_depth=0.5 * base.gust_depth)
+    assert fast._gust_k > base._gust_k > shallow._gust_k > 0.0
+    assert fast.envelope[1][-1] >= base.envelope[1][-1] > shallow.envelope[1][-1]
+    with pytest.raises(ValueError, match="gust_rise"):
+        OnsetDetector(16, sensor=s, gust_rise=0.0)

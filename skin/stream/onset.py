@@ -158,7 +158,8 @@ def _average_noise(sensor: object, tau: float) -> float:
 
 @functools.cache
 def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float,
-                  false_alarm_rate: float) -> tuple[float, np.ndarray, np.ndarray]:
+                  false_alarm_rate: float, gust_rise: float = GUST_RISE
+                  ) -> tuple[float, np.ndarray, np.ndarray]:
     """Return what the air, the heater and the room can move a loop-held reading by in a time.
 
     The gust-envelope test's allowance for a PID-held heater (``sensor.heater == "pid"``),
@@ -166,9 +167,10 @@ def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float
     `skin.bench.streams` draws, as the reading shows it through the loop, the thermistor lag
     and the smoothing (`skin.models.sensors.apply_dynamics`, `smooth`):
 
-    - gusts of ``gust_depth`` K at most, rising with a time constant of `GUST_RISE` to 4 s and
-      held 1 to 8 s: the loop cuts a gust's fall to about 40 % (pid-logger: 0.12 K of 0.29 K),
-      and its recovery overshoots and falls back (counted);
+    - gusts of ``gust_depth`` K at most, rising with a time constant of ``gust_rise`` (default
+      `GUST_RISE`) to 4 times that and held 1 to 8 s: the loop cuts a gust's fall to about
+      40 % (pid-logger: 0.12 K of 0.29 K), and its recovery overshoots and falls back
+      (counted);
     - a heater duty step of `HEATER_STEP` of the heated rise through the body's slowest mode
       (``mode``, s), either way: at the thermistor it stays below about ``HEATER_STEP`` x the
       rise x ``control_time / mode`` (pid-logger: 0.10 K), where a constant-power heater keeps
@@ -204,10 +206,10 @@ def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float
     dt = every / fs
     lags = every * np.arange(math.ceil(horizon / dt) + 2)
     pad = int(2.0 * fs)  # settled before the disturbance
-    t = np.arange(round((horizon + 4.0 * GUST_RISE + 8.0 + 10.0) * fs)) / fs
+    t = np.arange(round((horizon + 4.0 * gust_rise + 8.0 + 10.0) * fs)) / fs
     gusts = [-gust_depth * np.where(t < hold, -np.expm1(-t / rise),
                                     -np.expm1(-hold / rise) * np.exp(-(t - hold) / rise))
-             for rise in (GUST_RISE, 2.0 * GUST_RISE, 4.0 * GUST_RISE)
+             for rise in (gust_rise, 2.0 * gust_rise, 4.0 * gust_rise)
              for hold in (1.0, 2.0, 4.0, 8.0)]
     heater = HEATER_STEP * sensor.heated_rise * -np.expm1(-t / mode)
     room = np.ones_like(t)
@@ -269,20 +271,22 @@ def _ema(x: np.ndarray, a: float) -> np.ndarray:
 
 @functools.cache
 def _gust_allowance(sensor: object, gust_depth: float, smooth_tau: float, level_tau: float,
-                    slope_tau: float, threshold: float, rise_threshold: float) -> float:
+                    slope_tau: float, threshold: float, rise_threshold: float,
+                    gust_rise: float = GUST_RISE) -> float:
     """Return the least CUSUM allowance, K, at which no gust of the family raises the CUSUM.
 
-    The gusts of `loop_envelope` (``gust_depth`` K, rising with 1 to 4 `GUST_RISE`, held 1
+    The gusts of `loop_envelope` (``gust_depth`` K, rising with 1 to 4 ``gust_rise``, held 1
     to 8 s), noise-free, through the sensor's loop, lag and smoothing, then the detector's
     smoothing, baseline (level and slope, following while the CUSUM is below a quarter of
     ``threshold``) and falling CUSUM; 15 allowances at once (a column each), three rounds,
     each on the 16th of the last one's bracket (to 1/4096 of ``gust_depth``).
 
-    The family is the simulator's (`skin.bench.streams`: `GUST_DEPTH` of the heated rise,
-    rising in 1 to 4 s, held 1 to 8 s), not a commissioned figure: the false-alarm figures
-    measured on its streams are measured on the very family this allowance was made for, and
-    are optimistic for real air. A gust that rises faster than `GUST_RISE` (a fan switched
-    on: under a second) is not covered.
+    By default (`OnsetDetector`'s ``gust_depth`` and ``gust_rise``) the family is the
+    simulator's (`skin.bench.streams`: `GUST_DEPTH` of the heated rise, rising in 1 to 4 s,
+    held 1 to 8 s), not a commissioned figure: the false-alarm figures measured on its
+    streams are measured on the very family this allowance was made for, and are optimistic
+    for real air. A gust that rises faster than ``gust_rise`` (a fan switched on: under a
+    second) is not covered; real hardware sets both from its air.
 
     This is a copy of `OnsetDetector._step`'s baseline and CUSUM, not the detector itself:
     no stale reset, warm-up, rebound window or rise alarm (the rise CUSUM is only reset past
@@ -296,10 +300,10 @@ def _gust_allowance(sensor: object, gust_depth: float, smooth_tau: float, level_
     from skin.models.sensors import apply_dynamics, smooth
 
     fs = float(sensor.sample_rate)
-    t = np.arange(round((4.0 * GUST_RISE + 8.0 + 20.0) * fs)) / fs
+    t = np.arange(round((4.0 * gust_rise + 8.0 + 20.0) * fs)) / fs
     gusts = [-gust_depth * np.where(t < hold, -np.expm1(-t / rise),
                                     -np.expm1(-hold / rise) * np.exp(-(t - hold) / rise))
-             for rise in (GUST_RISE, 2.0 * GUST_RISE, 4.0 * GUST_RISE)
+             for rise in (gust_rise, 2.0 * gust_rise, 4.0 * gust_rise)
              for hold in (1.0, 2.0, 4.0, 8.0)]
     x = np.concatenate([np.zeros((int(2.0 * fs), len(gusts))), np.column_stack(gusts)])
     y = smooth(apply_dynamics(x, sensor, fs, axis=0), sensor, axis=0, fs=fs)
@@ -590,11 +594,18 @@ class OnsetDetector:
     gust_envelope : bool
         Whether the gust-envelope test runs (see the module docstring): a fall, from where the
         baseline put the reading when it began, deeper than the deepest and fastest gust of
-        `GUST_DEPTH` and `GUST_RISE` plus the steepest heater step (`HEATER_STEP` through the
-        body's slowest mode) can make in the time since, and 8 noise sigmas more, is a
+        ``gust_depth`` and ``gust_rise`` plus the steepest heater step (`HEATER_STEP` through
+        the body's slowest mode) can make in the time since, and 8 noise sigmas more, is a
         contact (channel 2, with the slow channel). A PID-held heater's (``sensor.heater ==
         "pid"``): those disturbances and the room's drift through its loop (`loop_envelope`),
         and the onset dated when raised.
+    gust_depth : float, optional
+        The air's deepest gust, K (default: `GUST_DEPTH` of the sensor's heated rise, the
+        simulator's family, `skin.bench.streams`: not a measured figure of any real air).
+    gust_rise : float
+        The time constant the air's fastest gust approaches its depth with, s (default
+        `GUST_RISE`, the simulator's fastest; a fan switched on can be faster). A loop-held
+        board's common mode fits its CUSUM's allowance to these gusts (`_gust_allowance`).
     boards : array_like of int, optional
         Each taxel's board (default: all on one). The common mode is a board's.
     common_mode : bool
@@ -652,6 +663,8 @@ class OnsetDetector:
         sigma: float | np.ndarray | None = None,
         false_alarm_rate: float = 0.1,
         gust_envelope: bool = True,
+        gust_depth: float | None = None,
+        gust_rise: float = GUST_RISE,
         boards: np.ndarray | None = None,
         common_mode: bool = False,
     ) -> None:
@@ -716,7 +729,11 @@ class OnsetDetector:
             self.medium_tau = self.smooth_tau
         slow_sigma = self.sigma * _average_noise(sensor, self.medium_tau)
         # the gust-envelope test: the deepest, fastest gust and the steepest heater step
-        self.gust_depth = GUST_DEPTH * rise if gust_envelope else np.inf
+        if gust_rise <= 0.0 or (gust_depth is not None and not gust_depth > 0.0):
+            raise ValueError(f"gust_depth ({gust_depth}) and gust_rise ({gust_rise}) must be > 0")
+        self.gust_rise = float(gust_rise)
+        self.gust_depth = ((GUST_DEPTH * rise if gust_depth is None else float(gust_depth))
+                           if gust_envelope else np.inf)
         self.heater_rate = HEATER_STEP * rise / mode
         # a loop-held sensor's: the disturbances as its reading shows them, through the loop
         # (`loop_envelope`). The closed form above over-allowed a heater step there (0.86 K
@@ -725,7 +742,7 @@ class OnsetDetector:
         # detected_5sigma .22/.19/.20/.23 -> .28/.24/.23/.29, false alarms unchanged (without
         # the room's term: .41 on seed 0, but 3 false alarms, each a 2.4-3.2 sd fall of it)
         self.envelope = (loop_envelope(sensor, slow_tau_now, float(self.gust_depth), mode,
-                                       false_alarm_rate)
+                                       false_alarm_rate, self.gust_rise)
                          if gust_envelope and sensor.heater == "pid" else None)
         self.threshold = scaled(threshold, "threshold", True)
         self.rise_threshold = scaled(rise_threshold, "rise_threshold", True)
@@ -763,7 +780,7 @@ class OnsetDetector:
         self._gust_k = (_gust_allowance(sensor, float(self.gust_depth), self.smooth_tau,
                                         self.level_tau, self.slope_tau,
                                         float(np.min(self.threshold)),
-                                        float(np.min(self.rise_threshold)))
+                                        float(np.min(self.rise_threshold)), self.gust_rise)
                         if self.loop_common else 0.0)
 
     def initial_state(self) -> DetectorState:
@@ -1128,8 +1145,8 @@ class OnsetDetector:
         drop = s.ref_level + np.minimum(s.ref_slope, 0.0) * since - s.smooth
         margin = 8.0 * np.maximum(sigma, self.smoothed_sigma)
         if self.envelope is None:
-            gusty = (self.gust_depth * -np.expm1(-since / GUST_RISE) + self.heater_rate * since
-                     + margin)
+            gusty = (self.gust_depth * -np.expm1(-since / self.gust_rise)
+                     + self.heater_rate * since + margin)
         else:
             # a loop-held sensor: the room's drift and the noise added in quadrature (taken as
             # independent). ``sigma`` is the CUSUM's running noise estimate, which on a
