@@ -201,10 +201,12 @@ def test_a_loop_held_touch_of_fewer_than_half_a_board_leaves_the_others_alone(n,
     """The median holds while fewer than half of a board's free taxels are touched together:
     6 of 16 leave the other 10 alone. 3 of 4 are taken for the room in the touch's first
     second (their falls still within the room's reach), and the free taxel's reading rises by
-    what the median took: a false rise at 0.7 s; and when the detector takes the touched
-    taxels' contacts for over (13 s in, still touched) the median taken of them gives the free
-    one a false fall too (measured on seeds 0-2, with the common mode held or dropped below
-    `COMMON_MIN` free taxels alike: the room cannot be told from such a touch)."""
+    what the median took: a false rise at 0.7 s; and when the block leaves (the touched
+    taxels' contacts taken for over long before, they are free again and rise) the median
+    taken of them gives the free one a false fall too (measured on seeds 0-2: the room cannot
+    be told from such a touch). Before the touched taxels rejoined at the common mode, their
+    return from recovery (13 s in, still touched) resumed the median with their stale levels,
+    a false fall of all four."""
     t, y, s, _ = _loop_board(n=n, seconds=180.0, touched=tuple(range(touched)),
                              touch_at=120.0, touch_for=20.0)
     on, _ = _onsets(t, y, s)

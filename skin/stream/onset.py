@@ -971,8 +971,13 @@ class OnsetDetector:
         """
         np.copyto(s.common_smooth, s.common_smooth + (y - s.common_smooth) * gain[6],
                   where=live)
-        part = s.common_smooth - s.common_level
         use = live & ~s.in_contact & (t >= s.recover_until)
+        # a taxel back from a contact (its recovery over) rejoins at the board's common mode:
+        # its level, stale from before the touch, re-seated (else a board that had too few
+        # free taxels resumed its median with the touched ones' old levels: a step)
+        back = use & (s.t_last < s.recover_until)
+        np.copyto(s.common_level, s.common_smooth - s.common, where=back)
+        part = s.common_smooth - s.common_level
         values = np.append(np.where(use, part, np.nan), np.nan)[table]
         values.sort(axis=1)  # NaN last
         count = np.count_nonzero(np.isfinite(values), axis=1)
