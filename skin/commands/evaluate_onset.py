@@ -74,7 +74,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--common-mode", action="store_true",
                     help="take a change shared by nearly every taxel (the room) off the readings "
                          "first (the detector's common_mode; every column is one board; with "
-                         "--sensor, --calibration or --commissioned; not for a PID-held heater)")
+                         "--sensor, --calibration or --commissioned; a PID-held heater's: the "
+                         "median of the free taxels' departures, taken off on every sample)")
     ev.add_argument("--json", action="store_true", help="print one JSON document")
     ev.set_defaults(func=main)
 

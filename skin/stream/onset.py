@@ -158,7 +158,8 @@ def _average_noise(sensor: object, tau: float) -> float:
 
 @functools.cache
 def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float,
-                  false_alarm_rate: float) -> tuple[float, np.ndarray, np.ndarray]:
+                  false_alarm_rate: float, gust_rise: float = GUST_RISE
+                  ) -> tuple[float, np.ndarray, np.ndarray]:
     """Return what the air, the heater and the room can move a loop-held reading by in a time.
 
     The gust-envelope test's allowance for a PID-held heater (``sensor.heater == "pid"``),
@@ -166,9 +167,10 @@ def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float
     `skin.bench.streams` draws, as the reading shows it through the loop, the thermistor lag
     and the smoothing (`skin.models.sensors.apply_dynamics`, `smooth`):
 
-    - gusts of ``gust_depth`` K at most, rising with a time constant of `GUST_RISE` to 4 s and
-      held 1 to 8 s: the loop cuts a gust's fall to about 40 % (pid-logger: 0.12 K of 0.29 K),
-      and its recovery overshoots and falls back (counted);
+    - gusts of ``gust_depth`` K at most, rising with a time constant of ``gust_rise`` (default
+      `GUST_RISE`) to 4 times that and held 1 to 8 s: the loop cuts a gust's fall to about
+      40 % (pid-logger: 0.12 K of 0.29 K), and its recovery overshoots and falls back
+      (counted);
     - a heater duty step of `HEATER_STEP` of the heated rise through the body's slowest mode
       (``mode``, s), either way: at the thermistor it stays below about ``HEATER_STEP`` x the
       rise x ``control_time / mode`` (pid-logger: 0.10 K), where a constant-power heater keeps
@@ -204,10 +206,10 @@ def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float
     dt = every / fs
     lags = every * np.arange(math.ceil(horizon / dt) + 2)
     pad = int(2.0 * fs)  # settled before the disturbance
-    t = np.arange(round((horizon + 4.0 * GUST_RISE + 8.0 + 10.0) * fs)) / fs
+    t = np.arange(round((horizon + 4.0 * gust_rise + 8.0 + 10.0) * fs)) / fs
     gusts = [-gust_depth * np.where(t < hold, -np.expm1(-t / rise),
                                     -np.expm1(-hold / rise) * np.exp(-(t - hold) / rise))
-             for rise in (GUST_RISE, 2.0 * GUST_RISE, 4.0 * GUST_RISE)
+             for rise in (gust_rise, 2.0 * gust_rise, 4.0 * gust_rise)
              for hold in (1.0, 2.0, 4.0, 8.0)]
     heater = HEATER_STEP * sensor.heated_rise * -np.expm1(-t / mode)
     room = np.ones_like(t)
@@ -232,6 +234,108 @@ def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float
     fall.setflags(write=False)  # cached: shared by every detector of the sensor
     drift.setflags(write=False)
     return dt, fall, drift
+
+
+@functools.cache
+def _room_variance(sensor: object, medium_tau: float, slow_tau: float) -> float:
+    """Return the variance of the room's random walk in a loop-held taxel's departure, K^2.
+
+    The departure is what `OnsetDetector._loop_common` measures: the reading averaged with
+    ``medium_tau`` less its own level, followed with ``slow_tau``. `AMBIENT_DRIFT` times the
+    integral of the square of g, the departure's response to a unit step of the room (through
+    the loop, the lag, the smoothing and these two filters; g returns to 0): pid-logger
+    0.028 K sd, 0.86 of the variance of the reading itself (0.030 K sd). The reference that
+    ``common_var``, measured through the same filters, is set against.
+    """
+    from skin.models.sensors import apply_dynamics, smooth
+
+    fs = float(sensor.sample_rate)
+    pad = int(2.0 * fs)
+    step = np.concatenate([np.zeros(pad), np.ones(round(600.0 * fs))])
+    g = smooth(apply_dynamics(step, sensor, fs), sensor, fs=fs)
+    a_m, a_s = (-math.expm1(-1.0 / (fs * tau)) for tau in (medium_tau, slow_tau))
+    m = _ema(g, a_m)
+    g = m - _ema(m, a_s)
+    return float(AMBIENT_DRIFT * np.sum(g**2) / fs)
+
+
+def _ema(x: np.ndarray, a: float) -> np.ndarray:
+    """Return the exponential average y[i] = y[i-1] + a (x[i] - y[i-1]), y[-1] = 0, of ``x``."""
+    y = np.empty_like(x)
+    acc = 0.0
+    for i, v in enumerate(x):
+        acc += a * (v - acc)
+        y[i] = acc
+    return y
+
+
+@functools.cache
+def _gust_allowance(sensor: object, gust_depth: float, smooth_tau: float, level_tau: float,
+                    slope_tau: float, threshold: float, rise_threshold: float,
+                    gust_rise: float = GUST_RISE) -> float:
+    """Return the least CUSUM allowance, K, at which no gust of the family raises the CUSUM.
+
+    The gusts of `loop_envelope` (``gust_depth`` K, rising with 1 to 4 ``gust_rise``, held 1
+    to 8 s), noise-free, through the sensor's loop, lag and smoothing, then the detector's
+    smoothing, baseline (level and slope, following while the CUSUM is below a quarter of
+    ``threshold``) and falling CUSUM; 15 allowances at once (a column each), three rounds,
+    each on the 16th of the last one's bracket (to 1/4096 of ``gust_depth``).
+
+    By default (`OnsetDetector`'s ``gust_depth`` and ``gust_rise``) the family is the
+    simulator's (`skin.bench.streams`: `GUST_DEPTH` of the heated rise, rising in 1 to 4 s,
+    held 1 to 8 s), not a commissioned figure: the false-alarm figures measured on its
+    streams are measured on the very family this allowance was made for, and are optimistic
+    for real air. A gust that rises faster than ``gust_rise`` (a fan switched on: under a
+    second) is not covered; real hardware sets both from its air.
+
+    This is a copy of `OnsetDetector._step`'s baseline and CUSUM, not the detector itself:
+    no stale reset, warm-up, rebound window or rise alarm (the rise CUSUM is only reset past
+    ``rise_threshold``, as a rebound would be). Running the detector instead needs each gust
+    on a board of its own with `COMMON_MIN` flat taxels (or the median takes it off), 60
+    taxels for 12 gusts, and a run per allowance or a taxel per allowance (900 taxels for 15),
+    through its per-sample path: several times this one's cost, paid by every detector built
+    on a new sensor. ``tests/test_onset_common.py`` runs the detector itself over the family,
+    noise-free, at the allowance this returns, falls and rises.
+    """
+    from skin.models.sensors import apply_dynamics, smooth
+
+    fs = float(sensor.sample_rate)
+    t = np.arange(round((4.0 * gust_rise + 8.0 + 20.0) * fs)) / fs
+    gusts = [-gust_depth * np.where(t < hold, -np.expm1(-t / rise),
+                                    -np.expm1(-hold / rise) * np.exp(-(t - hold) / rise))
+             for rise in (gust_rise, 2.0 * gust_rise, 4.0 * gust_rise)
+             for hold in (1.0, 2.0, 4.0, 8.0)]
+    x = np.concatenate([np.zeros((int(2.0 * fs), len(gusts))), np.column_stack(gusts)])
+    y = smooth(apply_dynamics(x, sensor, fs, axis=0), sensor, axis=0, fs=fs)
+    a_s, a_l, a_b = (-math.expm1(-1.0 / (fs * tau)) for tau in (smooth_tau, level_tau, slope_tau))
+    n = y.shape[1]
+
+    def peaks(ks: np.ndarray) -> np.ndarray:
+        """Return the CUSUM's highest point over every gust, for each allowance of ``ks``."""
+        k = np.repeat(ks, n)
+        sm = level = slope = g = u = top = np.zeros(k.size)
+        for row in np.tile(y, (1, ks.size)):
+            sm = sm + (row - sm) * a_s
+            pred = level + slope / fs
+            resid = sm - pred
+            g = np.maximum(0.0, g - resid - k)
+            u = np.maximum(0.0, u + resid - k)
+            top = np.maximum(top, g)
+            u = np.where(u > rise_threshold, 0.0, u)  # the recovery: a rebound, reset
+            follow = (g <= threshold / 4.0) & (u <= rise_threshold / 4.0)
+            err = a_l * resid
+            level = np.where(follow, pred + err, level + slope / fs)
+            slope = np.where(follow, slope + a_b * err * fs, slope)
+        return top.reshape(ks.size, n).max(axis=1)
+
+    lo, hi = 0.0, float(gust_depth)
+    for _ in range(3):
+        ks = lo + (hi - lo) * np.arange(1, 16) / 16.0
+        held = np.flatnonzero(peaks(ks) < threshold)  # the peak falls as the allowance grows
+        lo, hi = (float(ks[held[0] - 1]) if held.size and held[0] > 0 else
+                  lo if held.size else float(ks[-1]),
+                  float(ks[held[0]]) if held.size else hi)
+    return hi
 
 
 def _room_quantile(sensor: object, lags: np.ndarray, sd: np.ndarray, false_alarm_rate: float,
@@ -347,7 +451,8 @@ class DetectorState:
     estimate is a running mean of the residual's square up to ``noise_tau`` after it).
     ``common_smooth`` and ``common_level`` are each taxel's averaged raw reading and its level
     with the board's common mode taken off (`OnsetDetector`'s ``common_mode``); ``common`` the
-    common mode taken off its last reading (its board's), K.
+    common mode taken off its last reading (its board's), K; ``common_var`` (a loop-held
+    board's) the variance of what the common mode leaves of a free taxel's departure, K^2.
     """
 
     level: np.ndarray
@@ -378,6 +483,7 @@ class DetectorState:
     common_smooth: np.ndarray
     common_level: np.ndarray
     common: np.ndarray
+    common_var: np.ndarray
 
     def copy(self) -> DetectorState:
         """Return a deep copy."""
@@ -488,29 +594,44 @@ class OnsetDetector:
     gust_envelope : bool
         Whether the gust-envelope test runs (see the module docstring): a fall, from where the
         baseline put the reading when it began, deeper than the deepest and fastest gust of
-        `GUST_DEPTH` and `GUST_RISE` plus the steepest heater step (`HEATER_STEP` through the
-        body's slowest mode) can make in the time since, and 8 noise sigmas more, is a
+        ``gust_depth`` and ``gust_rise`` plus the steepest heater step (`HEATER_STEP` through
+        the body's slowest mode) can make in the time since, and 8 noise sigmas more, is a
         contact (channel 2, with the slow channel). A PID-held heater's (``sensor.heater ==
         "pid"``): those disturbances and the room's drift through its loop (`loop_envelope`),
         and the onset dated when raised.
+    gust_depth : float, optional
+        The air's deepest gust, K (default: `GUST_DEPTH` of the sensor's heated rise, the
+        simulator's family, `skin.bench.streams`: not a measured figure of any real air).
+    gust_rise : float
+        The time constant the air's fastest gust approaches its depth with, s (default
+        `GUST_RISE`, the simulator's fastest; a fan switched on can be faster). A loop-held
+        board's common mode fits its CUSUM's allowance to these gusts (`_gust_allowance`).
     boards : array_like of int, optional
         Each taxel's board (default: all on one). The common mode is a board's.
     common_mode : bool
-        Whether a change shared by (nearly) every free taxel of a board is taken off their readings
-        before anything else (default: no). Not for a PID-held heater: the loop high-passes the
-        room, and the common mode's own jitter raised pid-logger's false alarms (0/.25/.75 ->
-        8.5/3.25/6.5 per taxel-hour, seeds 0/2/4). Nor, as it stands, for a skin whose taxels warm
-        up together (the default scene's first seconds: taken for the room, it changed one contact
-        of scene seed 8). The room warming or cooling moves every heated taxel alike; a touch moves
-        the taxels it covers. Per board, each free taxel's departure (its reading averaged as the
-        slow channel's) from its own level (followed with ``slow_tau``, the common mode taken off,
-        and the room's change with `COMMON_FORGET` times ``slow_tau``), plus `COMMON_MARGIN` of that
-        average's noise sigmas: when at least k of the board's n free taxels fell beyond their
-        noise, k = ceil((1 - `COMMON_SHARE`) n) (`_shared`: 4 of 4, 15 of 16), the k-th largest
-        fall is the common mode (for a rise: the k-th largest rise less the margin); else 0, so
-        that noise and a touch covering fewer than k of a board's free taxels leave the readings
-        alone. A touch that covers k or more of them at once is taken for the room. Boards of
-        fewer than `COMMON_MIN` free taxels have none.
+        Whether a change shared by (nearly) every free taxel of a board is taken off their
+        readings before anything else (default: no). A PID-held heater's board (``sensor.heater
+        == "pid"``, with the gust-envelope test) has its own (`_loop_common`): the loop
+        high-passes the room into a band-limited noise that never moves (nearly) every taxel
+        beyond its noise at once, so the gated form below switched on and off with it, a step in
+        every reading of the board (pid-logger seed 0: 1.25 false alarms per taxel-hour, three
+        at one instant); there the median of the free taxels' departures is taken off on every
+        sample, the envelope's room allowance scaled by what it leaves, and the CUSUM's
+        allowance made to hold the family's gusts through the loop (`_gust_allowance`); it needs
+        a board of `COMMON_MIN` taxels or more (with none, neither it nor the gust allowance is
+        used). The gated form is not, as it stands, for a skin whose taxels warm up together
+        (the default scene's first seconds: taken for the room, it changed one contact of scene
+        seed 8). The room warming or cooling moves every heated taxel alike; a touch moves the
+        taxels it covers. Per board, each free taxel's departure (its reading averaged as the
+        slow channel's) from its own level (followed with ``slow_tau``, the common mode taken
+        off, and the room's change with `COMMON_FORGET` times ``slow_tau``), plus
+        `COMMON_MARGIN` of that average's noise sigmas: when at least k of the board's n free
+        taxels fell beyond their noise, k = ceil((1 - `COMMON_SHARE`) n) (`_shared`: 4 of 4, 15
+        of 16), the k-th largest fall is the common mode (for a rise: the k-th largest rise less
+        the margin); else 0, so that noise and a touch covering fewer than k of a board's free
+        taxels leave the readings alone. A touch that covers k or more of them at once is taken
+        for the room. Boards of fewer than `COMMON_MIN` free taxels have none (a loop-held
+        board's holds its last one, fading).
 
     Every kelvin threshold left as None follows from ``sigma`` and the sensor; the figures in
     the descriptions above are the paper sensor's.
@@ -542,6 +663,8 @@ class OnsetDetector:
         sigma: float | np.ndarray | None = None,
         false_alarm_rate: float = 0.1,
         gust_envelope: bool = True,
+        gust_depth: float | None = None,
+        gust_rise: float = GUST_RISE,
         boards: np.ndarray | None = None,
         common_mode: bool = False,
     ) -> None:
@@ -606,7 +729,11 @@ class OnsetDetector:
             self.medium_tau = self.smooth_tau
         slow_sigma = self.sigma * _average_noise(sensor, self.medium_tau)
         # the gust-envelope test: the deepest, fastest gust and the steepest heater step
-        self.gust_depth = GUST_DEPTH * rise if gust_envelope else np.inf
+        if gust_rise <= 0.0 or (gust_depth is not None and not gust_depth > 0.0):
+            raise ValueError(f"gust_depth ({gust_depth}) and gust_rise ({gust_rise}) must be > 0")
+        self.gust_rise = float(gust_rise)
+        self.gust_depth = ((GUST_DEPTH * rise if gust_depth is None else float(gust_depth))
+                           if gust_envelope else np.inf)
         self.heater_rate = HEATER_STEP * rise / mode
         # a loop-held sensor's: the disturbances as its reading shows them, through the loop
         # (`loop_envelope`). The closed form above over-allowed a heater step there (0.86 K
@@ -615,7 +742,7 @@ class OnsetDetector:
         # detected_5sigma .22/.19/.20/.23 -> .28/.24/.23/.29, false alarms unchanged (without
         # the room's term: .41 on seed 0, but 3 false alarms, each a 2.4-3.2 sd fall of it)
         self.envelope = (loop_envelope(sensor, slow_tau_now, float(self.gust_depth), mode,
-                                       false_alarm_rate)
+                                       false_alarm_rate, self.gust_rise)
                          if gust_envelope and sensor.heater == "pid" else None)
         self.threshold = scaled(threshold, "threshold", True)
         self.rise_threshold = scaled(rise_threshold, "rise_threshold", True)
@@ -642,6 +769,19 @@ class OnsetDetector:
         self.board = (np.zeros(n_taxels, dtype=np.int64) if boards is None
                       else np.asarray(boards, dtype=np.int64).reshape(n_taxels).copy())
         self.common_mode = common_mode
+        # a loop-held board's common mode (`_loop_common`): the median of its free taxels'
+        # departures, always taken off; the envelope's room allowance then scaled by what it
+        # leaves (``common_var``) against the room's own variance through the loop
+        # (none when no board has `COMMON_MIN` taxels: then neither is the gust allowance)
+        self.loop_common = bool(common_mode and self.envelope is not None
+                                and self._groups() is not None)
+        self._room_var = (_room_variance(sensor, self.medium_tau, self.slow_tau)
+                          if self.envelope is not None else 0.0)
+        self._gust_k = (_gust_allowance(sensor, float(self.gust_depth), self.smooth_tau,
+                                        self.level_tau, self.slope_tau,
+                                        float(np.min(self.threshold)),
+                                        float(np.min(self.rise_threshold)), self.gust_rise)
+                        if self.loop_common else 0.0)
 
     def initial_state(self) -> DetectorState:
         """Return the state before the first sample."""
@@ -676,6 +816,7 @@ class OnsetDetector:
             common_smooth=nan.copy(),
             common_level=nan.copy(),
             common=np.zeros(n),
+            common_var=np.full(n, self._room_var),
         )
 
     def process(
@@ -777,6 +918,8 @@ class OnsetDetector:
                 gain: np.ndarray, groups: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
         """Return the readings with their board's common mode taken off (``common_mode``)."""
         table, row = groups
+        if self.loop_common:
+            return self._loop_common(t, y, s, live, gain, table, row)
         np.copyto(s.common_smooth, s.common_smooth + (y - s.common_smooth) * gain[6],
                   where=live)
         part = s.common_smooth - s.common_level
@@ -812,6 +955,53 @@ class OnsetDetector:
                   + (s.common_smooth - common - s.common_level) * gain[1]
                   + common * gain[7], where=live)
         return y - common if moved.any() else y
+
+    def _loop_common(self, t: float, y: np.ndarray, s: DetectorState, live: np.ndarray,
+                     gain: np.ndarray, table: np.ndarray, row: np.ndarray) -> np.ndarray:
+        """Return the readings with a loop-held board's common mode taken off.
+
+        A PID loop high-passes the room: what reaches every taxel of a board is a band-limited
+        noise (pid-logger: 0.032 K sd), the same in each (one room, one loop design), never a
+        step that (nearly) every taxel shows beyond its noise, so the gated common mode of
+        `_common` switched on and off with it. Here the common mode is the median of the free
+        taxels' departures (each taxel's averaged reading from its own level), taken off
+        every reading of the board on every sample: a touch moves the median of n taxels by a
+        step of the others' spread, not by the touch. ``common_var`` follows the square of
+        what it leaves of each free taxel's departure (`COMMON_FORGET` ``slow_tau``).
+        """
+        np.copyto(s.common_smooth, s.common_smooth + (y - s.common_smooth) * gain[6],
+                  where=live)
+        use = live & ~s.in_contact & (t >= s.recover_until)
+        # a taxel back from a contact (its recovery over) rejoins at the board's common mode:
+        # its level, stale from before the touch, re-seated (else a board that had too few
+        # free taxels resumed its median with the touched ones' old levels: a step)
+        back = use & (s.t_last < s.recover_until)
+        np.copyto(s.common_level, s.common_smooth - s.common, where=back)
+        part = s.common_smooth - s.common_level
+        values = np.append(np.where(use, part, np.nan), np.nan)[table]
+        values.sort(axis=1)  # NaN last
+        count = np.count_nonzero(np.isfinite(values), axis=1)
+        lo = np.clip((count - 1) // 2, 0, values.shape[1] - 1)[:, None]
+        hi = np.clip(count // 2, 0, values.shape[1] - 1)[:, None]
+        median = 0.5 * (np.take_along_axis(values, lo, 1) + np.take_along_axis(values, hi, 1))
+        few = (count < COMMON_MIN)[row]
+        # a board with fewer than `COMMON_MIN` free taxels (a touch covering most of it) has
+        # no median to trust: it holds its last common mode, which fades as each taxel's level
+        # absorbs it (`COMMON_FORGET` ``slow_tau``, below), rather than dropping to 0 (a step of
+        # the room's tens of mK in every reading left: false onsets); the room's change since
+        # is back in the readings, and so in full in the allowance
+        common = np.where(few, s.common * (1.0 - gain[7]), np.nan_to_num(median[:, 0])[row])
+        np.copyto(s.common, common, where=live)
+        np.copyto(s.common_var, self._room_var, where=live & few)
+        left = part - common
+        # a running mean first, an exponential one after `COMMON_FORGET` ``slow_tau`` (from
+        # the room's own variance, the allowance on main, it took minutes to come down)
+        dt = np.maximum(t - s.t_last, 1e-9)
+        v = np.maximum(gain[7], dt / np.maximum(t - s.t_first + dt, dt))
+        np.copyto(s.common_var, s.common_var + (left**2 - s.common_var) * v, where=use)
+        np.copyto(s.common_level, s.common_level + left * gain[1] + common * gain[7],
+                  where=live)
+        return y - common
 
     @staticmethod
     def _board_common(fall_part: np.ndarray, rise_part: np.ndarray, use: np.ndarray,
@@ -888,7 +1078,14 @@ class OnsetDetector:
         pred = s.level + s.slope * (t - s.t_level)
         resid = np.where(live, s.smooth - pred, 0.0)
         sigma = np.sqrt(np.maximum(s.var, self.noise_floor**2))
-        allowance = np.maximum(self.drift, 4.0 * sigma)
+        if self.loop_common:
+            # the room's leftover in the noise estimate had covered the fastest gusts, which
+            # the CUSUM of the room-free reading took for contacts (pid-logger seed 2: 14 of
+            # 15 false alarms, each within 0.5 s of a gust's start): the allowance adds what
+            # the family's gusts need through the loop (`_gust_allowance`), in quadrature
+            allowance = np.maximum(self.drift, np.hypot(4.0 * sigma, self._gust_k))
+        else:
+            allowance = np.maximum(self.drift, 4.0 * sigma)
         idle = live & free
         armed = t >= s.armed_at
         # in contact the baseline follows the reading's in-contact trend, and the CUSUM of the
@@ -953,8 +1150,8 @@ class OnsetDetector:
         drop = s.ref_level + np.minimum(s.ref_slope, 0.0) * since - s.smooth
         margin = 8.0 * np.maximum(sigma, self.smoothed_sigma)
         if self.envelope is None:
-            gusty = (self.gust_depth * -np.expm1(-since / GUST_RISE) + self.heater_rate * since
-                     + margin)
+            gusty = (self.gust_depth * -np.expm1(-since / self.gust_rise)
+                     + self.heater_rate * since + margin)
         else:
             # a loop-held sensor: the room's drift and the noise added in quadrature (taken as
             # independent). ``sigma`` is the CUSUM's running noise estimate, which on a
@@ -964,7 +1161,12 @@ class OnsetDetector:
             j = np.ceil(since / step)
             np.copyto(j, loop_fall.size - 1, where=~(j < loop_fall.size))  # no reference: unused
             j = j.astype(np.intp)
-            gusty = loop_fall[j] + np.sqrt(margin**2 + drift[j] ** 2)
+            room = drift[j]
+            if self.loop_common:
+                # what the board's common mode leaves of the room (and of the other taxels'
+                # own disturbances, through the median), measured, against the room alone
+                room = room * np.sqrt(np.minimum(s.common_var / self._room_var, 1.0))
+            gusty = loop_fall[j] + np.sqrt(margin**2 + room**2)
         deep = idle & armed & ~alarm & ~rise_alarm & ~slow_alarm & (drop > gusty)
         slow_alarm = slow_alarm | deep
         # a fall the CUSUM has begun to gather is dated where the CUSUM left zero, as its own
