@@ -31,7 +31,7 @@ def _worst_disturbance(sensor, n_taxels: int, seed: int, duration: float = 40.0,
     return t, 25.0 + rise - gust - heater + noise
 
 
-@pytest.mark.parametrize("preset", ["paper", "low-cost"])
+@pytest.mark.parametrize("preset", ["paper", "low-cost", "fast-film"])
 def test_the_worst_gust_raises_no_onset_and_with_a_heater_step_no_envelope_onset(preset):
     sensor = load_sensor(preset)
     t, y = _worst_disturbance(sensor, 16, seed=5, heater=False)
@@ -274,3 +274,29 @@ def test_the_loop_envelope_is_read_only_and_a_zero_false_alarm_rate_is_finite():
         fall[0] = 1.0
     with pytest.raises(ValueError):
         drift[0] = 1.0
+
+
+
+def test_the_envelope_margin_sets_when_a_smooth_fall_is_raised():
+    # the same smooth fall on fast-film, without gusts: the envelope test's noise margin is
+    # what the fall must clear beyond the gust and heater allowance, so a smaller margin
+    # raises every onset no later, and most earlier (the margin is most of fast-film's delay)
+    sensor = load_sensor("fast-film")
+    fs = sensor.sample_rate
+    t = np.arange(round(6.0 * fs)) / fs
+    on = 4.0 + np.linspace(0.0, 0.1, 16)
+    s = np.maximum(t[:, None] - on[None, :], 0.0)
+    fall = 1.5 * (1.0 - (1.0 + s / 0.07) * np.exp(-s / 0.07))
+    noise = smooth(np.random.default_rng(4).normal(0.0, sensor.noise_kelvin(35.0),
+                                                   (t.size, 16)), sensor, axis=0)
+    y = 35.0 - fall + noise
+    raised = {}
+    for z in (8.0, 5.0):
+        det = OnsetDetector(16, sensor=sensor, envelope_sigmas=z)
+        assert det.envelope_sigmas == z
+        events, _ = det.process(t, y, det.initial_state())
+        raised[z] = {e.taxel: e.detected_at for e in events if e.kind == "onset"}
+        assert sorted(raised[z]) == list(range(16))
+        assert all(0.0 < raised[z][k] - on[k] < 0.3 for k in range(16))
+    assert all(raised[5.0][k] <= raised[8.0][k] for k in range(16))
+    assert sum(raised[5.0][k] < raised[8.0][k] for k in range(16)) >= 12

@@ -76,6 +76,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                          "first (the detector's common_mode; every column is one board; with "
                          "--sensor, --calibration or --commissioned; a PID-held heater's: the "
                          "median of the free taxels' departures, taken off on every sample)")
+    ev.add_argument("--envelope-sigmas", type=float, default=None, metavar="Z",
+                    help="the detector's gust-envelope noise margin, sigmas (default 8; "
+                         "diagnosis: what sets the delay; with --sensor)")
+    ev.add_argument("--smooth-tau", type=float, default=None, metavar="S",
+                    help="the detector's smoothing time constant, s (default max(0.03 s, one "
+                         "sample); diagnosis; with --sensor)")
     ev.add_argument("--json", action="store_true", help="print one JSON document")
     ev.set_defaults(func=main)
 
@@ -213,6 +219,9 @@ def main(args: argparse.Namespace) -> int:
             and not args.commissioned:
         raise SkinError("--common-mode sets the detector's common mode: give --sensor, "
                         "--calibration or --commissioned too")
+    if (args.envelope_sigmas is not None or args.smooth_tau is not None) \
+            and args.sensor is None:
+        raise SkinError("--envelope-sigmas and --smooth-tau set the detector: give --sensor too")
     if args.commissioned and (args.data or args.calibration):
         raise SkinError("--commissioned simulates its own quiet stretch: not with --data or "
                         "--calibration")
@@ -265,8 +274,13 @@ def main(args: argparse.Namespace) -> int:
     if args.sensor is not None or sigma is not None:
         from skin.stream.onset import OnsetDetector
 
+        knobs = {k: v for k, v in (("envelope_sigmas", args.envelope_sigmas),
+                                   ("smooth_tau", args.smooth_tau)) if v is not None}
+        if any(v <= 0 for v in knobs.values()):
+            raise SkinError("--envelope-sigmas and --smooth-tau must be positive")
         detector = OnsetDetector(temperature.shape[1], sensor=sensor, sigma=sigma,
-                                 common_mode=args.common_mode)
+                                 common_mode=args.common_mode, **knobs)
+        source += "".join(f", {k.replace('_', ' ')} {v:g}" for k, v in knobs.items())
         source += "" if sensor is None else f", sensor {sensor.name}"
         source += ", common mode" if args.common_mode else ""
     result = evaluate_onsets(times, temperature, truth, fs, min_duration=args.min_duration,
