@@ -222,6 +222,8 @@ def main(args: argparse.Namespace) -> int:
     if (args.envelope_sigmas is not None or args.smooth_tau is not None) \
             and args.sensor is None:
         raise SkinError("--envelope-sigmas and --smooth-tau set the detector: give --sensor too")
+    if any(v is not None and not v > 0 for v in (args.envelope_sigmas, args.smooth_tau)):
+        raise SkinError("--envelope-sigmas and --smooth-tau must be positive")
     if args.commissioned and (args.data or args.calibration):
         raise SkinError("--commissioned simulates its own quiet stretch: not with --data or "
                         "--calibration")
@@ -276,8 +278,6 @@ def main(args: argparse.Namespace) -> int:
 
         knobs = {k: v for k, v in (("envelope_sigmas", args.envelope_sigmas),
                                    ("smooth_tau", args.smooth_tau)) if v is not None}
-        if any(v <= 0 for v in knobs.values()):
-            raise SkinError("--envelope-sigmas and --smooth-tau must be positive")
         detector = OnsetDetector(temperature.shape[1], sensor=sensor, sigma=sigma,
                                  common_mode=args.common_mode, **knobs)
         source += "".join(f", {k.replace('_', ' ')} {v:g}" for k, v in knobs.items())
