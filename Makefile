@@ -16,7 +16,7 @@ demo: $(STAMP)
 	$(BIN)/skin run --duration 20 --out out/demo --force
 
 test: $(STAMP)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n auto --dist worksteal
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

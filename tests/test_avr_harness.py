@@ -43,15 +43,15 @@ class Builds:
 
 
 @pytest.fixture(scope="module")
-def builds(tmp_path_factory) -> Builds:
+def builds(tmp_path_factory, firmware_make) -> Builds:
     reason = _missing_tools()
     if reason:
         if REQUIRE:
             pytest.fail(f"SKIN_REQUIRE_FIRMWARE=1 but {reason}")
         pytest.skip(f"the simavr harness cannot be built: {reason}")
     out = tmp_path_factory.mktemp("testprog")
-    proc = subprocess.run(["make", "-C", str(FIRMWARE_DIR), "-f", "sim/sim.mk", "harness",
-                           "testprog", f"TESTPROG_DIR={out}"], capture_output=True, text=True)
+    proc = firmware_make(["-C", str(FIRMWARE_DIR), "-f", "sim/sim.mk", "harness", "testprog",
+                          f"TESTPROG_DIR={out}"])
     assert proc.returncode == 0, proc.stdout + proc.stderr
     mcus = ("atmega328p", "atmega2560")
     return Builds(DEFAULT_HARNESS, {mcu: out / f"testprog_{mcu}.elf" for mcu in mcus})

@@ -202,11 +202,11 @@ def udp_node() -> Iterator[tuple[str, int]]:
 def can_udp_backend(request: pytest.FixtureRequest) -> Iterator[Backend]:
     url, node = request.getfixturevalue("udp_node")
 
-    def ask(driver: Driver, command: Command) -> object:
+    def ask(driver: Driver, command: Command, attempts: int = 3) -> object:
         # UDP loses datagrams (a loaded node's socket overflows with the group's own
         # stream): a command or its reply may be lost, so ask again, as a host on UDP must
         # (every command here is idempotent); a refusal is raised at once
-        for _ in range(2):
+        for _ in range(attempts - 1):
             try:
                 return driver.request(command, node=node, timeout=2.0)
             except ProtocolError as exc:
@@ -225,8 +225,10 @@ def can_udp_backend(request: pytest.FixtureRequest) -> Iterator[Backend]:
                           **{**_sim_backend(simulator(UDP_SECONDS), UDP_SECONDS),
                              "board": node})
     finally:
-        with drivers.open(url) as control:  # the node stays up for the next check, stopped
-            ask(control, Command(MsgType.STOP))
+        # the node stays up for the next check, stopped; the suite runs on several processes,
+        # and a node starved by them may miss more STOPs than a check's three tries
+        with drivers.open(url) as control:
+            ask(control, Command(MsgType.STOP), attempts=8)
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,6 @@ from __future__ import annotations
 import os
 import re
 import shutil
-import subprocess
 from pathlib import Path
 
 import pytest
@@ -37,12 +36,9 @@ def _require_tools() -> None:
 
 
 @pytest.mark.slow
-def test_firmware_protocol_host_tests():
+def test_firmware_protocol_host_tests(firmware_make):
     _require_tools()
-    result = subprocess.run(
-        ["make", "-C", str(FIRMWARE), "-f", "tests/host.mk", "host-test"],
-        capture_output=True, text=True, timeout=600,
-    )
+    result = firmware_make(["-C", str(FIRMWARE), "-f", "tests/host.mk", "host-test"], timeout=600)
     output = result.stdout + result.stderr
     assert result.returncode == 0, f"host tests failed:\n{output[-8000:]}"
     counts = dict(re.findall(r"^vectors (\w+): (\d+)$", result.stdout, re.MULTILINE))
