@@ -324,6 +324,28 @@ def test_the_gust_allowance_holds_the_family_through_the_detector_itself():
     assert {e.taxel for e in found[0.5]} <= set(range(0, n, 5)) and found[0.5]
 
 
+def test_a_gust_family_no_allowance_holds_is_refused_naming_the_sensor():
+    """`_gust_allowance` had returned ``gust_depth`` unchecked when no allowance below it held
+    the family (a CUSUM threshold of 0 is one such case): now the depth is tried, and a
+    family even it does not hold is refused at the detector's construction."""
+    from skin.errors import SkinError
+    from skin.stream.onset import _gust_allowance
+
+    s = load_sensor("pid-logger")
+    with pytest.raises(SkinError, match=r"sensor 'pid-logger'.*gust depth.*common_mode"):
+        OnsetDetector(16, sensor=s, common_mode=True, threshold=0.0)
+    # without the common mode the allowance is not needed, nor sought
+    assert OnsetDetector(16, sensor=s, threshold=0.0)._gust_k == 0.0
+    base = OnsetDetector(16, sensor=s, common_mode=True)
+    args = (s, float(base.gust_depth), base.smooth_tau, base.level_tau, base.slope_tau)
+    rise = float(np.min(base.rise_threshold))
+    with pytest.raises(SkinError, match="peak 0 K"):
+        _gust_allowance(*args, 0.0, rise, base.gust_rise)
+    # any positive threshold is held below the depth, the smaller the threshold the larger k
+    small = _gust_allowance(*args, 1e-6, rise, base.gust_rise)
+    assert base._gust_k < small < float(base.gust_depth)
+
+
 def test_the_gust_family_is_the_detectors_to_set():
     """The simulator's gusts are the default, not a property of real air: a deeper or faster
     gust family asks for a larger allowance, a shallower one for less."""
