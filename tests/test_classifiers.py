@@ -349,7 +349,10 @@ def test_train_anytime_writes_a_model_per_duration(tmp_path, data):
 
 
 def test_calibration_error_of_honest_and_overconfident_probabilities():
-    from skin.commands.evaluate import calibration_error
+    from skin.bench.reliability import EVALUATE_BINS, expected_calibration_error
+
+    def calibration_error(top, right):
+        return expected_calibration_error(top, right, EVALUATE_BINS)
 
     rng = np.random.default_rng(3)
     claimed = rng.uniform(0.3, 1.0, 20000)

@@ -89,8 +89,8 @@ def test_a_restarted_test_counts_each_alarm_once() -> None:
     alarms = np.array([-1, 4, 3, -1, -1, -1, 8, 7, -1, -1])
     assert count_alarms(alarms) == 2  # at 3, then (onsets after 3) at 7
     assert count_alarms(np.full(5, -1)) == 0
-    thresholds, b = fit_thresholds([])  # a stream without a contact with a floor
-    assert thresholds.size == 0 and b is None
+    fit = fit_thresholds([])  # a stream without a contact with a floor
+    assert fit.thresholds.size == 0 and fit.b is None and fit.fitted.size == 0
 
 
 def test_the_fit_carries_counts_of_an_exact_tail_to_its_threshold() -> None:
@@ -99,8 +99,9 @@ def test_the_fit_carries_counts_of_an_exact_tail_to_its_threshold() -> None:
     hs = np.arange(3.0, 12.0, 0.5)
     runs = [{"thresholds": hs, "counts": np.round(hours * np.exp(a - hs) * hs**b * 1e3),
              "hours": hours * 1e3, "samples_per_hour": 1e6}]
-    (h,), fitted = fit_thresholds(runs, false_alarms=0.1)
-    assert abs(fitted - b) < 0.05
+    fit = fit_thresholds(runs, false_alarms=0.1)
+    (h,) = fit.thresholds
+    assert abs(fit.b - b) < 0.05 and fit.fitted.all()
     assert abs(a - h + b * math.log(h) - math.log(0.1)) < 0.05
 
 
@@ -129,6 +130,13 @@ def test_the_streams_templates_are_the_contacts_own_change() -> None:
     which = [k for k, c in enumerate(stream.contacts) if np.isfinite(c.visible_after)][:2]
     out = contact_delays(stream, sensor, which, np.random.default_rng(2), budget=5e5)
     assert len(out["delay_s"]) == len(which) and not np.isnan(out["delay_s"]).any()
+    # one code path: the thresholds and tails it reports are `fit_thresholds`' of its runs
+    fit = fit_thresholds(out["runs"])
+    np.testing.assert_array_equal(out["threshold"], fit.thresholds)
+    np.testing.assert_array_equal(out["tail_a"], fit.a)
+    np.testing.assert_array_equal(out["tail_b"], fit.b_each)
+    np.testing.assert_array_equal(out["fitted"], fit.fitted)
+    assert out["b"] == fit.b
     # the smoothed sample that has seen the alarming raw sample is stamped 7 samples earlier
     np.testing.assert_allclose(
         out["delay_s"], np.maximum(out["delay_no_lookahead_s"] - 7 / stream.fs, 0.0),
@@ -150,7 +158,7 @@ def test_the_threshold_at_the_real_target_is_siegmunds() -> None:
         template = np.full(int(4 * math.log(arl) / (delta**2 / 2)) + 10, delta * sigma)
         rng = np.random.default_rng(11)
         runs = [noise_counts(template, sigma, fs, rng, target) for _ in range(8)]
-        hs, _ = fit_thresholds(runs, target)
+        hs = fit_thresholds(runs, target).thresholds
         assert abs(float(np.median(hs)) - lo) < 0.5, (delta, hs, lo)
         assert np.all(np.abs(hs - lo) < 1.0), (delta, hs, lo)
 

@@ -206,7 +206,8 @@ def test_a_loop_held_touch_of_fewer_than_half_a_board_leaves_the_others_alone(n,
     taken of them gives the free one a false fall too (measured on seeds 0-2: the room cannot
     be told from such a touch). Before the touched taxels rejoined at the common mode, their
     return from recovery (13 s in, still touched) resumed the median with their stale levels,
-    a false fall of all four."""
+    a false fall of all four (`test_a_loop_held_taxel_back_from_a_contact_rejoins_at_the_common_
+    mode`)."""
     t, y, s, _ = _loop_board(n=n, seconds=180.0, touched=tuple(range(touched)),
                              touch_at=120.0, touch_for=20.0)
     on, _ = _onsets(t, y, s)
@@ -216,6 +217,32 @@ def test_a_loop_held_touch_of_fewer_than_half_a_board_leaves_the_others_alone(n,
     assert (others == []) == separable
     off, _ = _onsets(t, y, s, common_mode=False)
     assert [e for e in off if e.taxel >= touched] == []
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_loop_held_taxel_back_from_a_contact_rejoins_at_the_common_mode(seed):
+    """3 of 4 taxels held by a block for 20 s: their contacts end (taken for over) long before
+    it leaves, and when their recovery is over they are free again, their levels from before
+    the touch. They rejoin the board's median at its common mode, their levels re-seated, and
+    nothing happens until the block leaves. Resuming the median with their stale levels was a
+    step of the whole board: a false fall of all four taxels 13 s into the touch (seeds 0-2)."""
+    t, y, s, _ = _loop_board(n=4, seconds=180.0, touched=(0, 1, 2), touch_at=120.0,
+                             touch_for=20.0, seed=seed)
+    d = OnsetDetector(4, sensor=s, common_mode=True)
+    state = d.initial_state()
+    events, rejoined = [], []
+    for k in range(0, t.size, 20):
+        before = state.recover_until.copy()
+        new, state = d.process(t[k:k + 20], y[k:k + 20], state)
+        events += new
+        # a touched taxel whose recovery ended within this chunk, while the block still holds
+        done = (before > t[k]) & (before <= t[k + 19]) & (t[k + 19] < 139.0)
+        rejoined += [int(i) for i in np.flatnonzero(done) if i < 3]
+    assert set(rejoined) == {0, 1, 2}  # the case this test is about happened
+    onsets = [e for e in events if e.kind == "onset"]
+    assert {e.taxel for e in onsets if 120.0 <= e.time <= 122.0 and e.direction < 0} \
+        == {0, 1, 2}
+    assert [e for e in onsets if 122.0 < e.time < 139.5] == []
 
 
 @pytest.mark.parametrize("rise, hold", [(1.0, 1.0), (1.0, 8.0), (4.0, 4.0)])
@@ -295,6 +322,28 @@ def test_the_gust_allowance_holds_the_family_through_the_detector_itself():
         found[scale] = [e for e in events if e.kind == "onset"]
     assert found[1.0] == []
     assert {e.taxel for e in found[0.5]} <= set(range(0, n, 5)) and found[0.5]
+
+
+def test_a_gust_family_no_allowance_holds_is_refused_naming_the_sensor():
+    """`_gust_allowance` had returned ``gust_depth`` unchecked when no allowance below it held
+    the family (a CUSUM threshold of 0 is one such case): now the depth is tried, and a
+    family even it does not hold is refused at the detector's construction."""
+    from skin.errors import SkinError
+    from skin.stream.onset import _gust_allowance
+
+    s = load_sensor("pid-logger")
+    with pytest.raises(SkinError, match=r"sensor 'pid-logger'.*gust depth.*common_mode"):
+        OnsetDetector(16, sensor=s, common_mode=True, threshold=0.0)
+    # without the common mode the allowance is not needed, nor sought
+    assert OnsetDetector(16, sensor=s, threshold=0.0)._gust_k == 0.0
+    base = OnsetDetector(16, sensor=s, common_mode=True)
+    args = (s, float(base.gust_depth), base.smooth_tau, base.level_tau, base.slope_tau)
+    rise = float(np.min(base.rise_threshold))
+    with pytest.raises(SkinError, match="peak 0 K"):
+        _gust_allowance(*args, 0.0, rise, base.gust_rise)
+    # any positive threshold is held below the depth, the smaller the threshold the larger k
+    small = _gust_allowance(*args, 1e-6, rise, base.gust_rise)
+    assert base._gust_k < small < float(base.gust_depth)
 
 
 def test_the_gust_family_is_the_detectors_to_set():

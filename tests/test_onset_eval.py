@@ -165,6 +165,30 @@ def test_evaluate_onset_command_on_a_stream_and_on_trials(tmp_path):
     assert out.returncode == 2 and "--common-mode" in out.stderr
 
 
+def test_evaluate_onset_refuses_a_common_mode_on_fewer_than_common_min_taxels(tmp_path):
+    """A board of fewer than `COMMON_MIN` taxels has no common mode: --common-mode was a
+    silent no-op there (the source line still said "common mode"); now refused before the
+    stream is simulated (or the detector run over a dataset)."""
+    from skin.models.trials import Protocol, simulate_trials
+    from skin.stream.onset import COMMON_MIN
+
+    few = str(COMMON_MIN - 1)
+    out = skin("evaluate-onset", "--sensor", "low-cost", "--taxels", few, "--common-mode")
+    assert out.returncode == 2 and out.stdout == ""
+    assert f"at least {COMMON_MIN} taxels" in out.stderr and f"--taxels is {few}" in out.stderr
+    assert "simulating" not in out.stderr  # before the work starts
+    simulate_trials([MATS["aluminium"]], Protocol(trials=COMMON_MIN - 1, run_length=3),
+                    seed=1).save(tmp_path / "few.npz")
+    out = skin("evaluate-onset", "--data", str(tmp_path / "few.npz"), "--sensor", "paper",
+               "--common-mode")
+    assert out.returncode == 2 and f"few.npz has {few} trials" in out.stderr
+    # a board of COMMON_MIN taxels has one
+    out = skin("evaluate-onset", "--sensor", "low-cost", "--taxels", str(COMMON_MIN),
+               "--minutes", "0.5", "--common-mode", "--json")
+    assert out.returncode == 0, out.stderr
+    assert "common mode" in json.loads(out.stdout)["source"]
+
+
 def test_sensor_constants_are_recovered_from_reference_contacts():
     import dataclasses
 

@@ -2,9 +2,18 @@
 
 import math
 
+import numpy as np
 import pytest
 
-from skin.bench.reliability import family_probabilities, material_and_family, reliability
+from skin.bench.reliability import (
+    BINS,
+    EVALUATE_BINS,
+    calibration_bins,
+    expected_calibration_error,
+    family_probabilities,
+    material_and_family,
+    reliability,
+)
 
 CLASSES = ["a", "b", "c"]
 
@@ -60,3 +69,33 @@ def test_bad_input_is_named():
     with pytest.raises(ValueError, match="bins"):
         reliability([{}], ["a"], CLASSES, bins=(0.0, 0.5))
     assert reliability([], [], CLASSES)["log_loss"] is None
+
+
+def test_one_calibration_error_for_the_scene_bench_and_skin_evaluate():
+    """`reliability`'s ECE and ``skin evaluate``'s (10 equal bins) are `calibration_bins`."""
+    rng = np.random.default_rng(4)
+    top = np.concatenate([rng.integers(2, 6, 300) / 5, rng.uniform(0.35, 1.0, 300)])
+    right = rng.uniform(size=top.size) < top ** 2  # overconfident
+    probs = [{"a": p, "b": 1.0 - p} if p >= 0.5 else {"c": p, "a": 0.5 * (1 - p),
+                                                       "b": 0.5 * (1 - p)} for p in top]
+    best = [max(a, key=a.get) for a in probs]
+    truths = [b if r else next(c for c in CLASSES if c != b)
+              for b, r in zip(best, right, strict=True)]
+    r = reliability(probs, truths, CLASSES)
+    ece, table = calibration_bins(top, right, BINS)
+    assert r["ece"] == round(ece, 4) and r["ece"] > 0.05
+    assert [b["count"] for b in r["bins"]] == [b["count"] for b in table]
+    # equal bins: each answer in the bin it begins, a kNN's 3/5 in [0.6, 0.7), 1 in the last
+    ten = calibration_bins(np.array([0.6, 0.6, 1.0, 0.05]), np.array([1, 0, 1, 0], bool),
+                           EVALUATE_BINS)[1]
+    assert [b["count"] for b in ten] == [1, 0, 0, 0, 0, 0, 2, 0, 0, 1]
+    manual = sum(np.count_nonzero(w) / top.size * abs(right[w].mean() - top[w].mean())
+                 for b in range(10)
+                 if (w := (np.minimum(np.floor(top * 10), 9) == b)).any())
+    assert expected_calibration_error(top, right, EVALUATE_BINS) == pytest.approx(manual,
+                                                                                   abs=1e-12)
+    assert expected_calibration_error(np.full(1000, 0.95), np.arange(1000) < 600,
+                                      EVALUATE_BINS) == pytest.approx(0.35)
+    with pytest.raises(ValueError, match="confidences"):
+        expected_calibration_error(top, right[:-1])
+    assert math.isnan(expected_calibration_error(np.zeros(0), np.zeros(0, bool)))

@@ -75,3 +75,22 @@ def test_bench_scene_counts_every_touch_and_groups_the_misses():
     assert sum(b["count"] for b in rel["material"]["bins"]) == rel["material"]["n"]
     assert 0.0 <= rel["material"]["ece"] <= 1.0 and rel["material"]["log_loss"] >= 0.0
     assert rel["family"]["log_loss"] <= rel["material"]["log_loss"]
+
+
+def test_the_scene_benchs_figures_come_from_the_estimates_not_the_rounded_records():
+    """The records (``events.jsonl``'s lines) round probabilities to 4 decimals and the
+    confidence to 3, for display; `play` had computed from them. Seed 2 has an aluminium touch
+    answered steel 0.50004, aluminium 0.49996: rounded, a tie at 0.5 that the reliability
+    table's most probable class broke to aluminium, right (the material ECE over seeds 0-29
+    0.1213 read 0.1235). A rounded confidence of 0.8996 would have counted as sure, too."""
+    from skin.bench.scene_seeds import play
+
+    r = play("default", 2)
+    assert r["answers"] and r["misses"]
+    for _, probs in r["answers"]:
+        top = max(probs.values())
+        assert sum(v == top for v in probs.values()) == 1  # no tie made by rounding
+        assert sum(probs.values()) == pytest.approx(1.0, abs=1e-9)
+    values = [v for _, probs in r["answers"] for v in probs.values()]
+    assert any(v != round(v, 4) for v in values)
+    assert any(m["confidence"] != round(m["confidence"], 3) for m in r["misses"])

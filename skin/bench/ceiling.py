@@ -282,9 +282,11 @@ def joint_fit_accuracy(data: TrialSet, duration: float, constants: str = "true",
 
 def _probability_scores(top: np.ndarray, right: np.ndarray) -> dict:
     """Return the calibration figures `skin evaluate` prints for methods with probabilities."""
-    from skin.commands.evaluate import calibration_error, confident_wrong, selective
+    from skin.bench.reliability import EVALUATE_BINS, expected_calibration_error
+    from skin.commands.evaluate import confident_wrong, selective
 
-    return {"calibration_error": round(calibration_error(top, right), 4),
+    return {"calibration_error": round(expected_calibration_error(top, right, EVALUATE_BINS),
+                                       4),
             "confident_wrong": round(confident_wrong(top, right), 4),
             "selective": selective(top, right)}
 

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 
@@ -228,23 +229,37 @@ def tail_rate(a: float, b: float, h: float) -> float:
     return math.exp(a - h + b * math.log(h))
 
 
+class TailFit(NamedTuple):
+    """The thresholds `fit_thresholds` carries each run to, and the tails it fitted."""
+
+    #: Nats, one per run: where its fitted tail reaches the target rate.
+    thresholds: np.ndarray
+    #: The shared exponent (None: nothing fitted, every run on the ln ARL bound).
+    b: float | None
+    #: Each run's ``a_i`` (per hour) and the exponent it uses (`fit_tails`).
+    a: np.ndarray
+    b_each: np.ndarray
+    #: False where the run fell back to the ln ARL bound.
+    fitted: np.ndarray
+
+
 def fit_thresholds(runs: Sequence[dict], false_alarms: float = TARGET_FALSE_ALARMS,
-                   least: int = 10) -> tuple[np.ndarray, float | None]:
+                   least: int = 10) -> TailFit:
     """Carry each run's alarm counts (`noise_counts`) to the threshold of the target rate.
 
-    Along the tail `fit_tails` fits.
+    Along the tail `fit_tails` fits (``a_i - h + b_i ln h = ln false_alarms``). The one
+    place the bench sets thresholds: `contact_delays` and `oracle_threshold` both use it.
 
     Returns
     -------
-    thresholds : numpy.ndarray
-        Nats, one per run.
-    b : float or None
-        The shared exponent (None: nothing fitted, every run on the ln ARL bound).
+    TailFit
+        ``thresholds`` (nats, one per run), ``b`` (the shared exponent, None if nothing was
+        fitted), and `fit_tails`' ``a``, ``b_each`` and ``fitted``.
     """
-    a, b_each, b, _ = fit_tails(runs, least)
+    a, b_each, b, fitted = fit_tails(runs, least)
     out = np.array([_solve(float(ai), float(bi), math.log(false_alarms))
                     for ai, bi in zip(a, b_each, strict=True)])
-    return out, b
+    return TailFit(out, b, a, b_each, fitted)
 
 
 def _solve(a: float, b: float, target: float) -> float:
@@ -276,8 +291,8 @@ def oracle_threshold(template: np.ndarray, sigma: float, fs: float, rng: np.rand
         `noise_counts`' figures and the fitted ``b``.
     """
     run = noise_counts(template, sigma, fs, rng, false_alarms, budget)
-    (h,), b = fit_thresholds([run], false_alarms)
-    return float(h), run["lags"], {**run, "b": b}
+    fit = fit_thresholds([run], false_alarms)
+    return float(fit.thresholds[0]), run["lags"], {**run, "b": fit.b}
 
 
 def false_alarm_check(template: np.ndarray, sigma: float, fs: float, threshold: float,
@@ -408,9 +423,8 @@ def contact_delays(stream: object, sensor: object, which: Sequence[int],
         runs.append(noise_counts(stream.templates[k], sigma, fs, rng, false_alarms, budget))
         if progress is not None:
             progress(i + 1, 2 * len(which))
-    a, b_each, b, fitted = fit_tails(runs)
-    thresholds = np.array([_solve(float(ai), float(bi), math.log(false_alarms))
-                           for ai, bi in zip(a, b_each, strict=True)])
+    fit = fit_thresholds(runs, false_alarms)
+    thresholds = fit.thresholds
     delays = np.full(len(which), np.inf)
     seen = np.full(len(which), np.inf)  # at the raw sample's own time, no look-ahead
     higher = np.full(len(which), np.inf)  # the threshold 1 nat higher, the same noise
@@ -429,8 +443,8 @@ def contact_delays(stream: object, sensor: object, which: Sequence[int],
             progress(len(which) + i + 1, 2 * len(which))
     return {"delay_s": delays, "delay_no_lookahead_s": seen, "delay_plus_1_s": higher,
             "threshold": thresholds,
-            "lags": [r["lags"] for r in runs], "b": b, "tail_a": a, "tail_b": b_each,
-            "fitted": fitted, "runs": runs, "sigma": sigma}
+            "lags": [r["lags"] for r in runs], "b": fit.b, "tail_a": fit.a,
+            "tail_b": fit.b_each, "fitted": fit.fitted, "runs": runs, "sigma": sigma}
 
 
 def _median_ratio(values: Sequence[float]) -> float | None:

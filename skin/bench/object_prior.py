@@ -66,7 +66,7 @@ def random_scene_text(touches: int = 60, single: float = 0.4, off: float = 0.0,
 
 def play(scene: Scene, object_prior: str) -> dict:
     """Run the scene through the pipeline; return the figures of the module docstring."""
-    from skin.commands.evaluate import calibration_error
+    from skin.bench.reliability import EVALUATE_BINS, expected_calibration_error
     from skin.drivers.sim import SkinSimulator
     from skin.models import JointClassifier, load_materials
     from skin.stream.pipeline import Pipeline
@@ -107,8 +107,8 @@ def play(scene: Scene, object_prior: str) -> dict:
                     "unknown": round(float(a[:, 1].mean()), 3),
                     "sure": int(sure.sum()),
                     "sure_right": round(float(a[sure, 4].mean()), 3) if sure.any() else None,
-                    "calibration_error": round(float(calibration_error(a[:, 3], a[:, 4] > 0)),
-                                               3)}
+                    "calibration_error": round(expected_calibration_error(
+                        a[:, 3], a[:, 4] > 0, EVALUATE_BINS), 3)}
     out["learned_prior_std"] = round(classifier.prior.std(), 3)
     return out
 

@@ -44,9 +44,7 @@ def play(scene: str, seed: int, duration: float | None = None,
     quiet = Progress(io.StringIO())  # the run's own status lines; the bench shows its bar
     with Skin(scene=scene, seed=seed, speed=0.0, duration=duration, out=None, map=False,
               sinks=[], progress=quiet) as skin:
-        if not ceiling:
-            summary = skin.run()
-        else:
+        if ceiling:
             import copy
 
             fresh = copy.deepcopy(skin.classifier)  # before the run teaches it anything
@@ -60,33 +58,42 @@ def play(scene: str, seed: int, duration: float | None = None,
                 readings[k[ok]] = temperature[ok]
 
             skin.pipeline.observers.append(observe)
-            try:
-                contacts = [r.contact for r in skin.results() if r.contact.final]
-            finally:
-                skin.close_sources()
-            summary = skin.finish()
+        # as `Skin.run`, keeping each final contact and its estimate: the records
+        # (``events.jsonl``'s lines) round the probabilities to 4 decimals and the confidence
+        # to 3, for display; every figure here is computed from the estimates themselves
+        contacts, estimates = [], {}
+        try:
+            for r in skin.results():
+                if r.contact.final:
+                    contacts.append(r.contact)
+                    estimates[r.contact.id] = r.estimate
+        finally:
+            skin.close_sources()
+        summary = skin.finish()
         table = skin.materials
     finals = [r for r in skin.records if r["final"]]
     clf = skin.classifier
     classes = list(getattr(clf, "classes", None) or clf.model.classes)
-    answers = [[rec["truth"], rec.get("probabilities") or {}] for rec in finals
-               if rec.get("truth") is not None]
+    answers = [[rec["truth"], {k: float(v) for k, v
+                               in estimates[rec["contact"]].probabilities.items()}]
+               for rec in finals if rec.get("truth") is not None]
     touches = {(tuple(t["taxels"]), t["start"]): t for t in summary["per_touch"]}
     misses, wrong, unknown, sure_wrong = [], 0, 0, 0
     for rec in finals:
         truth = rec.get("truth")
         if truth is None or rec["label"] == truth:
             continue
+        est = estimates[rec["contact"]]
         if rec["label"] == "unknown":
             unknown += 1
         else:
             wrong += 1
-            sure_wrong += rec["confidence"] >= SURE
-        probs = rec.get("probabilities") or {}
+            sure_wrong += est.confidence >= SURE
+        probs = est.probabilities or {}
         best = max(probs, key=probs.get) if probs else None
         misses.append({
             "truth": truth, "label": rec["label"], "best": best,
-            "confidence": rec["confidence"], "family": rec.get("family"),
+            "confidence": float(est.confidence), "family": rec.get("family"),
             "family_right": rec.get("family") == table[truth].family,
             "effusivity_ratio": (None if best is None or best == truth else
                                  round(table[best].effusivity / table[truth].effusivity, 3)),

@@ -231,6 +231,7 @@ def evaluate(data, method: str, duration: float, folds: int, split: str = "group
     """
     from sklearn.metrics import confusion_matrix
 
+    from skin.bench.reliability import EVALUATE_BINS, expected_calibration_error
     from skin.models.classifiers import fit_grouped, make_method, method_matrix
 
     x = method_matrix(data, method, duration)
@@ -280,42 +281,12 @@ def evaluate(data, method: str, duration: float, folds: int, split: str = "group
     if top:
         top, right = np.concatenate(top), np.concatenate(right)
         out["selective"] = selective(top, right)
-        out["calibration_error"] = round(calibration_error(top, right), 4)
+        out["calibration_error"] = round(
+            expected_calibration_error(top, right, EVALUATE_BINS), 4)
         out["confident_wrong"] = round(confident_wrong(top, right), 4)
     if per_trial:
         out["correct"] = correct
     return out
-
-
-def calibration_error(top: np.ndarray, right: np.ndarray, bins: int = 10) -> float:
-    """Return the expected calibration error: the mean gap of claimed and real accuracy.
-
-    Trials are binned by the probability of their most probable class (``bins`` equal bins
-    over 0-1); in each bin the gap between the mean claimed probability and the fraction
-    right is weighted by the bin's share of trials. 0 is perfectly calibrated.
-
-    Parameters
-    ----------
-    top : numpy.ndarray
-        Probability of each trial's most probable class.
-    right : numpy.ndarray
-        Whether that class was the true one.
-    bins : int
-        Number of probability bins.
-
-    Returns
-    -------
-    float
-        The expected calibration error, 0-1.
-    """
-    top = np.asarray(top, dtype=float)
-    right = np.asarray(right, dtype=float)
-    which = np.minimum((top * bins).astype(int), bins - 1)
-    total = 0.0
-    for b in np.unique(which):
-        inside = which == b
-        total += inside.mean() * abs(top[inside].mean() - right[inside].mean())
-    return float(total)
 
 
 def selective(top: np.ndarray, right: np.ndarray,
@@ -354,6 +325,7 @@ def bounded_figures(proba: np.ndarray, x: np.ndarray, truth: np.ndarray, classes
                     object_range: float, channels: int, fs: float, voted: bool = False
                     ) -> dict:
     """Return the figures of ``proba`` bounded over ``object_range`` K (skin.models.nuisance)."""
+    from skin.bench.reliability import EVALUATE_BINS, expected_calibration_error
     from skin.models.nuisance import bound
 
     q = bound(proba, x, classes, object_range, channels, fs, voted=voted)
@@ -361,7 +333,8 @@ def bounded_figures(proba: np.ndarray, x: np.ndarray, truth: np.ndarray, classes
     top, right = q.max(axis=1), pred == truth
     return {"object_temperature_range": object_range,
             "accuracy": round(float(np.mean(right)), 4),
-            "calibration_error": round(calibration_error(top, right), 4),
+            "calibration_error": round(
+                expected_calibration_error(top, right, EVALUATE_BINS), 4),
             "confident_wrong": round(confident_wrong(top, right), 4),
             "selective": selective(top, right)}
 
@@ -376,6 +349,8 @@ def score_test_set(pred: np.ndarray, proba: np.ndarray | None, truth: np.ndarray
     calibration error and the share of answers wrong at p >= 0.95.
     """
     from sklearn.metrics import confusion_matrix
+
+    from skin.bench.reliability import EVALUATE_BINS, expected_calibration_error
 
     seen = np.isin(truth, classes)
     conf = confusion_matrix(truth[seen], pred[seen], labels=classes)
@@ -393,7 +368,8 @@ def score_test_set(pred: np.ndarray, proba: np.ndarray | None, truth: np.ndarray
     if proba is not None and seen.any():
         top, right = proba[seen].max(axis=1), pred[seen] == truth[seen]
         out["selective"] = selective(top, right)
-        out["calibration_error"] = round(calibration_error(top, right), 4)
+        out["calibration_error"] = round(
+            expected_calibration_error(top, right, EVALUATE_BINS), 4)
         out["confident_wrong"] = round(confident_wrong(top, right), 4)
     return out
 

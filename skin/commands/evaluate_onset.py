@@ -73,9 +73,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                          "false alarm its cause (`skin.bench.onset_why`; simulated streams)")
     ev.add_argument("--common-mode", action="store_true",
                     help="take a change shared by nearly every taxel (the room) off the readings "
-                         "first (the detector's common_mode; every column is one board; with "
-                         "--sensor, --calibration or --commissioned; a PID-held heater's: the "
-                         "median of the free taxels' departures, taken off on every sample)")
+                         "first (the detector's common_mode; every column is one board, of "
+                         "at least 4 taxels; with --sensor, --calibration or --commissioned; "
+                         "a PID-held heater's: the median of the free taxels' departures, "
+                         "taken off on every sample)")
     ev.add_argument("--envelope-sigmas", type=float, default=None, metavar="Z",
                     help="the detector's gust-envelope noise margin, sigmas (default 8; "
                          "diagnosis: what sets the delay; with --sensor)")
@@ -227,6 +228,13 @@ def main(args: argparse.Namespace) -> int:
     if args.commissioned and (args.data or args.calibration):
         raise SkinError("--commissioned simulates its own quiet stretch: not with --data or "
                         "--calibration")
+    from skin.stream.onset import COMMON_MIN
+
+    if args.common_mode and not args.data and args.taxels < COMMON_MIN:
+        raise SkinError(f"--common-mode needs a board of at least {COMMON_MIN} taxels (every "
+                        f"column is one board) and --taxels is {args.taxels}: with fewer the "
+                        f"detector has no common mode; give --taxels {COMMON_MIN} or more, or "
+                        f"leave --common-mode out")
     progress = Progress()
     started = time.monotonic()
     by_material = None
@@ -239,6 +247,11 @@ def main(args: argparse.Namespace) -> int:
     if args.data:
         times, temperature, truth, fs, source = _from_trials(args.data)
         contacts = None
+        if args.common_mode and temperature.shape[1] < COMMON_MIN:
+            raise SkinError(f"--common-mode needs a board of at least {COMMON_MIN} taxels "
+                            f"(one per trial, all one board) and {args.data} has "
+                            f"{temperature.shape[1]} trials: with fewer the detector has no "
+                            f"common mode; leave --common-mode out")
     else:
         from skin.bench.streams import simulate_stream
         from skin.models import load_materials

@@ -288,7 +288,11 @@ def _gust_allowance(sensor: object, gust_depth: float, smooth_tau: float, level_
     to 8 s), noise-free, through the sensor's loop, lag and smoothing, then the detector's
     smoothing, baseline (level and slope, following while the CUSUM is below a quarter of
     ``threshold``) and falling CUSUM; 15 allowances at once (a column each), three rounds,
-    each on the 16th of the last one's bracket (to 1/4096 of ``gust_depth``).
+    each on the 16th of the last one's bracket (to 1/4096 of ``gust_depth``). If none of them
+    holds, ``gust_depth`` itself is tried and returned if it holds; if not, a
+    `skin.errors.SkinError` names the sensor, the family and the peak (met with a
+    ``threshold`` of 0: pid-logger with any positive one, and 27 combinations of the
+    smoothing, level and slope time constants tried, held the family below its depth).
 
     By default (`OnsetDetector`'s ``gust_depth`` and ``gust_rise``) the family is the
     simulator's (`skin.bench.streams`: `GUST_DEPTH` of the heated rise, rising in 1 to 4 s,
@@ -335,12 +339,29 @@ def _gust_allowance(sensor: object, gust_depth: float, smooth_tau: float, level_
         return top.reshape(ks.size, n).max(axis=1)
 
     lo, hi = 0.0, float(gust_depth)
+    found = False
     for _ in range(3):
         ks = lo + (hi - lo) * np.arange(1, 16) / 16.0
         held = np.flatnonzero(peaks(ks) < threshold)  # the peak falls as the allowance grows
+        found = found or bool(held.size)
         lo, hi = (float(ks[held[0] - 1]) if held.size and held[0] > 0 else
                   lo if held.size else float(ks[-1]),
                   float(ks[held[0]]) if held.size else hi)
+    if not found:
+        # no allowance below the gust's own depth held: the depth itself, if it holds (an
+        # allowance of the whole depth per sample; checked, never assumed)
+        peak = float(peaks(np.array([hi]))[0])
+        if not peak < threshold:
+            from skin.errors import SkinError
+
+            raise SkinError(
+                f"sensor {getattr(sensor, 'name', sensor)!r}: no CUSUM allowance up to the gust "
+                f"depth ({gust_depth:.4g} K) keeps the gust family (rising with {gust_rise:g} to "
+                f"{4.0 * gust_rise:g} s, held 1 to 8 s) through the sensor's loop below the "
+                f"falling threshold {threshold:.4g} K (its peak {peak:.4g} K at an allowance of "
+                f"the whole depth): the loop-held board's common mode cannot hold these gusts. "
+                f"Give the detector a positive threshold, or gust_depth / gust_rise measured "
+                f"from the air, or run without common_mode")
     return hi
 
 
