@@ -332,10 +332,14 @@ def test_a_gust_family_no_allowance_holds_is_refused_naming_the_sensor():
     from skin.stream.onset import _gust_allowance
 
     s = load_sensor("pid-logger")
-    with pytest.raises(SkinError, match=r"sensor 'pid-logger'.*gust depth.*common_mode"):
-        OnsetDetector(16, sensor=s, common_mode=True, threshold=0.0)
+    # a CUSUM threshold of 0 (or below) alarms on every sample: refused by the detector itself
+    for bad in (0.0, -1.0, np.nan):
+        with pytest.raises(ValueError, match="threshold must be positive"):
+            OnsetDetector(16, sensor=s, common_mode=True, threshold=bad)
+    with pytest.raises(ValueError, match="rise_threshold must be positive"):
+        OnsetDetector(16, sensor=s, rise_threshold=[0.01] * 15 + [0.0])
     # without the common mode the allowance is not needed, nor sought
-    assert OnsetDetector(16, sensor=s, threshold=0.0)._gust_k == 0.0
+    assert OnsetDetector(16, sensor=s)._gust_k == 0.0
     base = OnsetDetector(16, sensor=s, common_mode=True)
     args = (s, float(base.gust_depth), base.smooth_tau, base.level_tau, base.slope_tau)
     rise = float(np.min(base.rise_threshold))

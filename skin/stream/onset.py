@@ -722,6 +722,15 @@ class OnsetDetector:
             raise ValueError(f"smooth_tau must be > 0 s, got {smooth_tau}")
         if not envelope_sigmas > 0.0:
             raise ValueError(f"envelope_sigmas must be > 0, got {envelope_sigmas}")
+        if not false_alarm_rate > 0.0:
+            raise ValueError(f"false_alarm_rate must be > 0 per taxel-hour, got {false_alarm_rate}")
+        for name, value in (("threshold", threshold), ("rise_threshold", rise_threshold),
+                            ("slow_threshold", slow_threshold)):
+            given = None if value is None else np.asarray(value, dtype=float)
+            if given is not None and not np.all(given > 0.0):  # NaN fails; inf switches off
+                raise ValueError(f"{name} must be positive for every taxel (a CUSUM threshold "
+                                 f"of 0 alarms on every sample; inf switches the test off), "
+                                 f"got {value}")
         self.smooth_tau = max(0.03, 1.0 / fs) if smooth_tau is None else smooth_tau
         g = 1.0 - math.exp(-1.0 / (fs * self.smooth_tau))
         smoothed = self.sigma * math.sqrt(g / (2.0 - g))  # the smoothed reading's noise
