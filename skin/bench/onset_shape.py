@@ -18,9 +18,13 @@ not an absolute temperature.
 `shape_separability` measures, on a simulated stream of a sensor (`skin.bench.streams`),
 what such a test could detect: each statistic's threshold is set so that the stream's
 contact-free windows (gusts, flutter, heater steps, drift; no contact or recovery within the
-window) raise at most a target number of alarms per taxel-hour, and the share of the
-contacts that move the reading more than 5 sigma whose windows pass it within 1, 2 and 4 s
-of their onset is reported (``skin bench onset-shape``). It is the measurement behind
+window) raise at most a target number of alarms per taxel-hour (falls only, as for the
+contacts: through a PID loop a gust's recovery fits the contact template turned over), and
+the share of the contacts that move the reading more than 5 sigma whose windows pass it
+with a fall within 1, 2 and 4 s of their onset (and no later than
+`skin.bench.onset_eval.release_window` after their release) is reported
+(``skin bench onset-shape``; ``--common-mode``: on the detector's reading with its board's
+common mode taken off). It is the measurement behind
 running the test in the streaming detector or not (issue 16): where it detects no more than
 the detector's level test at the same false-alarm rate, shape cannot separate them either.
 """
