@@ -60,3 +60,45 @@ def test_skin_bench_onset_shape_prints_one_json_document(capsys) -> None:
                  "--taxels", "2", "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["sensor"] == "fast-film" and "energy" in doc and "versus" in doc
+
+
+def test_a_gusts_recovery_fits_the_contact_template_as_a_rise() -> None:
+    # through a PID loop a gust's recovery (the face warming back, overshooting) looks like a
+    # contact turned over: it fits the contact template well, with the sign of a rise, which
+    # is why shape_separability counts only falls in the contact-free windows too
+    sensor = load_sensor("pid-logger")
+    test = ShapeTest(sensor, 2.0)
+    fs = sensor.sample_rate
+    t = np.arange(0.0, 12.0, 1.0 / fs)
+    s = np.maximum(t - 5.0, 0.0)
+    shape = np.where(s < 2.0, -np.expm1(-s), -np.expm1(-2.0) * np.exp(-(s - 2.0)))
+    y = smooth(apply_dynamics(35.0 - 0.3 * np.where(t > 5.0, shape, 0.0), sensor, fs), sensor,
+               fs=fs)
+    y = y + 0.001 * np.random.default_rng(1).standard_normal(y.size)
+    rows = _box(y[:, None], test.decimation)
+    end = int(7.5 / test.row_time)  # the window ends half a second into the recovery
+    energy, versus, sign, _ = test.test(rows[end - test.rows:end])
+    assert sign[0] == 1 and energy[0] > 100 and versus[0] > 10
+
+
+def test_shape_separability_on_the_common_mode_free_reading() -> None:
+    sensor = load_sensor("pid-logger")
+    kw = {"seed": 0, "minutes": 1.0, "n_taxels": 4, "window": 2.0}
+    raw = shape_separability(sensor, **kw)
+    free = shape_separability(sensor, common_mode=True, **kw)
+    assert raw["common_mode"] is False and free["common_mode"] is True
+    assert raw["contacts_5sigma"] == free["contacts_5sigma"]  # the same stream
+    for name in ("energy", "versus"):
+        assert free[name]["free_alarms_per_taxel_hour"] <= 0.1 + 1e-9
+        # a different reading: the room's drift through the loop is gone from it
+        assert free[name]["threshold"] != raw[name]["threshold"]
+
+
+def test_skin_bench_onset_shape_takes_the_common_mode_off(capsys) -> None:
+    import json
+
+    from skin.cli import main
+
+    assert main(["bench", "onset-shape", "--sensor", "pid-logger", "--minutes", "0.5",
+                 "--taxels", "4", "--window", "2", "--common-mode", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["common_mode"] is True

@@ -18,9 +18,13 @@ not an absolute temperature.
 `shape_separability` measures, on a simulated stream of a sensor (`skin.bench.streams`),
 what such a test could detect: each statistic's threshold is set so that the stream's
 contact-free windows (gusts, flutter, heater steps, drift; no contact or recovery within the
-window) raise at most a target number of alarms per taxel-hour, and the share of the
-contacts that move the reading more than 5 sigma whose windows pass it within 1, 2 and 4 s
-of their onset is reported (``skin bench onset-shape``). It is the measurement behind
+window) raise at most a target number of alarms per taxel-hour (falls only, as for the
+contacts: through a PID loop a gust's recovery fits the contact template turned over), and
+the share of the contacts that move the reading more than 5 sigma whose windows pass it
+with a fall within 1, 2 and 4 s of their onset (and no later than
+`skin.bench.onset_eval.release_window` after their release) is reported
+(``skin bench onset-shape``; ``--common-mode``: on the detector's reading with its board's
+common mode taken off). It is the measurement behind
 running the test in the streaming detector or not (issue 16): where it detects no more than
 the detector's level test at the same false-alarm rate, shape cannot separate them either.
 """
@@ -139,7 +143,7 @@ def rows_needed(sensor: object) -> int:
 def shape_separability(sensor: object, seed: int = 0, minutes: float = 15.0,
                        n_taxels: int = 16, window: float | None = None,
                        false_alarms: float = 0.1, delays: tuple[float, ...] = (1.0, 2.0, 4.0),
-                       progress: object | None = None) -> dict:
+                       progress: object | None = None, common_mode: bool = False) -> dict:
     """Measure how many 5-sigma contacts a template test finds at a false-alarm target.
 
     Parameters
@@ -156,9 +160,20 @@ def shape_separability(sensor: object, seed: int = 0, minutes: float = 15.0,
         one alarm); with fewer free taxel-hours than 1 / this, no free window may pass.
     delays : tuple of float
         A contact counts as found when a window ending within this long of its onset (and
-        before its release) passes with a fall, s.
+        no later than `skin.bench.onset_eval.release_window` after its release, as
+        ``skin evaluate-onset`` credits an alarm) passes with a fall, s.
     progress : callable, optional
         Called as ``progress(done, total)`` with rows tested.
+    common_mode : bool
+        Test the reading the onset detector itself looks at with its board's common mode
+        taken off (`skin.stream.onset.OnsetDetector`'s ``common_mode``: its smoothed reading,
+        causal, ``smooth_tau`` 0.03 s) instead of the raw reading: on a PID-held board the
+        room's drift through the loop (pid-logger: 0.03 K sd) is most of what a free window
+        holds.
+
+    Only falls count on either side: a free window's statistic is an alarm only when its
+    best contact fit is a fall, as a contact's must be (a gust's recovery, a rise, fits the
+    contact template with the other sign and is no falling alarm).
 
     Returns
     -------
@@ -168,6 +183,7 @@ def shape_separability(sensor: object, seed: int = 0, minutes: float = 15.0,
         ``versus``: the contact fit over the best disturbance fit, shape alone) its
         ``threshold`` and ``detected_within_s`` (delay -> share of the 5-sigma contacts).
     """
+    from skin.bench.onset_eval import release_window
     from skin.bench.streams import simulate_stream
     from skin.commands.evaluate_onset import MATERIALS
     from skin.models import load_materials
@@ -177,7 +193,12 @@ def shape_separability(sensor: object, seed: int = 0, minutes: float = 15.0,
     stream = simulate_stream([table[n] for n in MATERIALS.split(",")], n_taxels=n_taxels,
                              duration=60.0 * minutes, seed=seed, sensor=sensor)
     test = ShapeTest(sensor, window)
-    rows = _box(stream.temperature, test.decimation)
+    reading = stream.temperature
+    if common_mode:
+        reading = OnsetDetector(n_taxels, sensor=sensor, common_mode=True).trace(
+            stream.times, reading).smooth
+    after = release_window(sensor)
+    rows = _box(reading, test.decimation)
     times = _box(stream.times[:, None], test.decimation)[:, 0]
     n_rows = rows.shape[0]
     busy = np.zeros((n_rows, n_taxels), dtype=bool)  # a contact or its recovery in the window
@@ -188,8 +209,10 @@ def shape_separability(sensor: object, seed: int = 0, minutes: float = 15.0,
     for e in range(test.rows, n_rows):
         free = ~busy[e - 1]
         if free.any():
-            energy, versus, _, _ = test.test(rows[e - test.rows:e][:, free])
-            stats[e - 1, free, 0], stats[e - 1, free, 1] = energy, versus
+            energy, versus, sign, _ = test.test(rows[e - test.rows:e][:, free])
+            fall = sign < 0
+            stats[e - 1, free, 0] = np.where(fall, energy, -np.inf)
+            stats[e - 1, free, 1] = np.where(fall, versus, -np.inf)
         if progress is not None and e % 2000 == 0:
             progress(e, n_rows)
     free_hours = float((~busy).sum() * test.row_time / 3600.0)
@@ -200,7 +223,7 @@ def shape_separability(sensor: object, seed: int = 0, minutes: float = 15.0,
     for i, c in enumerate(contacts):
         k0 = int(np.searchsorted(times, c.onset))
         for j, d in enumerate(delays):
-            k1 = int(np.searchsorted(times, min(c.onset + d, c.release)))
+            k1 = int(np.searchsorted(times, min(c.onset + d, c.release + after)))
             ends = [e for e in range(max(k0 + 1, test.rows), k1 + 1)]
             if not ends:
                 continue
@@ -211,7 +234,8 @@ def shape_separability(sensor: object, seed: int = 0, minutes: float = 15.0,
                 best[i, j] = energy[fall].max(), versus[fall].max()
     out = {"sensor": sensor.name, "seed": seed, "window_s": round(test.window, 3),
            "free_taxel_hours": round(free_hours, 3), "contacts_5sigma": len(contacts),
-           "noise_sigma_k": round(sigma, 5), "false_alarms_target": false_alarms}
+           "noise_sigma_k": round(sigma, 5), "false_alarms_target": false_alarms,
+           "common_mode": common_mode}
     for s, name in enumerate(("energy", "versus")):
         score = stats[..., s]
         above = lambda thr, score=score: int(((score[1:] > thr) & ~(score[:-1] > thr)).sum())  # noqa: E731

@@ -22,6 +22,9 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
                             "0.4-8 s)")
     shape.add_argument("--false-alarms", type=float, default=0.1,
                        help="alarms per contact-free taxel-hour allowed (0.1)")
+    shape.add_argument("--common-mode", action="store_true",
+                       help="test the detector's reading with its board's common mode taken "
+                            "off (OnsetDetector common_mode; the room through a PID loop)")
     shape.add_argument("--json", action="store_true", help="print one JSON document")
     shape.set_defaults(func=main)
 
@@ -46,13 +49,16 @@ def main(args: argparse.Namespace) -> int:
     started = time.monotonic()
     out = shape_separability(sensor, args.seed, args.minutes, args.taxels, args.window,
                              args.false_alarms,
-                             progress=lambda d, n: progress.bar(d, n, "rows", started))
+                             progress=lambda d, n: progress.bar(d, n, "rows", started),
+                             common_mode=args.common_mode)
     progress.done()
     out = {"machine": machine(), **out, "wall_time": round(time.monotonic() - started, 2)}
     if args.json:
         print(json.dumps(out))
         return 0
-    print(f"sensor {out['sensor']} seed {out['seed']}: window {out['window_s']} s, "
+    print(f"sensor {out['sensor']} seed {out['seed']}"
+          + (", board common mode taken off" if out["common_mode"] else "")
+          + f": window {out['window_s']} s, "
           f"{out['contacts_5sigma']} contacts > 5 sigma ({out['noise_sigma_k']} K), "
           f"{out['free_taxel_hours']} contact-free taxel-hours")
     for name in ("energy", "versus"):
