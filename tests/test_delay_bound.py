@@ -183,7 +183,7 @@ def test_the_oracle_detects_at_least_whenever_the_known_onset_ratio_crosses() ->
     # (Brownian first passage, 0.594); the GLR maximises over onsets that include the true
     # one, so on every noise draw where that ratio crosses, the oracle alarms too
     sigma, delta, h = 1.0, 0.5, 8.0
-    n = int(round(2.0 * h / delta**2))
+    n = round(2.0 * h / delta**2)
     template, lags, repeats = np.full(n, delta), n, 400
     alarmed = oracle_delay(template, sigma, h, lags, np.random.default_rng(5), repeats) >= 0
     rng = np.random.default_rng(5)  # the same draws, in the order oracle_delay takes them

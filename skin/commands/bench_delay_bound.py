@@ -121,5 +121,8 @@ def main(args: argparse.Namespace) -> int:
             print(f"detector detects {out['detector_detected_5sigma']:.2%} of the 5-sigma "
                   "contacts; its misses by cause (the oracle detects how many of them): "
                   + (", ".join(f"{c} {v['missed']} ({v['oracle_detects']})" for c, v in
-                               out["detector_misses_5sigma_by_cause"].items()) or "none"))
+                               out["detector_misses_5sigma_by_cause"].items()) or "none")
+                  + "; the test that came nearest to firing on them: "
+                  + (", ".join(f"{t} {n}" for t, n in
+                               out["detector_misses_5sigma_closest_test"].items()) or "none"))
     return 0
