@@ -609,6 +609,12 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
         "oracle_detected_5sigma_one_draw": (
             round(float(np.mean([np.isfinite(out["delay_s"][at[k]]) for k in five])), 4)
             if five else None),
+        # how far the least informative 5-sigma contact clears its own threshold: its
+        # template's whole information sum(m^2) / (2 sigma^2) less the threshold, nats (a
+        # detector that must cover many templates pays a few nats more than the oracle)
+        "oracle_5sigma_information_over_threshold_min": (
+            round(min(float(np.sum(stream.templates[k] ** 2)) / (2.0 * out["sigma"] ** 2)
+                      - float(out["threshold"][at[k]]) for k in five), 2) if five else None),
         "oracle_5sigma_detected_under_half": int(sum(p < 0.5 for p in chance.values())),
         "oracle_5sigma_detected_under_99": int(sum(p < 0.99 for p in chance.values())),
         "detection_repeats": detection_repeats,
