@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import json
 import math
 from types import SimpleNamespace
 
 import numpy as np
-from scipy.stats import invgauss
+from scipy.stats import invgauss, norm
 
 from skin.bench.delay_bound import (
     _detector_figures,
@@ -14,14 +15,18 @@ from skin.bench.delay_bound import (
     _quartiles,
     contact_delays,
     count_alarms,
+    detection_probability,
     false_alarm_counts,
     fit_thresholds,
     lookahead,
+    measure_delay_bound,
     noise_counts,
     oracle_delay,
     oracle_threshold,
 )
+from skin.bench.onset_why import MISS_CAUSES
 from skin.bench.streams import BOUND_FALSE_ALARMS, delay_bound, simulate_stream
+from skin.cli import main as skin_main
 from skin.models import load_materials
 from skin.models.sensors import load_sensor
 
@@ -177,3 +182,51 @@ def test_the_figures_never_give_nan_when_a_quarter_of_contacts_are_not_detectabl
     assert out["detector_over_oracle_pairs"] == 2
     assert out["oracle_not_detectable_same_contacts"] == 1
     assert out["detector_contacts"] == 3
+
+
+def test_the_oracle_detects_at_least_whenever_the_known_onset_ratio_crosses() -> None:
+    # a step of 0.5 sigma for 64 samples gives exactly h = 8 nats of information by its end.
+    # At the true onset the log-likelihood ratio is a random walk with drift 1/8 and variance
+    # 1/4 per sample, which reaches h by then with probability Phi(0) + e^h Phi(-sqrt(2 h))
+    # (Brownian first passage, 0.594); the GLR maximises over onsets that include the true
+    # one, so on every noise draw where that ratio crosses, the oracle alarms too
+    sigma, delta, h = 1.0, 0.5, 8.0
+    n = round(2.0 * h / delta**2)
+    template, lags, repeats = np.full(n, delta), n, 400
+    alarmed = oracle_delay(template, sigma, h, lags, np.random.default_rng(5), repeats) >= 0
+    rng = np.random.default_rng(5)  # the same draws, in the order oracle_delay takes them
+    known = np.zeros(repeats, dtype=bool)
+    for r in range(repeats):
+        x = template + rng.normal(0.0, sigma, lags - 1 + n)[lags - 1:]
+        known[r] = np.max(np.cumsum(template * x - template**2 / 2.0) / sigma**2) >= h
+    assert not np.any(known & ~alarmed)
+    brownian = 0.5 + math.exp(h) * norm.cdf(-math.sqrt(2.0 * h))
+    assert abs(known.mean() - brownian) < 0.075  # 3 standard errors of 400 draws
+    assert alarmed.mean() > known.mean()
+    assert detection_probability(template, sigma, h, lags, np.random.default_rng(5),
+                                 repeats) == alarmed.mean()
+    # far below the threshold's information: never; far above: always
+    assert detection_probability(template * 0.2, sigma, h, lags, np.random.default_rng(1)) == 0
+    assert detection_probability(template * 3.0, sigma, h, lags, np.random.default_rng(1)) == 1
+
+
+def test_the_oracles_5sigma_contacts_are_evaluate_onsets(capsys) -> None:
+    # the same stream, the same 5-sigma contacts and the same detector as `skin
+    # evaluate-onset --sensor`: its detected_5sigma comes back exactly
+    out = measure_delay_bound(load_sensor("paper"), seed=3, minutes=3.0, taxels=4,
+                              check_hours=0.002, detector=True, budget=2e5,
+                              detection_repeats=5)
+    assert skin_main(["evaluate-onset", "--sensor", "paper", "--seed", "3", "--minutes", "3",
+                      "--taxels", "4", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert out["contacts_5sigma"] == doc["contacts_5sigma"] > 0
+    assert out["detector_detected_5sigma"] == doc["detected_5sigma"]
+    assert 0.0 <= out["oracle_detected_5sigma"] <= 1.0
+    assert out["oracle_5sigma_detected_under_99"] >= out["oracle_5sigma_detected_under_half"]
+    missed = out["detector_missed_5sigma"]
+    assert len(missed) == round((1.0 - doc["detected_5sigma"]) * doc["contacts_5sigma"])
+    assert sum(v["missed"] for v in out["detector_misses_5sigma_by_cause"].values()) \
+        == len(missed)
+    for row in missed:
+        assert row["cause"] in MISS_CAUSES and 0.0 <= row["oracle_detection"] <= 1.0
+        assert row["peak_sigmas"] > 5.0

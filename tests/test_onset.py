@@ -109,6 +109,36 @@ def test_trace_gives_the_events_and_state_of_process_and_the_slope_per_sample(st
     assert np.array_equal(tr.smooth[49], after.smooth, equal_nan=True)
 
 
+def test_trace_margins_reach_1_exactly_where_a_fall_test_raises_an_onset():
+    # a described sensor's stream with disturbances: each free, armed taxel-sample whose
+    # CUSUM, slow channel or gust-envelope margin exceeds 1 raises a fall onset there, and
+    # every fall onset is raised where one does (the margins are the tests themselves)
+    from skin.bench.streams import simulate_stream
+    from skin.models import load_materials
+    from skin.models.sensors import load_sensor
+    from skin.stream.onset import MARGIN_TESTS
+
+    table = load_materials()
+    s = simulate_stream([table["aluminium"], table["pine"], table["cardboard"]], n_taxels=4,
+                        duration=180.0, contacts_per_minute=3.0, seed=4,
+                        sensor=load_sensor("paper"))
+    det = OnsetDetector(4, sensor="paper")
+    tr = det.trace(s.times, s.temperature, margins=True)
+    assert tr.margins.shape == (s.times.size, len(MARGIN_TESTS), 4)
+    events, _ = det.process(s.times, s.temperature, det.initial_state())
+    assert tr.events == events
+    firing = tr.margins[:, [0, 2, 3], :] > 1.0
+    fired = {(i, k) for i, k in zip(*np.nonzero(np.any(firing, axis=1)), strict=True)}
+    falls = {(int(np.searchsorted(s.times, e.detected_at)), e.taxel) for e in events
+             if e.kind == "onset" and e.direction < 0}
+    assert len(falls) >= 10
+    assert fired == falls
+    # a stale CUSUM is reset, not raised: its margin is apart from the live one's
+    assert np.all(np.isnan(tr.margins[:, 0]) | (tr.margins[:, 0] == 0.0)
+                  | (tr.margins[:, 1] == 0.0))
+    assert det.trace(s.times[:10], s.temperature[:10]).margins is None
+
+
 @settings(max_examples=6, deadline=None)
 @given(st.lists(st.integers(1, 900), min_size=1, max_size=12))
 def test_chunk_size_does_not_change_rises(warm_stream, sizes):

@@ -359,6 +359,18 @@ def oracle_delay(template: np.ndarray, sigma: float, threshold: float, lags: int
     return out
 
 
+def detection_probability(template: np.ndarray, sigma: float, threshold: float, lags: int,
+                          rng: np.random.Generator, repeats: int = 20) -> float:
+    """Return the share of ``repeats`` noise draws in which the test alarms on the contact.
+
+    `oracle_delay`'s alarm at or after the onset, by the template's end (the end of the
+    window in which `skin evaluate-onset` still credits an alarm to the contact).
+    """
+    if repeats < 1:
+        raise ValueError(f"repeats must be >= 1, got {repeats}")
+    return float(np.mean(oracle_delay(template, sigma, threshold, lags, rng, repeats) >= 0))
+
+
 def lookahead(sensor: object) -> int:
     """Return how many raw samples past its time stamp a smoothed sample has seen.
 
@@ -481,6 +493,7 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
                         taxels: int = 16, false_alarms: float = TARGET_FALSE_ALARMS,
                         check_hours: float | None = None, detector: bool = False,
                         budget: float = 4e6, min_duration: float = 0.3,
+                        detection_repeats: int = 20,
                         progress: object | None = None) -> dict:
     """Measure the oracle's delay against the floor on `skin evaluate-onset`'s own stream.
 
@@ -506,10 +519,14 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
     budget : float
         Matrix elements per contact's threshold run (`noise_counts`).
     min_duration : float
-        Contacts this long count towards the 5-sigma figures (as in evaluate-onset). Their
-        noise sigma is evaluate-onset's with ``detector`` (the detector's measured smoothed
-        noise, median over taxels); without it the stream's raw noise times the
-        smoothing's noise factor (the sigma of the floor); the JSON says which.
+        Contacts this long count towards the 5-sigma figures, whose noise sigma is the
+        detector's (median over taxels): exactly the contacts of evaluate-onset's
+        ``detected_5sigma`` (`skin.commands.evaluate_onset._five_sigma`).
+    detection_repeats : int
+        Noise draws per 5-sigma contact for the oracle's detection probability
+        (``oracle_detected_5sigma``: the mean over the 5-sigma contacts of the share of draws
+        in which the oracle, at its own threshold for ``false_alarms``, alarms by the end of
+        the window in which evaluate-onset still credits an alarm to the contact).
     progress : callable, optional
         Called as ``progress(done, total)``.
 
@@ -528,24 +545,36 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
                              duration=60.0 * minutes, seed=seed, sensor=sensor)
     contacts = stream.contacts
     fs = stream.fs
+    from skin.commands.evaluate_onset import _five_sigma
+    from skin.stream.onset import OnsetDetector
+
+    if detection_repeats < 1:
+        raise ValueError(f"detection_repeats must be >= 1, got {detection_repeats}")
     which = [k for k, c in enumerate(contacts)
              if np.isfinite(c.visible_after) and c.visible_after > 0]
+    # evaluate-onset's 5-sigma contacts: its detector's noise sigma, its duration rule
+    plain = OnsetDetector(taxels, sensor=sensor)
+    noise5 = float(np.median(plain.sigma))
+    noise5_from = ("the detector's noise sigma, median over taxels (as evaluate-onset's "
+                   "detected_5sigma)")
+    five = [k for k, big in enumerate(_five_sigma(contacts, plain, min_duration)) if big]
+    # a 5-sigma contact has a floor (3 sigma) unless its reading moved on the onset's own
+    # sample; the oracle weighs those too, after the others (their figures unchanged)
+    extra = [k for k in five if k not in set(which)]
+    weighed = which + extra
     rng = np.random.default_rng(seed + 7919)
-    out = contact_delays(stream, sensor, which, rng, false_alarms, budget, progress)
-    higher = [d / contacts[k].visible_after
-              for d, k in zip(out["delay_plus_1_s"], which, strict=True)]
+    out = contact_delays(stream, sensor, weighed, rng, false_alarms, budget, progress)
+    higher = [out["delay_plus_1_s"][i] / contacts[k].visible_after
+              for i, k in enumerate(which)]
     ratio = {k: out["delay_s"][i] / contacts[k].visible_after for i, k in enumerate(which)}
+    at = {k: i for i, k in enumerate(weighed)}
+    # the oracle's detection of the 5-sigma contacts: its own generator, so the delay
+    # figures are those of the same seed without it
+    rng_detect = np.random.default_rng(seed + 104729)
+    chance = {k: detection_probability(stream.templates[k], out["sigma"],
+                                       float(out["threshold"][at[k]]), out["lags"][at[k]],
+                                       rng_detect, detection_repeats) for k in five}
     run = _run_detector(stream, sensor) if detector else None
-    if run is not None:
-        noise5 = float(np.median(run[1].sigma))
-        noise5_from = ("the detector's measured smoothed noise, median over taxels (as "
-                       "evaluate-onset)")
-    else:
-        noise5 = out["sigma"] * sensor.smoothing_noise_factor()
-        noise5_from = ("the stream's raw noise x the smoothing's noise factor (the floor's "
-                       "sigma; evaluate-onset uses the detector's measured one: --detector)")
-    five = [k for k in which if contacts[k].duration >= min_duration
-            and contacts[k].peak_change > 5.0 * noise5]
     # Lorden's bound at the requested rate, on the contact's change while it lasts (as
     # StreamContact.bound_after, which is at BOUND_FALSE_ALARMS)
     lorden = []
@@ -558,9 +587,9 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
                                    false_alarms) / c.visible_after)
     log_arl = math.log(fs * 3600.0 / false_alarms)
     check = []
-    if which:
+    if weighed:
         order = np.argsort(out["threshold"], kind="stable")
-        picks = {"lowest": int(order[0]), "median": int(order[len(which) // 2]),
+        picks = {"lowest": int(order[0]), "median": int(order[len(weighed) // 2]),
                  "highest": int(order[-1])}
         done: dict[int, dict] = {}
         for name, i in picks.items():
@@ -570,13 +599,13 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
             lags = out["lags"][i]
             hours = (check_hours if check_hours is not None
                      else max(1.0, 1e8 / (lags * fs * 3600.0)))
-            rows = false_alarm_check(stream.templates[which[i]], out["sigma"], fs,
+            rows = false_alarm_check(stream.templates[weighed[i]], out["sigma"], fs,
                                      float(out["threshold"][i]), lags, hours, rng)
             a, b = float(out["tail_a"][i]), float(out["tail_b"][i])
             for row, below in zip(rows, (0.0, 2.0, 4.0), strict=True):
                 h = float(out["threshold"][i]) - below
                 row["expected"] = float(f"{row['hours'] * tail_rate(a, b, h):.3g}")
-            done[i] = {"contact": which[i], "threshold_rank": name,
+            done[i] = {"contact": weighed[i], "threshold_rank": name,
                        "tail_fitted": bool(out["fitted"][i]), "runs": rows}
         check = list(done.values())
     values = list(ratio.values())
@@ -588,6 +617,21 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
         "contacts": len(contacts), "contacts_with_floor": len(which),
         "contacts_5sigma": len(five), "five_sigma_noise_k": round(noise5, 6),
         "five_sigma_noise": noise5_from,
+        "contacts_5sigma_without_floor": len(extra),
+        "oracle_detected_5sigma": (round(float(np.mean(list(chance.values()))), 4)
+                                   if five else None),
+        "oracle_detected_5sigma_one_draw": (
+            round(float(np.mean([np.isfinite(out["delay_s"][at[k]]) for k in five])), 4)
+            if five else None),
+        # how far the least informative 5-sigma contact clears its own threshold: its
+        # template's whole information sum(m^2) / (2 sigma^2) less the threshold, nats (a
+        # detector that must cover many templates pays a few nats more than the oracle)
+        "oracle_5sigma_information_over_threshold_min": (
+            round(min(float(np.sum(stream.templates[k] ** 2)) / (2.0 * out["sigma"] ** 2)
+                      - float(out["threshold"][at[k]]) for k in five), 2) if five else None),
+        "oracle_5sigma_detected_under_half": int(sum(p < 0.5 for p in chance.values())),
+        "oracle_5sigma_detected_under_99": int(sum(p < 0.99 for p in chance.values())),
+        "detection_repeats": detection_repeats,
         "oracle_ratio_median": _json_ratio(_median_ratio(values)),
         "oracle_ratio_median_no_lookahead": _json_ratio(_median_ratio(
             [out["delay_no_lookahead_s"][i] / contacts[k].visible_after
@@ -601,20 +645,25 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
         "lorden_ratio_median": _json_ratio(_median_ratio(lorden)),
         "floor_ms_median": round(1e3 * float(np.median([contacts[k].visible_after
                                                         for k in which])), 1) if which else None,
-        "threshold_nats_median": round(float(np.median(out["threshold"])), 3) if which else None,
+        # every threshold below and the checks: over the contacts the oracle weighs
+        # (``which`` and the 5-sigma ones without a floor)
+        "threshold_nats_median": (round(float(np.median(out["threshold"])), 3) if weighed
+                                  else None),
         "threshold_nats_range": [round(float(np.min(out["threshold"])), 3),
-                                 round(float(np.max(out["threshold"])), 3)] if which else None,
+                                 round(float(np.max(out["threshold"])), 3)] if weighed
+        else None,
         "ln_arl_nats": round(log_arl, 3),
         "tail_exponent_b": round(out["b"], 3) if out["b"] is not None else None,
         "thresholds_at_ln_arl_bound": int(np.sum(~np.asarray(out["fitted"], dtype=bool))),
-        "window_lags_median": int(np.median(out["lags"])) if which else None,
+        "window_lags_median": int(np.median(out["lags"])) if weighed else None,
         "threshold_noise_hours_per_contact": round(float(np.median([r["hours"]
                                                                    for r in out["runs"]])), 3)
-        if which else None,
+        if weighed else None,
         "false_alarm_check": check,
     }
     if run is not None:
         result.update(_detector_figures(stream, run[0], which, ratio))
+        result.update(_detector_misses(stream, sensor, run, five, chance, ratio))
     return result
 
 
@@ -650,3 +699,98 @@ def _detector_figures(stream: object, res: dict, which: Sequence[int], ratio: di
         "detector_over_oracle_pairs": int(pairs.sum()),
         "oracle_not_detectable_same_contacts": int(np.sum(~np.isfinite(ours))),
     }
+
+
+def _detector_misses(stream: object, sensor: object, run: tuple[dict, object],
+                     five: Sequence[int], chance: dict, ratio: dict) -> dict:
+    """Return the detector's 5-sigma detection and its misses beside the oracle's.
+
+    ``detector_detected_5sigma`` is evaluate-onset's; each 5-sigma contact the detector
+    missed gets its cause (`skin.bench.onset_why.explain_outcomes`, as ``evaluate-onset
+    --why``), the oracle's detection probability (``chance``), its delay / floor, and how
+    near each of the detector's fall tests came to firing from the onset to the end of the
+    window in which an alarm still counts as the contact's (`miss_margins`).
+    """
+    from skin.bench.onset_eval import release_window
+    from skin.bench.onset_why import MISS_CAUSES, explain_outcomes
+    from skin.bench.streams import GUST_DEPTH
+    from skin.models.sensors import load_sensor
+
+    res, det = run
+    contacts = stream.contacts
+    flags = res["detected_flags"]
+    counted = [False] * len(contacts)
+    for k in five:
+        counted[k] = True
+    scale = sensor.heated_rise / load_sensor("paper").heated_rise
+    why = explain_outcomes(res["events"], contacts, counted, stream.gusts, stream.switches,
+                           warmup=det.warmup, gust_size=GUST_DEPTH[1] * scale,
+                           after=release_window(sensor))
+    index = {(c.taxel, round(c.onset, 3)): k for k, c in enumerate(contacts)}
+    missed = [index[(row["taxel"], row["onset"])] for row in why["missed_contacts"]]
+    near = miss_margins(stream, sensor, missed, release_window(sensor))
+    closest: dict[str, int] = {}
+    rows = []
+    by_cause = {c: {"missed": 0, "oracle_detects": 0} for c in MISS_CAUSES}
+    sigma = float(np.median(det.sigma))
+    for row in why["missed_contacts"]:
+        k = index[(row["taxel"], row["onset"])]
+        p = chance[k]
+        by_cause[row["cause"]]["missed"] += 1
+        by_cause[row["cause"]]["oracle_detects"] += int(p >= 0.5)
+        closest[near[k]["closest"]] = closest.get(near[k]["closest"], 0) + 1
+        rows.append({**row, "contact": k,
+                     "peak_sigmas": round(contacts[k].peak_change / sigma, 2),
+                     "oracle_detection": round(p, 3),
+                     "oracle_ratio": _json_ratio(ratio.get(k)), **near[k]})
+    return {
+        "detector_detected_5sigma": (round(sum(flags[k] for k in five) / len(five), 4)
+                                     if five else None),
+        "detector_misses_5sigma_by_cause": {c: v for c, v in by_cause.items() if v["missed"]},
+        "detector_misses_5sigma_closest_test": closest,
+        "detector_missed_5sigma": rows,
+    }
+
+
+def miss_margins(stream: object, sensor: object, which: Sequence[int],
+                 after: float) -> dict[int, dict]:
+    """Return how near each of the detector's fall tests came to firing on each contact.
+
+    The detector (as evaluate-onset sets it for the sensor; its taxels are independent) is
+    traced (`skin.stream.onset.OnsetDetector.trace` with ``margins``) over the columns of
+    the contacts ``which``, from the stream's start to the end of the last one's window.
+
+    Returns
+    -------
+    dict
+        For each contact of ``which``: ``margins``, each test of
+        `skin.stream.onset.MARGIN_TESTS`' largest statistic over its threshold from the onset
+        to ``after`` s after the release, while the taxel was free and armed (None if it
+        never was: in contact or warming up all along; >= 1 would have fired, ``cusum_stale``
+        excepted, which is reset instead); ``closest``, the test with the largest, or
+        ``"not armed"``; ``armed_share``, the share of those samples on which the taxel was
+        free and armed.
+    """
+    from skin.stream.onset import MARGIN_TESTS, OnsetDetector
+
+    contacts = stream.contacts
+    if not which:
+        return {}
+    cols = sorted({contacts[k].taxel for k in which})
+    end = max(contacts[k].release for k in which) + after
+    n = int(np.searchsorted(stream.times, end, side="right"))
+    det = OnsetDetector(len(cols), sensor=sensor)
+    trace = det.trace(stream.times[:n], stream.temperature[:n, cols], margins=True)
+    out = {}
+    for k in which:
+        c = contacts[k]
+        lo, hi = np.searchsorted(stream.times[:n], [c.onset, c.release + after])
+        span = trace.margins[lo:hi, :, cols.index(c.taxel)]
+        ready = np.isfinite(span[:, 0])
+        best = {name: (round(float(np.max(span[ready, i])), 3) if ready.any() else None)
+                for i, name in enumerate(MARGIN_TESTS)}
+        firing = {name: v for name, v in best.items() if v is not None}
+        out[k] = {"margins": best,
+                  "closest": max(firing, key=firing.get) if firing else "not armed",
+                  "armed_share": round(float(np.mean(ready)), 3) if ready.size else 0.0}
+    return out

@@ -10,6 +10,14 @@ near-optimal, not provably optimal: the GLR is asymptotically optimal for the me
 delay / floor is what a detector that knows everything can reach: a median above 1.5 makes
 issue 16's delay target very unlikely for that sensor, not provably impossible; a median
 below it says the target is not ruled out.
+
+The same oracle, at the same per-contact thresholds, also gives its detection of the contacts
+evaluate-onset counts in ``detected_5sigma`` (> 5 sigma, >= 0.3 s): ``oracle_detected_5sigma``,
+the mean over them of the share of ``--detection-repeats`` noise draws in which it alarms by
+the end of the window in which evaluate-onset still credits an alarm to the contact. Below
+0.99 the detection target is out of reach of that sensor (as near-optimal as the oracle is);
+with ``--detector`` the real detector's ``detected_5sigma`` and each of its misses, with its
+cause (evaluate-onset --why) and the oracle's detection of it, beside it.
 """
 
 from __future__ import annotations
@@ -36,6 +44,9 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
     p.add_argument("--detector", action="store_true",
                    help="also run the real detector (as evaluate-onset --sensor) and give "
                         "its delay / floor on the same contacts (slow on fast-film)")
+    p.add_argument("--detection-repeats", type=int, default=20,
+                   help="noise draws per 5-sigma contact for the oracle's detection "
+                        "probability (oracle_detected_5sigma; default 20)")
     p.add_argument("--json", action="store_true", help="print one JSON document")
     p.set_defaults(func=main)
 
@@ -56,10 +67,13 @@ def main(args: argparse.Namespace) -> int:
         raise SkinError("--minutes, --taxels and --false-alarms must be positive")
     if args.check_hours is not None and args.check_hours <= 0:
         raise SkinError("--check-hours must be positive")
+    if args.detection_repeats < 1:
+        raise SkinError("--detection-repeats must be at least 1")
     progress = Progress()
     started = time.monotonic()
     out = measure_delay_bound(sensor, args.seed, args.minutes, args.taxels, args.false_alarms,
                               args.check_hours, args.detector,
+                              detection_repeats=args.detection_repeats,
                               progress=lambda d, n: progress.bar(d, n, "steps", started))
     progress.done()
     out = {"machine": machine(), **out, "wall_time": round(time.monotonic() - started, 2)}
@@ -80,6 +94,12 @@ def main(args: argparse.Namespace) -> int:
     print(f"  with every threshold 1 nat higher (by the e^-h tail model, about 2.7 times "
           f"fewer false alarms): {out['oracle_ratio_median_threshold_plus_1']}")
     print(f"  5-sigma contacts' sigma {out['five_sigma_noise_k']} K: {out['five_sigma_noise']}")
+    if out["oracle_detected_5sigma"] is not None:
+        print(f"oracle detects {out['oracle_detected_5sigma']:.2%} of the "
+              f"{out['contacts_5sigma']} 5-sigma contacts (mean over "
+              f"{out['detection_repeats']} noise draws each; "
+              f"{out['oracle_5sigma_detected_under_half']} detected in under half the draws, "
+              f"{out['oracle_5sigma_detected_under_99']} in under 99 %)")
     print(f"thresholds {out['threshold_nats_median']} nats median "
           f"{out['threshold_nats_range']} (ln ARL {out['ln_arl_nats']}; tail h^b e^-h, b "
           f"{out['tail_exponent_b']}; {out['thresholds_at_ln_arl_bound']} at the ln ARL bound, "
@@ -97,4 +117,12 @@ def main(args: argparse.Namespace) -> int:
               f"{out['detector_over_oracle_median']} over the "
               f"{out['detector_over_oracle_pairs']} the oracle too detected "
               f"({out['oracle_not_detectable_same_contacts']} not detectable by it)")
+        if out["detector_detected_5sigma"] is not None:
+            print(f"detector detects {out['detector_detected_5sigma']:.2%} of the 5-sigma "
+                  "contacts; its misses by cause (the oracle detects how many of them): "
+                  + (", ".join(f"{c} {v['missed']} ({v['oracle_detects']})" for c, v in
+                               out["detector_misses_5sigma_by_cause"].items()) or "none")
+                  + "; the test that came nearest to firing on them: "
+                  + (", ".join(f"{t} {n}" for t, n in
+                               out["detector_misses_5sigma_closest_test"].items()) or "none"))
     return 0

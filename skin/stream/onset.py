@@ -99,6 +99,11 @@ DISTURBANCE = {"threshold": 0.4 / _PAPER_RISE, "rise_threshold": 0.6 / _PAPER_RI
 GUST_DEPTH = 0.4 / _PAPER_RISE
 GUST_RISE = 1.0
 HEATER_STEP = 0.45
+#: The fall tests `OnsetDetector.trace` gives margins of (statistic over threshold): the
+#: CUSUM (not stale), the CUSUM gone stale (gathering longer than ``stale``: reset, no
+#: alarm), the slow channel (its fall below the slow average, counted once it began) and the
+#: gust-envelope test (its fall from the reference over the envelope allowed).
+MARGIN_TESTS = ("cusum", "cusum_stale", "slow", "envelope")
 #: The room's random walk assumed when none is commissioned, K^2/s (about 1 K per 10 minutes):
 #: a loop-held sensor passes its fast part (`loop_envelope`). The one default: the simulated
 #: room of `skin.bench.streams` drifts at this rate, the rate the detector assumes. (The
@@ -536,6 +541,10 @@ class DetectorTrace:
         The events of the chunk, in time order (as `OnsetDetector.process` gives them).
     state : DetectorState
         State after the chunk.
+    margins : numpy.ndarray or None
+        With ``trace(..., margins=True)``, shape (n_samples, len(`MARGIN_TESTS`), n_taxels):
+        each fall test's statistic over its threshold after each sample, on free, armed
+        taxels (NaN elsewhere and before a taxel's first reading): an onset needs 1.
     """
 
     times: np.ndarray
@@ -543,6 +552,7 @@ class DetectorTrace:
     slope: np.ndarray
     events: list[OnsetEvent]
     state: DetectorState
+    margins: np.ndarray | None = None
 
 
 class OnsetDetector:
@@ -900,12 +910,14 @@ class OnsetDetector:
         return events, s
 
     def trace(
-        self, times: np.ndarray, temperature: np.ndarray, state: DetectorState | None = None
+        self, times: np.ndarray, temperature: np.ndarray, state: DetectorState | None = None,
+        margins: bool = False,
     ) -> DetectorTrace:
         """Run the detector over a chunk and keep its smoothed reading and slope per sample.
 
         The events and the final state are those of `process`; this costs a copy of two
-        arrays per sample more, for plots and diagnosis.
+        arrays per sample more, for plots and diagnosis (with ``margins``, each fall test's
+        statistic over its threshold too: `DetectorTrace.margins`).
 
         Parameters
         ----------
@@ -915,6 +927,8 @@ class OnsetDetector:
             Temperatures, deg C; NaN marks a missing sample.
         state : DetectorState, optional
             State after the previous chunk (default: `initial_state`); not modified.
+        margins : bool
+            Keep each fall test's statistic over its threshold per sample.
 
         Returns
         -------
@@ -929,11 +943,16 @@ class OnsetDetector:
         events: list[OnsetEvent] = []
         groups = self._groups()
         taus = self._taus(groups)
+        kept = (np.full((len(times), len(MARGIN_TESTS), self.n_taxels), np.nan) if margins
+                else None)
+        row: list | None = [] if margins else None
         for i, (t, y) in enumerate(zip(times, temperature, strict=True)):
-            self._step(float(t), y, s, events, taus, groups)
+            self._step(float(t), y, s, events, taus, groups, row)
             smooth[i] = s.smooth
             slope[i] = s.slope
-        return DetectorTrace(times, smooth, slope, events, s)
+            if row:
+                kept[i] = row.pop()
+        return DetectorTrace(times, smooth, slope, events, s, kept)
 
     def _taus(self, groups: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
         """Return the smoothing time constants of `_step`'s gains, a row each.
@@ -1078,7 +1097,8 @@ class OnsetDetector:
         return board[row]
 
     def _step(self, t: float, y: np.ndarray, s: DetectorState, events: list[OnsetEvent],
-              taus: np.ndarray, groups: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+              taus: np.ndarray, groups: tuple[np.ndarray, np.ndarray] | None = None,
+              margins: list | None = None) -> None:
         # Whole-array updates selected with `np.copyto(..., where=)` (the same arithmetic,
         # element by element, as masked updates, at a fraction of the calls), and the rare
         # branches (new taxels, holes, onsets, contacts) skipped when no taxel takes them:
@@ -1218,6 +1238,15 @@ class OnsetDetector:
                 room = room * np.sqrt(np.minimum(s.common_var / self._room_var, 1.0))
             gusty = loop_fall[j] + np.sqrt(margin**2 + room**2)
         deep = idle & armed & ~alarm & ~rise_alarm & ~slow_alarm & (drop > gusty)
+        if margins is not None:
+            # each fall test's statistic over its threshold (>= 1: it fires), on the free,
+            # armed taxels (`MARGIN_TESTS`; NaN elsewhere)
+            ready = idle & armed
+            margins.append(np.where(ready, np.stack([
+                np.where(stale, 0.0, g) / self.threshold,
+                np.where(stale, g, 0.0) / self.threshold,
+                np.where(np.isfinite(s.slow_start), fall, 0.0) / self.slow_threshold,
+                np.where(np.isfinite(drop), drop, 0.0) / gusty]), np.nan))
         slow_alarm = slow_alarm | deep
         # a fall the CUSUM has begun to gather is dated where the CUSUM left zero, as its own
         # onset would be; otherwise where the reading left the noise
