@@ -33,7 +33,8 @@ SPAN_MORE = 2.0
 #: contacts, so the refit is in effect on first differences, and its result depends on the
 #: clip (a review's scratch check, onset error median on 10 gusty contacts: 0.9 122 ms,
 #: 0.95 87 ms, 0.99 17 ms, 0.999 12.5 ms); the whitened level stays a constant (1 - rho),
-#: removed by centring, whatever rho. Only a slow sensor without a heater term takes this path.
+#: removed by centring, whatever rho. Every sensor with dynamics takes this path, a heater
+#: term or not.
 AR1_MAX = 0.99
 
 #: Contact closing rates H = h (1/e_s + 1/e_o) tried by `refine_onset`, s^-0.5 (inf: perfect).
@@ -91,8 +92,12 @@ def refine_onset(
         else the fit dates such contacts early. A heater left on (``"on-during-contact"``)
         warms the thermistor by its flux, of known shape, scaled by the sensor's share
         e_s / (e_s + e_o) of it: fitted as a second column whose weight is bounded to [0, 1].
+        With dynamics beside such a heater term a finite closing rate must earn its place by
+        Schwarz's criterion (the residual sum of squares lower than perfect contact's by
+        sigma^2 ln n), else the fit is perfect contact's: there the free rate traded with the
+        onset and dated contacts early.
         A PID-held sensor (``"pid"``) has no slope of its own (the loop holds it): ``slope``
-        is ignored. A sensor with dynamics and no such heater term is fitted twice, the
+        is ignored. A sensor with dynamics is fitted twice, the
         second time on samples whitened by the first fit's residual (AR(1), `_residual_ar1`):
         a gust's slow cooling then no longer passes for the contact's slow departure. None,
         or a sensor without dynamics, smoothing or such a heater: eq. 5 as is.
@@ -201,8 +206,11 @@ def refine_onset(
         basis = np.where(after, table[:, :, i] * (1 - f) + table[:, :, i + 1] * f, 0.0)
         if dynamic:  # the level fitted too: centre the columns and the data
             z = y - slope * (t - coarse)
+            if rho[0] > 0:  # whitened (AR(1)): the level's column is a constant still
+                z = (z[1:] - rho[0] * z[:-1])[adjacent]
+                basis = (basis[..., 1:] - rho[0] * basis[..., :-1])[..., adjacent]
             basis = basis - basis.mean(-1, keepdims=True)  # (2, rates, m, n)
-            target = np.broadcast_to(z - z.mean(), lag.shape)
+            target = np.broadcast_to(z - z.mean(), basis.shape[2:])
             rest = np.zeros(lag.shape[0])
         else:
             base_at = baseline + slope * (onsets - coarse)
@@ -228,6 +236,10 @@ def refine_onset(
                              + (u - e_amb * g01) ** 2 / g00s, 0.0)
         sse = rest[None, :] - explained  # (rates, m)
         r, m = np.unravel_index(int(np.argmin(sse)), sse.shape)
+        # the residual's sum of squares and its samples, for `choose` (dynamic: the target's
+        # rows are all the centred data)
+        last[0] = float(sse[r, m]) + (float(target[0] @ target[0]) if dynamic else 0.0)
+        last[1] = float(target.shape[-1])
         return float(onsets[m]), float(rate_grid[r])
 
     if heated:
@@ -246,7 +258,9 @@ def refine_onset(
 
     rho = [0.0]  # the residual's AR(1) coefficient, once estimated (`_residual_ar1`)
 
-    def search_all() -> tuple[float, float]:
+    last = [0.0, 1.0]  # the latest heater fit's residual sum of squares and its samples
+
+    def search_all(rates: tuple[float, ...] = rates) -> tuple[float, float]:
         # coarse to fine: every rate on a 4-step grid over the whole span, then every rate on
         # the step grid around the best, then finer rates and fifths of a step around that
         rate_grid = np.asarray(rates, dtype=float)
@@ -271,16 +285,33 @@ def refine_onset(
         fine = np.clip(onset + np.arange(-step, step + 1e-9, step / 5), grid[0], grid[-1])
         return best_fit(fine, fine_rates, tabulate(fine_rates))
 
-    onset, rate = search_all()
-    if dynamic and not heated:
+    def choose() -> tuple[float, float]:
+        # through a loop, a lag and a smoothing with a heater term beside them, a slower
+        # closing rate looks much like an earlier onset, and the free rate dated low-cost's
+        # contacts early (signed median -116..-366 ms, seeds 0/2/4/6): a finite rate is kept
+        # only when it lowers the residual sum of squares by more than Schwarz's criterion
+        # for one parameter, sigma^2 ln n, sigma^2 the perfect contact's residual per sample
+        onset, rate = search_all()
+        if not (dynamic and heated) or np.isinf(rate):
+            return onset, rate
+        sse_free = last[0]
+        perfect, inf_rate = search_all((np.inf,))
+        sse_perfect, n = last
+        if sse_perfect - sse_free <= sse_perfect / n * np.log(n):
+            return perfect, inf_rate
+        return onset, rate
+
+    onset, rate = choose()
+    if dynamic:
         # the residual of a slow sensor's fit is far from white (the air's flutter through
         # the loop and the lag, a smoothing): estimate its lag-1 autocorrelation and refit on
         # samples whitened by it (feasible generalised least squares, AR(1)); on pid-logger's
         # synthetic streams the onset error median fell from 79-109 ms to 16-77 ms
+        table = tabulate(np.array([rate]))  # (rates=1, lags), or (2, 1, lags) heated
         rho[0] = _residual_ar1(t, y - slope * (t - coarse), onset, lead, dl,
-                               tabulate(np.array([rate]))[0], adjacent)
+                               table.reshape(-1, table.shape[-1]), adjacent)
         if rho[0] > 0:
-            onset, rate = search_all()
+            onset, rate = choose()
     return onset, float(baseline + slope * (onset - coarse))
 
 
@@ -317,16 +348,19 @@ def _residual_ar1(t: np.ndarray, z: np.ndarray, onset: float, lead: float, dl: f
                   table: np.ndarray, adjacent: np.ndarray) -> float:
     """Return the lag-1 autocorrelation of a fit's residual, clipped to [0, `AR1_MAX`].
 
-    ``z`` is the reading less the baseline's slope, ``table`` the response at the fitted rate
-    on `refine_onset`'s lag grid (step ``dl``, from ``-lead``); the level and the response's
-    size are fitted by least squares at ``onset``; ``adjacent`` marks the pairs of samples
-    (``z[1:]``, ``z[:-1]``) a sample apart, the only ones it is estimated from.
+    ``z`` is the reading less the baseline's slope, ``table`` the response's columns at the
+    fitted rate on `refine_onset`'s lag grid (step ``dl``, from ``-lead``), shape (k, lags):
+    the response alone, or the response and a heater's term (`heater_basis`); the level and
+    the columns' weights are fitted by least squares (unbounded) at ``onset``; ``adjacent``
+    marks the pairs of samples (``z[1:]``, ``z[:-1]``) a sample apart, the only ones it is
+    estimated from.
     """
+    table = np.atleast_2d(table)
     x = np.maximum(t - onset + lead, 0.0) / dl
-    i = np.minimum(x.astype(np.int64), len(table) - 2)
+    i = np.minimum(x.astype(np.int64), table.shape[-1] - 2)
     f = x - i
-    col = np.where(t - onset > -lead, table[i] * (1 - f) + table[i + 1] * f, 0.0)
-    a = np.column_stack([np.ones_like(z), col])
+    cols = np.where(t - onset > -lead, table[:, i] * (1 - f) + table[:, i + 1] * f, 0.0)
+    a = np.column_stack([np.ones_like(z), *cols])
     res = z - a @ np.linalg.lstsq(a, z, rcond=None)[0]
     now, prev = res[1:][adjacent], res[:-1][adjacent]
     energy = float(prev @ prev)
