@@ -247,7 +247,7 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
     left_out : dict
         Touches left out, by reason (`LEFT_OUT`): ``unended`` (no release before the
         recording ends: the reading never recovered), ``short`` (released less than
-        `TOUCH_SECONDS` after the onset), ``rising`` (a warm object) and ``incomplete``
+        `touch_seconds` after the refined onset), ``rising`` (a warm object) and ``incomplete``
         (missing samples, or the window runs past the recording or the release).
     """
     from skin.stream.onset_refine import refine_onset, refine_span
@@ -263,7 +263,9 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
     spans: dict[int, list] = {}  # per taxel: [onset event, release time] of each touch
     for ev in events:
         held = spans.setdefault(ev.taxel, [])
-        if ev.kind == "onset":
+        if sensors[ev.taxel].heater == "pid":
+            _pid_span(held, ev)
+        elif ev.kind == "onset":
             if held and held[-1][1] is not None and ev.time - held[-1][1] < MERGE_GAP \
                     and ev.direction == held[-1][0].direction:
                 held[-1][1] = None  # the same touch goes on
@@ -274,8 +276,7 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
     out, left = [], dict.fromkeys(LEFT_OUT, 0)
     for k, held in sorted(spans.items()):
         for on, off in held:
-            why = ("rising" if on.direction != -1 else "unended" if off is None
-                   else "short" if off - on.time < seconds else "")
+            why = "rising" if on.direction != -1 else "unended" if off is None else ""
             if why:
                 left[why] += 1
                 continue
@@ -287,6 +288,9 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
             onset, initial = refine_onset(t[near], y[near, k], on.time, on.baseline, on.slope,
                                           sensors[k].depth, sensors[k].diffusivity,
                                           sensor=sensors[k])
+            if off - onset < seconds:  # from the refined onset: the detector's comes late
+                left["short"] += 1
+                continue
             first = int(np.searchsorted(t, onset, side="right")) - n_before
             window = slice(first, first + n_before + n_after)
             if (first < 0 or first + n_before + n_after > t.size
@@ -297,6 +301,25 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
             out.append((k, float(onset), float(initial), t[window] - onset,
                         y[window, k].copy()))
     return out, left
+
+
+def _pid_span(held: list, ev: object) -> None:
+    """Add one detector event to a PID-held taxel's touches (`find_touches`).
+
+    The loop restores the reading while the object still rests on the taxel, so the
+    detector's release marks the loop's recovery, not the lift-off (pid-logger, seed 7:
+    released 1.1-3.3 s after every onset, all 48 touches held 13 s). The lift-off shows as
+    the next onset, rising (the loop's raised power overshoots once the object is gone): a
+    touch ends where the taxel's next onset begins, and a rising onset that ends a falling
+    touch is its lift-off, not a touch of its own.
+    """
+    if ev.kind != "onset":
+        return
+    if held and held[-1][1] is None:
+        held[-1][1] = ev.time
+        if held[-1][0].direction == -1 and ev.direction == 1:
+            return
+    held.append([ev, None])
 
 
 def labelled_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
@@ -394,6 +417,7 @@ ASSIGN_RESPONSE_SCALES = (0.7, 0.8, 0.9, 1.0, 1.12, 1.25, 1.4)
 
 def assign_materials(touches: list, materials: dict, sensors: list, room: float,
                      scales: tuple[float, ...] = ASSIGN_RESPONSE_SCALES,
+                     noise: np.ndarray | None = None,
                      ) -> tuple[list[ReferenceTouch], list[tuple[int, float]]]:
     """Name each touch's reference: the material whose contact response fits it best.
 
@@ -403,7 +427,10 @@ def assign_materials(touches: list, materials: dict, sensors: list, room: float,
     commissioning; the depth scaled, the effusivity kept), since the unit's own response time
     is what commissioning is to find; a touch whose best fit is not at least twice as close
     as the runner-up is ambiguous and left out (the references must differ clearly in
-    effusivity).
+    effusivity). Closeness is the misfit beyond the reading's own noise,
+    sqrt(rms^2 - noise^2), and the runner-up's must reach the noise: on a noisy sensor the
+    noise fills both residuals, and the raw ratio could not reach 2 (low-cost, seed 7, noise
+    0.09 K: every neoprene touch ambiguous, though the closer reference was right in all 26).
 
     Parameters
     ----------
@@ -418,6 +445,10 @@ def assign_materials(touches: list, materials: dict, sensors: list, room: float,
         Room (and references') temperature, deg C.
     scales : tuple of float
         Response times tried, relative to the current one (`ASSIGN_RESPONSE_SCALES`).
+    noise : numpy.ndarray, optional
+        Each column's reading noise per sample, K (`skin commission`'s ``noise_sigma``);
+        default: its sensor description's, after smoothing (as the onset detector's; none
+        for bare `SensorConstants`).
 
     Returns
     -------
@@ -426,8 +457,13 @@ def assign_materials(touches: list, materials: dict, sensors: list, room: float,
         (column, onset) of the touches left out.
     """
     from skin.models.sensor_fit import reference_reading
+    from skin.models.sensors import SensorDescription
 
     names = list(materials)
+    if noise is None:  # bare constants (no description) read noise-free
+        noise = [s.noise_kelvin(room + s.heated_rise) * s.smoothing_noise_factor()
+                 if isinstance(s, SensorDescription) else 0.0 for s in sensors]
+    noise = np.asarray(noise, dtype=float)
     assigned, ambiguous = [], []
     for k, onset, initial, tt, yy in touches:
         after = tt > 0
@@ -444,7 +480,9 @@ def assign_materials(touches: list, materials: dict, sensors: list, room: float,
                 (reference_reading(tt[None, :], initial, room, m.effusivity, unit, h)[:, after]
                  - yy[after]) ** 2, axis=1)).min()) for unit in units))
         order = np.argsort(rms)
-        if len(names) > 1 and rms[order[1]] < 2.0 * rms[order[0]]:
+        beyond = np.sqrt(np.maximum(np.square(rms) - noise[k] ** 2, 0.0))
+        if len(names) > 1 and (beyond[order[1]] < 2.0 * beyond[order[0]]
+                               or beyond[order[1]] < noise[k]):
             ambiguous.append((k, onset))
             continue
         assigned.append(ReferenceTouch(k, onset, initial, names[order[0]], tt, yy))
@@ -622,7 +660,7 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
             f"touch in it; record at least {MIN_TOUCHES} touches of at least {MIN_MATERIALS} "
             f"of {', '.join(materials)} at room temperature, each held {hold:g} s or more "
             f"with {rest:g} s or more between them, or give their times with --labels")
-    assigned, ambiguous = assign_materials(touches, materials, sensors, room)
+    assigned, ambiguous = assign_materials(touches, materials, sensors, room, noise=noise)
     short = sum(left.values())
     counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": len(ambiguous)}
     return fit_responses(assigned, layout, materials, sensors, room,

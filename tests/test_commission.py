@@ -752,3 +752,56 @@ def test_only_references_whose_air_gap_slows_the_contact_on_the_sensors_time_sca
     # acrylic's gap (0.0035 s) is 0.14 % of the paper sensor's 2.5 s, 1.4 % of fast-film's
     assert air_gap_note(["acrylic", "water"], table, [paper]) is None
     assert "acrylic" in air_gap_note(["acrylic", "water"], table, [fast])
+
+
+def test_noisy_touches_are_named_by_their_misfit_beyond_the_noise():
+    """Water and neoprene touches read through 0.3 K of white noise (3 each, over their gap
+    ranges, 3 noise draws): the noise fills both references' residuals, so the raw rms ratio
+    left 5-6 of 6 ambiguous; measured beyond the noise, every touch is named right. Bare
+    constants (no noise given) keep the raw ratio."""
+    from skin.models import load_materials
+    from skin.models.commission import assign_materials
+    from skin.models.physics import SensorConstants, contact_trace
+
+    mats = {m: load_materials()[m] for m in ("water", "neoprene")}
+    nominal = SensorConstants()
+    t = np.arange(-80, 501) / 200.0
+    for seed in range(3):
+        rng = np.random.default_rng(seed)
+        given, names = [], []
+        for name, m in mats.items():
+            for h in np.geomspace(*m.conductance_range, 3):
+                clean = np.where(t > 0, contact_trace(np.maximum(t, 1e-6), 36.0, 25.0,
+                                                      m.effusivity, nominal, h), 36.0)
+                given.append((0, 1.0 + len(given), 36.0, t, clean + rng.normal(0, 0.3, t.size)))
+                names.append(name)
+        assigned, ambiguous = assign_materials(given, mats, [nominal], 25.0, noise=[0.3])
+        assert ambiguous == [] and [a.material for a in assigned] == names, seed
+        _, ambiguous = assign_materials(given, mats, [nominal], 25.0)
+        assert len(ambiguous) >= 5, seed
+
+
+def test_pid_held_touches_end_at_their_lift_off():
+    """On a heater held by a PID loop the loop restores the reading during the touch: the
+    detector's release came 1-3 s after every onset and the lift-off's overshoot looked like
+    a warm touch, so every touch was left out (short and rising). The touch now ends at the
+    taxel's next onset, and each is dated near its start."""
+    from skin.bench.commission import scene_text
+    from skin.drivers.sim import SkinSimulator
+    from skin.formats.scene import parse_scene
+    from skin.models.commission import described, find_touches, hold_and_rest
+    from skin.models.sensors import load_sensor
+
+    preset = load_sensor("pid-logger")
+    hold, rest = hold_and_rest([preset])
+    scene = parse_scene(scene_text("pid-logger", 7, 2, 2, hold, rest, 0.1), "pid.toml")
+    sim = SkinSimulator(scene, contact="finite")
+    frames = list(sim.frames())
+    y, _ = sim.calibration.temperature(np.array([f.counts for f in frames])[:, sim._addr])
+    t = np.array([f.device_time for f in frames])
+    sensors = described(scene.layout, CalibrationFile().apply(scene.layout)[1])
+    touches, left = find_touches(t, y, scene.layout, sensors)
+    assert len(touches) == 4 and not any(left.values())
+    starts = np.array([tc.start for tc in scene.touches])
+    err = np.array([on - starts[np.argmin(np.abs(starts - on))] for _, on, *_ in touches])
+    assert np.all(np.abs(err) <= 0.3)
