@@ -103,15 +103,20 @@ def test_the_heater_basis_is_the_drain_and_the_response() -> None:
 
 
 def _heated_contact(sensor: object, material: str, h: float, t_on: float,
-                    noise: float = 0.0) -> tuple[np.ndarray, np.ndarray, float]:
-    """A contact with an object at the room's temperature, through the sensor's readout."""
+                    noise: float = 0.0, rng: np.random.Generator | None = None,
+                    ) -> tuple[np.ndarray, np.ndarray, float]:
+    """A contact with an object at the room's temperature, through the sensor's readout.
+
+    ``noise`` scales the sensor's reading noise, drawn from ``rng`` (default: seed 5).
+    """
     fs = sensor.sample_rate
     t = np.arange(0.0, t_on + 8.0, 1.0 / fs)
     t0, ambient = 25.0 + sensor.heated_rise, 25.0
     e = load_materials()[material].effusivity
     y = np.where(t > t_on, contact_reading(np.maximum(t - t_on, 0.0), t0, ambient, e, sensor, h,
                                            ambient), t0)
-    y = y + noise * sensor.noise_kelvin() * np.random.default_rng(5).standard_normal(t.size)
+    rng = np.random.default_rng(5) if rng is None else rng
+    y = y + noise * sensor.noise_kelvin() * rng.standard_normal(t.size)
     return t, smooth(apply_dynamics(y, sensor, fs), sensor, fs=fs), t0
 
 
@@ -226,14 +231,15 @@ def test_a_slow_sensor_is_dated_through_a_gust() -> None:
     assert np.median(np.abs(holed)) < 0.07
 
 
-@pytest.mark.parametrize("material,h,within", [("glass", 3000.0, 0.07), ("brick", 173.0, 0.2)])
+@pytest.mark.parametrize("material,h,within", [("glass", 3000.0, 0.25), ("brick", 173.0, 0.7)])
 def test_a_slow_heated_sensor_is_dated_through_a_gust(material: str, h: float,
                                                       within: float) -> None:
     # low-cost's heater stays on during contact (its flux a second column): a gust and the
     # air's flutter through its lag and low-pass leave a residual far from white, and a free
-    # closing rate trades with the onset and dates it early (before: median |error| 101 ms on
-    # glass, 235 ms on brick, whose contact does close slowly); whitened by the residual's
-    # lag-1 autocorrelation, the rate kept only when Schwarz's criterion asks: 39 and 169 ms
+    # closing rate trades with the onset and dates it early (before: median |error| 661 ms on
+    # glass, 1072 ms on brick, whose contact does close slowly, each contact with its own
+    # noise draw); whitened by the residual's lag-1 autocorrelation, the rate kept only when
+    # Schwarz's criterion asks on the whitened samples: 169 and 496 ms
     from scipy.signal import lfilter
 
     sensor = load_sensor("low-cost")
@@ -243,7 +249,7 @@ def test_a_slow_heated_sensor_is_dated_through_a_gust(material: str, h: float,
     errors = []
     for _ in range(12):
         t_on = 20.0 + rng.uniform(0, 1 / fs)
-        t, y, t0 = _heated_contact(sensor, material, h, t_on, noise=1.0)
+        t, y, t0 = _heated_contact(sensor, material, h, t_on, noise=1.0, rng=rng)
         gust = -rng.uniform(0.1, 0.5) * -np.expm1(-np.maximum(t - t_on - rng.uniform(-2.0, 0.0),
                                                               0.0) / rng.uniform(1.0, 4.0))
         a = np.exp(-1.0 / (0.5 * fs))

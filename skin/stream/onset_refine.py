@@ -61,10 +61,12 @@ def refine_onset(
     it, ``T0 + D R(t - t0; H)`` with T0 the baseline at t0, ``R`` the thermistor's response to
     a contact whose conductance closes at rate H (`skin.models.physics.contact_response`; eq.
     5's ``erfc`` for perfect contact) and D fitted by least squares. Candidate onsets lie on a
-    grid from ``coarse - search`` to ``coarse``, candidate rates in ``rates``; the pair with
-    the smallest squared error over the samples up to ``coarse + horizon`` wins. Fitting the
-    rate matters: a contact through an air gap starts slowly, and perfect-contact fits date it
-    tens of milliseconds late.
+    grid from ``coarse - search`` to ``coarse``, candidate rates in ``rates`` (refined about
+    the best, within the least and the largest finite rate given); the pair with the smallest
+    squared error over the samples up to ``coarse + horizon`` wins, except on a sensor with
+    dynamics and a heater term (below: a finite rate must pass Schwarz's criterion). Fitting
+    the rate matters: a contact through an air gap starts slowly, and perfect-contact fits
+    date it tens of milliseconds late.
 
     Parameters
     ----------
@@ -94,8 +96,10 @@ def refine_onset(
         e_s / (e_s + e_o) of it: fitted as a second column whose weight is bounded to [0, 1].
         With dynamics beside such a heater term a finite closing rate must earn its place by
         Schwarz's criterion (the residual sum of squares lower than perfect contact's by
-        sigma^2 ln n), else the fit is perfect contact's: there the free rate traded with the
-        onset and dated contacts early.
+        sigma^2 ln n, on the whitened samples; perfect contact must be among ``rates``), else
+        the fit is perfect contact's: there the free rate traded with the onset and dated
+        contacts early. The first, unwhitened fit is unpenalised: it only gives the residual
+        whose autocorrelation whitens the second.
         A PID-held sensor (``"pid"``) has no slope of its own (the loop holds it): ``slope``
         is ignored. A sensor with dynamics is fitted twice, the
         second time on samples whitened by the first fit's residual (AR(1), `_residual_ar1`):
@@ -270,7 +274,12 @@ def refine_onset(
         onset, rate = best_fit(near, rate_grid, table)
 
         def around(rate: float) -> np.ndarray:
-            return np.array([rate]) if np.isinf(rate) else rate * 2.0 ** np.arange(-1.0, 1.01, 0.25)
+            # finer rates about the best, kept within the caller's finite rates: halved at
+            # each stage a rate left the grid (16x below its least) and a fit on such a
+            # bound dated a brick contact a second early
+            if np.isinf(rate):
+                return np.array([rate])
+            return np.unique(np.clip(rate * 2.0 ** np.arange(-1.0, 1.01, 0.25), *span))
 
         if dynamic:
             # through a loop, a lag and a smoothing a slower rate looks much like an earlier
@@ -285,14 +294,20 @@ def refine_onset(
         fine = np.clip(onset + np.arange(-step, step + 1e-9, step / 5), grid[0], grid[-1])
         return best_fit(fine, fine_rates, tabulate(fine_rates))
 
-    def choose() -> tuple[float, float]:
+    finite = [r for r in rates if np.isfinite(r)]
+    span = (min(finite), max(finite)) if finite else (np.inf, np.inf)
+
+    def choose(penalise: bool) -> tuple[float, float]:
         # through a loop, a lag and a smoothing with a heater term beside them, a slower
         # closing rate looks much like an earlier onset, and the free rate dated low-cost's
         # contacts early (signed median -116..-366 ms, seeds 0/2/4/6): a finite rate is kept
         # only when it lowers the residual sum of squares by more than Schwarz's criterion
         # for one parameter, sigma^2 ln n, sigma^2 the perfect contact's residual per sample
+        # (only on whitened samples, ``penalise``: on the raw ones the residual's lag-1
+        # autocorrelation is 0.95-0.98 and sigma^2 ln n under-penalises 40-100 fold); only
+        # when the caller's rates hold perfect contact
         onset, rate = search_all()
-        if not (dynamic and heated) or np.isinf(rate):
+        if not (penalise and dynamic and heated) or np.isinf(rate) or np.inf not in rates:
             return onset, rate
         sse_free = last[0]
         perfect, inf_rate = search_all((np.inf,))
@@ -301,7 +316,7 @@ def refine_onset(
             return perfect, inf_rate
         return onset, rate
 
-    onset, rate = choose()
+    onset, rate = choose(False)
     if dynamic:
         # the residual of a slow sensor's fit is far from white (the air's flutter through
         # the loop and the lag, a smoothing): estimate its lag-1 autocorrelation and refit on
@@ -310,8 +325,8 @@ def refine_onset(
         table = tabulate(np.array([rate]))  # (rates=1, lags), or (2, 1, lags) heated
         rho[0] = _residual_ar1(t, y - slope * (t - coarse), onset, lead, dl,
                                table.reshape(-1, table.shape[-1]), adjacent)
-        if rho[0] > 0:
-            onset, rate = choose()
+        if rho[0] > 0 or heated:  # heated: Schwarz's test on the (whitened) samples
+            onset, rate = choose(True)
     return onset, float(baseline + slope * (onset - coarse))
 
 
@@ -351,7 +366,11 @@ def _residual_ar1(t: np.ndarray, z: np.ndarray, onset: float, lead: float, dl: f
     ``z`` is the reading less the baseline's slope, ``table`` the response's columns at the
     fitted rate on `refine_onset`'s lag grid (step ``dl``, from ``-lead``), shape (k, lags):
     the response alone, or the response and a heater's term (`heater_basis`); the level and
-    the columns' weights are fitted by least squares (unbounded) at ``onset``; ``adjacent``
+    the columns' weights are fitted by least squares (unbounded) at ``onset``. The fit that
+    chose ``onset`` bounds a heater weight (to [0, 1], or the drain's bound): where that bound
+    binds, the unbounded weight here leaves a smaller, less correlated residual than the
+    fit's, so rho is if anything under-estimated and the second fit whitened less (how often
+    the bound binds and what it costs is not measured); ``adjacent``
     marks the pairs of samples (``z[1:]``, ``z[:-1]``) a sample apart, the only ones it is
     estimated from.
     """
