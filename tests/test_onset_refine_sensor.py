@@ -239,7 +239,7 @@ def test_a_slow_heated_sensor_is_dated_through_a_gust(material: str, h: float,
     # closing rate trades with the onset and dates it early (before: median |error| 661 ms on
     # glass, 1072 ms on brick, whose contact does close slowly, each contact with its own
     # noise draw); whitened by the residual's lag-1 autocorrelation, the rate kept only when
-    # Schwarz's criterion asks on the whitened samples: 169 and 496 ms
+    # Schwarz's criterion asks on the whitened samples: 172 and 432 ms
     from scipy.signal import lfilter
 
     sensor = load_sensor("low-cost")

@@ -62,11 +62,11 @@ def refine_onset(
     a contact whose conductance closes at rate H (`skin.models.physics.contact_response`; eq.
     5's ``erfc`` for perfect contact) and D fitted by least squares. Candidate onsets lie on a
     grid from ``coarse - search`` to ``coarse``, candidate rates in ``rates`` (refined about
-    the best, within the least and the largest finite rate given); the pair with the smallest
-    squared error over the samples up to ``coarse + horizon`` wins, except on a sensor with
-    dynamics and a heater term (below: a finite rate must pass Schwarz's criterion). Fitting
-    the rate matters: a contact through an air gap starts slowly, and perfect-contact fits
-    date it tens of milliseconds late.
+    the best; with dynamics within the least and the largest finite rate given); the pair
+    with the smallest squared error over the samples up to ``coarse + horizon`` wins, except
+    on a sensor with dynamics and a heater term (below: a finite rate must pass Schwarz's
+    criterion). Fitting the rate matters: a contact through an air gap starts slowly, and
+    perfect-contact fits date it tens of milliseconds late.
 
     Parameters
     ----------
@@ -98,8 +98,9 @@ def refine_onset(
         Schwarz's criterion (the residual sum of squares lower than perfect contact's by
         sigma^2 ln n, on the whitened samples; perfect contact must be among ``rates``), else
         the fit is perfect contact's: there the free rate traded with the onset and dated
-        contacts early. The first, unwhitened fit is unpenalised: it only gives the residual
-        whose autocorrelation whitens the second.
+        contacts early. The first, unwhitened fit is perfect contact's (or the free rate's,
+        without it among ``rates``): it only gives the residual whose autocorrelation whitens
+        the second.
         A PID-held sensor (``"pid"``) has no slope of its own (the loop holds it): ``slope``
         is ignored. A sensor with dynamics is fitted twice, the
         second time on samples whitened by the first fit's residual (AR(1), `_residual_ar1`):
@@ -274,12 +275,15 @@ def refine_onset(
         onset, rate = best_fit(near, rate_grid, table)
 
         def around(rate: float) -> np.ndarray:
-            # finer rates about the best, kept within the caller's finite rates: halved at
-            # each stage a rate left the grid (16x below its least) and a fit on such a
-            # bound dated a brick contact a second early
+            # finer rates about the best; with dynamics kept within the caller's finite
+            # rates: halved at each of its four stages a rate left the grid (16x below its
+            # least) and a fit on such a bound dated a brick contact a second early (without
+            # dynamics a single stage, at most 2x beyond: left free, paper's onsets as they
+            # were; clipped there too, paper seed 0's median went 20.4 -> 20.7 ms)
             if np.isinf(rate):
                 return np.array([rate])
-            return np.unique(np.clip(rate * 2.0 ** np.arange(-1.0, 1.01, 0.25), *span))
+            finer = rate * 2.0 ** np.arange(-1.0, 1.01, 0.25)
+            return np.unique(np.clip(finer, *span)) if dynamic else finer
 
         if dynamic:
             # through a loop, a lag and a smoothing a slower rate looks much like an earlier
@@ -305,7 +309,11 @@ def refine_onset(
         # for one parameter, sigma^2 ln n, sigma^2 the perfect contact's residual per sample
         # (only on whitened samples, ``penalise``: on the raw ones the residual's lag-1
         # autocorrelation is 0.95-0.98 and sigma^2 ln n under-penalises 40-100 fold); only
-        # when the caller's rates hold perfect contact
+        # when the caller's rates hold perfect contact; the first, unwhitened pass fits
+        # perfect contact alone, its residual only giving the AR(1) coefficient (the
+        # unpenalised free rate instead: low-cost seeds 0/2/4/6 within 1 ms, the same)
+        if not penalise and dynamic and heated and np.inf in rates:
+            return search_all((np.inf,))
         onset, rate = search_all()
         if not (penalise and dynamic and heated) or np.isinf(rate) or np.inf not in rates:
             return onset, rate
