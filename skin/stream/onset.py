@@ -295,9 +295,10 @@ def _gust_allowance(sensor: object, gust_depth: float, smooth_tau: float, level_
     ``threshold``) and falling CUSUM; 15 allowances at once (a column each), three rounds,
     each on the 16th of the last one's bracket (to 1/4096 of ``gust_depth``). If none of them
     holds, ``gust_depth`` itself is tried and returned if it holds; if not, a
-    `skin.errors.SkinError` names the sensor, the family and the peak (met with a
-    ``threshold`` of 0: pid-logger with any positive one, and 27 combinations of the
-    smoothing, level and slope time constants tried, held the family below its depth).
+    `skin.errors.SkinError` names the sensor, the family and the peak (met only when called
+    with a ``threshold`` of 0, which `OnsetDetector` refuses: pid-logger with any positive
+    one, and 27 combinations of the smoothing, level and slope time constants tried, held the
+    family below its depth).
 
     By default (`OnsetDetector`'s ``gust_depth`` and ``gust_rise``) the family is the
     simulator's (`skin.bench.streams`: `GUST_DEPTH` of the heated rise, rising in 1 to 4 s,
@@ -365,8 +366,8 @@ def _gust_allowance(sensor: object, gust_depth: float, smooth_tau: float, level_
                 f"{4.0 * gust_rise:g} s, held 1 to 8 s) through the sensor's loop below the "
                 f"falling threshold {threshold:.4g} K (its peak {peak:.4g} K at an allowance of "
                 f"the whole depth): the loop-held board's common mode cannot hold these gusts. "
-                f"Give the detector a positive threshold, or gust_depth / gust_rise measured "
-                f"from the air, or run without common_mode")
+                f"Give the detector gust_depth / gust_rise measured from the air, or run "
+                f"without common_mode")
     return hi
 
 
