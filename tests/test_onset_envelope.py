@@ -5,7 +5,7 @@ import pytest
 from scipy.signal import lfilter
 
 from skin.models.sensors import load_sensor, smooth
-from skin.stream.onset import GUST_DEPTH, GUST_RISE, HEATER_STEP, OnsetDetector
+from skin.stream.onset import GUST_DEPTH, GUST_RISE, HEATER_STEP, OnsetDetector, drop_noise
 
 
 def _mode(sensor) -> float:
@@ -300,3 +300,64 @@ def test_the_envelope_margin_sets_when_a_smooth_fall_is_raised():
         assert all(0.0 < raised[z][k] - on[k] < 0.3 for k in range(16))
     assert all(raised[5.0][k] <= raised[8.0][k] for k in range(16))
     assert sum(raised[5.0][k] < raised[8.0][k] for k in range(16)) >= 12
+
+
+@pytest.mark.parametrize("preset", ["paper", "low-cost"])
+def test_the_falls_noise_table_matches_the_filters_run_on_noise(preset):
+    # the fall from the reference (prediction + trend x since - smoothed reading), measured on
+    # white readout noise run through the sensor's smoothing, the detector's smoothing and
+    # its level/trend filter, step by step: its sd at each time since is the table's
+    sensor = load_sensor(preset)
+    det = OnsetDetector(4, sensor=sensor, envelope_noise=True)
+    step, sd, resid = drop_noise(sensor, det.smooth_tau, det.level_tau, det.slope_tau,
+                                 det.slow_tau)
+    assert sd[0] == 1.0 and np.all(np.diff(sd[1:]) > -1e-9)  # grows with the time since
+    fs = sensor.sample_rate
+    dt = 1.0 / fs
+    n, m = round(40.0 * det.slope_tau * fs) + sd.size, 400
+    noise = np.random.default_rng(3).normal(0.0, 1.0, (n, m))
+    y = smooth(noise, sensor, axis=0) / sensor.smoothing_noise_factor()  # delivered sd 1
+    g_s, g_l, g_b = (-np.expm1(-dt / tau) for tau in (det.smooth_tau, det.level_tau,
+                                                        det.slope_tau))
+    a = lfilter([g_s], [1.0, g_s - 1.0], y, axis=0)
+    level, slope = np.zeros(m), np.zeros(m)
+    pred, trend = np.empty_like(a), np.empty_like(a)
+    for i in range(n):
+        pred[i], trend[i] = level + slope * dt, slope
+        err = g_l * (a[i] - pred[i])
+        level = pred[i] + err
+        slope = slope + g_b * err / dt
+    start = n - sd.size - round(5.0 * det.slope_tau * fs)  # the filters settled
+    refs = np.arange(start - 200, start)
+    assert np.std(a[refs] - pred[refs]) == pytest.approx(resid, rel=0.08)
+    for since in (0.1, 1.0, det.slow_tau):
+        k = round(since / step)
+        fall = pred[refs] + trend[refs] * k * dt - a[refs + k]
+        assert np.std(fall) == pytest.approx(resid * sd[k], rel=0.08)
+
+
+def test_the_noise_margin_is_smaller_early_and_larger_late_and_chunk_invariant():
+    # fast-film: 40 ms after the reference the fall's noise is a fraction of the flat 8 sigmas
+    # (the margin was most of its delay); seconds after, on low-cost, more than 8 sigmas
+    for preset, since, smaller in (("fast-film", 0.04, True), ("low-cost", 5.0, False)):
+        det = OnsetDetector(4, sensor=preset, envelope_noise=True)
+        k = int(np.ceil(since / det._drop_step))
+        margin = det.envelope_sigmas * det._drop_sd[k] * det._resid_sigma[0]
+        assert (margin < 8.0 * det.smoothed_sigma[0]) == smaller
+    sensor = load_sensor("fast-film")
+    fs = sensor.sample_rate
+    t = np.arange(round(6.0 * fs)) / fs
+    on = 4.0 + np.linspace(0.0, 0.1, 8)
+    s = np.maximum(t[:, None] - on[None, :], 0.0)
+    fall = 1.5 * (1.0 - (1.0 + s / 0.07) * np.exp(-s / 0.07))
+    noise = smooth(np.random.default_rng(5).normal(0.0, sensor.noise_kelvin(35.0),
+                                                   (t.size, 8)), sensor, axis=0)
+    y = 35.0 - fall + noise
+    det = OnsetDetector(8, sensor=sensor, envelope_noise=True)
+    whole, _ = det.process(t, y, det.initial_state())
+    assert sorted(e.taxel for e in whole if e.kind == "onset") == list(range(8))
+    state, parts = det.initial_state(), []
+    for lo, hi in ((0, 1), (1, 777), (777, 4100), (4100, 4101), (4101, t.size)):
+        ev, state = det.process(t[lo:hi], y[lo:hi], state)
+        parts += ev
+    assert parts == whole
