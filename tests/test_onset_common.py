@@ -308,3 +308,7 @@ def test_the_gust_family_is_the_detectors_to_set():
     assert fast.envelope[1][-1] >= base.envelope[1][-1] > shallow.envelope[1][-1]
     with pytest.raises(ValueError, match="gust_rise"):
         OnsetDetector(16, sensor=s, gust_rise=0.0)
+    with pytest.raises(ValueError, match="envelope_sigmas"):
+        OnsetDetector(16, sensor=s, envelope_sigmas=0.0)
+    with pytest.raises(ValueError, match="smooth_tau"):
+        OnsetDetector(16, sensor=s, smooth_tau=0.0)

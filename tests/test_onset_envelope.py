@@ -276,7 +276,6 @@ def test_the_loop_envelope_is_read_only_and_a_zero_false_alarm_rate_is_finite():
         drift[0] = 1.0
 
 
-
 def test_the_envelope_margin_sets_when_a_smooth_fall_is_raised():
     # the same smooth fall on fast-film, without gusts: the envelope test's noise margin is
     # what the fall must clear beyond the gust and heater allowance, so a smaller margin

@@ -17,7 +17,7 @@ the preset's nominal constants and with the fitted ones, and what the fit cost.
 (the paper's eq. 5; the bench's default before it followed real contacts). An air gap's
 conductance and the response time trade against each other (both add a 1/sqrt(t) tail to
 the reading), so touches of aluminium and pine through their gaps leave the response time
-some 10 % off on the paper's sensor (25 % on fast-film), where conforming references
+some 10 % off on the paper's sensor (20-25 % on fast-film), where conforming references
 (water, neoprene: gaps under 2 um) pin it as a perfect contact does.
 
 `classify` measures issue 16's classification target with it: the same classifier told the

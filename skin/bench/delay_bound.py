@@ -1,4 +1,4 @@
-"""The delay an oracle detector reaches at a false-alarm target: a floor for any detector's.
+"""The delay an oracle detector reaches at a false-alarm target: a near-optimal reference.
 
 Issue 16 asks for a median detection delay within 1.5 times the physical floor (when a
 contact's noise-free reading first moves 3 sigma) at 0.1 false alarms per taxel-hour. Whether
@@ -463,10 +463,11 @@ def _json_ratio(value: float | None) -> float | str | None:
     return "not detectable" if not np.isfinite(value) else round(value, 3)
 
 
-def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0, taxels: int = 16,
-                false_alarms: float = TARGET_FALSE_ALARMS, check_hours: float | None = None,
-                detector: bool = False, budget: float = 4e6, min_duration: float = 0.3,
-                progress: object | None = None) -> dict:
+def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
+                        taxels: int = 16, false_alarms: float = TARGET_FALSE_ALARMS,
+                        check_hours: float | None = None, detector: bool = False,
+                        budget: float = 4e6, min_duration: float = 0.3,
+                        progress: object | None = None) -> dict:
     """Measure the oracle's delay against the floor on `skin evaluate-onset`'s own stream.
 
     The stream is the one ``skin evaluate-onset --sensor S --seed N`` simulates (the same

@@ -153,7 +153,7 @@ def gap_table(trials: int = 100, seeds: Sequence[int] = (7, 13),
         if clusters is None:
             raise ValueError("the benchmark names no taxels: nothing to cluster the error by")
         n_clusters = int(np.unique(clusters).size)
-        warped = warp_to_nominal(data, sensors)
+        warped = None if reach_only else warp_to_nominal(data, sensors)
         for d in durations:
             say(f"seed {seed}, {d:g} s: svm-pca and default"
                 + ("" if reach_only else ", plain and commissioned"))

@@ -59,8 +59,8 @@ def main(args: argparse.Namespace) -> int:
     progress = Progress()
     started = time.monotonic()
     out = measure_delay_bound(sensor, args.seed, args.minutes, args.taxels, args.false_alarms,
-                      args.check_hours, args.detector,
-                      progress=lambda d, n: progress.bar(d, n, "steps", started))
+                              args.check_hours, args.detector,
+                              progress=lambda d, n: progress.bar(d, n, "steps", started))
     progress.done()
     out = {"machine": machine(), **out, "wall_time": round(time.monotonic() - started, 2)}
     if args.json:

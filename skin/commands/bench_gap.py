@@ -55,10 +55,10 @@ def main(args: argparse.Namespace) -> int:
         raise SkinError("give at least one seed and positive durations")
     if args.points < 2:
         raise SkinError("--points must be at least 2")
-    if args.cv < 2 or args.trials < 2 * args.cv or args.reference_trials < 1:
-        raise SkinError("--cv must be at least 2, --trials at least twice --cv (the default "
-                        "classifier calibrates on 3 trials per material in each training "
-                        "fold), --reference-trials at least 1")
+    if args.cv < 2 or args.trials * (args.cv - 1) // args.cv < 3 or args.reference_trials < 1:
+        raise SkinError("--cv must be at least 2, --trials enough for 3 trials per material in "
+                        "each training fold (trials x (cv - 1) / cv >= 3: the default "
+                        "classifier calibrates on them), --reference-trials at least 1")
     progress = Progress()
     started = time.monotonic()
     rows = gap_table(args.trials, seeds, durations, args.cv, args.reference_trials,

@@ -28,15 +28,14 @@ against each other (both slow the reading's approach by a 1/sqrt(t) tail), and e
 contact has that gap; a note on stderr (and ``air_gap_note`` in ``--json``) names
 references whose gap slows the contact by more than 1 % of the sensor's half-response time
 (`GAP_TIME_FRACTION`) and says what to record instead. Measured in simulation (`skin bench
-commission [--classify]`, finite contacts, 8 taxels, seeds 7 and 11): aluminium and pine
-through their gaps leave the response time 8.5-10 % off on the paper's sensor and 24-25 %
-on fast-film, and a classifier told those constants 5.7-9.1 points below one told the true
-ones at 1 and 2.5 s on paper (not met at seed 7, unresolved at seed 11), 13-27 on
-fast-film (not met). Water and neoprene: response time 0.45 % off on paper (gaps
--0.3 to +0.8 points on 1,320 contacts: met; seed 11 with labelled touches, its detected
-ones leave a taxel unfitted), 0.73-0.96 % on fast-film (gaps -3.6 to +4.1 points on 440
-contacts: unresolved; -0.4 to +1.5 on 1,320: met but seed 11 at 1 s, unresolved), 0.18 %
-on pid-logger and 6.5 % on low-cost (labelled touches; both classify
+commission --references aluminium,pine [--classify]`, finite contacts, 8 taxels, seeds 3, 7
+and 11): aluminium and pine through their gaps leave the response time 8.5-10 % off on the
+paper's sensor and 20-25 % on fast-film, and a classifier told those constants 5.7-9.1
+points below one told the true ones at 1 and 2.5 s on paper (not met at seed 7, unresolved
+at seed 11), 13-27 on fast-film (not met). Water and neoprene (`skin bench commission`, its
+defaults): response time 0.19-0.45 % off on paper (gaps -0.3 to +0.8 points on 1,320
+contacts: met), 0.73-0.96 % on fast-film (-0.4 to +1.5 on 1,320: met but seed 11 at 1 s,
+unresolved), 0.21 % on pid-logger and 6.5 % on low-cost (labelled touches; both classify
 near chance with the true constants).
 """
 

@@ -227,6 +227,8 @@ def main(args: argparse.Namespace) -> int:
             or args.envelope_noise) and args.sensor is None:
         raise SkinError("--envelope-sigmas, --envelope-noise and --smooth-tau set the detector: "
                         "give --sensor too")
+    if any(v is not None and not v > 0 for v in (args.envelope_sigmas, args.smooth_tau)):
+        raise SkinError("--envelope-sigmas and --smooth-tau must be positive")
     if args.commissioned and (args.data or args.calibration):
         raise SkinError("--commissioned simulates its own quiet stretch: not with --data or "
                         "--calibration")
@@ -281,8 +283,6 @@ def main(args: argparse.Namespace) -> int:
 
         knobs = {k: v for k, v in (("envelope_sigmas", args.envelope_sigmas),
                                    ("smooth_tau", args.smooth_tau)) if v is not None}
-        if any(v <= 0 for v in knobs.values()):
-            raise SkinError("--envelope-sigmas and --smooth-tau must be positive")
         if args.envelope_noise:
             knobs["envelope_noise"] = True
         detector = OnsetDetector(temperature.shape[1], sensor=sensor, sigma=sigma,

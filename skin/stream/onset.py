@@ -12,12 +12,16 @@ conductors through an air gap).  The baseline
 follows a smooth fall as a trend (a poor conductor's, or any contact's through a deep or
 lagged thermistor), so the CUSUM sees only its curvature; the gust-envelope test looks at the
 fall itself: from where the baseline put the reading when it left the noise, a fall deeper
-than any gust of the air's family (at most `GUST_DEPTH` of the heated rise, approached with a
-time constant of at least `GUST_RISE`) plus the steepest heater step could make in the time
-since, with 8 noise sigmas to spare, is a contact. A PID-held heater's loop cancels what moves
-its sensor slowly: there the gusts, the heater steps and the room's drift are taken as the
-reading shows them through the loop (`loop_envelope`), and such an onset is dated when raised
-(its reference can date from long before the contact; `refine_onset` searches before it).
+than any gust of the air's family (``gust_depth``, by default `GUST_DEPTH` of the heated rise,
+approached with a time constant of at least ``gust_rise``, by default `GUST_RISE`: the
+simulator's family) plus the steepest heater step could make in the time since, with
+``envelope_sigmas`` (8) noise sigmas to spare, is a contact. A PID-held heater's loop cancels
+what moves its sensor slowly: there the gusts, the heater steps and the room's drift are taken
+as the reading shows them through the loop (`loop_envelope`), and such an onset is dated when
+raised (its reference can date from long before the contact; `refine_onset` searches before
+it). A board's common mode (opt-in, ``common_mode``) takes the room off first: gated on a
+change (nearly) every free taxel shows, or, on a PID-held board, the median of its free
+taxels' departures on every sample (`OnsetDetector._loop_common`).
 
 What rises without a contact is told apart so: the heater's duty stepping up and ambient drift
 move the reading slowly (through the taxel's ~63 s mode), and the baseline follows them; the
@@ -156,6 +160,17 @@ def _average_noise(sensor: object, tau: float) -> float:
     return float(np.sqrt(np.sum(both**2) / np.sum(h**2)))
 
 
+def _gust_family(t: np.ndarray, depth: float, rise: float) -> list[np.ndarray]:
+    """Return the air's gust family on times ``t``, K.
+
+    Falls of ``depth`` approached with time constants ``rise``, 2 and 4 times it, held 1, 2, 4
+    and 8 s, then recovering alike (`loop_envelope` and `_gust_allowance` share it).
+    """
+    return [-depth * np.where(t < hold, -np.expm1(-t / r),
+                              -np.expm1(-hold / r) * np.exp(-(t - hold) / r))
+            for r in (rise, 2.0 * rise, 4.0 * rise) for hold in (1.0, 2.0, 4.0, 8.0)]
+
+
 @functools.cache
 def drop_noise(sensor: object, smooth_tau: float, level_tau: float, slope_tau: float,
                horizon: float) -> tuple[float, np.ndarray, float]:
@@ -281,10 +296,7 @@ def loop_envelope(sensor: object, horizon: float, gust_depth: float, mode: float
     lags = every * np.arange(math.ceil(horizon / dt) + 2)
     pad = int(2.0 * fs)  # settled before the disturbance
     t = np.arange(round((horizon + 4.0 * gust_rise + 8.0 + 10.0) * fs)) / fs
-    gusts = [-gust_depth * np.where(t < hold, -np.expm1(-t / rise),
-                                    -np.expm1(-hold / rise) * np.exp(-(t - hold) / rise))
-             for rise in (gust_rise, 2.0 * gust_rise, 4.0 * gust_rise)
-             for hold in (1.0, 2.0, 4.0, 8.0)]
+    gusts = _gust_family(t, gust_depth, gust_rise)
     heater = HEATER_STEP * sensor.heated_rise * -np.expm1(-t / mode)
     room = np.ones_like(t)
     x = np.column_stack([*gusts, -heater, heater, room])
@@ -335,12 +347,9 @@ def _room_variance(sensor: object, medium_tau: float, slow_tau: float) -> float:
 
 def _ema(x: np.ndarray, a: float) -> np.ndarray:
     """Return the exponential average y[i] = y[i-1] + a (x[i] - y[i-1]), y[-1] = 0, of ``x``."""
-    y = np.empty_like(x)
-    acc = 0.0
-    for i, v in enumerate(x):
-        acc += a * (v - acc)
-        y[i] = acc
-    return y
+    from scipy.signal import lfilter
+
+    return lfilter([a], [1.0, a - 1.0], x)
 
 
 @functools.cache
@@ -375,10 +384,7 @@ def _gust_allowance(sensor: object, gust_depth: float, smooth_tau: float, level_
 
     fs = float(sensor.sample_rate)
     t = np.arange(round((4.0 * gust_rise + 8.0 + 20.0) * fs)) / fs
-    gusts = [-gust_depth * np.where(t < hold, -np.expm1(-t / rise),
-                                    -np.expm1(-hold / rise) * np.exp(-(t - hold) / rise))
-             for rise in (gust_rise, 2.0 * gust_rise, 4.0 * gust_rise)
-             for hold in (1.0, 2.0, 4.0, 8.0)]
+    gusts = _gust_family(t, gust_depth, gust_rise)
     x = np.concatenate([np.zeros((int(2.0 * fs), len(gusts))), np.column_stack(gusts)])
     y = smooth(apply_dynamics(x, sensor, fs, axis=0), sensor, axis=0, fs=fs)
     a_s, a_l, a_b = (-math.expm1(-1.0 / (fs * tau)) for tau in (smooth_tau, level_tau, slope_tau))
@@ -680,7 +686,8 @@ class OnsetDetector:
         the larger). The drop it tests is measured from an extrapolated baseline, whose own
         noise this margin covers too: a flat margin at the Gaussian quantile (5.1-5.4)
         instead of 8 raised low-cost's noise-driven false alarms ten-fold (seed 0: 0.75 ->
-        7.75 per taxel-hour) while fast-film's delay / floor fell 1.99 -> 1.72.
+        7.75 per taxel-hour) while fast-film's delay / floor fell 1.99 -> 1.72 (`skin
+        evaluate-onset --sensor P --seed 0 --envelope-sigmas Z --json`).
     envelope_noise : bool
         Set the margin from the drop's own noise at the time since its reference instead
         (`drop_noise`: the readout noise through the smoothing and the baseline's
@@ -772,6 +779,10 @@ class OnsetDetector:
         if not np.all(np.isfinite(self.sigma) & (self.sigma > 0)):
             raise ValueError("sigma must be positive and finite for every taxel")
         stretch = max(1.0, sensor.response_time / _PAPER_RESPONSE)  # a slower sensor
+        if smooth_tau is not None and not smooth_tau > 0.0:
+            raise ValueError(f"smooth_tau must be > 0 s, got {smooth_tau}")
+        if envelope_sigmas is not None and not envelope_sigmas > 0.0:
+            raise ValueError(f"envelope_sigmas must be > 0, got {envelope_sigmas}")
         self.smooth_tau = max(0.03, 1.0 / fs) if smooth_tau is None else smooth_tau
         g = 1.0 - math.exp(-1.0 / (fs * self.smooth_tau))
         smoothed = self.sigma * math.sqrt(g / (2.0 - g))  # the smoothed reading's noise
