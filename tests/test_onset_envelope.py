@@ -360,3 +360,65 @@ def test_the_noise_margin_is_smaller_early_and_larger_late_and_chunk_invariant()
         ev, state = det.process(t[lo:hi], y[lo:hi], state)
         parts += ev
     assert parts == whole
+
+
+def _start_up(n_taxels: int, seed: int, duration: float = 4.0):
+    """fast-film taxels whose reading begins to fall (0.6 K/s, easing off over 1 s) 0.25 s in.
+
+    The baseline, seated with no trend at the first sample, is still catching that trend when
+    the warm-up ends (0.5 s): the start-up transient, not noise (the kind of fast-film's
+    evaluate-onset seed 4 false alarm with the table applied from the warm-up on).
+    """
+    sensor = load_sensor("fast-film")
+    fs = sensor.sample_rate
+    t = np.arange(round(duration * fs)) / fs
+    noise = smooth(np.random.default_rng(seed).normal(0.0, sensor.noise_kelvin(35.0),
+                                                      (t.size, n_taxels)), sensor, axis=0)
+    return sensor, t, 35.0 - 0.6 * -np.expm1(-np.maximum(t[:, None] - 0.25, 0.0) / 1.0) + noise
+
+
+def test_the_noise_table_waits_for_the_baseline_to_settle_after_the_first_sample():
+    sensor, t, y = _start_up(64, 1)
+    det = OnsetDetector(64, sensor=sensor, envelope_noise=True)
+    assert det._settle == pytest.approx(3.0 * det.slope_tau)
+    settled, _ = det.process(t, y, det.initial_state())
+    flat = OnsetDetector(64, sensor=sensor)
+    default, _ = flat.process(t, y, flat.initial_state())
+    # the CUSUM's own start-up onsets (channel 0) are the default's; no envelope onset
+    assert [e for e in settled if e.kind == "onset" and e.channel == 2] == []
+    assert settled == default
+    # the table applied from the warm-up on (before the settle rule) took the start-up
+    # transient for a fall beyond the noise: envelope onsets within 50 ms of the arming
+    det._settle = 0.0
+    early, _ = det.process(t, y, det.initial_state())
+    raised = [e for e in early if e.kind == "onset" and e.channel == 2]
+    assert raised and all(e.detected_at < det.warmup + 0.05 for e in raised)
+
+
+def test_the_noise_margin_is_chunk_invariant_across_the_settle_and_finite_from_the_first_sample():
+    sensor, t, y = _start_up(16, 2, duration=6.0)
+    on = 3.0 + np.linspace(0.0, 0.1, 16)  # contacts after the settle
+    s = np.maximum(t[:, None] - on[None, :], 0.0)
+    y = y - 1.5 * (1.0 - (1.0 + s / 0.07) * np.exp(-s / 0.07))
+    det = OnsetDetector(16, sensor=sensor, envelope_noise=True)
+    tr = det.trace(t[:3], y[:3])  # the margin at since 0 and on the first samples
+    assert np.all(np.isfinite(tr.smooth)) and np.all(np.isfinite(tr.slope))
+    whole, _ = det.process(t, y, det.initial_state())
+    assert all(np.isfinite([e.time, e.detected_at, e.baseline, e.slope]).all() for e in whole)
+    flat = OnsetDetector(16, sensor=sensor)
+    default, _ = flat.process(t, y, flat.initial_state())
+
+    def found(events):  # {taxel: when raised} of the contacts, within 0.2 s of their onset
+        return {e.taxel: e.detected_at for e in events if e.kind == "onset"
+                and on[e.taxel] < e.detected_at < on[e.taxel] + 0.2}
+
+    # the table applies after the settle: every contact the default finds, found no later
+    assert len(found(default)) >= 12
+    assert all(found(whole).get(k, np.inf) <= d for k, d in found(default).items())
+    settle = round((det.warmup + det._settle) * sensor.sample_rate)  # the boundary, split
+    state, parts = det.initial_state(), []
+    for lo, hi in ((0, 1), (1, 2), (2, settle - 1), (settle - 1, settle + 1),
+                   (settle + 1, 3001), (3001, t.size)):
+        ev, state = det.process(t[lo:hi], y[lo:hi], state)
+        parts += ev
+    assert parts == whole

@@ -104,6 +104,16 @@ HEATER_STEP = 0.45
 #: room of `skin.bench.streams` drifts at this rate, the rate the detector assumes. (The
 #: commissioned ``drift`` of `skin.models.commission` is a taxel's trend, K/s, not this.)
 AMBIENT_DRIFT = 1.0 / 600.0
+#: The gust-envelope test's flat noise margin, sigmas of the reading it looks at (the default).
+FLAT_SIGMAS = 8.0
+#: With ``envelope_noise``, the fall's noise table (`drop_noise`) applies to a reference taken
+#: this many ``slope_tau`` after the baseline was seated (first sample, hole, release); before,
+#: the flat margin as well. The level/trend filter, seated with no trend, has caught all but
+#: 2.6 % (paper, fast-film) to 4.7 % (low-cost, pid-logger) of the reading's own trend after 3
+#: ``slope_tau`` (39 % when the warm-up ends, 1 ``slope_tau`` on fast-film: the table applied
+#: from there took that transient for a fall, fast-film's evaluate-onset seed 4 two false
+#: alarms 4-20 ms after the warm-up).
+SETTLE_TAUS = 3.0
 #: The common mode (`OnsetDetector`'s ``common_mode``) is a change shared by all but this
 #: share of a board's free taxels, rounded up (`_shared`), and needs at least `COMMON_MIN` of
 #: them.
@@ -844,7 +854,7 @@ class OnsetDetector:
 
             rate = max(false_alarm_rate, 1e-12) / (fs * 3600.0)  # per sample
             envelope_sigmas = (NormalDist().inv_cdf(1.0 - rate) if envelope_noise
-                               else 8.0)
+                               else FLAT_SIGMAS)
         if not envelope_sigmas > 0.0:
             raise ValueError(f"envelope_sigmas ({envelope_sigmas}) must be > 0")
         self.envelope_sigmas = float(envelope_sigmas)
@@ -853,6 +863,11 @@ class OnsetDetector:
                                          self.slope_tau, slow_tau_now)
             self._drop_step, self._drop_sd = step, sd
             self._resid_sigma = self.sigma * resid  # the residual's noise, nominal
+            # the table models settled filters: a reference taken sooner than SETTLE_TAUS
+            # slope_tau after the baseline was seated (a taxel's first sample, a hole, a
+            # release) carries the start-up transient (the trend the baseline is still
+            # catching, not noise): such a drop keeps the flat margin too
+            self._settle = SETTLE_TAUS * self.slope_tau
         self.heater_rate = HEATER_STEP * rise / mode
         # a loop-held sensor's: the disturbances as its reading shows them, through the loop
         # (`loop_envelope`). The closed form above over-allowed a heater step there (0.86 K
@@ -1277,6 +1292,12 @@ class OnsetDetector:
             readout = self._drop_sd[j] * self._resid_sigma
             beyond = np.maximum(sigma**2 - self._resid_sigma**2, 0.0)
             margin = self.envelope_sigmas * np.sqrt(readout**2 + beyond)
+            # ``armed_at - warmup``: when the baseline was seated; the flat margin's 8 sigmas
+            # as well for a reference taken before it settled (NaN reference: no drop)
+            young = ~(s.ref_t - (s.armed_at - self.warmup) >= self._settle)
+            if young.any():
+                flat = FLAT_SIGMAS * np.maximum(sigma, self.smoothed_sigma)
+                margin = np.where(young, np.maximum(margin, flat), margin)
         else:
             margin = self.envelope_sigmas * np.maximum(sigma, self.smoothed_sigma)
         if self.envelope is None:
