@@ -703,7 +703,11 @@ class OnsetDetector:
         (`drop_noise`: the readout noise through the smoothing and the baseline's
         extrapolation, in quadrature with what the running noise estimate finds beyond the
         readout's): smaller than 8 sigmas tens of ms after the reference, larger seconds
-        after it. Default False (the flat 8 sigmas).
+        after it. The table models settled filters: a reference taken within `SETTLE_TAUS`
+        ``slope_tau`` of the baseline's seating (the first sample, a hole, a release) keeps
+        the flat margin too. ``z`` counts one test a sample; the restarted test's crossings
+        on the table's noise process are fewer (`skin bench envelope-rate`). Default False
+        (the flat 8 sigmas).
     gust_depth : float, optional
         The air's deepest gust, K (default: `GUST_DEPTH` of the sensor's heated rise, the
         simulator's family, `skin.bench.streams`: not a measured figure of any real air).
