@@ -16,7 +16,7 @@ demo: $(STAMP)
 	$(BIN)/skin run --duration 20 --out out/demo --force
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -n auto --dist worksteal
+	$(BIN)/python -m pytest -n auto --maxprocesses 4 --dist worksteal
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

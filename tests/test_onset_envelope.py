@@ -5,7 +5,7 @@ import pytest
 from scipy.signal import lfilter
 
 from skin.models.sensors import load_sensor, smooth
-from skin.stream.onset import GUST_DEPTH, GUST_RISE, HEATER_STEP, OnsetDetector
+from skin.stream.onset import GUST_DEPTH, GUST_RISE, HEATER_STEP, OnsetDetector, drop_noise
 
 
 def _mode(sensor) -> float:
@@ -299,3 +299,128 @@ def test_the_envelope_margin_sets_when_a_smooth_fall_is_raised():
         assert all(0.0 < raised[z][k] - on[k] < 0.3 for k in range(16))
     assert all(raised[5.0][k] <= raised[8.0][k] for k in range(16))
     assert sum(raised[5.0][k] < raised[8.0][k] for k in range(16)) >= 12
+
+
+@pytest.mark.parametrize("preset", ["paper", "low-cost"])
+def test_the_falls_noise_table_matches_the_filters_run_on_noise(preset):
+    # the fall from the reference (prediction + trend x since - smoothed reading), measured on
+    # white readout noise run through the sensor's smoothing, the detector's smoothing and
+    # its level/trend filter, step by step: its sd at each time since is the table's
+    sensor = load_sensor(preset)
+    det = OnsetDetector(4, sensor=sensor, envelope_noise=True)
+    step, sd, resid = drop_noise(sensor, det.smooth_tau, det.level_tau, det.slope_tau,
+                                 det.slow_tau)
+    assert sd[0] == 1.0 and np.all(np.diff(sd[1:]) > -1e-9)  # grows with the time since
+    fs = sensor.sample_rate
+    dt = 1.0 / fs
+    n, m = round(40.0 * det.slope_tau * fs) + sd.size, 400
+    noise = np.random.default_rng(3).normal(0.0, 1.0, (n, m))
+    y = smooth(noise, sensor, axis=0) / sensor.smoothing_noise_factor()  # delivered sd 1
+    g_s, g_l, g_b = (-np.expm1(-dt / tau) for tau in (det.smooth_tau, det.level_tau,
+                                                        det.slope_tau))
+    a = lfilter([g_s], [1.0, g_s - 1.0], y, axis=0)
+    level, slope = np.zeros(m), np.zeros(m)
+    pred, trend = np.empty_like(a), np.empty_like(a)
+    for i in range(n):
+        pred[i], trend[i] = level + slope * dt, slope
+        err = g_l * (a[i] - pred[i])
+        level = pred[i] + err
+        slope = slope + g_b * err / dt
+    start = n - sd.size - round(5.0 * det.slope_tau * fs)  # the filters settled
+    refs = np.arange(start - 200, start)
+    assert np.std(a[refs] - pred[refs]) == pytest.approx(resid, rel=0.08)
+    for since in (0.1, 1.0, det.slow_tau):
+        k = round(since / step)
+        fall = pred[refs] + trend[refs] * k * dt - a[refs + k]
+        assert np.std(fall) == pytest.approx(resid * sd[k], rel=0.08)
+
+
+def test_the_noise_margin_is_smaller_early_and_larger_late_and_chunk_invariant():
+    # fast-film: 40 ms after the reference the fall's noise is a fraction of the flat 8 sigmas
+    # (the margin was most of its delay); seconds after, on low-cost, more than 8 sigmas
+    for preset, since, smaller in (("fast-film", 0.04, True), ("low-cost", 5.0, False)):
+        det = OnsetDetector(4, sensor=preset, envelope_noise=True)
+        k = int(np.ceil(since / det._drop_step))
+        margin = det.envelope_sigmas * det._drop_sd[k] * det._resid_sigma[0]
+        assert (margin < 8.0 * det.smoothed_sigma[0]) == smaller
+    sensor = load_sensor("fast-film")
+    fs = sensor.sample_rate
+    t = np.arange(round(6.0 * fs)) / fs
+    on = 4.0 + np.linspace(0.0, 0.1, 8)
+    s = np.maximum(t[:, None] - on[None, :], 0.0)
+    fall = 1.5 * (1.0 - (1.0 + s / 0.07) * np.exp(-s / 0.07))
+    noise = smooth(np.random.default_rng(5).normal(0.0, sensor.noise_kelvin(35.0),
+                                                   (t.size, 8)), sensor, axis=0)
+    y = 35.0 - fall + noise
+    det = OnsetDetector(8, sensor=sensor, envelope_noise=True)
+    whole, _ = det.process(t, y, det.initial_state())
+    assert sorted(e.taxel for e in whole if e.kind == "onset") == list(range(8))
+    state, parts = det.initial_state(), []
+    for lo, hi in ((0, 1), (1, 777), (777, 4100), (4100, 4101), (4101, t.size)):
+        ev, state = det.process(t[lo:hi], y[lo:hi], state)
+        parts += ev
+    assert parts == whole
+
+
+def _start_up(n_taxels: int, seed: int, duration: float = 4.0):
+    """fast-film taxels whose reading begins to fall (0.6 K/s, easing off over 1 s) 0.25 s in.
+
+    The baseline, seated with no trend at the first sample, is still catching that trend when
+    the warm-up ends (0.5 s): the start-up transient, not noise (the kind of fast-film's
+    evaluate-onset seed 4 false alarm with the table applied from the warm-up on).
+    """
+    sensor = load_sensor("fast-film")
+    fs = sensor.sample_rate
+    t = np.arange(round(duration * fs)) / fs
+    noise = smooth(np.random.default_rng(seed).normal(0.0, sensor.noise_kelvin(35.0),
+                                                      (t.size, n_taxels)), sensor, axis=0)
+    return sensor, t, 35.0 - 0.6 * -np.expm1(-np.maximum(t[:, None] - 0.25, 0.0) / 1.0) + noise
+
+
+def test_the_noise_table_waits_for_the_baseline_to_settle_after_the_first_sample():
+    sensor, t, y = _start_up(64, 1)
+    det = OnsetDetector(64, sensor=sensor, envelope_noise=True)
+    assert det._settle == pytest.approx(3.0 * det.slope_tau)
+    settled, _ = det.process(t, y, det.initial_state())
+    flat = OnsetDetector(64, sensor=sensor)
+    default, _ = flat.process(t, y, flat.initial_state())
+    # the CUSUM's own start-up onsets (channel 0) are the default's; no envelope onset
+    assert [e for e in settled if e.kind == "onset" and e.channel == 2] == []
+    assert settled == default
+    # the table applied from the warm-up on (before the settle rule) took the start-up
+    # transient for a fall beyond the noise: envelope onsets within 50 ms of the arming
+    det._settle = 0.0
+    early, _ = det.process(t, y, det.initial_state())
+    raised = [e for e in early if e.kind == "onset" and e.channel == 2]
+    assert raised and all(e.detected_at < det.warmup + 0.05 for e in raised)
+
+
+def test_the_noise_margin_is_chunk_invariant_across_the_settle_and_finite_from_the_first_sample():
+    sensor, t, y = _start_up(16, 2, duration=6.0)
+    on = 3.0 + np.linspace(0.0, 0.1, 16)  # contacts after the settle
+    s = np.maximum(t[:, None] - on[None, :], 0.0)
+    y = y - 1.5 * (1.0 - (1.0 + s / 0.07) * np.exp(-s / 0.07))
+    det = OnsetDetector(16, sensor=sensor, envelope_noise=True)
+    tr = det.trace(t[:3], y[:3])  # the margin at since 0 and on the first samples
+    assert np.all(np.isfinite(tr.smooth)) and np.all(np.isfinite(tr.slope))
+    whole, _ = det.process(t, y, det.initial_state())
+    assert all(np.isfinite([e.time, e.detected_at, e.baseline, e.slope]).all() for e in whole)
+    flat = OnsetDetector(16, sensor=sensor)
+    default, _ = flat.process(t, y, flat.initial_state())
+
+    def found(events):  # {taxel: when raised} of the contacts, within 0.2 s of their onset
+        return {e.taxel: e.detected_at for e in events if e.kind == "onset"
+                and on[e.taxel] < e.detected_at < on[e.taxel] + 0.2}
+
+    # the table applies after the settle: every contact the default finds, found no later
+    assert len(found(default)) >= 12
+    assert all(found(whole).get(k, np.inf) <= d for k, d in found(default).items())
+    # the boundary, split: the seat is the first sample (`armed_at - warmup`), the table
+    # applies from `_settle` after it
+    settle = round((t[0] + det._settle) * sensor.sample_rate)
+    state, parts = det.initial_state(), []
+    for lo, hi in ((0, 1), (1, 2), (2, settle - 1), (settle - 1, settle + 1),
+                   (settle + 1, 3001), (3001, t.size)):
+        ev, state = det.process(t[lo:hi], y[lo:hi], state)
+        parts += ev
+    assert parts == whole

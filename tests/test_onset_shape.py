@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from skin.bench.onset_shape import ShapeTest, _box, shape_separability
 from skin.models.physics import contact_response
@@ -102,3 +103,18 @@ def test_skin_bench_onset_shape_takes_the_common_mode_off(capsys) -> None:
     assert main(["bench", "onset-shape", "--sensor", "pid-logger", "--minutes", "0.5",
                  "--taxels", "4", "--window", "2", "--common-mode", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["common_mode"] is True
+
+
+def test_onset_shape_refuses_a_common_mode_it_cannot_take(capsys) -> None:
+    """With fewer than COMMON_MIN taxels the detector has no common mode: refused before the
+    stream is simulated, not reported as taken off."""
+    from skin.cli import main
+    from skin.stream.onset import COMMON_MIN
+
+    code = main(["bench", "onset-shape", "--sensor", "pid-logger", "--minutes", "0.5",
+                 "--taxels", str(COMMON_MIN - 1), "--window", "2", "--common-mode", "--json"])
+    err = capsys.readouterr().err
+    assert code != 0 and f"at least {COMMON_MIN} taxels" in err and "--taxels is 3" in err
+    with pytest.raises(ValueError, match="common_mode needs a board"):
+        shape_separability(load_sensor("pid-logger"), seed=0, minutes=0.5, n_taxels=2,
+                           window=2.0, common_mode=True)

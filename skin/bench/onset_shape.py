@@ -187,8 +187,11 @@ def shape_separability(sensor: object, seed: int = 0, minutes: float = 15.0,
     from skin.bench.streams import simulate_stream
     from skin.commands.evaluate_onset import MATERIALS
     from skin.models import load_materials
-    from skin.stream.onset import OnsetDetector
+    from skin.stream.onset import COMMON_MIN, OnsetDetector
 
+    if common_mode and n_taxels < COMMON_MIN:
+        raise ValueError(f"common_mode needs a board of at least {COMMON_MIN} taxels, got "
+                         f"{n_taxels}: with fewer the detector has no common mode")
     table = load_materials()
     stream = simulate_stream([table[n] for n in MATERIALS.split(",")], n_taxels=n_taxels,
                              duration=60.0 * minutes, seed=seed, sensor=sensor)

@@ -76,6 +76,7 @@ from pathlib import Path
 from skin.commands import (
     bench_delay_bound,
     bench_drivers,
+    bench_envelope_rate,
     bench_forward,
     bench_gap,
     bench_map,
@@ -271,6 +272,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     bench_map.add_parsers(kinds)
     bench_onset_shape.add_parsers(kinds)
     bench_delay_bound.add_parsers(kinds)
+    bench_envelope_rate.add_parsers(kinds)
     bench_tracking.add_parsers(kinds)
     bench_scene.add_parsers(kinds)
     bench_forward.add_parsers(kinds)

@@ -45,6 +45,13 @@ def main(args: argparse.Namespace) -> int:
         raise SkinError("--minutes and --taxels must be positive, --false-alarms >= 0")
     if args.window is not None and not WINDOW_RANGE[0] / 4 <= args.window <= 60.0:
         raise SkinError(f"--window must lie within {WINDOW_RANGE[0] / 4:g}-60 s")
+    from skin.stream.onset import COMMON_MIN
+
+    if args.common_mode and args.taxels < COMMON_MIN:
+        raise SkinError(f"--common-mode needs a board of at least {COMMON_MIN} taxels (the "
+                        f"stream is one board) and --taxels is {args.taxels}: with fewer the "
+                        f"detector has no common mode; give --taxels {COMMON_MIN} or more, or "
+                        f"leave --common-mode out")
     progress = Progress()
     started = time.monotonic()
     out = shape_separability(sensor, args.seed, args.minutes, args.taxels, args.window,

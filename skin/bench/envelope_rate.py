@@ -1,0 +1,142 @@
+"""How often the gust-envelope test's noise margin is crossed on noise alone, per taxel-hour.
+
+With ``envelope_noise`` the onset detector (`skin.stream.onset.OnsetDetector`) raises a fall
+``ref_level + min(ref_slope, 0) x since - smooth`` deeper than ``z`` times its own noise at
+the time since the reference (`skin.stream.onset.drop_noise`), ``z`` the Gaussian quantile of
+the false-alarm target per sample: one test a sample. But the reference restarts (it slides
+with the baseline while the reading stays within 2 sigmas of it, and after the slow window),
+and a fall is measured from wherever it last restarted: a union over reference times. This
+counts what that restarted test does on the table's own noise process, settled: white readout
+noise through the sensor's smoothing, the detector's smoothing and its level/trend filter, the
+reference restarted as the detector restarts it, and each episode's (a reference's life) largest
+``drop / (sd[since] x resid)`` kept; the rate of episodes whose largest exceeds ``z`` is the
+test's false-alarm rate at ``z`` (an alarm ends its episode; rare, so the count is that of the
+crossings). A fit of ``log rate`` linear in ``z^2 / 2`` over the ladder carries it to the
+target where no crossing was seen.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from statistics import NormalDist
+
+import numpy as np
+
+#: The ladder of margins, in sigmas of the fall's noise, the rate is counted at.
+LADDER = (3.0, 3.25, 3.5, 3.75, 4.0, 4.25, 4.5, 4.75, 5.0, 5.25, 5.5)
+
+
+def envelope_false_alarms(sensor: object, hours: float, taxels: int = 64, seed: int = 0,
+                          false_alarm_rate: float = 0.1, ladder: Sequence[float] = LADDER,
+                          progress: Callable[[int, int], None] | None = None) -> dict:
+    """Count the restarted envelope test's crossings on noise, at each margin of ``ladder``.
+
+    Parameters
+    ----------
+    sensor : SensorDescription or str
+        The sensor (a preset name or a description): its rate, smoothing and the detector's
+        time constants for it.
+    hours : float
+        Hours of noise per taxel (after the filters settled).
+    taxels : int
+        Independent noise series run side by side.
+    seed : int
+        Seed of the noise.
+    false_alarm_rate : float
+        The target, per taxel-hour.
+    ladder : sequence of float
+        Margins ``z``, in sigmas of the fall's noise.
+    progress : callable, optional
+        Called with (samples done, samples in all).
+
+    Returns
+    -------
+    dict
+        ``taxel_hours``; ``rate`` {z: crossings per taxel-hour}; ``per_sample_bound`` {z: one
+        test a sample, ``fs x 3600 x P(N > z)``}; ``z_per_sample``, the detector's ``z`` (the
+        target per sample's Gaussian quantile); ``z_fit``, the ``z`` the fitted rate reaches
+        the target at (None if fewer than two rungs of 3.5-4.5 were crossed); and
+        ``rate_at_z_per_sample``, the counted rate at the detector's ``z``.
+    """
+    from scipy.signal import lfilter
+
+    from skin.models.sensors import load_sensor, smooth
+    from skin.stream.onset import OnsetDetector, drop_noise
+
+    sensor = load_sensor(sensor)
+    if not hours > 0 or taxels < 1:
+        raise ValueError(f"hours ({hours}) and taxels ({taxels}) must be positive")
+    det = OnsetDetector(1, sensor=sensor, envelope_noise=True,
+                        false_alarm_rate=false_alarm_rate)
+    fs = float(sensor.sample_rate)
+    dt = 1.0 / fs
+    _, sd, resid = drop_noise(sensor, det.smooth_tau, det.level_tau, det.slope_tau,
+                              det.slow_tau)
+    if sensor.smoothing == "none":
+        h = np.ones(1)
+    else:
+        n = 8 * max(sensor.smoothing_window, int(fs / sensor.smoothing_cutoff)) + 1
+        impulse = np.zeros(n)
+        impulse[n // 2] = 1.0
+        h = smooth(impulse, sensor)
+    h = h / np.sqrt(np.sum(h**2))  # the delivered reading's noise: 1
+    g_s, g_l, g_b = (-math.expm1(-dt / tau) for tau in (det.smooth_tau, det.level_tau,
+                                                        det.slope_tau))
+    rng = np.random.default_rng(seed)
+    settle = round(40.0 * max(det.slope_tau, det.level_tau) * fs)
+    total = settle + round(hours * 3600.0 * fs)
+    chunk = round(20.0 * fs)
+    tail = rng.standard_normal((h.size - 1, taxels))
+    zi = np.zeros((1, taxels))
+    level, slope = np.zeros(taxels), np.zeros(taxels)
+    ref_level, ref_slope = np.full(taxels, np.nan), np.zeros(taxels)
+    ref_k = np.zeros(taxels, dtype=np.int64)
+    worst = np.full(taxels, -np.inf)
+    kept: list[np.ndarray] = []
+    k_max = sd.size - 1
+    low = min(ladder)
+    k = 0
+    while k < total:
+        w = np.concatenate([tail, rng.standard_normal((min(chunk, total - k), taxels))])
+        tail = w[w.shape[0] - (h.size - 1):]
+        x = np.stack([np.convolve(c, h, mode="valid") for c in w.T], axis=1)
+        a, zi = lfilter([g_s], [1.0, g_s - 1.0], x, axis=0, zi=zi)
+        for ai in a:
+            pred = level + slope * dt
+            since = k - ref_k
+            drop = ref_level + np.minimum(ref_slope, 0.0) * (since * dt) - ai
+            u = drop / (sd[np.minimum(since, k_max)] * resid)
+            np.maximum(worst, u, out=worst, where=np.isfinite(u))
+            # the detector's restart: within 2 sigmas of the residual, or past the window
+            slide = ~(drop > 2.0 * resid) | (since * dt > det.slow_tau)
+            if slide.any():
+                if k >= settle:
+                    ended = worst[slide]
+                    kept.append(ended[ended > low])
+                worst[slide] = -np.inf
+                ref_level[slide] = pred[slide]
+                ref_slope[slide] = slope[slide]
+                ref_k[slide] = k
+            err = g_l * (ai - pred)
+            level = pred + err
+            slope = slope + g_b * err / dt
+            k += 1
+        if progress is not None:
+            progress(k, total)
+    taxel_hours = taxels * (total - settle) / fs / 3600.0
+    tops = np.concatenate(kept) if kept else np.zeros(0)
+    rate = {float(z): float(np.count_nonzero(tops > z) / taxel_hours) for z in ladder}
+    normal = NormalDist()
+    bound = {float(z): fs * 3600.0 * (1.0 - normal.cdf(z)) for z in ladder}
+    z_sample = normal.inv_cdf(1.0 - false_alarm_rate / (fs * 3600.0))
+    rungs = [z for z in ladder if 3.5 <= z <= 4.5 and rate[z] > 0]
+    z_fit = None
+    if len(rungs) >= 2:
+        c = np.polyfit(np.square(rungs) / 2.0, np.log([rate[z] for z in rungs]), 1)
+        if c[0] < 0:
+            z_fit = math.sqrt(2.0 * (math.log(false_alarm_rate) - c[1]) / c[0])
+    return {"sensor": sensor.name, "seed": seed, "taxel_hours": round(taxel_hours, 2),
+            "false_alarm_rate": false_alarm_rate, "rate": rate, "per_sample_bound": bound,
+            "z_per_sample": z_sample, "z_fit": z_fit,
+            "rate_at_z_per_sample": float(np.count_nonzero(tops > z_sample) / taxel_hours)}

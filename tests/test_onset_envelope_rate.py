@@ -1,0 +1,24 @@
+"""The restarted envelope test's crossings on noise (`skin.bench.envelope_rate`, skin bench
+envelope-rate): one test a sample, the count the detector's ``z`` is the quantile of, holds."""
+
+import json
+
+from skin.bench.envelope_rate import envelope_false_alarms
+from skin.cli import main
+
+
+def test_the_restarted_test_crosses_no_more_often_than_one_test_a_sample():
+    out = envelope_false_alarms("low-cost", hours=0.25, taxels=32, seed=1)
+    assert out["taxel_hours"] == 8.0
+    for z in (3.0, 3.5):
+        # hundreds of crossings: a count, and below the bound (low-cost: about 0.65 of it)
+        assert 0.4 * out["per_sample_bound"][z] < out["rate"][z] < out["per_sample_bound"][z]
+    assert out["rate"][3.0] > out["rate"][3.5] > out["rate"][4.0]
+    assert 4.6 < out["z_per_sample"] < 4.8
+
+
+def test_skin_bench_envelope_rate_prints_one_json_document(capsys):
+    assert main(["bench", "envelope-rate", "--sensor", "low-cost", "--hours", "0.02",
+                 "--taxels", "4", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["sensor"] == "low-cost" and set(out["rate"]) == set(out["per_sample_bound"])
