@@ -461,7 +461,7 @@ def assign_materials(touches: list, materials: dict, sensors: list, room: float,
 
     names = list(materials)
     if noise is None:  # bare constants (no description) read noise-free
-        noise = [s.noise_kelvin(room + s.heated_rise) * s.smoothing_noise_factor()
+        noise = [s.delivered_noise(room + s.heated_rise)
                  if isinstance(s, SensorDescription) else 0.0 for s in sensors]
     noise = np.asarray(noise, dtype=float)
     assigned, ambiguous = [], []

@@ -171,18 +171,33 @@ class SensorDescription(SensorConstants):
         lsb = self.kelvin_per_count(temperature)
         return math.sqrt(self.noise**2 + (self.adc_noise**2 + 1.0 / 12.0) * lsb**2)
 
+    def smoothing_impulse(self) -> np.ndarray:
+        """Return the sensor's smoothing filter's impulse response (``[1.0]`` for none).
+
+        The impulse sits in the middle of its window: a non-causal filter spreads both ways.
+        """
+        if self.smoothing == "none":
+            return np.ones(1)
+        n = 8 * max(self.smoothing_window, int(self.sample_rate / self.smoothing_cutoff)) + 1
+        impulse = np.zeros(n)
+        impulse[n // 2] = 1.0
+        return smooth(impulse, self)
+
     def smoothing_noise_factor(self) -> float:
         """Return how much the sensor's smoothing shrinks white noise per sample (rms ratio).
 
         The root of the sum of squares of the smoothing filter's impulse response (1 for no
         smoothing). Sums over many samples keep the white noise's low-frequency power.
         """
-        if self.smoothing == "none":
-            return 1.0
-        n = 8 * max(self.smoothing_window, int(self.sample_rate / self.smoothing_cutoff)) + 1
-        impulse = np.zeros(n)
-        impulse[n // 2] = 1.0  # in the middle: a non-causal filter spreads both ways
-        return float(np.sqrt(np.sum(smooth(impulse, self) ** 2)))
+        return float(np.sqrt(np.sum(self.smoothing_impulse() ** 2)))
+
+    def delivered_noise(self, temperature: float = 35.0) -> float:
+        """Return the reading noise per sample as delivered, K.
+
+        `noise_kelvin` at ``temperature`` after the sensor's own smoothing
+        (`smoothing_noise_factor`).
+        """
+        return self.noise_kelvin(temperature) * self.smoothing_noise_factor()
 
     # -- conversions ------------------------------------------------------------------------
     def constants(self) -> SensorConstants:

@@ -136,7 +136,7 @@ def noise_sigma(cal: CalibrationFile | None, layout: Layout) -> np.ndarray | Non
             out.append(float(entry["noise_sigma"]))
         else:
             s = SensorDescription.from_board(layout.boards[t.board])
-            out.append(s.noise_kelvin(25.0 + s.heated_rise) * s.smoothing_noise_factor())
+            out.append(s.delivered_noise(25.0 + s.heated_rise))
     return np.array(out)
 
 

@@ -225,15 +225,7 @@ def drop_noise(sensor: object, smooth_tau: float, level_tau: float, slope_tau: f
     dt = 1.0 / fs
     g_s, g_l, g_b = (-math.expm1(-dt / tau) for tau in (smooth_tau, level_tau, slope_tau))
     k_max = math.ceil(horizon * fs) + 1
-    if sensor.smoothing == "none":
-        h = np.ones(1)
-    else:
-        from skin.models.sensors import smooth
-
-        n = 8 * max(sensor.smoothing_window, int(fs / sensor.smoothing_cutoff)) + 1
-        impulse = np.zeros(n)
-        impulse[n // 2] = 1.0  # in the middle: a non-causal filter spreads both ways
-        h = smooth(impulse, sensor)
+    h = sensor.smoothing_impulse()
     h = h / np.sqrt(np.sum(h**2))  # the delivered reading's noise: 1
     # long enough for the smoothing and the baseline filter to have forgotten the impulse
     memory = int(40.0 / g_s + 40.0 * max(level_tau, slope_tau) * fs)
@@ -903,7 +895,7 @@ class OnsetDetector:
         if envelope_sigmas is None:
             from statistics import NormalDist
 
-            rate = max(false_alarm_rate, 1e-12) / (fs * 3600.0)  # per sample
+            rate = false_alarm_rate / (fs * 3600.0)  # per sample
             envelope_sigmas = (NormalDist().inv_cdf(1.0 - rate) if envelope_noise
                                else FLAT_SIGMAS)
         if not envelope_sigmas > 0.0:

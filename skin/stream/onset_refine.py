@@ -364,7 +364,7 @@ def refine_span(sensor: object | None, search: float = 0.6,
 @functools.lru_cache(maxsize=64)
 def _relative_noise(sensor: object) -> float:
     """Return a sensor's smoothed reading noise over its heated rise (both K)."""
-    return sensor.noise_kelvin() * sensor.smoothing_noise_factor() / sensor.heated_rise
+    return sensor.delivered_noise() / sensor.heated_rise
 
 
 def _residual_ar1(t: np.ndarray, z: np.ndarray, onset: float, lead: float, dl: float,

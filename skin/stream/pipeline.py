@@ -485,7 +485,7 @@ def _detector_for(layout: Layout, noise: np.ndarray | None = None) -> OnsetDetec
 
     sensors = {b.id: SensorDescription.from_board(b) for b in layout.boards.values()}
     first = sensors[layout.taxels[0].board] if layout.taxels else SensorDescription()
-    sigma = [sensors[t.board].noise_kelvin(25.0 + sensors[t.board].heated_rise)
-             * sensors[t.board].smoothing_noise_factor() for t in layout.taxels]
+    sigma = [sensors[t.board].delivered_noise(25.0 + sensors[t.board].heated_rise)
+             for t in layout.taxels]
     return OnsetDetector(len(layout), sensor=first, sigma=sigma if noise is None else noise,
                          boards=[t.board for t in layout.taxels])
