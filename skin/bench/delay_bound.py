@@ -521,7 +521,7 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
     min_duration : float
         Contacts this long count towards the 5-sigma figures, whose noise sigma is the
         detector's (median over taxels): exactly the contacts of evaluate-onset's
-        ``detected_5sigma`` (`skin.commands.evaluate_onset._five_sigma`).
+        ``detected_5sigma`` (`skin.bench.onset_eval.five_sigma`).
     detection_repeats : int
         Noise draws per 5-sigma contact for the oracle's detection probability
         (``oracle_detected_5sigma``: the mean over the 5-sigma contacts of the share of draws
@@ -545,7 +545,7 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
                              duration=60.0 * minutes, seed=seed, sensor=sensor)
     contacts = stream.contacts
     fs = stream.fs
-    from skin.commands.evaluate_onset import _five_sigma
+    from skin.bench.onset_eval import five_sigma
     from skin.stream.onset import OnsetDetector
 
     if detection_repeats < 1:
@@ -557,7 +557,7 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
     noise5 = float(np.median(plain.sigma))
     noise5_from = ("the detector's noise sigma, median over taxels (as evaluate-onset's "
                    "detected_5sigma)")
-    five = [k for k, big in enumerate(_five_sigma(contacts, plain, min_duration)) if big]
+    five = [k for k, big in enumerate(five_sigma(contacts, plain, min_duration)) if big]
     # a 5-sigma contact has a floor (3 sigma) unless its reading moved on the onset's own
     # sample; the oracle weighs those too, after the others (their figures unchanged)
     extra = [k for k in five if k not in set(which)]

@@ -56,6 +56,17 @@ def release_window(sensor: object | None = None) -> float:
     return EARLY + delay
 
 
+def five_sigma(contacts: list, detector: object, min_duration: float) -> list[bool]:
+    """Whether each contact counts towards issue 16's 5-sigma figures.
+
+    It lasts ``min_duration`` s or more and moves the noise-free reading by more than 5 of
+    the detector's noise sigmas (median over its taxels); `skin evaluate-onset`'s
+    ``detected_5sigma`` and `skin bench delay-bound` count the same contacts.
+    """
+    sigma = float(np.median(detector.sigma))
+    return [c.duration >= min_duration and c.peak_change > 5 * sigma for c in contacts]
+
+
 def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
                     truth: Sequence[tuple[int, float, float]], fs: float,
                     min_duration: float = 0.3, chunk: int = 20,

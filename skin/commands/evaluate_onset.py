@@ -127,12 +127,6 @@ def _commissioned_elsewhere(table: dict, names: list, n_taxels: int, seed: int,
     return quiet_figures(quiet.times, quiet.temperature).noise_sigma
 
 
-def _five_sigma(contacts: list, detector: object, min_duration: float) -> list[bool]:
-    """Whether each contact lasts ``min_duration`` s and moves the reading > 5 noise sigmas."""
-    sigma = float(np.median(detector.sigma))
-    return [c.duration >= min_duration and c.peak_change > 5 * sigma for c in contacts]
-
-
 def _sensor_figures(contacts: list, flags: list, delays: list, errors: list, detector: object,
                     min_duration: float, described: bool = True) -> dict:
     """Return issue 16's figures: 5-sigma detection, delay against the floor, onset error.
@@ -140,8 +134,10 @@ def _sensor_figures(contacts: list, flags: list, delays: list, errors: list, det
     ``described``: the stream is a described sensor's (`simulate_stream`'s ``sensor``), whose
     contacts carry Lorden's bound; else the ``detectable`` figures are None (unknown).
     """
+    from skin.bench.onset_eval import five_sigma
+
     sigma = float(np.median(detector.sigma))
-    big = [k for k, five in enumerate(_five_sigma(contacts, detector, min_duration)) if five]
+    big = [k for k, five in enumerate(five_sigma(contacts, detector, min_duration)) if five]
     ratio = [delays[k] / contacts[k].visible_after for k in range(len(contacts))
              if flags[k] and np.isfinite(contacts[k].visible_after)
              and contacts[k].visible_after > 0]
@@ -193,7 +189,7 @@ def _sensor_figures(contacts: list, flags: list, delays: list, errors: list, det
 def _why(events: list, contacts: list, stream: object, detector: object, sensor: object,
          min_duration: float) -> dict:
     """Return `skin.bench.onset_why.explain_outcomes` (the 5-sigma contacts with a sensor)."""
-    from skin.bench.onset_eval import release_window
+    from skin.bench.onset_eval import five_sigma, release_window
     from skin.bench.onset_why import explain_outcomes
     from skin.bench.streams import GUST_DEPTH
     from skin.stream.onset import OnsetDetector
@@ -204,7 +200,7 @@ def _why(events: list, contacts: list, stream: object, detector: object, sensor:
         from skin.models.sensors import load_sensor
 
         scale = sensor.heated_rise / load_sensor("paper").heated_rise
-        counted = _five_sigma(contacts, detector, min_duration)
+        counted = five_sigma(contacts, detector, min_duration)
         which = "5-sigma contacts"
     else:
         counted = [c.duration >= min_duration for c in contacts]
