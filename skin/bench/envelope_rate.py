@@ -9,10 +9,13 @@ and a fall is measured from wherever it last restarted: a union over reference t
 counts what that restarted test does on the table's own noise process, settled: white readout
 noise through the sensor's smoothing, the detector's smoothing and its level/trend filter, the
 reference restarted as the detector restarts it, and each episode's (a reference's life) largest
-``drop / (sd[since] x resid)`` kept; the rate of episodes whose largest exceeds ``z`` is the
-test's false-alarm rate at ``z`` (an alarm ends its episode; rare, so the count is that of the
-crossings). A fit of ``log rate`` linear in ``z^2 / 2`` over the ladder carries it to the
-target where no crossing was seen.
+``drop / (sd[since] x resid)`` kept until the reference slides; the rate of episodes whose
+largest exceeds ``z`` is the test's false-alarm rate at ``z`` (crossings are rare, so an
+episode holds at most one). It models the detector's test, not the detector: the running
+noise estimate's excess (``beyond``), the noise floor and the baseline's freezing while the
+CUSUM gathers are left out, and the reference slides on the nominal residual sd. A fit of
+``log rate`` linear in ``z^2 / 2`` over the ladder carries it to the target where no
+crossing was seen.
 """
 
 from __future__ import annotations
@@ -61,7 +64,7 @@ def envelope_false_alarms(sensor: object, hours: float, taxels: int = 64, seed: 
     """
     from scipy.signal import lfilter
 
-    from skin.models.sensors import load_sensor, smooth
+    from skin.models.sensors import load_sensor
     from skin.stream.onset import OnsetDetector, drop_noise
 
     sensor = load_sensor(sensor)
@@ -73,13 +76,7 @@ def envelope_false_alarms(sensor: object, hours: float, taxels: int = 64, seed: 
     dt = 1.0 / fs
     _, sd, resid = drop_noise(sensor, det.smooth_tau, det.level_tau, det.slope_tau,
                               det.slow_tau)
-    if sensor.smoothing == "none":
-        h = np.ones(1)
-    else:
-        n = 8 * max(sensor.smoothing_window, int(fs / sensor.smoothing_cutoff)) + 1
-        impulse = np.zeros(n)
-        impulse[n // 2] = 1.0
-        h = smooth(impulse, sensor)
+    h = sensor.smoothing_impulse()
     h = h / np.sqrt(np.sum(h**2))  # the delivered reading's noise: 1
     g_s, g_l, g_b = (-math.expm1(-dt / tau) for tau in (det.smooth_tau, det.level_tau,
                                                         det.slope_tau))
