@@ -191,14 +191,25 @@ def drop_noise(sensor: object, smooth_tau: float, level_tau: float, slope_tau: f
                horizon: float) -> tuple[float, np.ndarray, float]:
     """Return the noise of the gust-envelope test's fall as a function of the time since.
 
-    The test's fall ``ref_level + ref_slope * since - smooth`` is a linear filter of the
-    readout noise: the baseline's prediction and trend where the reference was taken (the
-    level/trend filter, gains from ``level_tau`` and ``slope_tau``, run on the reading
-    smoothed with ``smooth_tau``), less the smoothed reading ``since`` later. Its variance
-    follows from the impulse responses of the sensor's own smoothing, the detector's
-    smoothing and the baseline filter, taken in turn, over every reference time.
-    (The test extrapolates only a falling trend: ``min(ref_slope, 0)``, whose fall is
-    never larger than the linear one's, so the figure errs on the safe side.)
+    The test's fall is ``ref_level + min(ref_slope, 0) * since - smooth``: the baseline's
+    prediction where the reference was taken, carried along a falling trend only, less the
+    smoothed reading ``since`` later. Carrying it along ``min(ref_slope, 0) <= 0`` only lowers
+    it: the fall is never deeper than the un-extrapolated one, ``ref_level - smooth``, which is
+    the reading's true change since the reference (what the allowance takes: the deepest gust
+    and the steepest heater step, or a loop-held sensor's `loop_envelope`) plus the noise of
+    the prediction less the smoothed reading. Whatever the trend's estimate erred by, its
+    error adds nothing beyond that (a trend estimated too shallow, or rising, adds at most the
+    true fall the allowance already takes; too steep lowers the fall). So the noise to cover
+    is that of ``pred_r - smooth_{r+k}``, a linear filter of the readout noise: the
+    level/trend filter's prediction (gains from ``level_tau`` and ``slope_tau``, run on the
+    reading smoothed with ``smooth_tau``) at the reference less the smoothed reading ``k``
+    samples later. Its variance follows from the impulse responses of the sensor's own
+    smoothing, the detector's smoothing and the baseline filter, taken in turn, over every
+    reference time; it grows from the residual's to that of two nearly independent readings
+    within a few ``smooth_tau`` and stays there. (A table with the trend's noise extrapolated
+    too, ``ref_slope * since``, grew eightfold over low-cost's 10 s window and counted, on a
+    falling trend, what the heater term already allows: low-cost / pid-logger raised their
+    envelope onsets later than the flat margin.)
 
     Parameters
     ----------
@@ -214,8 +225,10 @@ def drop_noise(sensor: object, smooth_tau: float, level_tau: float, slope_tau: f
     step : float
         The table's step, s (one sample).
     sd : numpy.ndarray
-        The fall's standard deviation ``k`` steps after the reference, in units of the
-        residual's (``sd[0] == 1``: the smoothed reading less the baseline's prediction).
+        The standard deviation of the prediction at the reference less the smoothed reading
+        ``k`` steps later, in units of the residual's (``sd[0] == 1``: the smoothed reading
+        less the baseline's prediction); bounded (paper at most 1.24, fast-film 1.29,
+        low-cost 1.89, pid-logger 1.66).
     resid : float
         The residual's standard deviation in units of the delivered reading's noise.
     """
@@ -233,21 +246,16 @@ def drop_noise(sensor: object, smooth_tau: float, level_tau: float, slope_tau: f
     x[: h.size] = h
     a = lfilter([g_s], [1.0, g_s - 1.0], x)  # the smoothed reading
     pred = np.empty_like(a)  # the baseline's prediction at each sample
-    trend = np.empty_like(a)  # ... and the trend it extrapolates (before the sample's update)
     level = slope = 0.0
     for i, ai in enumerate(a.tolist()):
         p = level + slope * dt
-        pred[i], trend[i] = p, slope
+        pred[i] = p
         err = g_l * (ai - p)
         level = p + err
         slope += g_b * err / dt
-    # sum over reference times r of (pred_r + k dt trend_r - a_{r+k})^2, every k at once
-    lags = np.arange(k_max)
-    cross_p = correlate(a, pred, mode="full", method="fft")[a.size - 1:][:k_max]
-    cross_t = correlate(a, trend, mode="full", method="fft")[a.size - 1:][:k_max]
-    var = (np.sum(pred**2) + 2.0 * lags * dt * np.sum(pred * trend)
-           + (lags * dt) ** 2 * np.sum(trend**2) - 2.0 * cross_p - 2.0 * lags * dt * cross_t
-           + np.sum(a**2))
+    # sum over reference times r of (pred_r - a_{r+k})^2, every k at once
+    cross = correlate(a, pred, mode="full", method="fft")[a.size - 1:][:k_max]
+    var = np.sum(pred**2) - 2.0 * cross + np.sum(a**2)
     sd = np.sqrt(np.maximum(var, 0.0))
     return dt, sd / sd[0], float(sd[0])
 
@@ -558,6 +566,9 @@ class DetectorState:
     reading in the recovery's direction (``recover_dir`` = minus the contact's direction).
     ``t_first`` is the time of each taxel's first reading (a loop-held sensor's noise
     estimate is a running mean of the residual's square up to ``noise_tau`` after it).
+    ``t_seated`` is when its baseline was last seated or its filters' run broken: the first
+    reading, a release, a hole of any length (a missing sample); the envelope margin's noise
+    table applies only to a reference taken `SETTLE_TAUS` ``slope_tau`` after it.
     ``common_smooth`` and ``common_level`` are each taxel's averaged raw reading and its level
     with the board's common mode taken off (`OnsetDetector`'s ``common_mode``); ``common`` the
     common mode taken off its last reading (its board's), K; ``common_var`` (a loop-held
@@ -589,6 +600,7 @@ class DetectorState:
     ref_slope: np.ndarray
     medium: np.ndarray
     t_first: np.ndarray
+    t_seated: np.ndarray
     common_smooth: np.ndarray
     common_level: np.ndarray
     common: np.ndarray
@@ -911,6 +923,8 @@ class OnsetDetector:
             # release) carries the start-up transient (the trend the baseline is still
             # catching, not noise): such a drop keeps the flat margin too
             self._settle = SETTLE_TAUS * self.slope_tau
+        # a sample missing (a gap over 1.5 sample periods) is a hole for the settle clock
+        self._hole = 1.5 / fs
         self.heater_rate = HEATER_STEP * rise / mode
         # a loop-held sensor's: the disturbances as its reading shows them, through the loop
         # (`loop_envelope`). The closed form above over-allowed a heater step there (0.86 K
@@ -990,6 +1004,7 @@ class OnsetDetector:
             ref_slope=np.zeros(n),
             medium=nan.copy(),
             t_first=nan.copy(),
+            t_seated=nan.copy(),
             common_smooth=nan.copy(),
             common_level=nan.copy(),
             common=np.zeros(n),
@@ -1228,7 +1243,7 @@ class OnsetDetector:
             s.smooth[new] = y[new]
             s.slow[new] = y[new]
             s.medium[new] = y[new]
-            s.t_first[new] = t
+            s.t_first[new] = s.t_seated[new] = t
             s.t_level[new] = t
             s.t_last[new] = t
             s.armed_at[new] = t + self.warmup
@@ -1245,7 +1260,7 @@ class OnsetDetector:
         if back.any():
             s.level[back] = s.smooth[back] = s.slow[back] = s.medium[back] = y[back]
             s.slope[back] = 0.0
-            s.t_level[back] = s.t_last[back] = t
+            s.t_level[back] = s.t_last[back] = s.t_seated[back] = t
             s.cusum[back] = s.rise_cusum[back] = 0.0
             s.slow_start[back] = np.nan
             s.ref_level[back] = np.nan
@@ -1253,6 +1268,10 @@ class OnsetDetector:
             s.common_smooth[back] = y[back]
             s.common_level[back] = y[back] - s.common[back]
         dt = np.maximum(np.where(live, t - s.t_last, 1.0), 1e-9)
+        # a hole shorter than the warm-up keeps the baseline, but the smoothing's and the
+        # baseline's noise after it is not the settled filters' the noise table models: the
+        # settle clock starts again (`SETTLE_TAUS`)
+        np.copyto(s.t_seated, t, where=live & (dt > self._hole))
         # every smoothing gain at once: smooth, slow, level, slope (free, in contact), noise
         gain = 1 - np.exp(-dt / taus)
         if groups is not None:
@@ -1347,7 +1366,7 @@ class OnsetDetector:
             margin = self.envelope_sigmas * np.sqrt(readout**2 + beyond)
             # ``armed_at - warmup``: when the baseline was seated; the flat margin's 8 sigmas
             # as well for a reference taken before it settled (NaN reference: no drop)
-            young = ~(s.ref_t - (s.armed_at - self.warmup) >= self._settle)
+            young = ~(s.ref_t - s.t_seated >= self._settle)
             if young.any():
                 flat = FLAT_SIGMAS * np.maximum(sigma, self.smoothed_sigma)
                 margin = np.where(young, np.maximum(margin, flat), margin)
@@ -1521,6 +1540,7 @@ class OnsetDetector:
         s.cusum[r] = 0.0
         s.rise_cusum[r] = 0.0
         s.armed_at[r] = t + self.warmup
+        s.t_seated[r] = t
         s.slow[r] = s.medium[r] = s.smooth[r]
         s.slow_start[r] = np.nan
         s.ref_level[r] = np.nan
