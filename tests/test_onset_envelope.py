@@ -424,3 +424,76 @@ def test_the_noise_margin_is_chunk_invariant_across_the_settle_and_finite_from_t
         ev, state = det.process(t[lo:hi], y[lo:hi], state)
         parts += ev
     assert parts == whole
+
+
+def _holed_noise(n_taxels: int, seed: int, duration: float):
+    """Paper taxels of readout noise alone, every taxel's readings lost 0.1 s every 2 s."""
+    sensor = load_sensor("paper")
+    fs = sensor.sample_rate
+    t = np.arange(round(duration * fs)) / fs
+    y = 35.0 + smooth(np.random.default_rng(seed).normal(0.0, sensor.noise_kelvin(35.0),
+                                                         (t.size, n_taxels)), sensor, axis=0)
+    y[(t % 2.0) >= 1.9] = np.nan  # shorter than the warm-up: the baseline is kept
+    return sensor, t, y
+
+
+def test_a_hole_shorter_than_the_warm_up_restarts_the_settle_clock():
+    sensor, t, y = _holed_noise(128, 0, 60.0)
+    det = OnsetDetector(128, sensor=sensor, envelope_noise=True)
+    assert 0.1 < det.warmup
+    tr = det.trace(t[:420], y[:420])  # across the first hole (1.9-2.0 s)
+    back = np.flatnonzero(t >= 2.0)[0]
+    assert np.all(tr.state.t_seated == t[back])
+    events, _ = det.process(t, y, det.initial_state())
+    flat = OnsetDetector(128, sensor=sensor)
+    default, _ = flat.process(t, y, flat.initial_state())
+    # the smoothing and the baseline run again after a hole: not the settled filters the table
+    # models, the flat margin holds (the default's own onsets here are its CUSUM's)
+    assert [e for e in events if e.channel == 2] == []
+    assert events == default
+    # with the clock kept across the hole (as the seat was before), the table alone took the
+    # noise after the hole for falls
+    det._hole = np.inf
+    kept, _ = det.process(t, y, det.initial_state())
+    raised = [e for e in kept if e.kind == "onset" and e.channel == 2]
+    assert raised and all(2.0 <= e.detected_at % 2.0 + 2.0 < 2.0 + det._settle
+                          for e in raised)
+
+
+def test_a_release_restarts_the_settle_clock_and_the_flat_margin_holds_until_settled():
+    sensor = load_sensor("fast-film")
+    fs = sensor.sample_rate
+    t = np.arange(round(6.0 * fs)) / fs
+    n = 32
+    on, off = 2.0, 2.6
+    s_on = np.maximum(t - on, 0.0)
+    s_off = np.maximum(t - off, 0.0)
+    # a touch that falls 1.5 K and then is released: the reading recovers, decelerating
+    touch = 1.5 * (1.0 - np.exp(-s_on / 0.07)) - 1.5 * (1.0 - np.exp(-s_off / 0.3))
+    noise = smooth(np.random.default_rng(7).normal(0.0, sensor.noise_kelvin(35.0),
+                                                   (t.size, n)), sensor, axis=0)
+    y = 35.0 - touch[:, None] + noise
+    det = OnsetDetector(n, sensor=sensor, envelope_noise=True)
+    tr = det.trace(t, y)
+    releases = {e.taxel: e.detected_at for e in tr.events if e.kind == "release"}
+    assert len(releases) == n
+    assert all(tr.state.t_seated[k] == pytest.approx(r) for k, r in releases.items())
+    # until the settle after the release the margin is the flat one's or more; the same
+    # detector with the table applied at once (no settle) is compared sample by sample
+    env = 3  # MARGIN_TESTS: "envelope", its fall over its threshold
+    det0 = OnsetDetector(n, sensor=sensor, envelope_noise=True)
+    det0._settle = 0.0
+    tr0 = det0.trace(t, y, margins=True)
+    tr = det.trace(t, y, margins=True)
+    assert tr.events == tr0.events  # nothing raised on the recovery either way
+    young = np.zeros_like(tr.margins[:, env], dtype=bool)
+    for k, r in releases.items():
+        young[:, k] = (t >= r + det.warmup) & (t < r + det._settle)
+    with_rule, table = tr.margins[:, env][young], tr0.margins[:, env][young]
+    ok = np.isfinite(with_rule) & (table > 0)
+    assert ok.sum() > 1000
+    assert np.all(with_rule[ok] <= table[ok] + 1e-12)
+    assert np.mean(with_rule[ok] < table[ok]) > 0.5  # the flat margin, larger, holds
+    late = t >= max(releases.values()) + 2.0 * det._settle
+    assert late.sum() > 100
+    assert np.array_equal(tr.margins[late, env], tr0.margins[late, env], equal_nan=True)

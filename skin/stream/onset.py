@@ -191,25 +191,14 @@ def drop_noise(sensor: object, smooth_tau: float, level_tau: float, slope_tau: f
                horizon: float) -> tuple[float, np.ndarray, float]:
     """Return the noise of the gust-envelope test's fall as a function of the time since.
 
-    The test's fall is ``ref_level + min(ref_slope, 0) * since - smooth``: the baseline's
-    prediction where the reference was taken, carried along a falling trend only, less the
-    smoothed reading ``since`` later. Carrying it along ``min(ref_slope, 0) <= 0`` only lowers
-    it: the fall is never deeper than the un-extrapolated one, ``ref_level - smooth``, which is
-    the reading's true change since the reference (what the allowance takes: the deepest gust
-    and the steepest heater step, or a loop-held sensor's `loop_envelope`) plus the noise of
-    the prediction less the smoothed reading. Whatever the trend's estimate erred by, its
-    error adds nothing beyond that (a trend estimated too shallow, or rising, adds at most the
-    true fall the allowance already takes; too steep lowers the fall). So the noise to cover
-    is that of ``pred_r - smooth_{r+k}``, a linear filter of the readout noise: the
-    level/trend filter's prediction (gains from ``level_tau`` and ``slope_tau``, run on the
-    reading smoothed with ``smooth_tau``) at the reference less the smoothed reading ``k``
-    samples later. Its variance follows from the impulse responses of the sensor's own
-    smoothing, the detector's smoothing and the baseline filter, taken in turn, over every
-    reference time; it grows from the residual's to that of two nearly independent readings
-    within a few ``smooth_tau`` and stays there. (A table with the trend's noise extrapolated
-    too, ``ref_slope * since``, grew eightfold over low-cost's 10 s window and counted, on a
-    falling trend, what the heater term already allows: low-cost / pid-logger raised their
-    envelope onsets later than the flat margin.)
+    The test's fall ``ref_level + ref_slope * since - smooth`` is a linear filter of the
+    readout noise: the baseline's prediction and trend where the reference was taken (the
+    level/trend filter, gains from ``level_tau`` and ``slope_tau``, run on the reading
+    smoothed with ``smooth_tau``), less the smoothed reading ``since`` later. Its variance
+    follows from the impulse responses of the sensor's own smoothing, the detector's
+    smoothing and the baseline filter, taken in turn, over every reference time.
+    (The test extrapolates only a falling trend: ``min(ref_slope, 0)``, whose fall is
+    never larger than the linear one's, so the figure errs on the safe side.)
 
     Parameters
     ----------
@@ -225,10 +214,8 @@ def drop_noise(sensor: object, smooth_tau: float, level_tau: float, slope_tau: f
     step : float
         The table's step, s (one sample).
     sd : numpy.ndarray
-        The standard deviation of the prediction at the reference less the smoothed reading
-        ``k`` steps later, in units of the residual's (``sd[0] == 1``: the smoothed reading
-        less the baseline's prediction); bounded (paper at most 1.24, fast-film 1.29,
-        low-cost 1.89, pid-logger 1.66).
+        The fall's standard deviation ``k`` steps after the reference, in units of the
+        residual's (``sd[0] == 1``: the smoothed reading less the baseline's prediction).
     resid : float
         The residual's standard deviation in units of the delivered reading's noise.
     """
@@ -246,16 +233,21 @@ def drop_noise(sensor: object, smooth_tau: float, level_tau: float, slope_tau: f
     x[: h.size] = h
     a = lfilter([g_s], [1.0, g_s - 1.0], x)  # the smoothed reading
     pred = np.empty_like(a)  # the baseline's prediction at each sample
+    trend = np.empty_like(a)  # ... and the trend it extrapolates (before the sample's update)
     level = slope = 0.0
     for i, ai in enumerate(a.tolist()):
         p = level + slope * dt
-        pred[i] = p
+        pred[i], trend[i] = p, slope
         err = g_l * (ai - p)
         level = p + err
         slope += g_b * err / dt
-    # sum over reference times r of (pred_r - a_{r+k})^2, every k at once
-    cross = correlate(a, pred, mode="full", method="fft")[a.size - 1:][:k_max]
-    var = np.sum(pred**2) - 2.0 * cross + np.sum(a**2)
+    # sum over reference times r of (pred_r + k dt trend_r - a_{r+k})^2, every k at once
+    lags = np.arange(k_max)
+    cross_p = correlate(a, pred, mode="full", method="fft")[a.size - 1:][:k_max]
+    cross_t = correlate(a, trend, mode="full", method="fft")[a.size - 1:][:k_max]
+    var = (np.sum(pred**2) + 2.0 * lags * dt * np.sum(pred * trend)
+           + (lags * dt) ** 2 * np.sum(trend**2) - 2.0 * cross_p - 2.0 * lags * dt * cross_t
+           + np.sum(a**2))
     sd = np.sqrt(np.maximum(var, 0.0))
     return dt, sd / sd[0], float(sd[0])
 
@@ -1364,12 +1356,15 @@ class OnsetDetector:
             readout = self._drop_sd[j] * self._resid_sigma
             beyond = np.maximum(sigma**2 - self._resid_sigma**2, 0.0)
             margin = self.envelope_sigmas * np.sqrt(readout**2 + beyond)
-            # ``armed_at - warmup``: when the baseline was seated; the flat margin's 8 sigmas
-            # as well for a reference taken before it settled (NaN reference: no drop)
+            # a reference taken before the filters settled after their seat (``t_seated``):
+            # the flat margin's 8 sigmas as well; after, the smaller of the two: tens of ms
+            # after the reference the table's, seconds after it the flat one (the table
+            # counts the trend's noise extrapolated, which grows past the flat margin there,
+            # and the flat margin has held the room's random walk, which neither models, on
+            # every preset; NaN reference: no drop)
+            flat = FLAT_SIGMAS * np.maximum(sigma, self.smoothed_sigma)
             young = ~(s.ref_t - s.t_seated >= self._settle)
-            if young.any():
-                flat = FLAT_SIGMAS * np.maximum(sigma, self.smoothed_sigma)
-                margin = np.where(young, np.maximum(margin, flat), margin)
+            margin = np.where(young, np.maximum(margin, flat), np.minimum(margin, flat))
         else:
             margin = self.envelope_sigmas * np.maximum(sigma, self.smoothed_sigma)
         if self.envelope is None:
