@@ -3,6 +3,8 @@ envelope-rate): one test a sample, the count the detector's ``z`` is the quantil
 
 import json
 
+import pytest
+
 from skin.bench.envelope_rate import envelope_false_alarms
 from skin.cli import main
 
@@ -15,6 +17,12 @@ def test_the_restarted_test_crosses_no_more_often_than_one_test_a_sample():
         assert 0.4 * out["per_sample_bound"][z] < out["rate"][z] < out["per_sample_bound"][z]
     assert out["rate"][3.0] > out["rate"][3.5] > out["rate"][4.0]
     assert 4.6 < out["z_per_sample"] < 4.8
+    # with the flat margin too (the detector's, the smaller of the two once settled): the
+    # union's count, at least the table's and at most the table's and the flat one's together
+    for z in (3.0, 3.5, 4.0):
+        assert out["rate"][z] <= out["rate_with_flat"][z] <= (out["rate"][z]
+                                                              + out["rate_flat_alone"])
+    assert out["flat_sigmas"] == pytest.approx(11.14, abs=0.01)  # 8 x 0.927 / 0.666
 
 
 def test_skin_bench_envelope_rate_prints_one_json_document(capsys):
@@ -22,3 +30,4 @@ def test_skin_bench_envelope_rate_prints_one_json_document(capsys):
                  "--taxels", "4", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["sensor"] == "low-cost" and set(out["rate"]) == set(out["per_sample_bound"])
+    assert set(out["rate_with_flat"]) == set(out["rate"])

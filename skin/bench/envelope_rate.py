@@ -11,7 +11,12 @@ noise through the sensor's smoothing, the detector's smoothing and its level/tre
 reference restarted as the detector restarts it, and each episode's (a reference's life) largest
 ``drop / (sd[since] x resid)`` kept until the reference slides; the rate of episodes whose
 largest exceeds ``z`` is the test's false-alarm rate at ``z`` (crossings are rare, so an
-episode holds at most one). It models the detector's test, not the detector: the running
+episode holds at most one). The detector's margin, once settled, is the smaller of the
+table's and the flat one's (8 sigmas of the reading): a fall crosses it when it crosses
+either, so an episode counts with the flat margin (``rate_with_flat``) when its largest
+``drop / (sd[since] x resid)`` exceeds ``z`` or its largest ``drop / flat`` exceeds 1 (the
+union of the two tests, counted, not bounded by their sum). It models the detector's test,
+not the detector: the running
 noise estimate's excess (``beyond``), the noise floor and the baseline's freezing while the
 CUSUM gathers are left out, and the reference slides on the nominal residual sd. A fit of
 ``log rate`` linear in ``z^2 / 2`` over the ladder carries it to the target where no
@@ -60,12 +65,16 @@ def envelope_false_alarms(sensor: object, hours: float, taxels: int = 64, seed: 
         test a sample, ``fs x 3600 x P(N > z)``}; ``z_per_sample``, the detector's ``z`` (the
         target per sample's Gaussian quantile); ``z_fit``, the ``z`` the fitted rate reaches
         the target at (None if fewer than two rungs of 3.5-4.5 were crossed); and
-        ``rate_at_z_per_sample``, the counted rate at the detector's ``z``.
+        ``rate_at_z_per_sample``, the counted rate at the detector's ``z``; the same with
+        the flat margin too (the detector's: the smaller of the two once settled):
+        ``rate_with_flat`` {z: rate}, ``rate_flat_alone`` (the flat margin alone, the
+        default detector's test on noise) and ``rate_at_z_per_sample_with_flat``;
+        ``flat_sigmas``, the flat margin in units of the residual's noise.
     """
     from scipy.signal import lfilter
 
     from skin.models.sensors import load_sensor
-    from skin.stream.onset import OnsetDetector, drop_noise
+    from skin.stream.onset import FLAT_SIGMAS, OnsetDetector, _average_noise, drop_noise
 
     sensor = load_sensor(sensor)
     if not hours > 0 or taxels < 1:
@@ -76,6 +85,9 @@ def envelope_false_alarms(sensor: object, hours: float, taxels: int = 64, seed: 
     dt = 1.0 / fs
     _, sd, resid = drop_noise(sensor, det.smooth_tau, det.level_tau, det.slope_tau,
                               det.slow_tau)
+    # the flat margin, in units of the delivered noise: 8 x the larger of the running
+    # estimate (settled: the residual's) and the smoothed reading's noise
+    flat = FLAT_SIGMAS * max(resid, _average_noise(sensor, det.smooth_tau))
     h = sensor.smoothing_impulse()
     h = h / np.sqrt(np.sum(h**2))  # the delivered reading's noise: 1
     g_s, g_l, g_b = (-math.expm1(-dt / tau) for tau in (det.smooth_tau, det.level_tau,
@@ -90,7 +102,9 @@ def envelope_false_alarms(sensor: object, hours: float, taxels: int = 64, seed: 
     ref_level, ref_slope = np.full(taxels, np.nan), np.zeros(taxels)
     ref_k = np.zeros(taxels, dtype=np.int64)
     worst = np.full(taxels, -np.inf)
+    worst_flat = np.full(taxels, -np.inf)
     kept: list[np.ndarray] = []
+    kept_flat: list[np.ndarray] = []
     k_max = sd.size - 1
     low = min(ladder)
     k = 0
@@ -105,13 +119,17 @@ def envelope_false_alarms(sensor: object, hours: float, taxels: int = 64, seed: 
             drop = ref_level + np.minimum(ref_slope, 0.0) * (since * dt) - ai
             u = drop / (sd[np.minimum(since, k_max)] * resid)
             np.maximum(worst, u, out=worst, where=np.isfinite(u))
+            np.maximum(worst_flat, drop / flat, out=worst_flat, where=np.isfinite(drop))
             # the detector's restart: within 2 sigmas of the residual, or past the window
             slide = ~(drop > 2.0 * resid) | (since * dt > det.slow_tau)
             if slide.any():
                 if k >= settle:
-                    ended = worst[slide]
-                    kept.append(ended[ended > low])
+                    ended, ended_flat = worst[slide], worst_flat[slide]
+                    keep = (ended > low) | (ended_flat > 1.0)
+                    kept.append(ended[keep])
+                    kept_flat.append(ended_flat[keep])
                 worst[slide] = -np.inf
+                worst_flat[slide] = -np.inf
                 ref_level[slide] = pred[slide]
                 ref_slope[slide] = slope[slide]
                 ref_k[slide] = k
@@ -123,6 +141,8 @@ def envelope_false_alarms(sensor: object, hours: float, taxels: int = 64, seed: 
             progress(k, total)
     taxel_hours = taxels * (total - settle) / fs / 3600.0
     tops = np.concatenate(kept) if kept else np.zeros(0)
+    tops_flat = np.concatenate(kept_flat) if kept_flat else np.zeros(0)
+    over_flat = tops_flat > 1.0
     rate = {float(z): float(np.count_nonzero(tops > z) / taxel_hours) for z in ladder}
     normal = NormalDist()
     bound = {float(z): fs * 3600.0 * (1.0 - normal.cdf(z)) for z in ladder}
@@ -136,4 +156,10 @@ def envelope_false_alarms(sensor: object, hours: float, taxels: int = 64, seed: 
     return {"sensor": sensor.name, "seed": seed, "taxel_hours": round(taxel_hours, 2),
             "false_alarm_rate": false_alarm_rate, "rate": rate, "per_sample_bound": bound,
             "z_per_sample": z_sample, "z_fit": z_fit,
-            "rate_at_z_per_sample": float(np.count_nonzero(tops > z_sample) / taxel_hours)}
+            "rate_at_z_per_sample": float(np.count_nonzero(tops > z_sample) / taxel_hours),
+            "flat_sigmas": flat / resid,
+            "rate_with_flat": {float(z): float(np.count_nonzero((tops > z) | over_flat)
+                                               / taxel_hours) for z in ladder},
+            "rate_flat_alone": float(np.count_nonzero(over_flat) / taxel_hours),
+            "rate_at_z_per_sample_with_flat": float(
+                np.count_nonzero((tops > z_sample) | over_flat) / taxel_hours)}

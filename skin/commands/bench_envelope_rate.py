@@ -4,7 +4,8 @@ The measurement is `skin.bench.envelope_rate.envelope_false_alarms` (loaded only
 the detector's restarted envelope test (``--envelope-noise``'s margin, ``z`` x the fall's
 noise at the time since its reference) run on the sensor's settled readout noise, its
 crossings counted per taxel-hour at a ladder of ``z``, against one test a sample (the bound the
-detector's ``z`` is the quantile of).
+detector's ``z`` is the quantile of), and with the flat margin too (the detector's margin once
+settled is the smaller of the two: their union, counted).
 """
 
 from __future__ import annotations
@@ -54,6 +55,9 @@ def main(args: argparse.Namespace) -> int:
           f"{out['z_per_sample']:.3f} (one test a sample), counted there "
           f"{out['rate_at_z_per_sample']:.3g} per taxel-hour (target {out['false_alarm_rate']})"
           + ("" if out["z_fit"] is None else f"; fitted z for the target {out['z_fit']:.3f}"))
+    print(f"  with the flat margin too ({out['flat_sigmas']:.2f} residual sigmas; the smaller "
+          f"of the two, the detector's once settled): {out['rate_at_z_per_sample_with_flat']:.3g}"
+          f" per taxel-hour at its z; the flat margin alone {out['rate_flat_alone']:.3g}")
     for z, r in out["rate"].items():
         print(f"  z {z:5.2f}: {r:10.4g} per taxel-hour (one test a sample: "
               f"{out['per_sample_bound'][z]:.4g})")
