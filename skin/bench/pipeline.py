@@ -46,7 +46,7 @@ def cylinder_layout(n: int, radius: float = 0.05, pitch: float = 0.02) -> Layout
 
 def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minute: float = 6.0,
         budget: float | None = 0.001, chunk: int = 200, workers: int = 1,
-        keep_results: bool = False, block: int = 1) -> dict:
+        keep_results: bool = False, block: int = 1, envelope_noise: bool | None = None) -> dict:
     """Push ``duration`` s of a simulated ``n_taxels`` skin through the chain; see the module.
 
     Parameters
@@ -77,6 +77,9 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
         what has arrived, up to 20 frames); ``latency_ms`` is then per call.
     keep_results : bool
         Also return the `ContactResult` objects given, in order, under ``results`` (not JSON).
+    envelope_noise : bool, optional
+        The onset detector's gust-envelope margin (`skin.stream.onset.OnsetDetector`'s
+        ``envelope_noise``; None: its default); one process only (``workers`` 1).
 
     Returns
     -------
@@ -97,8 +100,11 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
     from skin.models import JointClassifier, load_materials
     from skin.stream.board_workers import WireSource, WireWriter
     from skin.stream.calibration import Calibration
-    from skin.stream.pipeline import Pipeline
+    from skin.stream.pipeline import Pipeline, _detector_for
 
+    if envelope_noise is not None and workers != 1:
+        raise ValueError("envelope_noise is set in one process only (workers 1): the board "
+                         "workers build their own detectors")
     peak0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     layout = cylinder_layout(n_taxels)
     table = load_materials()
@@ -123,7 +129,9 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
                                           float(part.ambient[i]), duty[: wires[b].size])
                             for b in boards])
         writer.close()
-        pipe = Pipeline(layout, JointClassifier(layout), budget=budget)
+        detector = (None if envelope_noise is None
+                    else _detector_for(layout, envelope_noise=envelope_noise))
+        pipe = Pipeline(layout, JointClassifier(layout), budget=budget, detector=detector)
         if workers == 1:
             timed = _one_process(pipe, WireSource(folder, tuple(boards)), n, block)
         else:
@@ -137,6 +145,8 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
            "frames": n * len(boards),
            "seconds_simulated": duration, "contacts_per_minute": contacts_per_minute,
            "budget_ms": None if budget is None else budget * 1e3,
+           "envelope": ("default" if envelope_noise is None
+                        else "noise" if envelope_noise else "flat"),
            "taxel_samples_per_s": round(samples / total),
            "stages": {k: round(samples / v) if v > 0 else None for k, v in stages.items()},
            "stage_share": {k: round(v / total, 3) for k, v in stages.items()},

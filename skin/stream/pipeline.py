@@ -479,13 +479,18 @@ class Pipeline:
         return results
 
 
-def _detector_for(layout: Layout, noise: np.ndarray | None = None) -> OnsetDetector:
-    """Return an onset detector set by the boards' sensors (each taxel's noise: its board's)."""
+def _detector_for(layout: Layout, noise: np.ndarray | None = None,
+                  envelope_noise: bool | None = None) -> OnsetDetector:
+    """Return an onset detector set by the boards' sensors (each taxel's noise: its board's).
+
+    ``envelope_noise``: the detector's (None: its default).
+    """
     from skin.models.sensors import SensorDescription
 
     sensors = {b.id: SensorDescription.from_board(b) for b in layout.boards.values()}
     first = sensors[layout.taxels[0].board] if layout.taxels else SensorDescription()
     sigma = [sensors[t.board].delivered_noise(25.0 + sensors[t.board].heated_rise)
              for t in layout.taxels]
+    knobs = {} if envelope_noise is None else {"envelope_noise": envelope_noise}
     return OnsetDetector(len(layout), sensor=first, sigma=sigma if noise is None else noise,
-                         boards=[t.board for t in layout.taxels])
+                         boards=[t.board for t in layout.taxels], **knobs)
