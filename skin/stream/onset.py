@@ -1357,14 +1357,15 @@ class OnsetDetector:
             beyond = np.maximum(sigma**2 - self._resid_sigma**2, 0.0)
             margin = self.envelope_sigmas * np.sqrt(readout**2 + beyond)
             # a reference taken before the filters settled after their seat (``t_seated``):
-            # the flat margin's 8 sigmas as well; after, the smaller of the two: tens of ms
-            # after the reference the table's, seconds after it the flat one (the table
-            # counts the trend's noise extrapolated, which grows past the flat margin there,
-            # and the flat margin has held the room's random walk, which neither models, on
-            # every preset; NaN reference: no drop)
+            # the flat margin's 8 sigmas (the table does not model the start-up transient);
+            # after, the smaller of the two: tens of ms after the reference the table's,
+            # seconds after it the flat one (the table counts the trend's noise extrapolated,
+            # which grows past the flat margin there, and the flat margin has held the room's
+            # random walk, which neither models, on every preset). Never above the flat
+            # margin. NaN reference: no drop.
             flat = FLAT_SIGMAS * np.maximum(sigma, self.smoothed_sigma)
             young = ~(s.ref_t - s.t_seated >= self._settle)
-            margin = np.where(young, np.maximum(margin, flat), np.minimum(margin, flat))
+            margin = np.where(young, flat, np.minimum(margin, flat))
         else:
             margin = self.envelope_sigmas * np.maximum(sigma, self.smoothed_sigma)
         if self.envelope is None:
