@@ -38,15 +38,17 @@ def test_bench_pipeline_command_prints_one_json_document():
     assert out.returncode == 2 and "--taxels" in out.stderr
 
 
-def test_bench_pipeline_gives_the_default_margin_against_the_flat_one_in_the_same_run():
+def test_bench_pipeline_compares_the_two_envelope_margins_in_the_same_run():
     out = subprocess.run([str(SKIN), "bench", "pipeline", "--taxels", "16", "--seconds", "3",
-                          "--flat-envelope", "--json"], capture_output=True, text=True,
+                          "--compare-envelope", "--json"], capture_output=True, text=True,
                          timeout=300)
     assert out.returncode == 0, out.stderr
     doc = json.loads(out.stdout)
-    (row,), (flat,) = doc["results"], doc["flat_envelope"]
-    assert row["envelope"] == "default" and flat["flat"]["envelope"] == "flat"
-    assert flat["flat"]["frames"] == row["frames"] == 600
-    ratio = flat["default_over_flat"]
-    assert ratio["onset"] == round(row["stages"]["onset"] / flat["flat"]["stages"]["onset"], 3)
+    (row,), (both,) = doc["results"], doc["envelope_compare"]
+    assert row["envelope"] == "default"
+    assert both["noise"]["envelope"] == "noise" and both["flat"]["envelope"] == "flat"
+    assert both["noise"]["frames"] == both["flat"]["frames"] == row["frames"] == 600
+    ratio = both["noise_over_flat"]
+    assert ratio["onset"] == round(both["noise"]["stages"]["onset"]
+                                   / both["flat"]["stages"]["onset"], 3)
     assert ratio["chain"] > 0

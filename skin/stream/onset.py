@@ -112,8 +112,9 @@ AMBIENT_DRIFT = 1.0 / 600.0
 #: The gust-envelope test's flat noise margin, sigmas of the reading it looks at (the default).
 FLAT_SIGMAS = 8.0
 #: With ``envelope_noise``, the fall's noise table (`drop_noise`) applies to a reference taken
-#: this many ``slope_tau`` after the baseline was seated (first sample, hole, release); before,
-#: the flat margin as well. The level/trend filter, seated with no trend, has caught all but
+#: this many ``slope_tau`` after the baseline was seated or its filters' run broken (first
+#: sample, a hole of any length, a release: ``DetectorState.t_seated``); before, the flat
+#: margin. The level/trend filter, seated with no trend, has caught all but
 #: 2.6 % (paper, fast-film) to 4.7 % (low-cost, pid-logger) of the reading's own trend after 3
 #: ``slope_tau`` (39 % when the warm-up ends, 1 ``slope_tau`` on fast-film: the table applied
 #: from there took that transient for a fall, fast-film's evaluate-onset seed 4 two false
@@ -731,9 +732,13 @@ class OnsetDetector:
         (`drop_noise`: the readout noise through the smoothing and the baseline's
         extrapolation, in quadrature with what the running noise estimate finds beyond the
         readout's): smaller than 8 sigmas tens of ms after the reference, larger seconds
-        after it. The table models settled filters: a reference taken within `SETTLE_TAUS`
-        ``slope_tau`` of the baseline's seating (the first sample, a hole longer than the
-        warm-up, a release) keeps the flat margin too. ``z`` counts one test a sample; the
+        after it; the smaller of the two is the margin, so it is never above the flat one.
+        The table models settled filters: a reference taken within `SETTLE_TAUS`
+        ``slope_tau`` of the baseline's seating or a break in its filters' run (the first
+        sample, a hole of any length, a release: ``DetectorState.t_seated``) gets the flat
+        margin (paper, 128 taxels of noise with a 0.1 s hole every 2 s, 60 s: with the table
+        right after each hole 2 envelope onsets more than the flat margin's, now none).
+        ``z`` counts one test a sample; the
         restarted test's crossings on the table's noise process are no more, within counting
         error (measured on low-cost: `skin bench envelope-rate --sensor low-cost`). Default
         False (the flat 8 sigmas): on seeds 0, 2, 4 (tuned on) and 6, 8 (held out) of
