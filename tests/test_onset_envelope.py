@@ -291,7 +291,7 @@ def test_the_envelope_margin_sets_when_a_smooth_fall_is_raised():
     y = 35.0 - fall + noise
     raised = {}
     for z in (8.0, 5.0):
-        det = OnsetDetector(16, sensor=sensor, envelope_sigmas=z)
+        det = OnsetDetector(16, sensor=sensor, envelope_sigmas=z, envelope_noise=False)
         assert det.envelope_sigmas == z
         events, _ = det.process(t, y, det.initial_state())
         raised[z] = {e.taxel: e.detected_at for e in events if e.kind == "onset"}
@@ -382,7 +382,7 @@ def test_the_noise_table_waits_for_the_baseline_to_settle_after_the_first_sample
     det = OnsetDetector(64, sensor=sensor, envelope_noise=True)
     assert det._settle == pytest.approx(3.0 * det.slope_tau)
     settled, _ = det.process(t, y, det.initial_state())
-    flat = OnsetDetector(64, sensor=sensor)
+    flat = OnsetDetector(64, sensor=sensor, envelope_noise=False)
     default, _ = flat.process(t, y, flat.initial_state())
     # the CUSUM's own start-up onsets (channel 0) are the default's; no envelope onset
     assert [e for e in settled if e.kind == "onset" and e.channel == 2] == []
@@ -405,7 +405,7 @@ def test_the_noise_margin_is_chunk_invariant_across_the_settle_and_finite_from_t
     assert np.all(np.isfinite(tr.smooth)) and np.all(np.isfinite(tr.slope))
     whole, _ = det.process(t, y, det.initial_state())
     assert all(np.isfinite([e.time, e.detected_at, e.baseline, e.slope]).all() for e in whole)
-    flat = OnsetDetector(16, sensor=sensor)
+    flat = OnsetDetector(16, sensor=sensor, envelope_noise=False)
     default, _ = flat.process(t, y, flat.initial_state())
 
     def found(events):  # {taxel: when raised} of the contacts, within 0.2 s of their onset
@@ -445,7 +445,7 @@ def test_a_hole_shorter_than_the_warm_up_restarts_the_settle_clock():
     back = np.flatnonzero(t >= 2.0)[0]
     assert np.all(tr.state.t_seated == t[back])
     events, _ = det.process(t, y, det.initial_state())
-    flat = OnsetDetector(128, sensor=sensor)
+    flat = OnsetDetector(128, sensor=sensor, envelope_noise=False)
     default, _ = flat.process(t, y, flat.initial_state())
     # the smoothing and the baseline run again after a hole: not the settled filters the table
     # models, the flat margin holds (the default's own onsets here are its CUSUM's)
@@ -510,7 +510,7 @@ def test_once_settled_the_margin_is_the_smaller_of_the_table_and_the_flat_one(pr
     y = 35.0 + smooth(np.random.default_rng(11).normal(0.0, sensor.noise_kelvin(35.0),
                                                        (t.size, n)), sensor, axis=0)
     det = OnsetDetector(n, sensor=sensor, envelope_noise=True)
-    flat = OnsetDetector(n, sensor=sensor)
+    flat = OnsetDetector(n, sensor=sensor, envelope_noise=False)
     env = 3  # MARGIN_TESTS: "envelope"
     a, b = det.trace(t, y, margins=True), flat.trace(t, y, margins=True)
     assert a.events == b.events == []

@@ -78,13 +78,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                          "a PID-held heater's: the median of the free taxels' departures, "
                          "taken off on every sample)")
     ev.add_argument("--envelope-sigmas", type=float, default=None, metavar="Z",
-                    help="the detector's gust-envelope noise margin, sigmas (default 8, or "
-                         "with --envelope-noise the false-alarm target's Gaussian quantile; "
-                         "diagnosis: what sets the delay; with --sensor)")
+                    help="the detector's gust-envelope noise margin, sigmas (default the "
+                         "false-alarm target's Gaussian quantile per sample, or 8 with "
+                         "--flat-envelope; diagnosis: what sets the delay; with --sensor)")
     ev.add_argument("--envelope-noise", action="store_true",
                     help="the gust-envelope margin from the fall's own noise at the time since "
-                         "its reference (the detector's envelope_noise; Z then defaults to the "
-                         "Gaussian quantile of the false-alarm target per sample; with --sensor)")
+                         "its reference, once settled never above the flat one (the "
+                         "detector's envelope_noise: the default; kept for scripts)")
+    ev.add_argument("--flat-envelope", action="store_true",
+                    help="the gust-envelope margin flat, 8 sigmas of the reading (the "
+                         "detector's envelope_noise=False, the default before; with --sensor)")
     ev.add_argument("--smooth-tau", type=float, default=None, metavar="S",
                     help="the detector's smoothing time constant, s (default max(0.03 s, one "
                          "sample); diagnosis; with --sensor)")
@@ -222,9 +225,11 @@ def main(args: argparse.Namespace) -> int:
         raise SkinError("--common-mode sets the detector's common mode: give --sensor, "
                         "--calibration or --commissioned too")
     if (args.envelope_sigmas is not None or args.smooth_tau is not None
-            or args.envelope_noise) and args.sensor is None:
-        raise SkinError("--envelope-sigmas, --envelope-noise and --smooth-tau set the detector: "
-                        "give --sensor too")
+            or args.envelope_noise or args.flat_envelope) and args.sensor is None:
+        raise SkinError("--envelope-sigmas, --envelope-noise, --flat-envelope and --smooth-tau "
+                        "set the detector: give --sensor too")
+    if args.envelope_noise and args.flat_envelope:
+        raise SkinError("--envelope-noise and --flat-envelope are two margins: give one")
     if any(v is not None and not v > 0 for v in (args.envelope_sigmas, args.smooth_tau)):
         raise SkinError("--envelope-sigmas and --smooth-tau must be positive")
     if args.commissioned and (args.data or args.calibration):
@@ -293,13 +298,13 @@ def main(args: argparse.Namespace) -> int:
 
         knobs = {k: v for k, v in (("envelope_sigmas", args.envelope_sigmas),
                                    ("smooth_tau", args.smooth_tau)) if v is not None}
-        if args.envelope_noise:
-            knobs["envelope_noise"] = True
+        if args.flat_envelope:
+            knobs["envelope_noise"] = False
         detector = OnsetDetector(temperature.shape[1], sensor=sensor, sigma=sigma,
                                  common_mode=args.common_mode, **knobs)
         source += "".join(f", {k.replace('_', ' ')} {v:g}" for k, v in knobs.items()
                           if k != "envelope_noise")
-        source += ", envelope margin from the fall's noise" if args.envelope_noise else ""
+        source += ", flat envelope margin" if args.flat_envelope else ""
         source += "" if sensor is None else f", sensor {sensor.name}"
         source += ", common mode" if args.common_mode else ""
     result = evaluate_onsets(times, temperature, truth, fs, min_duration=args.min_duration,

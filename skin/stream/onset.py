@@ -741,7 +741,8 @@ class OnsetDetector:
         ``z`` counts one test a sample; the
         restarted test's crossings on the table's noise process are no more, within counting
         error (`skin bench envelope-rate --sensor P`; with the flat margin too, their union:
-        no more on noise). Default False (the flat 8 sigmas): on seeds 0, 2 (tuned on) and
+        no more on noise). Default True (since this change; False: the flat 8 sigmas, `skin
+        evaluate-onset --flat-envelope`): on seeds 0, 2 (tuned on) and
         4, 6 (held out) of `skin evaluate-onset --sensor P` it lowers fast-film's delay /
         floor 1.97-1.99 -> 1.76-1.77 and paper's 1.34-1.36 -> 1.23-1.25, with no lower
         detection and no more false alarms on any preset; low-cost's and pid-logger's
@@ -813,7 +814,7 @@ class OnsetDetector:
         false_alarm_rate: float = 0.1,
         gust_envelope: bool = True,
         envelope_sigmas: float | None = None,
-        envelope_noise: bool = False,
+        envelope_noise: bool = True,
         gust_depth: float | None = None,
         gust_rise: float = GUST_RISE,
         boards: np.ndarray | None = None,
