@@ -326,3 +326,22 @@ def test_skin_with_workers_reads_each_serial_board_in_its_own_worker(tmp_path):
     for (taxels, onset), (want, start) in zip(found, touches, strict=True):
         assert taxels == want and abs(onset - start) < 0.3
     assert summary["contacts"] == 6 and summary["gaps"] == 0 and summary["crc_errors"] == 0
+
+
+@pytest.mark.parametrize("sensor", ["paper", "fast-film", "low-cost", "pid-logger"])
+def test_a_sub_detector_keeps_the_whole_noise_table(sensor):
+    from skin.stream.onset import OnsetDetector
+
+    table = OnsetDetector(5, sensor=sensor)._drop_sd
+    # as many taxels as the table has entries: only the per-taxel arrays are sliced
+    whole = OnsetDetector(table.size, sensor=sensor)
+    half = np.arange(table.size // 2, table.size)
+    sub = sub_detector(whole, half)
+    assert sub.n_taxels == half.size
+    assert np.array_equal(sub._drop_sd, table)
+    assert np.array_equal(sub.sigma, whole.sigma[half])
+    # every per-taxel array of a detector is in PER_TAXEL (else a shard would get the whole)
+    small = OnsetDetector(7, sensor=sensor)
+    per_taxel = {k for k, v in vars(small).items()
+                 if isinstance(v, np.ndarray) and v.shape == (7,)}
+    assert per_taxel <= set(OnsetDetector.PER_TAXEL)

@@ -787,6 +787,13 @@ class OnsetDetector:
     the descriptions above are the paper sensor's.
     """
 
+    #: The attributes holding one value per taxel (those present): `skin.stream.shards`
+    #: slices these, and only these, for a shard. Other arrays (the noise table
+    #: ``_drop_sd``, indexed by time since the reference) are shared, whatever their length.
+    PER_TAXEL = ("sigma", "drift", "noise_floor", "noise_threshold", "smoothed_sigma",
+                 "_resid_sigma", "threshold", "rise_threshold", "release_rise",
+                 "slow_threshold", "slow_begin", "_common_margin", "board")
+
     def __init__(
         self,
         n_taxels: int,

@@ -62,12 +62,21 @@ def shard_taxels(layout: Layout, workers: int) -> list[np.ndarray]:
 
 
 def sub_detector(detector: OnsetDetector, taxels: np.ndarray) -> OnsetDetector:
-    """Return a copy of ``detector`` for ``taxels`` only (each per-taxel array sliced)."""
+    """Return a copy of ``detector`` for ``taxels`` only.
+
+    Its per-taxel arrays (`OnsetDetector.PER_TAXEL`) are sliced; every other attribute is
+    shared, even an array that happens to be ``n_taxels`` long (the noise table).
+    """
     n = detector.n_taxels
     sub = copy.copy(detector)
-    for name, value in vars(detector).items():
-        if isinstance(value, np.ndarray) and value.shape == (n,):
-            setattr(sub, name, value[taxels].copy())
+    for name in detector.PER_TAXEL:
+        value = getattr(detector, name, None)
+        if value is None:
+            continue
+        if not (isinstance(value, np.ndarray) and value.shape == (n,)):
+            raise TypeError(f"OnsetDetector.{name} is not one value per taxel ({n}): "
+                            f"{getattr(value, 'shape', type(value).__name__)}")
+        setattr(sub, name, value[taxels].copy())
     sub.n_taxels = int(taxels.size)
     return sub
 
