@@ -206,11 +206,9 @@ def test_evaluate_onset_per_sensor_reports_the_issue_figures(capsys):
                  "--envelope-sigmas", "5", "--smooth-tau", "0.01", "--json"]) == 0
     knobbed = json.loads(capsys.readouterr().out)
     assert "envelope sigmas 5, smooth tau 0.01" in knobbed["source"]
+    assert "noise-table envelope margin" in knobbed["source"]
     assert main(["evaluate-onset", "--envelope-sigmas", "5", "--minutes", "0.5"]) == 2
-    assert main(["evaluate-onset", "--envelope-noise", "--minutes", "0.5"]) == 2
     assert main(["evaluate-onset", "--flat-envelope", "--minutes", "0.5"]) == 2
-    assert main(["evaluate-onset", "--sensor", "paper", "--taxels", "2", "--minutes", "0.5",
-                 "--envelope-noise", "--flat-envelope"]) == 2
     assert main(["evaluate-onset", "--sensor", "paper", "--taxels", "2", "--minutes", "0.5",
                  "--flat-envelope", "--json"]) == 0
     assert "flat envelope margin" in json.loads(capsys.readouterr().out)["source"]

@@ -78,16 +78,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                          "a PID-held heater's: the median of the free taxels' departures, "
                          "taken off on every sample)")
     ev.add_argument("--envelope-sigmas", type=float, default=None, metavar="Z",
-                    help="the detector's gust-envelope noise margin, sigmas (default the "
-                         "false-alarm target's Gaussian quantile per sample, or 8 with "
-                         "--flat-envelope; diagnosis: what sets the delay; with --sensor)")
-    ev.add_argument("--envelope-noise", action="store_true",
-                    help="the gust-envelope margin from the fall's own noise at the time since "
-                         "its reference, once settled never above the flat one (the "
-                         "detector's envelope_noise: the default; kept for scripts)")
+                    help="the detector's gust-envelope noise margin, sigmas: the z of the "
+                         "fall's noise table (default the false-alarm target's Gaussian "
+                         "quantile per sample, 4.7-5.4); the table's margin stays capped by, "
+                         "and before the filters settle is, the flat 8 sigmas, so a Z above 8 "
+                         "changes nothing once the table is above the cap. With "
+                         "--flat-envelope: the flat margin's sigmas (default 8). Diagnosis: "
+                         "what sets the delay; with --sensor")
     ev.add_argument("--flat-envelope", action="store_true",
                     help="the gust-envelope margin flat, 8 sigmas of the reading (the "
-                         "detector's envelope_noise=False, the default before; with --sensor)")
+                         "detector's envelope_noise=False; the default is the fall's noise "
+                         "table, capped at the flat margin; with --sensor)")
     ev.add_argument("--smooth-tau", type=float, default=None, metavar="S",
                     help="the detector's smoothing time constant, s (default max(0.03 s, one "
                          "sample); diagnosis; with --sensor)")
@@ -225,11 +226,9 @@ def main(args: argparse.Namespace) -> int:
         raise SkinError("--common-mode sets the detector's common mode: give --sensor, "
                         "--calibration or --commissioned too")
     if (args.envelope_sigmas is not None or args.smooth_tau is not None
-            or args.envelope_noise or args.flat_envelope) and args.sensor is None:
-        raise SkinError("--envelope-sigmas, --envelope-noise, --flat-envelope and --smooth-tau "
+            or args.flat_envelope) and args.sensor is None:
+        raise SkinError("--envelope-sigmas, --flat-envelope and --smooth-tau "
                         "set the detector: give --sensor too")
-    if args.envelope_noise and args.flat_envelope:
-        raise SkinError("--envelope-noise and --flat-envelope are two margins: give one")
     if any(v is not None and not v > 0 for v in (args.envelope_sigmas, args.smooth_tau)):
         raise SkinError("--envelope-sigmas and --smooth-tau must be positive")
     if args.commissioned and (args.data or args.calibration):
@@ -304,9 +303,11 @@ def main(args: argparse.Namespace) -> int:
                                  common_mode=args.common_mode, **knobs)
         source += "".join(f", {k.replace('_', ' ')} {v:g}" for k, v in knobs.items()
                           if k != "envelope_noise")
-        source += ", flat envelope margin" if args.flat_envelope else ""
         source += "" if sensor is None else f", sensor {sensor.name}"
         source += ", common mode" if args.common_mode else ""
+    # which gust-envelope margin ran (evaluate_onsets' own detector: the default, the table)
+    source += (", flat envelope margin" if detector is not None and not detector.envelope_noise
+               else ", noise-table envelope margin")
     result = evaluate_onsets(times, temperature, truth, fs, min_duration=args.min_duration,
                              progress=lambda d, n: progress.bar(d, n, "samples", started),
                              directions=None if args.data else directions, detector=detector,
