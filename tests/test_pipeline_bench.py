@@ -45,7 +45,8 @@ def test_bench_pipeline_compares_the_two_envelope_margins_in_the_same_run():
     assert out.returncode == 0, out.stderr
     doc = json.loads(out.stdout)
     (row,), (both,) = doc["results"], doc["envelope_compare"]
-    assert row["envelope"] == "default"
+    assert row["envelope"] == "noise"  # the default detector's margin, named
+    assert both["runs_each"] == 2
     assert both["noise"]["envelope"] == "noise" and both["flat"]["envelope"] == "flat"
     assert both["noise"]["frames"] == both["flat"]["frames"] == row["frames"] == 600
     ratio = both["noise_over_flat"]

@@ -145,8 +145,8 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
            "frames": n * len(boards),
            "seconds_simulated": duration, "contacts_per_minute": contacts_per_minute,
            "budget_ms": None if budget is None else budget * 1e3,
-           "envelope": ("default" if envelope_noise is None
-                        else "noise" if envelope_noise else "flat"),
+           # the margin that ran (the default detector's too)
+           "envelope": "noise" if pipe.detector.envelope_noise else "flat",
            "taxel_samples_per_s": round(samples / total),
            "stages": {k: round(samples / v) if v > 0 else None for k, v in stages.items()},
            "stage_share": {k: round(v / total, 3) for k, v in stages.items()},
