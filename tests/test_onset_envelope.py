@@ -1,5 +1,7 @@
 """The onset detector's gust-envelope test (`skin.stream.onset`, channel 2)."""
 
+from itertools import pairwise
+
 import numpy as np
 import pytest
 from scipy.signal import lfilter
@@ -444,6 +446,7 @@ def test_a_hole_shorter_than_the_warm_up_restarts_the_settle_clock():
     tr = det.trace(t[:420], y[:420])  # across the first hole (1.9-2.0 s)
     back = np.flatnonzero(t >= 2.0)[0]
     assert np.all(tr.state.t_seated == t[back])
+    assert np.all(tr.state.settle_restarts == 1)  # the hole, counted: a user sees it
     events, _ = det.process(t, y, det.initial_state())
     flat = OnsetDetector(128, sensor=sensor, envelope_noise=False)
     default, _ = flat.process(t, y, flat.initial_state())
@@ -521,3 +524,32 @@ def test_once_settled_the_margin_is_the_smaller_of_the_table_and_the_flat_one(pr
     assert np.all(x[ok] >= f[ok] * (1 - 1e-12))  # never a larger margin than the flat one
     if preset == "fast-film":
         assert np.mean(x[ok] > f[ok]) > 0.9  # tens of ms after the reference: the table's
+
+
+@pytest.mark.parametrize("preset", ["paper", "fast-film"])
+def test_a_gap_in_the_timestamps_between_two_chunks_gives_the_one_runs_events(preset):
+    """Rows missing (no NaN: the timestamps jump) where one chunk ends and the next begins."""
+    sensor = load_sensor(preset)
+    fs = sensor.sample_rate
+    t = np.arange(0.0, 20.0, 1.0 / fs)
+    noise = np.random.default_rng(3).normal(0.0, sensor.noise_kelvin(35.0), (t.size, 6))
+    y = 35.0 + smooth(noise, sensor, axis=0)
+    after = t >= 12.0  # a fall on taxel 4, after the gap
+    y[after, 4] -= 2.0 * -np.expm1(-(t[after] - 12.0) / 0.5)
+    keep = ~((t >= 8.0) & (t < 8.1))  # 0.1 s of every taxel's rows lost
+    t, y = t[keep], y[keep]
+    det = OnsetDetector(6, sensor=sensor)
+    assert det.envelope_noise and 0.1 < det.warmup
+    whole, state = det.process(t, y, det.initial_state())
+    assert any(e.kind == "onset" and e.taxel == 4 for e in whole)
+    assert np.all(state.settle_restarts == 1)
+    b = int(np.flatnonzero(t >= 8.1)[0])  # the first sample after the gap
+    for cuts in ([b], [b - 1], [b + 1], list(range(7, t.size, 7))):
+        s, events = det.initial_state(), []
+        edges = [0, *cuts, t.size]
+        for lo, hi in pairwise(edges):
+            e, s = det.process(t[lo:hi], y[lo:hi], s)
+            events += e
+        assert events == whole
+        assert np.array_equal(s.t_seated, state.t_seated)
+        assert np.array_equal(s.settle_restarts, state.settle_restarts)

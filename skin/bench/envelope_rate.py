@@ -68,7 +68,7 @@ def envelope_false_alarms(sensor: object, hours: float, taxels: int = 64, seed: 
         ``rate_at_z_per_sample``, the counted rate at the detector's ``z``; the same with
         the flat margin too (the detector's: the smaller of the two once settled):
         ``rate_with_flat`` {z: rate}, ``rate_flat_alone`` (the flat margin alone, the
-        default detector's test on noise) and ``rate_at_z_per_sample_with_flat``;
+        ``envelope_noise=False`` detector's test on noise) and ``rate_at_z_per_sample_with_flat``;
         ``flat_sigmas``, the flat margin in units of the residual's noise.
     """
     from scipy.signal import lfilter

@@ -1,8 +1,8 @@
 """``skin bench envelope-rate``: the gust-envelope noise margin's false alarms on noise alone.
 
 The measurement is `skin.bench.envelope_rate.envelope_false_alarms` (loaded only when run):
-the detector's restarted envelope test (``--envelope-noise``'s margin, ``z`` x the fall's
-noise at the time since its reference) run on the sensor's settled readout noise, its
+the detector's restarted envelope test (the default detector's noise-table margin, ``z`` x
+the fall's noise at the time since its reference) run on the sensor's settled readout noise, its
 crossings counted per taxel-hour at a ladder of ``z``, against one test a sample (the bound the
 detector's ``z`` is the quantile of), and with the flat margin too (the detector's margin once
 settled is the smaller of the two: their union, counted).

@@ -59,7 +59,8 @@ follows from the taxel's noise and the sensor description (`skin.models.sensors`
   average run length of a one-sided CUSUM) for one false alarm per ``1 / false_alarm_rate``
   taxel-hours, in units of that noise: an upper bound on the false alarms (measured far
   fewer: the allowance is in units of the smoothed, not the summed, noise).
-- Levels (the slow channel's, the gust-envelope test's margin) stay 8 sigmas of the averaged
+- Levels (the slow channel's; the gust-envelope test's flat margin, which caps its noise
+  table's and stands alone before the filters settle) stay 8 sigmas of the averaged
   reading they look at clear of noise, that sigma computed through the sensor's own
   smoothing and then the detector's average (`_average_noise`): a reading the sensor already
   smoothed has correlated noise, which a further average removes less of than white noise.
@@ -109,7 +110,9 @@ MARGIN_TESTS = ("cusum", "cusum_stale", "slow", "envelope")
 #: room of `skin.bench.streams` drifts at this rate, the rate the detector assumes. (The
 #: commissioned ``drift`` of `skin.models.commission` is a taxel's trend, K/s, not this.)
 AMBIENT_DRIFT = 1.0 / 600.0
-#: The gust-envelope test's flat noise margin, sigmas of the reading it looks at (the default).
+#: The gust-envelope test's flat noise margin, sigmas of the reading it looks at: with the
+#: noise table (``envelope_noise``) its cap, and its margin before the filters settle; alone
+#: with ``envelope_noise=False``. Not scaled by ``envelope_sigmas`` when the table runs.
 FLAT_SIGMAS = 8.0
 #: With ``envelope_noise``, the fall's noise table (`drop_noise`) applies to a reference taken
 #: this many ``slope_tau`` after the baseline was seated or its filters' run broken (first
@@ -562,6 +565,9 @@ class DetectorState:
     ``t_seated`` is when its baseline was last seated or its filters' run broken: the first
     reading, a release, a hole of any length (a missing sample); the envelope margin's noise
     table applies only to a reference taken `SETTLE_TAUS` ``slope_tau`` after it.
+    ``settle_restarts`` counts, per taxel, the holes shorter than the warm-up that restarted it
+    (a gap over 1.5 of the sensor's nominal sample periods): a stream whose timestamps
+    jitter past that shows it here, and keeps the flat margin.
     ``common_smooth`` and ``common_level`` are each taxel's averaged raw reading and its level
     with the board's common mode taken off (`OnsetDetector`'s ``common_mode``); ``common`` the
     common mode taken off its last reading (its board's), K; ``common_var`` (a loop-held
@@ -594,6 +600,7 @@ class DetectorState:
     medium: np.ndarray
     t_first: np.ndarray
     t_seated: np.ndarray
+    settle_restarts: np.ndarray
     common_smooth: np.ndarray
     common_level: np.ndarray
     common: np.ndarray
@@ -719,8 +726,11 @@ class OnsetDetector:
         (``sensor.heater == "pid"``): those disturbances and the room's drift through its
         loop (`loop_envelope`), and the onset dated when raised.
     envelope_sigmas : float, optional
-        The gust-envelope test's noise margin, in sigmas (default 8; with ``envelope_noise``
-        the Gaussian quantile of ``false_alarm_rate`` per sample, 4.7-5.4). Flat: sigmas of
+        The gust-envelope test's noise margin, in sigmas. With ``envelope_noise`` (the
+        default): the ``z`` the noise table is scaled by (default the Gaussian quantile of
+        ``false_alarm_rate`` per sample, 4.7-5.4); the cap and the margin before the filters
+        settle stay `FLAT_SIGMAS` (8) flat sigmas, so a ``z`` above 8 only changes the margin
+        where the table is below the cap. Without it (default 8): sigmas of
         the reading it looks at (its running noise estimate or its smoothed readout noise,
         the larger). The drop it tests is measured from an extrapolated baseline, whose own
         noise this margin covers too: a flat margin at the Gaussian quantile (5.1-5.4)
@@ -741,8 +751,8 @@ class OnsetDetector:
         ``z`` counts one test a sample; the
         restarted test's crossings on the table's noise process are no more, within counting
         error (`skin bench envelope-rate --sensor P`; with the flat margin too, their union:
-        no more on noise). Default True (since this change; False: the flat 8 sigmas, `skin
-        evaluate-onset --flat-envelope`): on seeds 0, 2 (tuned on) and
+        no more on noise). False: the flat 8 sigmas alone (`skin evaluate-onset
+        --flat-envelope`). Against it, on seeds 0, 2 (tuned on) and
         4, 6 (held out) of `skin evaluate-onset --sensor P` it lowers fast-film's delay /
         floor 1.97-1.99 -> 1.76-1.77 and paper's 1.34-1.36 -> 1.23-1.25, with no lower
         detection and no more false alarms on any preset; low-cost's and pid-logger's
@@ -928,9 +938,12 @@ class OnsetDetector:
             # the table models settled filters: a reference taken sooner than SETTLE_TAUS
             # slope_tau after the baseline was seated (a taxel's first sample, a hole, a
             # release) carries the start-up transient (the trend the baseline is still
-            # catching, not noise): such a drop keeps the flat margin too
+            # catching, not noise): such a drop gets the flat margin only
             self._settle = SETTLE_TAUS * self.slope_tau
-        # a sample missing (a gap over 1.5 sample periods) is a hole for the settle clock
+        # a sample missing (a gap over 1.5 sample periods of the sensor's nominal rate, not
+        # the stream's measured one) is a hole for the settle clock: a stream whose timestamps
+        # jitter past that restarts the clock at each such gap and keeps the flat margin
+        # (counted per taxel in ``DetectorState.settle_restarts``)
         self._hole = 1.5 / fs
         self.heater_rate = HEATER_STEP * rise / mode
         # a loop-held sensor's: the disturbances as its reading shows them, through the loop
@@ -1012,6 +1025,7 @@ class OnsetDetector:
             medium=nan.copy(),
             t_first=nan.copy(),
             t_seated=nan.copy(),
+            settle_restarts=np.zeros(n, dtype=np.int64),
             common_smooth=nan.copy(),
             common_level=nan.copy(),
             common=np.zeros(n),
@@ -1278,7 +1292,9 @@ class OnsetDetector:
         # a hole shorter than the warm-up keeps the baseline, but the smoothing's and the
         # baseline's noise after it is not the settled filters' the noise table models: the
         # settle clock starts again (`SETTLE_TAUS`)
-        np.copyto(s.t_seated, t, where=live & (dt > self._hole))
+        hole = live & (dt > self._hole)
+        np.copyto(s.t_seated, t, where=hole)
+        np.add(s.settle_restarts, hole, out=s.settle_restarts)
         # every smoothing gain at once: smooth, slow, level, slope (free, in contact), noise
         gain = 1 - np.exp(-dt / taus)
         if groups is not None:
