@@ -738,7 +738,7 @@ class OnsetDetector:
         7.75 per taxel-hour) while fast-film's delay / floor fell 1.99 -> 1.72 (`skin
         evaluate-onset --sensor P --seed 0 --envelope-sigmas Z --json`).
     envelope_noise : bool
-        Set the margin from the drop's own noise at the time since its reference instead
+        Default True: the margin from the drop's own noise at the time since its reference
         (`drop_noise`: the readout noise through the smoothing and the baseline's
         extrapolation, in quadrature with what the running noise estimate finds beyond the
         readout's): smaller than 8 sigmas tens of ms after the reference, larger seconds
@@ -746,8 +746,9 @@ class OnsetDetector:
         The table models settled filters: a reference taken within `SETTLE_TAUS`
         ``slope_tau`` of the baseline's seating or a break in its filters' run (the first
         sample, a hole of any length, a release: ``DetectorState.t_seated``) gets the flat
-        margin (paper, 128 taxels of noise with a 0.1 s hole every 2 s, 60 s: with the table
-        right after each hole 2 envelope onsets more than the flat margin's, now none).
+        margin (paper, 128 taxels of noise with a 0.1 s hole every 2 s, 60 s: the table applied
+        right after each hole raised 2 envelope onsets more than the flat margin; with the
+        wait, none).
         ``z`` counts one test a sample; the
         restarted test's crossings on the table's noise process are no more, within counting
         error (`skin bench envelope-rate --sensor P`; with the flat margin too, their union:
