@@ -57,6 +57,9 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
     p.add_argument("--grid-factor", type=float, default=1.0,
                    help="its null grid's density (2: twice the gust rises and holds, half "
                         "the start step; a check of the grid's resolution)")
+    p.add_argument("--pre", type=float, default=2.0,
+                   help="seconds before the onset in its windows (2; a check that more "
+                        "of the past changes nothing)")
     p.add_argument("--json", action="store_true", help="print one JSON document")
     p.set_defaults(func=main)
 
@@ -79,15 +82,15 @@ def main(args: argparse.Namespace) -> int:
         raise SkinError("--check-hours must be positive")
     if args.detection_repeats < 1:
         raise SkinError("--detection-repeats must be at least 1")
-    if args.null_hours <= 0 or args.grid_factor <= 0:
-        raise SkinError("--null-hours and --grid-factor must be positive")
+    if args.null_hours <= 0 or args.grid_factor <= 0 or args.pre <= 0:
+        raise SkinError("--null-hours, --grid-factor and --pre must be positive")
     progress = Progress()
     started = time.monotonic()
     out = measure_delay_bound(sensor, args.seed, args.minutes, args.taxels, args.false_alarms,
                               args.check_hours, args.detector,
                               detection_repeats=args.detection_repeats,
                               disturbances=args.disturbances, null_hours=args.null_hours,
-                              grid_factor=args.grid_factor,
+                              grid_factor=args.grid_factor, pre=args.pre,
                               progress=lambda d, n: progress.bar(d, n, "steps", started))
     progress.done()
     out = {"machine": machine(), **out, "wall_time": round(time.monotonic() - started, 2)}
