@@ -13,7 +13,7 @@ taxel-hour.
 
 The test (a composite-null generalised likelihood ratio), on one window of raw (unsmoothed)
 samples averaged in blocks of `block_size` (about 50 Hz; the information a block average
-loses is reported), ``pre`` s before the onset to the end of
+loses is reported), ``pre`` s (up to 1 s more) before the onset to the end of
 the window in which evaluate-onset still credits an alarm to the contact:
 
 - the Gaussian part of the disturbances is the noise: readout (``Stream.raw_noise``), the
@@ -225,11 +225,17 @@ class Family:
         return self.chol @ rng.standard_normal((self.n, k))
 
 
-def block_template(template: np.ndarray, block: int, pre_blocks: int) -> np.ndarray:
-    """Return a contact's raw template block-averaged, ``pre_blocks`` zeros before it."""
+def block_template(template: np.ndarray, block: int, pre_blocks: int,
+                   quantum: int = 1) -> np.ndarray:
+    """Return a contact's raw template block-averaged, at least ``pre_blocks`` zeros before it.
+
+    More zeros, up to a window length that is a multiple of ``quantum`` blocks (so that
+    contacts share null families; more of the past only tells the oracle more).
+    """
     m = np.asarray(template, dtype=float)
-    m = m[:m.size // block * block]
-    return np.concatenate([np.zeros(pre_blocks), m.reshape(-1, block).mean(axis=1)])
+    m = m[:m.size // block * block].reshape(-1, block).mean(axis=1)
+    n = -(-(pre_blocks + m.size) // quantum) * quantum
+    return np.concatenate([np.zeros(n - m.size), m])
 
 
 def null_streams(sensor: object, seed: int, minutes: float, taxels: int, block: int,
@@ -298,7 +304,7 @@ def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: 
     n = family.n
     filt, energy = family.whiten(template[:, None])
     v, q = filt[0], float(energy[0])
-    llr = [fftconvolve(x[:, j], v[::-1], mode="valid") - 0.5 * q for j in range(x.shape[1])]
+    llr = list((fftconvolve(x, v[::-1, None], mode="valid", axes=0) - 0.5 * q).T)
     stat = [np.full(r.size, -np.inf) for r in llr]
     done = [np.zeros(r.size, dtype=bool) for r in llr]
     level, drop, weighed = start, step, 0
@@ -354,7 +360,8 @@ def measure_gust_oracle(stream: object, sensor: object, which: Sequence[int], se
     null_minutes, null_taxels
         The pieces' size.
     pre : float
-        Seconds before the onset in each window.
+        Seconds before the onset in each window, at least (up to 1 s more: the windows'
+        lengths are whole seconds, so that contacts share null families).
     grid_factor : float
         The null grid's density (2: twice the rises and holds, half the start step).
     budget : int
@@ -389,7 +396,7 @@ def measure_gust_oracle(stream: object, sensor: object, which: Sequence[int], se
                                                 "noise_free", "information", "block_kept")}
     windows = 0
     for i, k in enumerate(which):
-        m = block_template(stream.templates[k], block, pre_blocks)
+        m = block_template(stream.templates[k], block, pre_blocks, round(fb))
         n = m.size
         if n not in families:
             families[n] = Family(sensor, n, block, raw, grid_factor)
