@@ -152,6 +152,8 @@ class Family:
         (members,): the amplitude's range.
     kind : list of str
         ``"gust"`` or ``"heater"`` per member.
+
+    The amplitudes of gusts and heater switches are profiled within their ranges.
     """
 
     def __init__(self, sensor: object, n: int, block: int, raw_noise: float,
@@ -203,6 +205,16 @@ class Family:
         self.shapes = np.array(shapes)
         self.filters, self.energy = self.whiten(self.shapes.T)
         self.lo, self.hi, self.kind = np.array(lo), np.array(hi), kind
+
+    def subset(self, every: int) -> Family:
+        """Return the family of every ``every``-th member (the same window and noise)."""
+        out = Family.__new__(Family)
+        out.__dict__.update(self.__dict__)
+        pick = slice(None, None, every)
+        out.shapes, out.filters, out.energy = (self.shapes[pick], self.filters[pick],
+                                               self.energy[pick])
+        out.lo, out.hi, out.kind = self.lo[pick], self.hi[pick], self.kind[pick]
+        return out
 
     def whiten(self, shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Return the filters (k, n) and energies (k,) of ``shapes`` (n, k)."""
@@ -307,10 +319,21 @@ def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: 
     llr = list((fftconvolve(x, v[::-1, None], mode="valid", axes=0) - 0.5 * q).T)
     stat = [np.full(r.size, -np.inf) for r in llr]
     done = [np.zeros(r.size, dtype=bool) for r in llr]
+    # T against every 5th member only is an upper bound on T: a window under the level by
+    # it is under the level (its exact T is computed once the level comes down to it)
+    upper = [r.copy() for r in llr]
+    coarse = [np.zeros(r.size, dtype=bool) for r in llr]
+    sub = family.subset(5)
     level, drop, weighed = start, step, 0
     while True:
         for j in range(x.shape[1]):
-            cand = np.flatnonzero((llr[j] >= level) & ~done[j])
+            cand = np.flatnonzero((upper[j] >= level) & ~coarse[j])
+            for a in range(0, cand.size, chunk):
+                sel = cand[a:a + chunk]
+                win = x[sel[:, None] + np.arange(n)[None, :], j].T
+                upper[j][sel] = llr[j][sel] - sub.best(win)
+            coarse[j][cand] = True
+            cand = np.flatnonzero((upper[j] >= level) & ~done[j])
             for a in range(0, cand.size, chunk):
                 sel = cand[a:a + chunk]
                 win = x[sel[:, None] + np.arange(n)[None, :], j].T
