@@ -79,3 +79,26 @@ def test_an_alarm_restarts_the_test_after_its_window() -> None:
     assert _count(stat, 1.0, 4) == 3  # 1 (its window to 4), 5 (to 8), 9
     assert _count(stat, 1.0, 6) == 2  # 1 (to 6), 9
     assert _count(stat, 6.0, 3) == 0
+
+
+def test_delay_bound_disturbances_reports_the_oracle_over_the_5sigma_contacts(capsys) -> None:
+    import json
+
+    from skin.cli import main as skin_main
+
+    assert skin_main(["bench", "delay-bound", "--sensor", "paper", "--minutes", "3",
+                      "--taxels", "2", "--seed", "1", "--check-hours", "0.01",
+                      "--disturbances", "--null-hours", "0.5", "--detection-repeats", "5",
+                      "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["contacts_5sigma"] > 0
+    # the null comes in pieces of 16 taxels x 15 minutes: one piece, 4 taxel-hours less the
+    # first 10 s of each taxel
+    assert 3.9 < out["disturbance_oracle_null_taxel_hours"] < 4.0
+    assert out["disturbance_oracle_alarms_needed"] == 1  # 0.1 per hour x 4 h, rounded
+    share = out["disturbance_oracle_detected_5sigma"]
+    assert 0.0 <= share <= 1.0
+    statuses = out["disturbance_oracle_threshold_status"]
+    assert sum(statuses.values()) == out["contacts_5sigma"]
+    # every contact detected in under 99 % of the draws is listed, with its threshold
+    assert len(out["disturbance_oracle_contacts"]) == out["disturbance_oracle_under_99"]
