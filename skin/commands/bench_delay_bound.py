@@ -58,8 +58,8 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
                    help="its null grid's density (2: twice the gust rises and holds, half "
                         "the start step; a check of the grid's resolution)")
     p.add_argument("--pre", type=float, default=2.0,
-                   help="seconds before the onset in its windows (2; a check that more "
-                        "of the past changes nothing)")
+                   help="seconds before the onset in its windows, at least (2; more past "
+                        "tells the oracle more: check that its figures have stopped moving)")
     p.add_argument("--json", action="store_true", help="print one JSON document")
     p.set_defaults(func=main)
 
