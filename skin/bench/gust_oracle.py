@@ -54,8 +54,9 @@ and on the null streams alike; ``--grid-factor 2`` halves the grid's steps to ch
 figures do not move. The past before the onset (``pre``) is where it is not yet an upper
 bound: more of it tells the oracle more (the drift's and a gust's state at the onset; on
 low-cost seed 0's weakest contacts 4 s instead of 2 raised detection from .675 to .775), so
-its figures hold for that much past only until checked with more. What it does not do: scan the candidate onsets near the true one on the
-contact (a scanner might alarm at a neighbouring window too; those fit the template worse).
+its figures hold for that much past only until checked with more. What it does not do: scan
+the candidate onsets near the true one on the contact (a scanner might alarm at a
+neighbouring window too; those fit the template worse).
 
 ``noise_free_statistic`` (T of the template without noise, half the squared
 noise-normalised distance from the template to the family's nearest member, offset and slow
