@@ -102,3 +102,32 @@ def test_delay_bound_disturbances_reports_the_oracle_over_the_5sigma_contacts(ca
     assert sum(statuses.values()) == out["contacts_5sigma"]
     # every contact detected in under 99 % of the draws is listed, with its threshold
     assert len(out["disturbance_oracle_contacts"]) == out["disturbance_oracle_under_99"]
+
+
+def test_the_counted_threshold_raises_at_most_the_allowed_alarms_brute_force() -> None:
+    # every window of a small disturbance-only stream weighed exactly; at the threshold the
+    # search returns the restarted test raises at most `needed` alarms, and at the next
+    # exact statistic value down at least `needed` (no lower level is left on the table)
+    from skin.bench.gust_oracle import null_threshold
+
+    sensor = load_sensor("paper")
+    block = block_size(sensor)
+    fb = sensor.sample_rate / block
+    raw = sensor.noise_kelvin(25.0 + sensor.heated_rise)
+    n = round(4 * fb)
+    fam = Family(sensor, n, block, raw, grid_factor=0.5)
+    x = null_streams(sensor, 7, 2.0, 2, block, raw)
+    t = np.arange(n) / fb
+    m = np.where(t >= 2.0, -0.03 * (1.0 - np.exp(-(t - 2.0) / 0.3)), 0.0)
+    stats = []
+    for j in range(x.shape[1]):
+        w = np.lib.stride_tricks.sliding_window_view(x[:, j], n).T
+        stats.append(_statistic(fam, m, w)[0])
+    for needed in (1, 3):
+        h, _, status = null_threshold(x, m, fam, needed, 15.0, -50.0)
+        assert status == "found"
+        assert sum(_count(st, h, n) for st in stats) <= needed
+        below = np.concatenate(stats)
+        below = below[below < h - 1e-9]
+        if below.size:  # the next value down raises at least `needed` (the grid's level)
+            assert sum(_count(st, float(below.max()), n) for st in stats) >= needed

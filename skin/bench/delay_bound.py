@@ -694,6 +694,10 @@ def _disturbance_figures(stream: object, sensor: object, five: Sequence[int], se
     g = measure_gust_oracle(stream, sensor, five, seed, false_alarms, repeats, null_hours,
                             pre=pre, grid_factor=grid_factor)
     det = np.asarray(g["detection"])
+    draws = np.asarray(g["draws"])
+    # the share's standard error over the draws (binomial per contact; 0 where every
+    # draw is detected at a level the null streams do not reach, "below")
+    se = float(np.sqrt(np.sum(det * (1.0 - det) / draws))) / det.size
     h = np.asarray(g["threshold"])
     found = np.asarray([s == "found" for s in g["threshold_status"]])
     nf = np.asarray(g["noise_free"])
@@ -704,10 +708,13 @@ def _disturbance_figures(stream: object, sensor: object, five: Sequence[int], se
                 "threshold": round(float(h[i]), 2), "threshold_status": g["threshold_status"][i],
                 "noise_free_statistic": round(float(nf[i]), 2),
                 "information": round(float(g["information"][i]), 1),
-                "mimicked": bool(mimic[i])} for i, k in enumerate(five)}
+                "mimicked": bool(mimic[i]), "draws": int(draws[i])}
+            for i, k in enumerate(five)}
     statuses = {s: g["threshold_status"].count(s) for s in sorted(set(g["threshold_status"]))}
     figures = {
         "disturbance_oracle_detected_5sigma": round(float(det.mean()), 4),
+        "disturbance_oracle_detected_5sigma_se": round(se, 4),
+        "disturbance_oracle_draws_found": (int(draws[found].min()) if found.any() else None),
         "disturbance_oracle_under_half": int(np.sum(det < 0.5)),
         "disturbance_oracle_under_99": int(np.sum(det < 0.99)),
         "disturbance_oracle_mimicked": int(mimic.sum()),

@@ -113,6 +113,24 @@ def covariance(sensor: object, n: int, block: int, raw_noise: float,
     Ornstein-Uhlenbeck process, stationary) and the room's random walk (from ``history`` s
     before the window; an offset the test profiles anyway), the latter two through the loop
     and lag at the block rate.
+
+    Parameters
+    ----------
+    sensor : skin.models.sensors.SensorDescription
+        The sensor (rate, loop and lag, the disturbances' scale).
+    n : int
+        The window's length, blocks.
+    block : int
+        Raw samples a block average.
+    raw_noise : float
+        The readout noise's standard deviation per raw sample, K.
+    history : float
+        Seconds of the random walk before the window.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, n), K^2.
     """
     from skin.stream.onset import AMBIENT_DRIFT
 
@@ -157,11 +175,31 @@ class Family:
     kind : list of str
         ``"gust"`` or ``"heater"`` per member.
 
-    The amplitudes of gusts and heater switches are profiled within their ranges.
+    The amplitudes of gusts and heater switches are profiled within their ranges. Gusts
+    that started more than ``hold + 3 rise`` before the window are not members: the
+    tails they leave (under 5 % of their depth, decaying) are left to the offset, the slow
+    mode and the noise.
     """
 
     def __init__(self, sensor: object, n: int, block: int, raw_noise: float,
                  grid_factor: float = 1.0) -> None:
+        """Build the family on windows of ``n`` blocks.
+
+        Parameters
+        ----------
+        sensor : skin.models.sensors.SensorDescription
+            The sensor (rate, loop and lag, the disturbances' scale, the heater's mode).
+        n : int
+            The window's length, blocks.
+        block : int
+            Raw samples a block average.
+        raw_noise : float
+            The readout noise's standard deviation per raw sample, K.
+        grid_factor : float
+            The grid's density: ``7 x`` gust rises and ``8 x`` holds, starts every
+            ``0.1 / grid_factor`` s. Members whose profiled energy is under 1e-9 of the
+            largest are dropped.
+        """
         from scipy.linalg import cholesky, solve_triangular
 
         fb = sensor.sample_rate / block
@@ -206,9 +244,14 @@ class Family:
             lo.append(-DUTY_STEP)
             hi.append(DUTY_STEP)
             kind.append("heater")
-        self.shapes = np.array(shapes)
-        self.filters, self.energy = self.whiten(self.shapes.T)
-        self.lo, self.hi, self.kind = np.array(lo), np.array(hi), kind
+        shapes = np.array(shapes)
+        filters, energy = self.whiten(shapes.T)
+        # members the offset and slow mode explain (almost) entirely carry no information
+        # and only make their amplitudes ill-defined: dropped
+        keep = energy >= 1e-9 * float(np.max(energy))
+        self.shapes, self.filters, self.energy = shapes[keep], filters[keep], energy[keep]
+        self.lo, self.hi = np.array(lo)[keep], np.array(hi)[keep]
+        self.kind = [k for k, good in zip(kind, keep, strict=True) if good]
 
     def subset(self, every: int) -> Family:
         """Return the family of every ``every``-th member (the same window and noise)."""
@@ -260,7 +303,30 @@ def null_streams(sensor: object, seed: int, minutes: float, taxels: int, block: 
 
     The streams' own generator without contacts (`skin.bench.streams.stream_chunks`,
     heater switching, drift, gusts and flutter), through the sensor's loop and lag, plus
-    the raw readout noise; the first ``skip`` s dropped.
+    the raw readout noise; the first ``skip`` s dropped. The ``taxels`` of one call share
+    one room random walk (as a stream's taxels do), so they are not independent in it.
+
+    Parameters
+    ----------
+    sensor : skin.models.sensors.SensorDescription
+        The sensor (rate, loop and lag, scaling of the disturbances).
+    seed : int
+        The generator's seed; the readout noise is drawn from ``SeedSequence([seed, 1])``.
+    minutes : float
+        The stream's length.
+    taxels : int
+        Taxels drawn.
+    block : int
+        Raw samples a block average.
+    raw_noise : float
+        The readout noise's standard deviation per raw sample, K.
+    skip : float
+        Seconds dropped at the start.
+
+    Returns
+    -------
+    numpy.ndarray
+        (blocks, taxels), K.
     """
     from skin.bench.streams import stream_chunks
     from skin.commands.evaluate_onset import MATERIALS
@@ -274,7 +340,9 @@ def null_streams(sensor: object, seed: int, minutes: float, taxels: int, block: 
                                  60.0 * minutes, 0.0, fs=fs, seed=seed, chunk=n,
                                  sensor=sensor, _rng=np.random.default_rng(seed)))
     reading = apply_dynamics(part.temperature, sensor, fs, axis=0)
-    rng = np.random.default_rng(seed + 1)
+    # the readout noise's own seed, apart from every piece's (`default_rng(seed + 1)` would
+    # be the next piece's generator)
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))
     reading = reading + rng.normal(0.0, raw_noise, reading.shape)
     reading = reading[int(skip * fs):]
     usable = reading.shape[0] // block * block
@@ -291,6 +359,37 @@ def _count(stat: np.ndarray, h: float, n: int) -> int:
     return count
 
 
+def _refine(stat: Sequence[np.ndarray], level: float, step: float, needed: int,
+            n: int) -> float:
+    """Return the lowest level in ``[level, level + step]`` raising at most ``needed`` alarms.
+
+    Parameters
+    ----------
+    stat : sequence of numpy.ndarray
+        Per taxel, the windows' statistics; every window at or above ``level`` exact.
+    level : float
+        A level at which ``needed`` alarms or more are counted.
+    step : float
+        The grid's step: fewer than ``needed`` alarms are counted at ``level + step``.
+    needed : int
+        The alarms allowed.
+    n : int
+        The window's length, blocks (an alarm restarts the test after it).
+
+    Returns
+    -------
+    float
+        The lowest of the exact statistic values in ``[level, level + step)`` (and
+        ``level + step``) at which the restarted test raises at most ``needed`` alarms: the
+        count only changes at those values, and every window there was computed exactly.
+    """
+    values = np.concatenate([st[(st >= level) & (st < level + step)] for st in stat])
+    for h in np.append(np.unique(values), level + step):
+        if sum(_count(st, float(h), n) for st in stat) <= needed:
+            return float(h)
+    return float(level + step)
+
+
 def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: int,
                    start: float, stop: float, step: float = 0.5, budget: int = 60_000,
                    chunk: int = 256) -> tuple[float, int, str]:
@@ -304,12 +403,33 @@ def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: 
     statistic on the contact: any threshold below it detects every draw), or ``budget``
     windows were weighed.
 
+    Parameters
+    ----------
+    x : numpy.ndarray
+        (blocks, taxels) disturbance-only block averages (`null_streams`).
+    template : numpy.ndarray
+        (n,) the contact's block-averaged template (`block_template`).
+    family : Family
+        The null family on windows of ``n`` blocks.
+    needed : int
+        The alarms allowed on ``x`` (the target rate x its hours).
+    start, stop : float
+        The first level tried, nats; the level under which the search stops (``"below"``).
+    step : float
+        The search grid's first step, nats.
+    budget : int
+        Windows weighed against the whole family, at most.
+    chunk : int
+        Windows weighed at once.
+
     Returns
     -------
     level : float
-        Nats. ``"found"``: the highest level on a grid of ``step`` at which ``needed`` alarms
-        are counted (the threshold for the rate ``needed`` / hours of ``x``). Otherwise
-        fewer than ``needed`` alarms are counted at ``level``, so the threshold is below it.
+        Nats. ``"found"``: the lowest level at which the restarted test raises at most
+        ``needed`` alarms, among the exact statistic values between the highest grid level
+        with ``needed`` alarms or more and the next grid level up (`_refine`): at it the
+        rate on ``x`` is at most ``needed`` / its hours. Otherwise fewer than ``needed``
+        alarms are counted at ``level``, so the threshold is below it.
     windows : int
         Windows weighed against the family.
     status : str
@@ -349,7 +469,8 @@ def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: 
         counts = np.array([sum(_count(st, h, n) for st in stat) for h in hs])
         ok = counts >= needed
         if ok.any():
-            return float(hs[np.flatnonzero(ok)[-1]]), weighed, "found"
+            return _refine(stat, float(hs[np.flatnonzero(ok)[-1]]), step, needed, n), \
+                weighed, "found"
         if level < stop:
             return float(level), weighed, "below"
         if weighed >= budget:
@@ -362,7 +483,8 @@ def measure_gust_oracle(stream: object, sensor: object, which: Sequence[int], se
                         false_alarms: float = TARGET_FALSE_ALARMS, repeats: int = 20,
                         null_hours: float = 40.0, null_minutes: float = 15.0,
                         null_taxels: int = 16, pre: float = 2.0, grid_factor: float = 1.0,
-                        budget: int = 60_000, progress: object | None = None) -> dict:
+                        budget: int = 60_000, found_repeats: int = 200,
+                        progress: object | None = None) -> dict:
     """Return the disturbance-aware oracle's detection of the contacts ``which``.
 
     Parameters
@@ -379,7 +501,11 @@ def measure_gust_oracle(stream: object, sensor: object, which: Sequence[int], se
     false_alarms : float
         The target, per taxel-hour.
     repeats : int
-        Noise draws per contact.
+        Noise draws per contact for the threshold search's stop (the smallest draw's T).
+    found_repeats : int
+        Draws per contact whose threshold was found (its detection is then their share at
+        or above it; the first ``repeats`` draws among them): a share's standard error is
+        at most ``0.5 / sqrt(found_repeats)``.
     null_hours : float
         Taxel-hours of disturbance-only streams on which each contact's threshold is set
         (``false_alarms * null_hours`` alarms counted, at least 1), drawn as pieces of
@@ -400,7 +526,8 @@ def measure_gust_oracle(stream: object, sensor: object, which: Sequence[int], se
     -------
     dict
         Per contact (lists in the order of ``which``): ``detection`` (share of draws with
-        ``T`` at or above the threshold), ``threshold`` and ``threshold_status``
+        ``T`` at or above the threshold), ``draws`` (their number), ``threshold`` and
+        ``threshold_status``
         (`null_threshold`), ``noise_free`` (T of the noise-free template), ``information``
         (the template's energy / 2 in the disturbance metric, nats; the old oracle's is in
         readout noise alone), ``block_kept`` (the share of the template's white-noise
@@ -420,7 +547,7 @@ def measure_gust_oracle(stream: object, sensor: object, which: Sequence[int], se
     rng = np.random.default_rng(seed + 271828)
     families: dict[int, Family] = {}
     out: dict[str, list] = {key: [] for key in ("detection", "threshold", "threshold_status",
-                                                "noise_free", "information", "block_kept")}
+                                                "noise_free", "information", "block_kept", "draws")}
     windows = 0
     for i, k in enumerate(which):
         m = block_template(stream.templates[k], block, pre_blocks, round(fb))
@@ -436,7 +563,11 @@ def measure_gust_oracle(stream: object, sensor: object, which: Sequence[int], se
         h, weighed, status = null_threshold(null, m, fam, needed, start, float(np.min(stat)),
                                             budget=budget)
         windows += weighed
+        if status != "below" and found_repeats > repeats:
+            more = m[:, None] + fam.draw(rng, found_repeats - repeats)
+            stat = np.concatenate([stat, v @ more - 0.5 * q - fam.best(more)])
         out["detection"].append(1.0 if status == "below" else float(np.mean(stat >= h)))
+        out["draws"].append(stat.size)
         out["threshold"].append(h)
         out["threshold_status"].append(status)
         out["noise_free"].append(float(v @ m - 0.5 * q - fam.best(m[:, None])[0]))
