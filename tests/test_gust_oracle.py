@@ -159,3 +159,28 @@ def test_the_counted_threshold_raises_at_most_the_allowed_alarms_brute_force() -
         below = below[below < h - 1e-9]
         if below.size:  # the next value down raises at least `needed` (the grid's level)
             assert sum(_count(st, float(below.max()), n) for st in stats) >= needed
+
+
+@pytest.mark.parametrize("name", ["paper", "pid-logger"])
+def test_frozen_draws_are_free_before_the_onset_and_stopped_during_the_contact(
+        name: str) -> None:
+    from skin.bench.gust_oracle import frozen_draws
+
+    sensor = load_sensor(name)
+    block = block_size(sensor)
+    raw = sensor.noise_kelvin(25.0 + sensor.heated_rise)
+    n = 60
+    cov = covariance(sensor, n, block, raw)
+    # a contact after the window: the free model's covariance (differences from block 0)
+    x = frozen_draws(sensor, n, block, raw, n + 5, n + 50, np.random.default_rng(1), 20_000)
+    for t in (1, 30, 59):
+        want = cov[t, t] + cov[0, 0] - 2.0 * cov[0, t]
+        assert abs(np.var(x[t] - x[0]) / want - 1.0) < 0.05, (t, want)
+    # onset at block 20, release at 40: on the paper's sensor (no loop or lag) only the
+    # readout noise moves the reading from its value before the onset, up to the release
+    x = frozen_draws(sensor, n, block, raw, 20, 40, np.random.default_rng(2), 20_000)
+    free = cov[39, 39] + cov[19, 19] - 2.0 * cov[19, 39]
+    got = np.var(x[39] - x[19])
+    assert got < free
+    if name == "paper":
+        assert abs(got / (2.0 * raw**2 / block) - 1.0) < 0.05

@@ -495,7 +495,8 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
                         budget: float = 4e6, min_duration: float = 0.3,
                         detection_repeats: int = 20, disturbances: bool = False,
                         null_hours: float = 40.0, grid_factor: float = 1.0,
-                        pre: float = 2.0, progress: object | None = None) -> dict:
+                        pre: float = 2.0, freeze: bool = True,
+                        progress: object | None = None) -> dict:
     """Measure the oracle's delay against the floor on `skin evaluate-onset`'s own stream.
 
     The stream is the one ``skin evaluate-onset --sensor S --seed N`` simulates (the same
@@ -534,7 +535,7 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
         gust or heater switch of the streams' own family, drift and flutter in its noise,
         its thresholds set on ``null_hours`` taxel-hours of disturbance-only streams;
         ``detection_repeats`` draws each; the ``disturbance_oracle_*`` figures).
-    null_hours, grid_factor, pre
+    null_hours, grid_factor, pre, freeze
         As for `skin.bench.gust_oracle.measure_gust_oracle`.
     progress : callable, optional
         Called as ``progress(done, total)``.
@@ -679,7 +680,7 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
         # detector if asked) and of the disturbance-aware oracle: a cost ratio in one run
         before = time.process_time()
         gust = _disturbance_figures(stream, sensor, five, seed, false_alarms,
-                                    detection_repeats, null_hours, grid_factor, pre)
+                                    detection_repeats, null_hours, grid_factor, pre, freeze)
         result.update(gust[0])
         result["cpu_s_before_disturbances"] = round(before - cpu, 1)
         result["disturbance_oracle_cpu_s"] = round(time.process_time() - before, 1)
@@ -693,14 +694,15 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
 
 def _disturbance_figures(stream: object, sensor: object, five: Sequence[int], seed: int,
                          false_alarms: float, repeats: int, null_hours: float,
-                         grid_factor: float, pre: float) -> tuple[dict, dict]:
+                         grid_factor: float, pre: float,
+                         freeze: bool = True) -> tuple[dict, dict]:
     """Return the disturbance-aware oracle's figures and its per-contact rows by contact."""
     from skin.bench.gust_oracle import measure_gust_oracle
 
     if not five:
         return {"disturbance_oracle_detected_5sigma": None}, {}
     g = measure_gust_oracle(stream, sensor, five, seed, false_alarms, repeats, null_hours,
-                            pre=pre, grid_factor=grid_factor)
+                            pre=pre, grid_factor=grid_factor, freeze=freeze)
     det = np.asarray(g["detection"])
     draws = np.asarray(g["draws"])
     # the share's standard error over the draws (binomial per contact; 0 where every
@@ -739,6 +741,7 @@ def _disturbance_figures(stream: object, sensor: object, five: Sequence[int], se
         "disturbance_oracle_null_windows": g["windows"],
         "disturbance_oracle_grid_factor": grid_factor,
         "disturbance_oracle_pre_s": pre,
+        "disturbance_oracle_freeze": freeze,
         "disturbance_oracle_family_members_median": int(np.median(
             list(g["family_members"].values()))),
         "disturbance_oracle_contacts": [{"contact": k, **rows[k]} for k in five

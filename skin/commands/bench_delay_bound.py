@@ -64,6 +64,10 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
     p.add_argument("--pre", type=float, default=2.0,
                    help="seconds before the onset in its windows, at least (2; more past "
                         "tells the oracle more: check that its figures have stopped moving)")
+    p.add_argument("--free-contacts", action="store_true",
+                   help="draw its contact-side noise free through the contact (the first "
+                        "version; noisier than the streams, whose generator freezes the drift "
+                        "and flutter from onset to release)")
     p.add_argument("--json", action="store_true", help="print one JSON document")
     p.set_defaults(func=main)
 
@@ -95,6 +99,7 @@ def main(args: argparse.Namespace) -> int:
                               detection_repeats=args.detection_repeats,
                               disturbances=args.disturbances, null_hours=args.null_hours,
                               grid_factor=args.grid_factor, pre=args.pre,
+                              freeze=not args.free_contacts,
                               progress=lambda d, n: progress.bar(d, n, "steps", started))
     progress.done()
     out = {"machine": machine(), **out, "wall_time": round(time.monotonic() - started, 2)}
