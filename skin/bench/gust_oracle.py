@@ -59,14 +59,15 @@ out; its falling short rules nothing out. What it is told: the exact template (s
 and onset) and the generator's Gaussian model of the drift and flutter; ``--grid-factor 2``
 halves the grid's steps (a check that the figures do not move) and ``--pre`` sets the past
 before the onset (more of it tells the oracle more: the drift's and a gust's state at the
-onset). Where it is pessimistic: the stream generator freezes the drift, flutter, gusts
-and heater switches from a contact's onset to its release (`skin.bench.streams`'s
-``_write_contact``: the touching trace replaces the free reading; after release the free
-reading plus the recovery), but the contact-side draws here carry the drift and flutter
-through the whole window, and the contact hypothesis's covariance is the free one: the
-contact side is noisier than the generator's data, so its detections are low on that
-account. What it does not do: scan the candidate onsets near the true one on the contact
-(a scanner might alarm at a neighbouring window too; those fit the template worse).
+onset). The stream generator freezes the drift, flutter, gusts and heater switches from a
+contact's onset to its release (`skin.bench.streams`'s ``_write_contact``: the touching
+trace replaces the free reading; after release the free reading plus the gap times the
+recovery): the contact-side draws follow it (`frozen_draws`; ``freeze=False``, CLI
+``--free-contacts``, draws them free as the first version did, noisier than the data), but
+the test's contact hypothesis keeps the free covariance, so the test is not the best one
+for frozen data (its threshold, set on the null streams, stays right). What it does not
+do: scan the candidate onsets near the true one on the contact (a scanner might alarm at a
+neighbouring window too; those fit the template worse).
 
 ``noise_free_statistic`` (T of the template without noise, half the squared
 noise-normalised distance from the template to the family's nearest member, offset and slow
