@@ -475,7 +475,7 @@ def _refine(stat: Sequence[np.ndarray], level: float, step: float, needed: int,
 def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: int,
                    start: float, stop: float, step: float = 0.5, budget: int = 60_000,
                    chunk: int = 256) -> tuple[float, int, str]:
-    """Search the highest threshold at which the test raises ``needed`` alarms on ``x``.
+    """Search the lowest threshold at which the test raises at most ``needed`` alarms on ``x``.
 
     ``x`` (blocks, taxels) is disturbance-only; every window start is weighed; per taxel, an
     alarm restarts the test after the window's end. T is never above the contact's own LLR,
@@ -483,7 +483,7 @@ def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: 
     family. The level goes down from ``start`` (by ``step``, the step doubling) until
     ``needed`` alarms are counted at it, or it falls below ``stop`` (the caller's smallest
     statistic on the contact: any threshold below it detects every draw), or ``budget``
-    windows were weighed.
+    windows were weighed; a level found is then refined (`_refine`).
 
     Parameters
     ----------
