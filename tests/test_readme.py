@@ -135,7 +135,7 @@ CI_SIZES = [
                                 "--reference-trials", "4", "--points", "3"]),
     (("skin", "bench", "onset-shape"), ["--minutes", "1", "--taxels", "2"]),
     (("skin", "bench", "delay-bound"), ["--minutes", "1", "--taxels", "2", "--check-hours",
-                                        "0.01"]),
+                                        "0.01", "--null-hours", "0.25"]),
     (("skin", "bench", "tracking"), ["--pairs", "2"]),
     (("skin", "bench", "scene"), ["--seeds", "7", "--duration", "6"]),
     (("skin", "bench", "fit-calibration"), ["--scene", "default", "--seeds", "7"]),

@@ -493,7 +493,9 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
                         taxels: int = 16, false_alarms: float = TARGET_FALSE_ALARMS,
                         check_hours: float | None = None, detector: bool = False,
                         budget: float = 4e6, min_duration: float = 0.3,
-                        detection_repeats: int = 20,
+                        detection_repeats: int = 20, disturbances: bool = False,
+                        null_hours: float = 40.0, grid_factor: float = 1.0,
+                        pre: float = 2.0, freeze: bool = True,
                         progress: object | None = None) -> dict:
     """Measure the oracle's delay against the floor on `skin evaluate-onset`'s own stream.
 
@@ -527,6 +529,14 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
         (``oracle_detected_5sigma``: the mean over the 5-sigma contacts of the share of draws
         in which the oracle, at its own threshold for ``false_alarms``, alarms by the end of
         the window in which evaluate-onset still credits an alarm to the contact).
+    disturbances : bool
+        Also give the disturbance-aware oracle's detection of the 5-sigma contacts
+        (`skin.bench.gust_oracle.measure_gust_oracle`: the contact told from the best-fitting
+        gust or heater switch of the streams' own family, drift and flutter in its noise,
+        its thresholds set on ``null_hours`` taxel-hours of disturbance-only streams;
+        ``detection_repeats`` draws each; the ``disturbance_oracle_*`` figures).
+    null_hours, grid_factor, pre, freeze
+        As for `skin.bench.gust_oracle.measure_gust_oracle`.
     progress : callable, optional
         Called as ``progress(done, total)``.
 
@@ -535,11 +545,14 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
     dict
         The figures (see ``skin bench delay-bound --help``).
     """
+    import time
+
     from skin.bench.streams import delay_bound as lorden_bound
     from skin.bench.streams import simulate_stream
     from skin.commands.evaluate_onset import MATERIALS
     from skin.models import load_materials
 
+    cpu = time.process_time()
     table = load_materials()
     stream = simulate_stream([table[n] for n in MATERIALS.split(",")], n_taxels=taxels,
                              duration=60.0 * minutes, seed=seed, sensor=sensor)
@@ -661,10 +674,99 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
         if weighed else None,
         "false_alarm_check": check,
     }
+    gust = None
+    if disturbances:
+        # CPU seconds of everything before (the stream, the plain oracle and its checks, the
+        # detector if asked) and of the disturbance-aware oracle: a cost ratio in one run
+        before = time.process_time()
+        gust = _disturbance_figures(stream, sensor, five, seed, false_alarms,
+                                    detection_repeats, null_hours, grid_factor, pre, freeze)
+        result.update(gust[0])
+        result["cpu_s_before_disturbances"] = round(before - cpu, 1)
+        result["disturbance_oracle_cpu_s"] = round(time.process_time() - before, 1)
     if run is not None:
         result.update(_detector_figures(stream, run[0], which, ratio))
         result.update(_detector_misses(stream, sensor, run, five, chance, ratio))
+        if gust is not None:
+            _misses_against_disturbances(result, gust[1])
     return result
+
+
+def _disturbance_figures(stream: object, sensor: object, five: Sequence[int], seed: int,
+                         false_alarms: float, repeats: int, null_hours: float,
+                         grid_factor: float, pre: float,
+                         freeze: bool = True) -> tuple[dict, dict]:
+    """Return the disturbance-aware oracle's figures and its per-contact rows by contact."""
+    from skin.bench.gust_oracle import measure_gust_oracle
+
+    if not five:
+        return {"disturbance_oracle_detected_5sigma": None}, {}
+    g = measure_gust_oracle(stream, sensor, five, seed, false_alarms, repeats, null_hours,
+                            pre=pre, grid_factor=grid_factor, freeze=freeze)
+    det = np.asarray(g["detection"])
+    draws = np.asarray(g["draws"])
+    # the share's standard error over the draws (binomial per contact; 0 where every
+    # draw is detected at a level the null streams do not reach, "below")
+    se = float(np.sqrt(np.sum(det * (1.0 - det) / draws))) / det.size
+    h = np.asarray(g["threshold"])
+    found = np.asarray([s == "found" for s in g["threshold_status"]])
+    nf = np.asarray(g["noise_free"])
+    # a contact the family mimics: its noise-free statistic under the threshold (for a
+    # contact whose threshold was not needed, "below", it is above every draw's, so not)
+    mimic = found & (nf < h)
+    rows = {k: {"detection": round(float(det[i]), 3),
+                "threshold": round(float(h[i]), 2), "threshold_status": g["threshold_status"][i],
+                "noise_free_statistic": round(float(nf[i]), 2),
+                "information": round(float(g["information"][i]), 1),
+                "mimicked": bool(mimic[i]), "draws": int(draws[i])}
+            for i, k in enumerate(five)}
+    statuses = {s: g["threshold_status"].count(s) for s in sorted(set(g["threshold_status"]))}
+    figures = {
+        "disturbance_oracle_detected_5sigma": round(float(det.mean()), 4),
+        "disturbance_oracle_detected_5sigma_se": round(se, 4),
+        "disturbance_oracle_draws_found": (int(draws[found].min()) if found.any() else None),
+        "disturbance_oracle_under_half": int(np.sum(det < 0.5)),
+        "disturbance_oracle_under_99": int(np.sum(det < 0.99)),
+        "disturbance_oracle_mimicked": int(mimic.sum()),
+        "disturbance_oracle_threshold_status": statuses,
+        "disturbance_oracle_threshold_found_range": (
+            [round(float(h[found].min()), 2), round(float(h[found].max()), 2)]
+            if found.any() else None),
+        "disturbance_oracle_information_5sigma_min": round(float(np.min(g["information"])), 1),
+        "disturbance_oracle_block_information_kept_min": round(float(np.min(g["block_kept"])),
+                                                               5),
+        "disturbance_oracle_block": g["block"],
+        "disturbance_oracle_null_taxel_hours": round(g["null_taxel_hours"], 2),
+        "disturbance_oracle_alarms_needed": g["alarms_needed"],
+        "disturbance_oracle_null_windows": g["windows"],
+        "disturbance_oracle_grid_factor": grid_factor,
+        "disturbance_oracle_pre_s": pre,
+        "disturbance_oracle_freeze": freeze,
+        "disturbance_oracle_family_members_median": int(np.median(
+            list(g["family_members"].values()))),
+        "disturbance_oracle_contacts": [{"contact": k, **rows[k]} for k in five
+                                        if rows[k]["detection"] < 0.99],
+    }
+    return figures, rows
+
+
+def _misses_against_disturbances(result: dict, rows: dict) -> None:
+    """Add the disturbance-aware oracle's view of each detector miss to ``result``."""
+    misses = result.get("detector_missed_5sigma", [])
+    for row in misses:
+        d = rows.get(row["contact"])
+        if d is not None:
+            row["disturbance_oracle_detection"] = d["detection"]
+            row["disturbance_oracle_mimicked"] = d["mimicked"]
+    result["detector_misses_5sigma_disturbance_oracle"] = {
+        "missed": len(misses),
+        "oracle_detects_half": int(sum(rows[r["contact"]]["detection"] >= 0.5
+                                       for r in misses if r["contact"] in rows)),
+        "oracle_detects_99": int(sum(rows[r["contact"]]["detection"] >= 0.99
+                                     for r in misses if r["contact"] in rows)),
+        "mimicked": int(sum(rows[r["contact"]]["mimicked"] for r in misses
+                            if r["contact"] in rows)),
+    }
 
 
 def _run_detector(stream: object, sensor: object) -> tuple[dict, object]:
