@@ -222,3 +222,16 @@ def test_bench_calibration_prints_recovery():
         assert doc["fitted_error"][key]["median"] < 0.05
     th = doc["thermistors"]
     assert th["fitted_max_error_k"]["median"] < 0.05 < th["nominal_max_error_k"]["median"]
+
+
+def test_the_evaluation_counts_the_holes_that_kept_the_flat_envelope_margin():
+    # a quiet stream at the detector's nominal 200 Hz: no restarts; every tenth sample
+    # dropped: each gap is a hole that restarts the envelope margin's settle clock
+    s = simulate_stream([MATS["glass"]], n_taxels=2, duration=20.0, contacts_per_minute=0.0,
+                        disturbances=False, seed=3)
+    whole = evaluate_onsets(s.times, s.temperature, [], s.fs)
+    assert whole["settle_restarts"] == 0
+    keep = np.arange(s.times.size) % 10 != 9
+    holes = evaluate_onsets(s.times[keep], s.temperature[keep], [], s.fs)
+    gaps = int(np.sum(np.diff(s.times[keep]) > 1.5 / s.fs))
+    assert holes["settle_restarts"] == 2 * gaps > 0

@@ -534,7 +534,8 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
         (`skin.bench.gust_oracle.measure_gust_oracle`: the contact told from the best-fitting
         gust or heater switch of the streams' own family, drift and flutter in its noise,
         its thresholds set on ``null_hours`` taxel-hours of disturbance-only streams;
-        ``detection_repeats`` draws each; the ``disturbance_oracle_*`` figures).
+        200 draws for a contact whose threshold is found, ``detection_repeats`` for one
+        below every null level; the ``disturbance_oracle_*`` figures).
     null_hours, grid_factor, pre, freeze
         As for `skin.bench.gust_oracle.measure_gust_oracle`.
     progress : callable, optional

@@ -63,7 +63,7 @@ onset). The stream generator freezes the drift, flutter, gusts and heater switch
 contact's onset to its release (`skin.bench.streams`'s ``_write_contact``: the touching
 trace replaces the free reading; after release the free reading plus the gap times the
 recovery): the contact-side draws follow it (`frozen_draws`; ``freeze=False``, CLI
-``--free-contacts``, draws them free as the first version did, noisier than the data), but
+``--free-contacts``, draws them free through the contact, noisier than the data), but
 the test's contact hypothesis keeps the free covariance, so the test is not the best one
 for frozen data (its threshold, set on the null streams, stays right). What it does not
 do: scan the candidate onsets near the true one on the contact (a scanner might alarm at a
@@ -604,7 +604,7 @@ def measure_gust_oracle(stream: object, sensor: object, which: Sequence[int], se
     freeze : bool
         Draw the contact side's noise as the generator makes it (`frozen_draws`: the drift
         and flutter stopped from onset to release); otherwise free (as the test's contact
-        hypothesis assumes, which the first version drew: noisier than the data).
+        hypothesis assumes: noisier than the data).
     progress : callable, optional
         Called as ``progress(done, total)``.
 

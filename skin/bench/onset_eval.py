@@ -201,6 +201,9 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
                        else None),
         "detector_us_per_taxel_sample": round(1e6 * detect_s / (n * n_taxels), 4),
         "refine_ms_per_onset": round(1e3 * refine_s / max(len(found), 1), 3),
+        # holes (gaps over 1.5 nominal sample periods) that restarted the envelope margin's
+        # settle clock, summed over taxels: many mean the flat margin ran
+        "settle_restarts": int(state.settle_restarts.sum()),
         "detected_flags": [k in found for k in keys],
         "events": events,
         "delay_s": [delay.get(k) for k in keys],

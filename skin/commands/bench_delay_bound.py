@@ -65,9 +65,9 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
                    help="seconds before the onset in its windows, at least (2; more past "
                         "tells the oracle more: check that its figures have stopped moving)")
     p.add_argument("--free-contacts", action="store_true",
-                   help="draw its contact-side noise free through the contact (the first "
-                        "version; noisier than the streams, whose generator freezes the drift "
-                        "and flutter from onset to release)")
+                   help="draw its contact-side noise free through the contact (as its "
+                        "contact hypothesis assumes; noisier than the streams, whose generator "
+                        "freezes the drift and flutter from onset to release)")
     p.add_argument("--json", action="store_true", help="print one JSON document")
     p.set_defaults(func=main)
 

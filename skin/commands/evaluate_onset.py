@@ -80,9 +80,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--envelope-sigmas", type=float, default=None, metavar="Z",
                     help="the detector's gust-envelope noise margin, sigmas: the z of the "
                          "fall's noise table (default the false-alarm target's Gaussian "
-                         "quantile per sample, 4.7-5.4); the table's margin stays capped by, "
-                         "and before the filters settle is, the flat 8 sigmas, so a Z above 8 "
-                         "changes nothing once the table is above the cap. With "
+                         "quantile per sample, 4.7-5.4); where Z x the table exceeds the flat 8 "
+                         "sigmas the flat margin applies (and before the filters settle), so "
+                         "a larger Z brings the margin closer to --flat-envelope's. With "
                          "--flat-envelope: the flat margin's sigmas (default 8). Diagnosis: "
                          "what sets the delay; with --sensor")
     ev.add_argument("--flat-envelope", action="store_true",

@@ -729,14 +729,15 @@ class OnsetDetector:
         The gust-envelope test's noise margin, in sigmas. With ``envelope_noise`` (the
         default): the ``z`` the noise table is scaled by (default the Gaussian quantile of
         ``false_alarm_rate`` per sample, 4.7-5.4); the cap and the margin before the filters
-        settle stay `FLAT_SIGMAS` (8) flat sigmas, so a ``z`` above 8 only changes the margin
-        where the table is below the cap. Without it (default 8): sigmas of
-        the reading it looks at (its running noise estimate or its smoothed readout noise,
-        the larger). The drop it tests is measured from an extrapolated baseline, whose own
-        noise this margin covers too: a flat margin at the Gaussian quantile (5.1-5.4)
-        instead of 8 raised low-cost's noise-driven false alarms ten-fold (seed 0: 0.75 ->
-        7.75 per taxel-hour) while fast-film's delay / floor fell 1.99 -> 1.72 (`skin
-        evaluate-onset --sensor P --seed 0 --envelope-sigmas Z --json`).
+        settle stay `FLAT_SIGMAS` (8) flat sigmas: where ``z`` x the table exceeds them the
+        flat margin applies, so a larger ``z`` brings the margin closer to the flat one.
+        Without it (default 8): sigmas of the reading it looks at (its running noise
+        estimate or its smoothed readout noise, the larger). The drop it tests is measured
+        from an extrapolated baseline, whose own noise this margin covers too: a flat margin
+        at the Gaussian quantile (5.1-5.4) instead of 8 raised low-cost's noise-driven false
+        alarms ten-fold (seed 0: 0.75 -> 7.75 per taxel-hour) while fast-film's delay /
+        floor fell 1.99 -> 1.72 (`skin evaluate-onset --sensor P --seed 0 --flat-envelope
+        --envelope-sigmas Z --json`).
     envelope_noise : bool
         Default True: the margin from the drop's own noise at the time since its reference
         (`drop_noise`: the readout noise through the smoothing and the baseline's
@@ -758,8 +759,7 @@ class OnsetDetector:
         floor 1.97-1.99 -> 1.76-1.77 and paper's 1.34-1.36 -> 1.23-1.25, with no lower
         detection and no more false alarms on any preset; low-cost's and pid-logger's
         figures are unchanged but for pid-logger seed 6, where two more contacts are
-        detected and the median delay / floor over the detected ones rises 2.201 -> 2.225
-        (the contacts both detect: the same median, none later).
+        detected and the median delay / floor over the detected ones rises 2.201 -> 2.225.
     gust_depth : float, optional
         The air's deepest gust, K (default: `GUST_DEPTH` of the sensor's heated rise, the
         simulator's family, `skin.bench.streams`: not a measured figure of any real air).
