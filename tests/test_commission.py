@@ -505,30 +505,42 @@ def test_bench_commission_fits_a_fast_film_unit_from_detected_touches(capsys):
     assert "--touches at least 2" in capsys.readouterr().err
 
 
+def _found_touches(preset_name: str, touches: int, contact: str | None = None):
+    """Simulate `skin bench commission`'s reference scene (seed 7, 2 taxels, ``touches``
+    each) on a preset and find its touches as commissioning does.
+
+    Returns the touches, the left-out ones, each touch's onset error against the nearest
+    scripted start (s), and the taxels' sensor descriptions."""
+    from skin.bench.commission import scene_text
+    from skin.drivers.sim import SkinSimulator
+    from skin.formats.scene import parse_scene
+    from skin.models.commission import described, find_touches, hold_and_rest
+    from skin.models.sensors import load_sensor
+
+    hold, rest = hold_and_rest([load_sensor(preset_name)])
+    scene = parse_scene(scene_text(preset_name, 7, 2, touches, hold, rest, 0.1),
+                        f"{preset_name}.toml")
+    sim = SkinSimulator(scene, contact=contact)
+    frames = list(sim.frames())
+    y, _ = sim.calibration.temperature(np.array([f.counts for f in frames])[:, sim._addr])
+    t = np.array([f.device_time for f in frames])
+    sensors = described(scene.layout, CalibrationFile().apply(scene.layout)[1])
+    found, left = find_touches(t, y, scene.layout, sensors)
+    starts = np.array([tc.start for tc in scene.touches])
+    err = np.array([on - starts[np.argmin(np.abs(starts - on))] for _, on, *_ in found])
+    return found, left, err, sensors
+
+
 def test_fast_film_reference_touches_are_dated_with_their_heater_drain():
     """`find_touches` dates each touch with its taxel's sensor description: a heater switched
     off at contact drains the body from the first instant, and without its term the touches
     were dated up to 20 ms early (seed 7, 2 taxels: signed median -4 ms, min -20 ms; with
     it -2 ms, -7..+1 ms; seeds 11 and 5: -11..+3 and -13..+2 ms before, -1..+8 and 0..+6
     after). The commissioning fit may move an onset by only 24 ms on fast-film."""
-    from skin.bench.commission import scene_text
-    from skin.drivers.sim import SkinSimulator
-    from skin.formats.scene import parse_scene
-    from skin.models.commission import described, find_touches, hold_and_rest, onset_search
-    from skin.models.sensors import load_sensor
+    from skin.models.commission import onset_search
 
-    preset = load_sensor("fast-film")
-    hold, rest = hold_and_rest([preset])
-    scene = parse_scene(scene_text("fast-film", 7, 2, 6, hold, rest, 0.1), "ff.toml")
-    sim = SkinSimulator(scene)
-    frames = list(sim.frames())
-    y, _ = sim.calibration.temperature(np.array([f.counts for f in frames])[:, sim._addr])
-    t = np.array([f.device_time for f in frames])
-    sensors = described(scene.layout, CalibrationFile().apply(scene.layout)[1])
-    touches, left = find_touches(t, y, scene.layout, sensors)
+    touches, left, err, sensors = _found_touches("fast-film", 6)
     assert len(touches) == 12 and not any(left.values())
-    starts = np.array([tc.start for tc in scene.touches])
-    err = np.array([on - starts[np.argmin(np.abs(starts - on))] for _, on, *_ in touches])
     assert np.all(np.abs(err) <= 0.010) and abs(np.median(err)) <= 0.004
     assert 0.010 < onset_search(sensors[0])  # the fit can take it from there
 
@@ -786,22 +798,6 @@ def test_pid_held_touches_end_at_their_lift_off():
     detector's release came 1-3 s after every onset and the lift-off's overshoot looked like
     a warm touch, so every touch was left out (short and rising). The touch now ends at the
     taxel's next onset, and each is dated near its start."""
-    from skin.bench.commission import scene_text
-    from skin.drivers.sim import SkinSimulator
-    from skin.formats.scene import parse_scene
-    from skin.models.commission import described, find_touches, hold_and_rest
-    from skin.models.sensors import load_sensor
-
-    preset = load_sensor("pid-logger")
-    hold, rest = hold_and_rest([preset])
-    scene = parse_scene(scene_text("pid-logger", 7, 2, 2, hold, rest, 0.1), "pid.toml")
-    sim = SkinSimulator(scene, contact="finite")
-    frames = list(sim.frames())
-    y, _ = sim.calibration.temperature(np.array([f.counts for f in frames])[:, sim._addr])
-    t = np.array([f.device_time for f in frames])
-    sensors = described(scene.layout, CalibrationFile().apply(scene.layout)[1])
-    touches, left = find_touches(t, y, scene.layout, sensors)
+    touches, left, err, _ = _found_touches("pid-logger", 2, "finite")
     assert len(touches) == 4 and not any(left.values())
-    starts = np.array([tc.start for tc in scene.touches])
-    err = np.array([on - starts[np.argmin(np.abs(starts - on))] for _, on, *_ in touches])
     assert np.all(np.abs(err) <= 0.3)

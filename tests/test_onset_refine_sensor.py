@@ -196,13 +196,26 @@ def test_a_sensor_at_ambient_with_no_contact_gives_a_finite_onset(name: str) -> 
     assert initial == pytest.approx(25.0)
 
 
+def _through_a_gust(t: np.ndarray, y: np.ndarray, t_on: float, depth: tuple[float, float],
+                    flutter: float, sensor: object, rng: np.random.Generator) -> np.ndarray:
+    """Return ``y`` with a gust (depth drawn in ``depth``, K, starting 0-2 s before ``t_on``,
+    rising over 1-4 s) and the air's flutter (sd ``flutter`` before the 0.5 s low-pass),
+    both through the sensor's dynamics and smoothing."""
+    from scipy.signal import lfilter
+
+    fs = sensor.sample_rate
+    gust = -rng.uniform(*depth) * -np.expm1(-np.maximum(t - t_on - rng.uniform(-2.0, 0.0),
+                                                         0.0) / rng.uniform(1.0, 4.0))
+    a = np.exp(-1.0 / (0.5 * fs))
+    air = lfilter([1 - a], [1, -a], rng.normal(0, flutter, t.size)) * np.sqrt(fs)
+    return y + smooth(apply_dynamics(gust + air, sensor, fs), sensor, fs=fs)
+
+
 def test_a_slow_sensor_is_dated_through_a_gust() -> None:
     # a gust cooling the face over seconds, and the air's flutter, during a pid-logger
     # contact: fitted as white noise the slow cooling passes for the contact's own slow
     # departure and dates it 100-350 ms early; whitened by the residual's own lag-1
     # autocorrelation it is dated within tens of ms
-    from scipy.signal import lfilter
-
     sensor = load_sensor("pid-logger")
     fs = sensor.sample_rate
     rng = np.random.default_rng(7)
@@ -211,11 +224,7 @@ def test_a_slow_sensor_is_dated_through_a_gust() -> None:
     for _ in range(10):
         t_on = 20.0 + rng.uniform(0, 1 / fs)
         t, y, t0 = _heated_contact(sensor, "glass", 3000.0, t_on)
-        gust = -rng.uniform(0.04, 0.2) * -np.expm1(-np.maximum(t - t_on - rng.uniform(-2.0, 0.0),
-                                                               0.0) / rng.uniform(1.0, 4.0))
-        a = np.exp(-1.0 / (0.5 * fs))
-        flutter = lfilter([1 - a], [1, -a], rng.normal(0, 0.0072, t.size)) * np.sqrt(fs)
-        y = y + smooth(apply_dynamics(gust + flutter, sensor, fs), sensor, fs=fs)
+        y = _through_a_gust(t, y, t_on, (0.04, 0.2), 0.0072, sensor, rng)
         coarse = t_on + 0.9
         near = (t >= coarse - search) & (t <= coarse + horizon)
         onset, _ = refine_onset(t[near], y[near], coarse, t0, 0.0, sensor.depth,
@@ -240,8 +249,6 @@ def test_a_slow_heated_sensor_is_dated_through_a_gust(material: str, h: float,
     # glass, 1072 ms on brick, whose contact does close slowly, each contact with its own
     # noise draw); whitened by the residual's lag-1 autocorrelation, the rate kept only when
     # Schwarz's criterion asks on the whitened samples: 172 and 432 ms
-    from scipy.signal import lfilter
-
     sensor = load_sensor("low-cost")
     fs = sensor.sample_rate
     rng = np.random.default_rng(11)
@@ -250,11 +257,7 @@ def test_a_slow_heated_sensor_is_dated_through_a_gust(material: str, h: float,
     for _ in range(12):
         t_on = 20.0 + rng.uniform(0, 1 / fs)
         t, y, t0 = _heated_contact(sensor, material, h, t_on, noise=1.0, rng=rng)
-        gust = -rng.uniform(0.1, 0.5) * -np.expm1(-np.maximum(t - t_on - rng.uniform(-2.0, 0.0),
-                                                              0.0) / rng.uniform(1.0, 4.0))
-        a = np.exp(-1.0 / (0.5 * fs))
-        flutter = lfilter([1 - a], [1, -a], rng.normal(0, 0.02, t.size)) * np.sqrt(fs)
-        y = y + smooth(apply_dynamics(gust + flutter, sensor, fs), sensor, fs=fs)
+        y = _through_a_gust(t, y, t_on, (0.1, 0.5), 0.02, sensor, rng)
         coarse = t_on + 2.0
         near = (t >= coarse - search) & (t <= coarse + horizon)
         onset, _ = refine_onset(t[near], y[near], coarse, t0, 0.0, sensor.depth,
