@@ -149,6 +149,16 @@ def test_unknown_onsets_are_found_by_the_detector():
     err = found.onset / ds.fs - ds.extra["true_onset_time"]
     assert np.all(np.abs(err) < 0.3)
     assert np.median(np.abs(err)) < 0.15
+    # trials logged at 20 Hz: the detector runs at their rate (it ran at the paper's 200 Hz,
+    # smoothing and CUSUM thresholds 10x too long: one onset 0.95 s off on this set)
+    mats = [MATS[m] for m in ("glass", "pine", "aluminium")]
+    ds = simulate_trials(mats, Protocol(trials=10, pre=1.5), seed=5)
+    slow = TrialSet(ds.temperature[..., ::10].copy(), ds.fs / 10, ds.label,
+                    np.full(len(ds), -1), ds.ambient, ds.group, ds.taxel, ds.extra, ds.source)
+    err = with_detected_onsets(slow).onset / slow.fs - ds.extra["true_onset_time"]
+    assert np.all(np.abs(err) < 0.3)
+    with pytest.raises(DatasetError, match="sample_rate"):  # no description takes 2 Hz
+        with_detected_onsets(dataclasses.replace(slow, fs=2.0))
     flat = TrialSet(np.full((2, 400), 30.0), 200.0, np.array(["a", "b"]), np.array([-1, 50]))
     with pytest.raises(DatasetError, match="no contact onset found in trial 0"):
         with_detected_onsets(flat)

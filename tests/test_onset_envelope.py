@@ -104,7 +104,7 @@ def test_gust_envelope_is_chunk_invariant(sizes, preset):
 def test_average_noise_matches_the_noise_of_averaged_smoothed_readings(preset):
     # the slow channel's and the envelope's margins: the noise of the detector's average of a
     # reading the sensor smoothed (correlated noise: an average removes less than of white)
-    from skin.stream.onset import _average_noise
+    from skin.stream.onset import average_noise
 
     sensor = load_sensor(preset)
     fs = sensor.sample_rate
@@ -114,10 +114,10 @@ def test_average_noise_matches_the_noise_of_averaged_smoothed_readings(preset):
         g = 1.0 - np.exp(-1.0 / (fs * tau))
         averaged = lfilter([g], [1.0, g - 1.0], delivered - delivered.mean(axis=0), axis=0)
         measured = averaged[round(20 * tau * fs):].std() / delivered.std()
-        assert _average_noise(sensor, tau) == pytest.approx(measured, rel=0.1)
+        assert average_noise(sensor, tau) == pytest.approx(measured, rel=0.1)
     if sensor.smoothing == "none":
         g = 1.0 - np.exp(-1.0 / (fs * 0.03))
-        assert _average_noise(sensor, 0.03) == pytest.approx(np.sqrt(g / (2.0 - g)))
+        assert average_noise(sensor, 0.03) == pytest.approx(np.sqrt(g / (2.0 - g)))
 
 
 def test_an_envelope_onset_as_the_slow_window_runs_out_re_bases_from_where_the_fall_began():

@@ -158,9 +158,20 @@ def test_evaluate_onset_command_on_a_stream_and_on_trials(tmp_path):
     assert out.returncode == 0, out.stderr
     doc = json.loads(out.stdout)
     assert doc["contacts"] == 12 and doc["detection_rate"] > 0.8
+    # a recording at 20 Hz is judged at its own rate (the paper's sensor, re-rated)
+    from skin.formats.dataset import load_trials
+
+    data = load_trials(tmp_path / "t.npz")
+    np.savez(tmp_path / "slow.npz", temperature=data.temperature[..., ::10], fs=data.fs / 10,
+             label=data.label, onset=data.onset // 10)
+    out = skin("evaluate-onset", "--data", str(tmp_path / "slow.npz"), "--json")
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout)
+    assert "sensor paper at the recording's 20 Hz" in doc["source"]
+    assert doc["contacts"] == 12 and doc["detection_rate"] > 0.8
     out = skin("evaluate-onset", "--materials", "unobtainium")
     assert out.returncode == 2 and "unobtainium" in out.stderr
-    # the common mode is the detector's: refused where the evaluation sets no detector
+    # the common mode needs a described sensor, a calibration or a commissioning
     out = skin("evaluate-onset", "--data", str(tmp_path / "t.npz"), "--common-mode")
     assert out.returncode == 2 and "--common-mode" in out.stderr
 

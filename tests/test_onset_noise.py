@@ -201,14 +201,16 @@ def test_evaluate_onset_per_sensor_reports_the_issue_figures(capsys):
     assert doc["sensor"] == "fast-film" and 0 <= doc["detected_5sigma"] <= 1
     assert "delay_s" not in doc and "detected_flags" not in doc
     assert main(["evaluate-onset", "--sensor", "nonesuch", "--minutes", "1"]) == 2
-    # the diagnosis knobs: named in the source, and refused without a sensor or when not positive
+    # the diagnosis knobs: named in the source (without --sensor, on the paper's detector), and
+    # refused when not positive
     assert main(["evaluate-onset", "--sensor", "fast-film", "--taxels", "2", "--minutes", "0.5",
                  "--envelope-sigmas", "5", "--smooth-tau", "0.01", "--json"]) == 0
     knobbed = json.loads(capsys.readouterr().out)
     assert "envelope sigmas 5, smooth tau 0.01" in knobbed["source"]
     assert "noise-table envelope margin" in knobbed["source"]
-    assert main(["evaluate-onset", "--envelope-sigmas", "5", "--minutes", "0.5"]) == 2
-    assert main(["evaluate-onset", "--flat-envelope", "--minutes", "0.5"]) == 2
+    assert main(["evaluate-onset", "--flat-envelope", "--taxels", "2", "--minutes", "0.5",
+                 "--json"]) == 0
+    assert "flat envelope margin" in json.loads(capsys.readouterr().out)["source"]
     assert main(["evaluate-onset", "--sensor", "paper", "--taxels", "2", "--minutes", "0.5",
                  "--flat-envelope", "--json"]) == 0
     assert "flat envelope margin" in json.loads(capsys.readouterr().out)["source"]

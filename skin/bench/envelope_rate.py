@@ -74,7 +74,7 @@ def envelope_false_alarms(sensor: object, hours: float, taxels: int = 64, seed: 
     from scipy.signal import lfilter
 
     from skin.models.sensors import load_sensor
-    from skin.stream.onset import FLAT_SIGMAS, OnsetDetector, _average_noise, drop_noise
+    from skin.stream.onset import FLAT_SIGMAS, OnsetDetector, average_noise, drop_noise
 
     sensor = load_sensor(sensor)
     if not hours > 0 or taxels < 1:
@@ -87,7 +87,7 @@ def envelope_false_alarms(sensor: object, hours: float, taxels: int = 64, seed: 
                               det.slow_tau)
     # the flat margin, in units of the delivered noise: 8 x the larger of the running
     # estimate (settled: the residual's) and the smoothed reading's noise
-    flat = FLAT_SIGMAS * max(resid, _average_noise(sensor, det.smooth_tau))
+    flat = FLAT_SIGMAS * max(resid, average_noise(sensor, det.smooth_tau))
     h = sensor.smoothing_impulse()
     h = h / np.sqrt(np.sum(h**2))  # the delivered reading's noise: 1
     g_s, g_l, g_b = (-math.expm1(-dt / tau) for tau in (det.smooth_tau, det.level_tau,

@@ -225,10 +225,6 @@ def main(args: argparse.Namespace) -> int:
             and not args.commissioned:
         raise SkinError("--common-mode sets the detector's common mode: give --sensor, "
                         "--calibration or --commissioned too")
-    if (args.envelope_sigmas is not None or args.smooth_tau is not None
-            or args.flat_envelope) and args.sensor is None:
-        raise SkinError("--envelope-sigmas, --flat-envelope and --smooth-tau "
-                        "set the detector: give --sensor too")
     if any(v is not None and not v > 0 for v in (args.envelope_sigmas, args.smooth_tau)):
         raise SkinError("--envelope-sigmas and --smooth-tau must be positive")
     if args.commissioned and (args.data or args.calibration):
@@ -284,7 +280,6 @@ def main(args: argparse.Namespace) -> int:
         source = (f"simulated stream ({args.taxels} taxels, {args.minutes:g} min, "
                   f"{'quiet' if args.quiet else 'with disturbances'}, "
                   + (f"{args.warm:g} warm, " if args.warm else "") + f"seed {args.seed})")
-    detector = None
     sigma = None
     if args.calibration is not None:
         sigma = _commissioned_noise(args.calibration, temperature.shape[1])
@@ -292,33 +287,41 @@ def main(args: argparse.Namespace) -> int:
     if args.commissioned:
         sigma = _commissioned_elsewhere(table, names, args.taxels, args.seed + 1000, sensor)
         source += f", noise commissioned on unit seed {args.seed + 1000}"
-    if args.sensor is not None or sigma is not None:
-        from skin.stream.onset import OnsetDetector
+    from skin.models.sensors import load_sensor
+    from skin.stream.onset import OnsetDetector
 
-        knobs = {k: v for k, v in (("envelope_sigmas", args.envelope_sigmas),
-                                   ("smooth_tau", args.smooth_tau)) if v is not None}
-        if args.flat_envelope:
-            knobs["envelope_noise"] = False
-        detector = OnsetDetector(temperature.shape[1], sensor=sensor, sigma=sigma,
-                                 common_mode=args.common_mode, **knobs)
-        source += "".join(f", {k.replace('_', ' ')} {v:g}" for k, v in knobs.items()
-                          if k != "envelope_noise")
-        source += "" if sensor is None else f", sensor {sensor.name}"
-        source += ", common mode" if args.common_mode else ""
-    # which gust-envelope margin ran (evaluate_onsets' own detector: the default, the table)
-    source += (", flat envelope margin" if detector is not None and not detector.envelope_noise
+    # the detector's smoothing, CUSUM thresholds and hole test are per sample: a recording is
+    # judged at its own rate whatever the description's (default: the paper's sensor)
+    judged = load_sensor(sensor)
+    if judged.sample_rate != fs:
+        try:
+            judged = judged.with_body(sample_rate=fs)
+        except SkinError as exc:
+            raise SkinError(f"{args.data}: {exc}") from None
+        source += f", sensor {judged.name} at the recording's {fs:g} Hz"
+    elif sensor is not None:
+        source += f", sensor {sensor.name}"
+    knobs = {k: v for k, v in (("envelope_sigmas", args.envelope_sigmas),
+                               ("smooth_tau", args.smooth_tau)) if v is not None}
+    if args.flat_envelope:
+        knobs["envelope_noise"] = False
+    detector = OnsetDetector(temperature.shape[1], sensor=judged, sigma=sigma,
+                             common_mode=args.common_mode, **knobs)
+    source += "".join(f", {k.replace('_', ' ')} {v:g}" for k, v in knobs.items()
+                      if k != "envelope_noise")
+    source += ", common mode" if args.common_mode else ""
+    source += (", flat envelope margin" if not detector.envelope_noise
                else ", noise-table envelope margin")
     result = evaluate_onsets(times, temperature, truth, fs, min_duration=args.min_duration,
                              progress=lambda d, n: progress.bar(d, n, "samples", started),
                              directions=None if args.data else directions, detector=detector,
-                             **({} if sensor is None else
-                                {"depth": sensor.depth, "diffusivity": sensor.diffusivity,
-                                 "sensor": sensor}))
+                             depth=judged.depth, diffusivity=judged.diffusivity,
+                             sensor=judged)
     progress.done()
     events = result.pop("events")
     flags = result.pop("detected_flags")
     delays, errors = result.pop("delay_s"), result.pop("onset_error_s")
-    if detector is not None and contacts is not None:
+    if (sensor is not None or sigma is not None) and contacts is not None:
         result.update(_sensor_figures(contacts, flags, delays, errors, detector,
                                       args.min_duration, described=sensor is not None))
     if contacts is not None:

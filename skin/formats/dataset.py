@@ -270,19 +270,29 @@ def load_trials(path: str | Path) -> TrialSet:
                     onset=data.pop("onset"), extra=data, source=str(path), **optional)
 
 
-def with_detected_onsets(data: TrialSet, depth: float = 8e-5,
-                         diffusivity: float = 2.796e-9) -> TrialSet:
+def with_detected_onsets(data: TrialSet, sensor: object | None = None) -> TrialSet:
     """Fill unknown onsets (-1) with the library's streaming detector, refined by the fit.
 
     The trials are run through `skin.stream.onset.OnsetDetector` as if each were a taxel (so the
     detector needs its 0.5 s warm-up before contact), and each first onset is dated by
     `skin.stream.onset_refine.refine_onset` with the sensor's depth and diffusivity.
 
+    Parameters
+    ----------
+    data : TrialSet
+        The trials; those with onset -1 are searched.
+    sensor : SensorDescription or str, optional
+        The sensor that recorded them (a description, preset name or file; default the
+        paper's). The detector runs at the trials' own rate ``data.fs`` whatever the
+        description's sample rate: its smoothing, CUSUM thresholds and hole test are per sample.
+
     Raises
     ------
     DatasetError
-        Naming the first trial in which no onset was found.
+        Naming the first trial in which no onset was found, or a rate no sensor description
+        takes.
     """
+    from skin.models.sensors import SensorError, load_sensor
     from skin.stream.onset import OnsetDetector
     from skin.stream.onset_refine import refine_onset
 
@@ -291,7 +301,13 @@ def with_detected_onsets(data: TrialSet, depth: float = 8e-5,
         return data
     y = data.primary[todo]
     times = np.arange(y.shape[1]) / data.fs
-    detector = OnsetDetector(todo.size)
+    try:
+        described = load_sensor(sensor)
+        if described.sample_rate != data.fs:
+            described = described.with_body(sample_rate=data.fs)
+    except SensorError as exc:
+        raise DatasetError(f"{data.source}: {exc}") from None
+    detector = OnsetDetector(todo.size, sensor=described)
     events, _ = detector.process(times, y.T, detector.initial_state())
     first: dict[int, object] = {}
     for ev in events:
@@ -304,6 +320,7 @@ def with_detected_onsets(data: TrialSet, depth: float = 8e-5,
                            f"(the detector needs 0.5 s before contact)")
     onset = data.onset.copy()
     for k, ev in first.items():
-        t_on, _ = refine_onset(times, y[k], ev.time, ev.baseline, ev.slope, depth, diffusivity)
+        t_on, _ = refine_onset(times, y[k], ev.time, ev.baseline, ev.slope, described.depth,
+                               described.diffusivity, sensor=described)
         onset[todo[k]] = int(np.clip(np.ceil(t_on * data.fs - 1e-9), 0, y.shape[1] - 1))
     return dataclasses.replace(data, onset=onset)

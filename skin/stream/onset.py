@@ -62,7 +62,7 @@ follows from the taxel's noise and the sensor description (`skin.models.sensors`
 - Levels (the slow channel's; the gust-envelope test's flat margin, which caps its noise
   table's and stands alone before the filters settle) stay 8 sigmas of the averaged
   reading they look at clear of noise, that sigma computed through the sensor's own
-  smoothing and then the detector's average (`_average_noise`): a reading the sensor already
+  smoothing and then the detector's average (`average_noise`): a reading the sensor already
   smoothed has correlated noise, which a further average removes less of than white noise.
 - Disturbances (air currents, heater duty steps, the room drifting) move a heated taxel in
   proportion to how far its heater holds it above ambient (the sensor's ``heated_rise``):
@@ -156,7 +156,7 @@ def _paper_smoothed() -> float:
     return s.noise_kelvin(25.0 + s.heated_rise) * math.sqrt(g / (2.0 - g))
 
 
-def _average_noise(sensor: object, tau: float) -> float:
+def average_noise(sensor: object, tau: float) -> float:
     """Return the noise of an exponential average (time constant ``tau``) of the readings.
 
     In units of the readings' own noise per sample, as delivered: sqrt(g / (2 - g)) for white
@@ -903,7 +903,7 @@ class OnsetDetector:
 
         # what the readout noise is after the detector's averages, from the sensor's own
         # smoothing on (a smoothed reading's noise is correlated: averaging it removes less)
-        self.smoothed_sigma = self.sigma * _average_noise(sensor, self.smooth_tau)
+        self.smoothed_sigma = self.sigma * average_noise(sensor, self.smooth_tau)
         # the slow channel averages its reading over a tenth of its window where the noise,
         # not the disturbances, would set its threshold (a noisy, already smoothed reading);
         # elsewhere it looks at the smoothed reading, as the CUSUM does
@@ -911,7 +911,7 @@ class OnsetDetector:
         slow_floor = DISTURBANCE["slow_threshold"] * rise * slow_quick
         if 8.0 * float(np.max(self.smoothed_sigma)) <= slow_floor:
             self.medium_tau = self.smooth_tau
-        slow_sigma = self.sigma * _average_noise(sensor, self.medium_tau)
+        slow_sigma = self.sigma * average_noise(sensor, self.medium_tau)
         # the gust-envelope test: the deepest, fastest gust and the steepest heater step
         if gust_rise <= 0.0 or (gust_depth is not None and not gust_depth > 0.0):
             raise ValueError(f"gust_depth ({gust_depth}) and gust_rise ({gust_rise}) must be > 0")
