@@ -31,7 +31,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     help="train one model per contact duration (s), e.g. 0.25,0.5,1,2.5: the "
                          "pipeline then answers from the longest window each taxel has")
     tr.add_argument("--sensor", default=None, metavar="PRESET|FILE",
-                    help="the sensor the training data was recorded (or simulated) with, "
+                    help="the sensor the training data was recorded (or simulated) with "
+                         "(its unknown onsets are found by its detector), "
                          "recorded in the model file: `skin run` warns when its layout's "
                          "boards use another (default: not recorded)")
     tr.add_argument("--calibration", default=None, metavar="FILE",
@@ -86,12 +87,17 @@ def main(args: argparse.Namespace) -> int:
 
     parse_method(args.method)
     data = require_classes(load_trials(args.data))
+    recorded_with = None
+    if args.sensor is not None:  # a bad name or file fails before the work starts
+        from skin.models.sensors import load_sensor
+
+        recorded_with = load_sensor(args.sensor)
     sensors = None
     if args.calibration:  # before the work starts
         from skin.commands.evaluate import calibrated_sensors
 
         sensors = calibrated_sensors(args.calibration, data)
-    data = with_detected_onsets(data)  # onset -1: find it
+    data = with_detected_onsets(data, sensor=recorded_with)  # onset -1: find it
     check_enough(data, args.method)
     if sensors is not None:
         from skin.models.timescale import warp_to_nominal
