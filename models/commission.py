@@ -356,8 +356,9 @@ def dataset_touches(trials: object, layout: object) -> tuple[list[ReferenceTouch
     """Take reference touches from a trial dataset (version 2: `skin.formats.dataset`).
 
     Each trial's heated, present channels with a taxel id of the layout give one touch of
-    the trial's labelled material, dated by its ``onset``, at its ``object_temperature``
-    (else its ``ambient``); the window is `find_touches`'s. Trials without an onset, or too
+    the trial's labelled material, dated by its ``onset`` (an unknown one by its ``force``
+    channel: `skin.formats.dataset.force_onsets`), at its ``object_temperature`` (else its
+    ``ambient``); the window is `find_touches`'s. Trials without an onset, or too
     short around it (`TOUCH_BEFORE` s before, `TOUCH_SECONDS` after), are left out (counted).
 
     Raises
@@ -377,13 +378,16 @@ def dataset_touches(trials: object, layout: object) -> tuple[list[ReferenceTouch
     obj = (trials.ambient if trials.object_temperature is None
            else np.where(np.isfinite(trials.object_temperature), trials.object_temperature,
                          trials.ambient))
+    from skin.formats.dataset import force_onsets
+
+    onsets = np.where(trials.onset < 0, force_onsets(trials), trials.onset)
     ids = {int(t): i for i, t in enumerate(layout.ids)}
     n_before = round(TOUCH_BEFORE * trials.fs)
     n_after = round(TOUCH_SECONDS * trials.fs)
     lag = (np.arange(n_before + n_after) - n_before) / trials.fs
     out, short, known = [], 0, 0
     for i in range(len(trials)):
-        on = int(trials.onset[i])
+        on = int(onsets[i])
         for c in range(temp.shape[1]):
             if not heated[i, c] or int(taxel[i, c]) not in ids:
                 continue

@@ -320,8 +320,10 @@ def test_bad_touch_labels_name_the_file_and_line(tmp_path, capsys, body, problem
     assert not out.exists()
 
 
-def _reference_dataset(scene, path, seed=2):
-    """The scene's touches of taxels 0 and 1 as a trial dataset (version 2) at ``path``."""
+def _reference_dataset(scene, path, seed=2, by_force=False):
+    """The scene's touches of taxels 0 and 1 as a trial dataset (version 2) at ``path``.
+
+    ``by_force``: onsets unknown (-1), a force channel rising from sample 200 instead."""
     from skin.drivers.sim import SkinSimulator
     from skin.formats.dataset import TrialSet
 
@@ -337,9 +339,15 @@ def _reference_dataset(scene, path, seed=2):
             labels.append(scene.objects[tc.object].material)
             taxels.append(k)
     n = len(temps)
-    data = TrialSet(np.array(temps)[:, None, :], fs, np.array(labels), np.full(n, 200),
-                    ambient=np.full(n, 25.0), group=np.zeros(n, dtype=int),
-                    taxel=np.array(taxels)[:, None])
+    force = None
+    if by_force:  # 5 N reached in 10 samples, 0.01 N of noise
+        k = np.arange(len(temps[0]))
+        force = 5.0 * np.clip((k - 199) / 10.0, 0.0, 1.0) + np.random.default_rng(
+            seed).normal(0.0, 0.01, (n, k.size))
+    data = TrialSet(np.array(temps)[:, None, :], fs, np.array(labels),
+                    np.full(n, -1 if by_force else 200), ambient=np.full(n, 25.0),
+                    group=np.zeros(n, dtype=int), taxel=np.array(taxels)[:, None],
+                    force=force)
     return sim, data.save(path)
 
 
@@ -364,6 +372,15 @@ def test_skin_commission_fits_the_response_from_a_trial_dataset(tmp_path, capsys
     assert skin_main(["commission", "--data", str(path), "--touches", "aluminium,pine", "-o",
                       str(cal)]) != 0
     assert "no --labels or --touches" in capsys.readouterr().err
+    # onsets unknown but a force channel logged: the touches are dated by it, fitted alike
+    _, path = _reference_dataset(scene, tmp_path / "forced.npz", by_force=True)
+    forced = tmp_path / "forced.json"  # a new file: an existing one seeds the fit
+    assert skin_main(["commission", "--data", str(path), "-o", str(forced), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["detected"] == 12
+    _, by_force = load_calibration(forced).apply(scene.layout)
+    for k in (0, 1):
+        assert by_force[k].depth**2 / by_force[k].diffusivity == pytest.approx(
+            fitted[k].depth**2 / fitted[k].diffusivity, rel=1e-6)
 
 
 def test_a_dataset_of_hard_references_through_their_gaps_gets_the_air_gap_note(tmp_path,

@@ -1,5 +1,6 @@
 """Trial dataset version 2: several channels per contact, v1 compatibility, CSV import."""
 
+import dataclasses
 import json
 import subprocess
 import sys
@@ -112,3 +113,26 @@ def test_csv_missing_column_is_named(tmp_path):
     (tmp_path / "bad.csv").write_text("trial,channel,time,temperature\n1,0,0,30\n")
     with pytest.raises(DatasetError, match=r"missing column.*label, ambient"):
         read_trials_csv(tmp_path / "bad.csv")
+
+
+def test_force_dates_unknown_onsets_where_it_shows_the_contact():
+    """An unknown onset is taken from the force channel: the first sample 5 % of the way up
+    from the pre-contact level; no force, a flat one or a NaN one dates nothing."""
+    from skin.formats.dataset import force_onsets, with_detected_onsets
+
+    rng = np.random.default_rng(0)
+    k = np.arange(400)
+    ramp = 2.0 * np.clip((k - 149) / 10.0, 0.0, 1.0)  # 2 N in 10 samples from sample 150
+    force = np.stack([ramp + 0.3, ramp + rng.normal(0.0, 0.01, k.size),
+                      rng.normal(0.0, 0.01, k.size), np.where(k == 10, np.nan, ramp)])
+    flat = np.full((4, 1, k.size), 30.0)  # a reading where no detector finds a contact
+    data = TrialSet(flat, 200.0, np.array(["a", "b", "c", "d"]), np.array([-1, -1, 77, -1]),
+                    force=force)
+    assert force_onsets(data).tolist() == [150, 150, -1, -1]
+    assert force_onsets(dataclasses.replace(data, force=None)).tolist() == [-1] * 4
+    # trials dated by force skip the detector; a known onset is kept; the rest still must
+    # be found in the reading, and here cannot
+    with pytest.raises(DatasetError, match="no contact onset found in trial 3 \\(1 trial"):
+        with_detected_onsets(data)
+    found = with_detected_onsets(dataclasses.replace(data, onset=np.array([-1, -1, 77, 5])))
+    assert found.onset.tolist() == [150, 150, 77, 5]

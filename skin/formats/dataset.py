@@ -12,7 +12,7 @@ channels (taxels)::
     ambient      float (n_trials,), deg C
     group        int (n_trials,): what recorded the trial (taxel unit, session), for grouped CV
     setpoint     float (n_trials, n_channels): a held heater's setpoint, deg C (NaN: none) opt.
-    force        float (n_trials, n_samples), N                                        opt.
+    force        float (n_trials, n_samples), N; dates an unknown onset            opt.
     object_temperature  float (n_trials,), deg C, where it was measured               opt.
     version      2
 
@@ -270,12 +270,54 @@ def load_trials(path: str | Path) -> TrialSet:
                     onset=data.pop("onset"), extra=data, source=str(path), **optional)
 
 
-def with_detected_onsets(data: TrialSet, sensor: object | None = None) -> TrialSet:
-    """Fill unknown onsets (-1) with the library's streaming detector, refined by the fit.
+#: A force trace dates its contact where it first rises this share of the way from its
+#: pre-contact level to its peak (`force_onsets`).
+FORCE_ONSET_SHARE = 0.05
+#: ...provided the peak stands this many times the pre-contact noise (MAD) above that level.
+FORCE_MIN_SNR = 10.0
 
-    The trials are run through `skin.stream.onset.OnsetDetector` as if each were a taxel (so the
+
+def force_onsets(data: TrialSet) -> np.ndarray:
+    """Date each trial's contact from its force channel (``force``), where it has one.
+
+    The pre-contact level is the median of the samples before the force first reaches half
+    its peak, its noise their scaled median absolute deviation; the onset is the first
+    sample where the force exceeds the level by `FORCE_ONSET_SHARE` of the peak's rise
+    (a ramp of r seconds is dated about 0.05 r late).
+
+    Returns
+    -------
+    numpy.ndarray
+        int (n_trials,): the onset sample of each trial with a finite force trace whose peak
+        stands `FORCE_MIN_SNR` noise levels above its pre-contact level; -1 elsewhere (no
+        force channel, NaN samples, no contact in it, or the contact from the first sample).
+    """
+    out = np.full(len(data), -1, dtype=int)
+    if data.force is None:
+        return out
+    for i, f in enumerate(np.asarray(data.force, dtype=float)):
+        if not np.all(np.isfinite(f)):
+            continue
+        half = int(np.argmax(f >= 0.5 * (f.max() + f[0])))
+        if half < 2:
+            continue
+        before = f[:half]
+        level = float(np.median(before))
+        noise = 1.4826 * float(np.median(np.abs(before - level)))
+        rise = float(f.max()) - level
+        if not rise > FORCE_MIN_SNR * noise or not rise > 0:
+            continue
+        out[i] = int(np.argmax(f > level + FORCE_ONSET_SHARE * rise))
+    return out
+
+
+def with_detected_onsets(data: TrialSet, sensor: object | None = None) -> TrialSet:
+    """Fill unknown onsets (-1) from the force channel, else by the streaming detector.
+
+    A trial whose ``force`` dates its contact (`force_onsets`) takes that onset. The others
+    are run through `skin.stream.onset.OnsetDetector` as if each were a taxel (so the
     detector needs its 0.5 s warm-up before contact), and each first onset is dated by
-    `skin.stream.onset_refine.refine_onset` with the sensor's depth and diffusivity.
+    `skin.stream.onset_refine.refine_onset`, the fit of the sensor's response.
 
     Parameters
     ----------
@@ -284,7 +326,8 @@ def with_detected_onsets(data: TrialSet, sensor: object | None = None) -> TrialS
     sensor : SensorDescription or str, optional
         The sensor that recorded them (a description, preset name or file; default the
         paper's). The detector runs at the trials' own rate ``data.fs`` whatever the
-        description's sample rate: its smoothing, CUSUM thresholds and hole test are per sample.
+        description's sample rate: its smoothing, CUSUM thresholds and hole test are per
+        sample.
 
     Raises
     ------
@@ -296,9 +339,13 @@ def with_detected_onsets(data: TrialSet, sensor: object | None = None) -> TrialS
     from skin.stream.onset import OnsetDetector
     from skin.stream.onset_refine import refine_onset
 
-    todo = np.flatnonzero(data.onset < 0)
+    onset = data.onset.copy()
+    unknown = onset < 0
+    by_force = force_onsets(data)
+    onset[unknown] = by_force[unknown]
+    todo = np.flatnonzero(onset < 0)
     if todo.size == 0:
-        return data
+        return dataclasses.replace(data, onset=onset)
     y = data.primary[todo]
     times = np.arange(y.shape[1]) / data.fs
     try:
@@ -318,7 +365,6 @@ def with_detected_onsets(data: TrialSet, sensor: object | None = None) -> TrialS
         raise DatasetError(f"{data.source}: no contact onset found in trial {missing[0]} "
                            f"({len(missing)} trial(s)); give its onset or a longer recording "
                            f"(the detector needs 0.5 s before contact)")
-    onset = data.onset.copy()
     for k, ev in first.items():
         t_on, _ = refine_onset(times, y[k], ev.time, ev.baseline, ev.slope, described.depth,
                                described.diffusivity, sensor=described)
