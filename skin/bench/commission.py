@@ -240,6 +240,35 @@ def _verdict(gap: float, std: float, target: float = TARGET) -> str:
     return "unresolved"
 
 
+#: The joint classifier's reading noise when it is not told the sensor's, K (its default).
+MODEL_NOISE = 0.1
+
+
+def white_equivalent(delivered: float, sensor: Any) -> float:
+    """Return the white-equivalent noise per sample of a reading whose delivered noise is given.
+
+    The joint classifier's likelihood takes the samples as independent. A sensor's smoothing
+    (its description's moving average, low-pass or Savitzky-Golay) shrinks the noise per
+    sample by `SensorDescription.smoothing_noise_factor` but keeps its low-frequency power,
+    which is what a contact's slow trace is weighed against: the noise measured on the
+    smoothed reading, divided by that factor, is the noise per independent sample (the
+    pid-logger preset's 1.4 mK delivered is 3.6 mK white; the paper's sensor, unsmoothed,
+    keeps its own). At least 0.1 mK.
+    """
+    return max(float(delivered) / float(sensor.smoothing_noise_factor()), 1e-4)
+
+
+def noise_grid(white: float, model: float = MODEL_NOISE, points: int = 5) -> np.ndarray:
+    """The classifier's noise grid: from the sensor's white-equivalent noise to ``model``.
+
+    `JointContactModel` integrates over it (each contact judged at the noise its model
+    explains it to, log-uniform): a sensor quieter than ``model`` is read down to its own
+    noise, one noisier (low-cost: 0.2 K) up to it; ``model`` stays on the grid for what the
+    model leaves out (onset error, reheat history).
+    """
+    return np.geomspace(min(white, model), max(white, model), points)
+
+
 def _calibration_for(data: Any, fitted: dict[int, object], arm: str) -> dict[int, object]:
     """Return ``fitted`` after checking it holds every taxel the trials were recorded by.
 
@@ -270,7 +299,7 @@ def _constants_of(fits: list, layout: object, own_only: bool = False) -> dict[in
 def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None,
              trials: int = 40, durations: tuple[float, ...] = (0.5, 1.0, 2.5),
              taxels: int = 8, touches: int = 6, spread: float = 0.10,
-             labelled: bool = False, object_std: float = 10.0, noise: str = "model",
+             labelled: bool = False, object_std: float = 10.0, noise: str = "measured",
              contact: str = CONTACT, references: tuple[str, ...] = REFERENCES,
              hold: float | None = None, rest: float | None = None,
              progress: Any = None) -> dict[str, Any]:
@@ -296,12 +325,12 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     ``contact`` and ``references``: the reference touches' contact and materials
     (`commission_unit`; the benchmark's contacts are finite either way), ``hold`` and
     ``rest`` their timing (default: what `skin commission` asks for). ``noise``: the
-    classifier's reading noise, ``"model"`` (its default, 0.1 K, which on a quiet sensor
-    such as pid-logger's hides most of what the reading says) or
-    ``"measured"``: a grid between the noise measured on the commissioning recording's quiet
-    stretch (the 2.5 s before its first touch: ``quiet_noise``) and 0.1 K, integrated
-    over (`JointContactModel`'s ``noise`` grid): each contact judged at the noise its model
-    explains it to.
+    classifier's reading noise, ``"measured"`` (default): `noise_grid` from the noise
+    measured on the commissioning recording's quiet stretch (the 2.5 s before its first
+    touch: ``quiet_noise``), made white-equivalent by the description's smoothing
+    (`white_equivalent`), to 0.1 K, integrated over (`JointContactModel`'s ``noise`` grid);
+    or ``"model"``: the joint classifier's own 0.1 K whatever the sensor (the default
+    before; on a quiet sensor such as pid-logger's it hides part of what the reading says).
 
     Returns
     -------
@@ -382,9 +411,11 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     truth = np.searchsorted(data.classes, data.label)
     measured = own["quiet_noise"]
     doc["quiet_noise"] = round(measured, 6)
-    floor = max(measured, 1e-4)
-    grid = 0.1 if noise == "model" else np.geomspace(min(floor, 0.1), max(floor, 0.1), 5)
+    white = white_equivalent(measured, preset)
+    doc["white_noise"] = round(white, 6)
+    grid = MODEL_NOISE if noise == "model" else noise_grid(white)
     doc["noise"] = noise
+    doc["noise_grid"] = [round(float(v), 6) for v in np.atleast_1d(grid)]
     model = JointContactModel([table[c] for c in data.classes], noise=grid,
                               object_std=object_std,
                               onset_shifts=(-0.01, -0.005, 0.0, 0.005, 0.01))

@@ -238,10 +238,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                      help="with --classify: windows, s (0.5,1,2.5)")
     com.add_argument("--other-seed", type=int, default=None,
                      help="with --classify: the other unit commissioned (default seed + 1)")
-    com.add_argument("--noise", choices=("model", "measured"), default="model",
-                     help="with --classify: the classifier's reading noise, its default 0.1 K "
-                          "(model) or a grid from the noise of the commissioning recording's quiet "
-                          "stretch (the 2.5 s before its first touch) to 0.1 K (measured)")
+    com.add_argument("--noise", choices=("model", "measured"), default="measured",
+                     help="with --classify: the classifier's reading noise, a grid from the "
+                          "noise of the commissioning recording's quiet stretch (the 2.5 s "
+                          "before its first touch; white-equivalent by the sensor's smoothing) "
+                          "to 0.1 K (measured, default) or the joint classifier's own 0.1 K "
+                          "whatever the sensor (model)")
     com.add_argument("--object-std", type=float, default=10.0,
                      help="with --classify: the classifier's prior std of the object's "
                           "temperature about ambient, K (10)")
