@@ -259,7 +259,7 @@ def white_equivalent(delivered: float, sensor: Any) -> float:
 
 
 def noise_grid(white: float, model: float = MODEL_NOISE, points: int = 5) -> np.ndarray:
-    """The classifier's noise grid: from the sensor's white-equivalent noise to ``model``.
+    """Return the classifier's noise grid: the sensor's white-equivalent noise to ``model``.
 
     `JointContactModel` integrates over it (each contact judged at the noise its model
     explains it to, log-uniform): a sensor quieter than ``model`` is read down to its own
