@@ -659,6 +659,7 @@ def test_bench_commission_classify_gives_true_and_commissioned_constants_alike(c
     assert 0.01 < doc["white_noise"] < 0.1  # the paper's ADC: about 0.03 K
     assert doc["noise_grid"][0] == pytest.approx(doc["white_noise"], rel=1e-3)
     assert doc["noise_grid"][-1] == pytest.approx(0.1) and np.all(np.diff(doc["noise_grid"]) > 0)
+    assert doc["noiseless"] is False and doc["benchmark_noise"] > 0.01
     assert doc["commissioning"]["own"]["taxels_fitted"] == 2
     assert doc["commissioning"]["own"]["response_time"]["median"] < 0.02
     (row,) = doc["rows"]
@@ -833,3 +834,15 @@ def test_white_equivalent_noise_undoes_each_presets_smoothing(sensor):
     assert grid[0] == pytest.approx(got) and grid[-1] == pytest.approx(0.1)
     loud = noise_grid(0.2)  # a sensor noisier than the model's 0.1 K is read up to its own
     assert loud[0] == pytest.approx(0.1) and loud[-1] == pytest.approx(0.2)
+
+
+def test_bench_commission_classify_noiseless_records_the_benchmark_without_reading_noise(
+        capsys):
+    """--noiseless: the benchmark's readings carry no sensor noise (the commissioning does)."""
+    from skin.bench.commission import classify
+
+    doc = classify("paper", trials=2, durations=(1.0,), taxels=2, labelled=True, hold=3.5,
+                   rest=6.0, noiseless=True)
+    assert doc["noiseless"] is True and doc["rows"][0]["contacts"] == 22
+    assert doc["benchmark_noise"] < 0.002  # 1 mK: `reading_noise`'s floor
+    assert doc["quiet_noise"] > 0.01  # the commissioning recording keeps the sensor's noise

@@ -302,7 +302,7 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
              labelled: bool = False, object_std: float = 10.0, noise: str = "measured",
              contact: str = CONTACT, references: tuple[str, ...] = REFERENCES,
              hold: float | None = None, rest: float | None = None,
-             progress: Any = None) -> dict[str, Any]:
+             noiseless: bool = False, progress: Any = None) -> dict[str, Any]:
     """Issue 16's classification target: the same classifier, true against commissioned constants.
 
     The unit ``seed`` (its first ``taxels`` taxels, spread +-``spread`` as `SkinSimulator`
@@ -331,6 +331,10 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     (`white_equivalent`), to 0.1 K, integrated over (`JointContactModel`'s ``noise`` grid);
     or ``"model"``: the joint classifier's own 0.1 K whatever the sensor (the default
     before; on a quiet sensor such as pid-logger's it hides part of what the reading says).
+    ``noiseless``: the benchmark recorded without the sensor's reading noise (no white
+    noise, no ADC noise, a 24-bit ADC; the commissioning and the classifier's noise grid
+    keep the sensor's): what the reading noise costs each arm, the rest being the physics
+    (response time, heater control, smoothing) and the nuisances.
 
     Returns
     -------
@@ -350,7 +354,7 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     """
     from dataclasses import replace
 
-    from skin.bench.ceiling import _joint_log_evidence
+    from skin.bench.ceiling import _joint_log_evidence, reading_noise
     from skin.bench.spread import design
     from skin.drivers.sim import SPREAD_STREAM
     from skin.errors import SkinError
@@ -379,7 +383,8 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     doc: dict[str, Any] = {
         "sensor": preset.name, "seed": seed, "other_seed": other_seed, "trials": trials,
         "taxels": taxels, "touches": touches, "labelled": labelled, "spread": spread,
-        "object_std": object_std, "contact": contact, "references": list(references),
+        "object_std": object_std, "noiseless": noiseless, "contact": contact,
+        "references": list(references),
         "hold": own["hold"], "rest": own["rest"], "commissioning": {}}
     for key, unit in (("own", own), ("other", other)):
         truth = unit["sim"].taxel_sensor
@@ -400,7 +405,8 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     data = simulate_trials([table[m] for m in PAPER_MATERIALS],
                            replace(Protocol(), trials=trials, duration=max(durations) + 0.2,
                                    n_taxels=taxels, taxel_spread=spread),
-                           sensor=preset, seed=seed, skin_seed=[seed, SPREAD_STREAM])
+                           sensor=replace(preset, noise=0.0, adc_noise=0.0, adc_bits=24)
+                           if noiseless else preset, seed=seed, skin_seed=[seed, SPREAD_STREAM])
     nominal = own["nominal"]
     mid = design(nominal + [theirs[i] for i in sorted(theirs)],
                  list(range(len(nominal), len(nominal) + len(theirs))))[0]
@@ -408,6 +414,8 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
             "commissioned": ("calibrated", _calibration_for(data, fitted, "commissioned")),
             "other_unit": ("calibrated", {int(i): mid for i in layout.ids}),
             "nominal": ("nominal", None)}
+    # the benchmark's own reading noise before contact (`reading_noise`, at least 1 mK)
+    doc["benchmark_noise"] = round(reading_noise(data), 6)
     truth = np.searchsorted(data.classes, data.label)
     measured = own["quiet_noise"]
     doc["quiet_noise"] = round(measured, 6)

@@ -244,6 +244,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                           "before its first touch; white-equivalent by the sensor's smoothing) "
                           "to 0.1 K (measured, default) or the joint classifier's own 0.1 K "
                           "whatever the sensor (model)")
+    com.add_argument("--noiseless", action="store_true",
+                     help="with --classify: the benchmark recorded without the sensor's reading "
+                          "noise (the commissioning keeps it): what the noise costs")
     com.add_argument("--object-std", type=float, default=10.0,
                      help="with --classify: the classifier's prior std of the object's "
                           "temperature about ambient, K (10)")
@@ -589,7 +592,8 @@ def _commission_classify(args: argparse.Namespace) -> int:
            **classify(args.sensor, args.seed, args.other_seed, args.trials, durations,
                       args.taxels, args.touches, args.spread, args.labelled,
                       args.object_std, args.noise, args.contact, args.reference_list,
-                      args.hold, args.rest, progress=progress.message)}
+                      args.hold, args.rest, noiseless=args.noiseless,
+                      progress=progress.message)}
     doc["wall_time"] = round(time.monotonic() - started, 1)
     progress.done()
     if args.json:
