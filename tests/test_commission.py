@@ -652,10 +652,15 @@ def test_bench_commission_classify_gives_true_and_commissioned_constants_alike(c
                       "--rest", "6", "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["hold"] == 3.5 and doc["rest"] == 6.0  # passed through to the commissioning
-    # by default the classifier reads down to the noise measured on the quiet stretch (the
-    # paper's sensor is unsmoothed: its white-equivalent noise is the measured one), up to 0.1 K
-    assert doc["noise"] == "measured"
-    assert doc["white_noise"] == pytest.approx(doc["quiet_noise"], rel=1e-3)
+    # by default the classifier reads down to the sensor description's white noise (the
+    # paper's sensor is unsmoothed: what the quiet stretch measures), up to 0.1 K
+    from skin.models.sensors import load_sensor
+
+    paper = load_sensor("paper")
+    assert doc["noise"] == "described"
+    assert doc["white_noise"] == pytest.approx(paper.noise_kelvin(25 + paper.heated_rise),
+                                               rel=1e-4)
+    assert doc["white_noise"] == pytest.approx(doc["quiet_noise"], rel=0.3)
     assert 0.01 < doc["white_noise"] < 0.1  # the paper's ADC: about 0.03 K
     assert doc["noise_grid"][0] == pytest.approx(doc["white_noise"], rel=1e-3)
     assert doc["noise_grid"][-1] == pytest.approx(0.1) and np.all(np.diff(doc["noise_grid"]) > 0)
@@ -840,7 +845,10 @@ def test_bench_commission_classify_noiseless_records_the_benchmark_without_readi
         capsys):
     """--noiseless: the benchmark's readings carry no sensor noise (the commissioning does)."""
     from skin.bench.commission import classify
+    from skin.errors import SkinError
 
+    with pytest.raises(SkinError, match="noise must be one of described, measured, model"):
+        classify("paper", noise="quiet")
     doc = classify("paper", trials=2, durations=(1.0,), taxels=2, labelled=True, hold=3.5,
                    rest=6.0, noiseless=True)
     assert doc["noiseless"] is True and doc["rows"][0]["contacts"] == 22

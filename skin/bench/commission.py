@@ -243,6 +243,9 @@ def _verdict(gap: float, std: float, target: float = TARGET) -> str:
 #: The joint classifier's reading noise when it is not told the sensor's, K (its default).
 MODEL_NOISE = 0.1
 
+#: Where `classify` takes the classifier's reading noise from (the first is the default).
+NOISE_SOURCES = ("described", "measured", "model")
+
 
 def white_equivalent(delivered: float, sensor: Any) -> float:
     """Return the white-equivalent noise per sample of a reading whose delivered noise is given.
@@ -299,7 +302,7 @@ def _constants_of(fits: list, layout: object, own_only: bool = False) -> dict[in
 def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None,
              trials: int = 40, durations: tuple[float, ...] = (0.5, 1.0, 2.5),
              taxels: int = 8, touches: int = 6, spread: float = 0.10,
-             labelled: bool = False, object_std: float = 10.0, noise: str = "measured",
+             labelled: bool = False, object_std: float = 10.0, noise: str = "described",
              contact: str = CONTACT, references: tuple[str, ...] = REFERENCES,
              hold: float | None = None, rest: float | None = None,
              noiseless: bool = False, progress: Any = None) -> dict[str, Any]:
@@ -325,12 +328,16 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     ``contact`` and ``references``: the reference touches' contact and materials
     (`commission_unit`; the benchmark's contacts are finite either way), ``hold`` and
     ``rest`` their timing (default: what `skin commission` asks for). ``noise``: the
-    classifier's reading noise, ``"measured"`` (default): `noise_grid` from the noise
-    measured on the commissioning recording's quiet stretch (the 2.5 s before its first
-    touch: ``quiet_noise``), made white-equivalent by the description's smoothing
-    (`white_equivalent`), to 0.1 K, integrated over (`JointContactModel`'s ``noise`` grid);
-    or ``"model"``: the joint classifier's own 0.1 K whatever the sensor (the default
-    before; on a quiet sensor such as pid-logger's it hides part of what the reading says).
+    classifier's reading noise, ``"described"`` (default): `noise_grid` from the sensor
+    description's white noise at its heated temperature
+    (`SensorDescription.noise_kelvin`: noise and ADC, before any smoothing) to 0.1 K,
+    integrated over (`JointContactModel`'s ``noise`` grid); ``"measured"``: the same from
+    the noise measured on the commissioning recording's quiet stretch (the 2.5 s before its
+    first touch: ``quiet_noise``), made white-equivalent by the description's smoothing
+    (`white_equivalent`) -- 2.5 s is short: a PID loop still settling there reads as noise
+    (pid-logger unit 11: 12 mK for 1.4); or ``"model"``: the joint classifier's own 0.1 K
+    whatever the sensor (the default before; on a quiet sensor such as pid-logger's it
+    hides part of what the reading says).
     ``noiseless``: the benchmark recorded without the sensor's reading noise (no white
     noise, no ADC noise, a 24-bit ADC; the commissioning and the classifier's noise grid
     keep the sensor's): what the reading noise costs each arm, the rest being the physics
@@ -364,6 +371,8 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     from skin.models.trials import PAPER_MATERIALS, Protocol, simulate_trials
 
     preset = load_sensor(sensor)
+    if noise not in NOISE_SOURCES:
+        raise SkinError(f"noise must be one of {', '.join(NOISE_SOURCES)}, not {noise!r}")
     other_seed = seed + 1 if other_seed is None else other_seed
     if other_seed == seed:
         raise SkinError(f"--other-seed {other_seed} is the unit itself (--seed): another unit "
@@ -414,12 +423,17 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
             "commissioned": ("calibrated", _calibration_for(data, fitted, "commissioned")),
             "other_unit": ("calibrated", {int(i): mid for i in layout.ids}),
             "nominal": ("nominal", None)}
-    # the benchmark's own reading noise before contact (`reading_noise`, at least 1 mK)
-    doc["benchmark_noise"] = round(reading_noise(data), 6)
+    # the benchmark's own reading noise before contact (`reading_noise`, at least 1 mK; None
+    # when its trials start too close to the onset, as low-cost's 20 Hz ones do)
+    try:
+        doc["benchmark_noise"] = round(reading_noise(data), 6)
+    except SkinError:
+        doc["benchmark_noise"] = None
     truth = np.searchsorted(data.classes, data.label)
     measured = own["quiet_noise"]
     doc["quiet_noise"] = round(measured, 6)
-    white = white_equivalent(measured, preset)
+    white = (white_equivalent(measured, preset) if noise == "measured"
+             else preset.noise_kelvin(25.0 + preset.heated_rise))
     doc["white_noise"] = round(white, 6)
     grid = MODEL_NOISE if noise == "model" else noise_grid(white)
     doc["noise"] = noise

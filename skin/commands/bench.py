@@ -238,12 +238,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                      help="with --classify: windows, s (0.5,1,2.5)")
     com.add_argument("--other-seed", type=int, default=None,
                      help="with --classify: the other unit commissioned (default seed + 1)")
-    com.add_argument("--noise", choices=("model", "measured"), default="measured",
-                     help="with --classify: the classifier's reading noise, a grid from the "
-                          "noise of the commissioning recording's quiet stretch (the 2.5 s "
-                          "before its first touch; white-equivalent by the sensor's smoothing) "
-                          "to 0.1 K (measured, default) or the joint classifier's own 0.1 K "
-                          "whatever the sensor (model)")
+    com.add_argument("--noise", choices=("described", "measured", "model"),
+                     default="described",
+                     help="with --classify: the classifier's reading noise, a grid to 0.1 K "
+                          "from the sensor description's white noise (described, default) or "
+                          "from the noise of the commissioning recording's quiet stretch (the "
+                          "2.5 s before its first touch; white-equivalent by the sensor's "
+                          "smoothing: measured), or the joint classifier's own 0.1 K whatever "
+                          "the sensor (model, the default before)")
     com.add_argument("--noiseless", action="store_true",
                      help="with --classify: the benchmark recorded without the sensor's reading "
                           "noise (the commissioning keeps it): what the noise costs")
