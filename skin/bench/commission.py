@@ -335,7 +335,7 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     the noise measured on the commissioning recording's quiet stretch (the 2.5 s before its
     first touch: ``quiet_noise``), made white-equivalent by the description's smoothing
     (`white_equivalent`) -- 2.5 s is short: a PID loop still settling there reads as noise
-    (pid-logger unit 11: 12 mK for 1.4); or ``"model"``: the joint classifier's own 0.1 K
+    (pid-logger unit 11: 12 mK, unit 7: 1.4 mK); or ``"model"``: the joint classifier's own 0.1 K
     whatever the sensor (the default before; on a quiet sensor such as pid-logger's it
     hides part of what the reading says).
     ``noiseless``: the benchmark recorded without the sensor's reading noise (no white
