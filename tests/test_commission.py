@@ -669,6 +669,19 @@ def test_bench_commission_classify_gives_true_and_commissioned_constants_alike(c
                       "--rest", "6", "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["hold"] == 3.5 and doc["rest"] == 6.0  # passed through to the commissioning
+    # by default the classifier reads down to the sensor description's white noise (the
+    # paper's sensor is unsmoothed: what the quiet stretch measures), up to 0.1 K
+    from skin.models.sensors import load_sensor
+
+    paper = load_sensor("paper")
+    assert doc["noise"] == "described"
+    assert doc["white_noise"] == pytest.approx(paper.noise_kelvin(25 + paper.heated_rise),
+                                               rel=1e-4)
+    assert doc["white_noise"] == pytest.approx(doc["quiet_noise"], rel=0.3)
+    assert 0.01 < doc["white_noise"] < 0.1  # the paper's ADC: about 0.03 K
+    assert doc["noise_grid"][0] == pytest.approx(doc["white_noise"], rel=1e-3)
+    assert doc["noise_grid"][-1] == pytest.approx(0.1) and np.all(np.diff(doc["noise_grid"]) > 0)
+    assert doc["noiseless"] is False and doc["benchmark_noise"] > 0.01
     assert doc["commissioning"]["own"]["taxels_fitted"] == 2
     assert doc["commissioning"]["own"]["response_time"]["median"] < 0.02
     (row,) = doc["rows"]
@@ -818,3 +831,43 @@ def test_pid_held_touches_end_at_their_lift_off():
     touches, left, err, _ = _found_touches("pid-logger", 2, "finite")
     assert len(touches) == 4 and not any(left.values())
     assert np.all(np.abs(err) <= 0.3)
+
+
+@pytest.mark.parametrize("sensor", ["paper", "pid-logger", "fast-film", "low-cost"])
+def test_white_equivalent_noise_undoes_each_presets_smoothing(sensor):
+    """The classifier's noise floor: white noise through the preset's own smoothing, measured
+    per sample, and brought back by `white_equivalent` to the noise before smoothing, which
+    is also what block means of many samples see."""
+    from skin.bench.commission import noise_grid, white_equivalent
+    from skin.models.sensors import load_sensor, smooth
+
+    preset = load_sensor(sensor)
+    sigma = 0.004
+    white = np.random.default_rng(3).normal(0.0, sigma, 200_000)
+    read = smooth(white, preset)[1000:-1000]  # away from the filter's ends
+    got = white_equivalent(float(np.std(read)), preset)
+    assert got == pytest.approx(sigma, rel=0.03)
+    block = 400  # far longer than any preset's smoothing
+    means = read[: read.size // block * block].reshape(-1, block).mean(axis=1)
+    assert np.std(means) * np.sqrt(block) == pytest.approx(got, rel=0.1)
+    if sensor != "paper":  # smoothing shrinks the per-sample noise below the white one
+        assert np.std(read) < 0.9 * got
+    grid = noise_grid(got)
+    assert grid[0] == pytest.approx(got) and grid[-1] == pytest.approx(0.1)
+    loud = noise_grid(0.2)  # a sensor noisier than the model's 0.1 K is read up to its own
+    assert loud[0] == pytest.approx(0.1) and loud[-1] == pytest.approx(0.2)
+
+
+def test_bench_commission_classify_noiseless_records_the_benchmark_without_reading_noise(
+        capsys):
+    """--noiseless: the benchmark's readings carry no sensor noise (the commissioning does)."""
+    from skin.bench.commission import classify
+    from skin.errors import SkinError
+
+    with pytest.raises(SkinError, match="noise must be one of described, measured, model"):
+        classify("paper", noise="quiet")
+    doc = classify("paper", trials=2, durations=(1.0,), taxels=2, labelled=True, hold=3.5,
+                   rest=6.0, noiseless=True)
+    assert doc["noiseless"] is True and doc["rows"][0]["contacts"] == 22
+    assert doc["benchmark_noise"] < 0.002  # 1 mK: `reading_noise`'s floor
+    assert doc["quiet_noise"] > 0.01  # the commissioning recording keeps the sensor's noise

@@ -240,6 +240,38 @@ def _verdict(gap: float, std: float, target: float = TARGET) -> str:
     return "unresolved"
 
 
+#: The joint classifier's reading noise when it is not told the sensor's, K (its default).
+MODEL_NOISE = 0.1
+
+#: Where `classify` takes the classifier's reading noise from (the first is the default).
+NOISE_SOURCES = ("described", "measured", "model")
+
+
+def white_equivalent(delivered: float, sensor: Any) -> float:
+    """Return the white-equivalent noise per sample of a reading whose delivered noise is given.
+
+    The joint classifier's likelihood takes the samples as independent. A sensor's smoothing
+    (its description's moving average, low-pass or Savitzky-Golay) shrinks the noise per
+    sample by `SensorDescription.smoothing_noise_factor` but keeps its low-frequency power,
+    which is what a contact's slow trace is weighed against: the noise measured on the
+    smoothed reading, divided by that factor, is the noise per independent sample (the
+    pid-logger preset's 1.4 mK delivered is 3.6 mK white; the paper's sensor, unsmoothed,
+    keeps its own). At least 0.1 mK.
+    """
+    return max(float(delivered) / float(sensor.smoothing_noise_factor()), 1e-4)
+
+
+def noise_grid(white: float, model: float = MODEL_NOISE, points: int = 5) -> np.ndarray:
+    """Return the classifier's noise grid: the sensor's white-equivalent noise to ``model``.
+
+    `JointContactModel` integrates over it (each contact judged at the noise its model
+    explains it to, log-uniform): a sensor quieter than ``model`` is read down to its own
+    noise, one noisier (low-cost: 0.2 K) up to it; ``model`` stays on the grid for what the
+    model leaves out (onset error, reheat history).
+    """
+    return np.geomspace(min(white, model), max(white, model), points)
+
+
 def _calibration_for(data: Any, fitted: dict[int, object], arm: str) -> dict[int, object]:
     """Return ``fitted`` after checking it holds every taxel the trials were recorded by.
 
@@ -270,10 +302,10 @@ def _constants_of(fits: list, layout: object, own_only: bool = False) -> dict[in
 def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None,
              trials: int = 40, durations: tuple[float, ...] = (0.5, 1.0, 2.5),
              taxels: int = 8, touches: int = 6, spread: float = 0.10,
-             labelled: bool = False, object_std: float = 10.0, noise: str = "model",
+             labelled: bool = False, object_std: float = 10.0, noise: str = "described",
              contact: str = CONTACT, references: tuple[str, ...] = REFERENCES,
              hold: float | None = None, rest: float | None = None,
-             progress: Any = None) -> dict[str, Any]:
+             noiseless: bool = False, progress: Any = None) -> dict[str, Any]:
     """Issue 16's classification target: the same classifier, true against commissioned constants.
 
     The unit ``seed`` (its first ``taxels`` taxels, spread +-``spread`` as `SkinSimulator`
@@ -296,12 +328,20 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     ``contact`` and ``references``: the reference touches' contact and materials
     (`commission_unit`; the benchmark's contacts are finite either way), ``hold`` and
     ``rest`` their timing (default: what `skin commission` asks for). ``noise``: the
-    classifier's reading noise, ``"model"`` (its default, 0.1 K, which on a quiet sensor
-    such as pid-logger's hides most of what the reading says) or
-    ``"measured"``: a grid between the noise measured on the commissioning recording's quiet
-    stretch (the 2.5 s before its first touch: ``quiet_noise``) and 0.1 K, integrated
-    over (`JointContactModel`'s ``noise`` grid): each contact judged at the noise its model
-    explains it to.
+    classifier's reading noise, ``"described"`` (default): `noise_grid` from the sensor
+    description's white noise at its heated temperature
+    (`SensorDescription.noise_kelvin`: noise and ADC, before any smoothing) to 0.1 K,
+    integrated over (`JointContactModel`'s ``noise`` grid); ``"measured"``: the same from
+    the noise measured on the commissioning recording's quiet stretch (the 2.5 s before its
+    first touch: ``quiet_noise``), made white-equivalent by the description's smoothing
+    (`white_equivalent`) -- 2.5 s is short: a PID loop still settling there reads as noise
+    (pid-logger unit 11: 12 mK, unit 7: 1.4 mK); or ``"model"``: the joint classifier's own 0.1 K
+    whatever the sensor (the default before; on a quiet sensor such as pid-logger's it
+    hides part of what the reading says).
+    ``noiseless``: the benchmark recorded without the sensor's reading noise (no white
+    noise, no ADC noise, a 24-bit ADC; the commissioning and the classifier's noise grid
+    keep the sensor's): what the reading noise costs each arm, the rest being the physics
+    (response time, heater control, smoothing) and the nuisances.
 
     Returns
     -------
@@ -321,7 +361,7 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     """
     from dataclasses import replace
 
-    from skin.bench.ceiling import _joint_log_evidence
+    from skin.bench.ceiling import _joint_log_evidence, reading_noise
     from skin.bench.spread import design
     from skin.drivers.sim import SPREAD_STREAM
     from skin.errors import SkinError
@@ -331,6 +371,8 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     from skin.models.trials import PAPER_MATERIALS, Protocol, simulate_trials
 
     preset = load_sensor(sensor)
+    if noise not in NOISE_SOURCES:
+        raise SkinError(f"noise must be one of {', '.join(NOISE_SOURCES)}, not {noise!r}")
     other_seed = seed + 1 if other_seed is None else other_seed
     if other_seed == seed:
         raise SkinError(f"--other-seed {other_seed} is the unit itself (--seed): another unit "
@@ -350,7 +392,8 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     doc: dict[str, Any] = {
         "sensor": preset.name, "seed": seed, "other_seed": other_seed, "trials": trials,
         "taxels": taxels, "touches": touches, "labelled": labelled, "spread": spread,
-        "object_std": object_std, "contact": contact, "references": list(references),
+        "object_std": object_std, "noiseless": noiseless, "contact": contact,
+        "references": list(references),
         "hold": own["hold"], "rest": own["rest"], "commissioning": {}}
     for key, unit in (("own", own), ("other", other)):
         truth = unit["sim"].taxel_sensor
@@ -371,7 +414,8 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     data = simulate_trials([table[m] for m in PAPER_MATERIALS],
                            replace(Protocol(), trials=trials, duration=max(durations) + 0.2,
                                    n_taxels=taxels, taxel_spread=spread),
-                           sensor=preset, seed=seed, skin_seed=[seed, SPREAD_STREAM])
+                           sensor=replace(preset, noise=0.0, adc_noise=0.0, adc_bits=24)
+                           if noiseless else preset, seed=seed, skin_seed=[seed, SPREAD_STREAM])
     nominal = own["nominal"]
     mid = design(nominal + [theirs[i] for i in sorted(theirs)],
                  list(range(len(nominal), len(nominal) + len(theirs))))[0]
@@ -379,12 +423,21 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
             "commissioned": ("calibrated", _calibration_for(data, fitted, "commissioned")),
             "other_unit": ("calibrated", {int(i): mid for i in layout.ids}),
             "nominal": ("nominal", None)}
+    # the benchmark's own reading noise before contact (`reading_noise`, at least 1 mK; None
+    # when its trials start too close to the onset, as low-cost's 20 Hz ones do)
+    try:
+        doc["benchmark_noise"] = round(reading_noise(data), 6)
+    except SkinError:
+        doc["benchmark_noise"] = None
     truth = np.searchsorted(data.classes, data.label)
     measured = own["quiet_noise"]
     doc["quiet_noise"] = round(measured, 6)
-    floor = max(measured, 1e-4)
-    grid = 0.1 if noise == "model" else np.geomspace(min(floor, 0.1), max(floor, 0.1), 5)
+    white = (white_equivalent(measured, preset) if noise == "measured"
+             else preset.noise_kelvin(25.0 + preset.heated_rise))
+    doc["white_noise"] = round(white, 6)
+    grid = MODEL_NOISE if noise == "model" else noise_grid(white)
     doc["noise"] = noise
+    doc["noise_grid"] = [round(float(v), 6) for v in np.atleast_1d(grid)]
     model = JointContactModel([table[c] for c in data.classes], noise=grid,
                               object_std=object_std,
                               onset_shifts=(-0.01, -0.005, 0.0, 0.005, 0.01))

@@ -238,10 +238,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                      help="with --classify: windows, s (0.5,1,2.5)")
     com.add_argument("--other-seed", type=int, default=None,
                      help="with --classify: the other unit commissioned (default seed + 1)")
-    com.add_argument("--noise", choices=("model", "measured"), default="model",
-                     help="with --classify: the classifier's reading noise, its default 0.1 K "
-                          "(model) or a grid from the noise of the commissioning recording's quiet "
-                          "stretch (the 2.5 s before its first touch) to 0.1 K (measured)")
+    com.add_argument("--noise", choices=("described", "measured", "model"),
+                     default="described",
+                     help="with --classify: the classifier's reading noise, a grid to 0.1 K "
+                          "from the sensor description's white noise (described, default) or "
+                          "from the noise of the commissioning recording's quiet stretch (the "
+                          "2.5 s before its first touch; white-equivalent by the sensor's "
+                          "smoothing: measured), or the joint classifier's own 0.1 K whatever "
+                          "the sensor (model, the default before)")
+    com.add_argument("--noiseless", action="store_true",
+                     help="with --classify: the benchmark recorded without the sensor's reading "
+                          "noise (the commissioning keeps it): what the noise costs")
     com.add_argument("--object-std", type=float, default=10.0,
                      help="with --classify: the classifier's prior std of the object's "
                           "temperature about ambient, K (10)")
@@ -587,7 +594,8 @@ def _commission_classify(args: argparse.Namespace) -> int:
            **classify(args.sensor, args.seed, args.other_seed, args.trials, durations,
                       args.taxels, args.touches, args.spread, args.labelled,
                       args.object_std, args.noise, args.contact, args.reference_list,
-                      args.hold, args.rest, progress=progress.message)}
+                      args.hold, args.rest, noiseless=args.noiseless,
+                      progress=progress.message)}
     doc["wall_time"] = round(time.monotonic() - started, 1)
     progress.done()
     if args.json:
