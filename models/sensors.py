@@ -211,6 +211,31 @@ class SensorDescription(SensorConstants):
         """Return a copy with some constants changed (``depth=...``), checked."""
         return check_sensor(replace(self, **changes))
 
+    def at_rate(self, fs: float, where: str = "the recording") -> SensorDescription:
+        """Return the sensor sampled at ``fs`` instead (itself when it already is).
+
+        Only a sensor without smoothing can be re-rated: a moving average or a
+        Savitzky-Golay window is counted in samples and a low-pass cutoff must stay below
+        half the rate, so a smoothed recording at another rate needs its own description.
+
+        Raises
+        ------
+        SensorError
+            Naming ``where`` and its rate: outside `SAMPLE_RATE_RANGE`, or a smoothed sensor.
+        """
+        if fs == self.sample_rate:
+            return self
+        lo, hi = SAMPLE_RATE_RANGE
+        if not (is_number(fs) and lo <= fs <= hi):
+            raise SensorError(f"{where} is sampled at {fs:g} Hz, outside the {lo:g}-{hi:g} Hz "
+                              f"a sensor description takes")
+        if self.smoothing != "none":
+            raise SensorError(f"{where} is sampled at {fs:g} Hz and sensor {self.name!r} is "
+                              f"described at {self.sample_rate:g} Hz with {self.smoothing} "
+                              f"smoothing: describe the sensor at {fs:g} Hz (a sensor file, "
+                              f"sample_rate = {fs:g}, its smoothing as the recording has it)")
+        return check_sensor(replace(self, sample_rate=float(fs)))
+
     def board_fields(self) -> dict[str, float | int]:
         """Return the layout `Board` fields this sensor sets."""
         return {"sensor_depth": self.depth, "sensor_diffusivity": self.diffusivity,

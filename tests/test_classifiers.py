@@ -157,8 +157,11 @@ def test_unknown_onsets_are_found_by_the_detector():
                     np.full(len(ds), -1), ds.ambient, ds.group, ds.taxel, ds.extra, ds.source)
     err = with_detected_onsets(slow).onset / slow.fs - ds.extra["true_onset_time"]
     assert np.all(np.abs(err) < 0.3)
-    with pytest.raises(DatasetError, match="sample_rate"):  # no description takes 2 Hz
+    with pytest.raises(DatasetError, match="sampled at 2 Hz, outside the 20-1000 Hz"):
         with_detected_onsets(dataclasses.replace(slow, fs=2.0))
+    # a smoothing counted in samples does not carry to another rate: refused, saying what to do
+    with pytest.raises(DatasetError, match="describe the sensor at 20 Hz"):
+        with_detected_onsets(slow, sensor="fast-film")
     flat = TrialSet(np.full((2, 400), 30.0), 200.0, np.array(["a", "b"]), np.array([-1, 50]))
     with pytest.raises(DatasetError, match="no contact onset found in trial 0"):
         with_detected_onsets(flat)

@@ -117,22 +117,35 @@ def test_csv_missing_column_is_named(tmp_path):
 
 def test_force_dates_unknown_onsets_where_it_shows_the_contact():
     """An unknown onset is taken from the force channel: the first sample 5 % of the way up
-    from the pre-contact level; no force, a flat one or a NaN one dates nothing."""
+    from the pre-contact level; no force, noise alone (Gaussian or quantised), a one-sample
+    glitch, a force that falls or a NaN one dates nothing."""
     from skin.formats.dataset import force_onsets, with_detected_onsets
 
     rng = np.random.default_rng(0)
     k = np.arange(400)
     ramp = 2.0 * np.clip((k - 149) / 10.0, 0.0, 1.0)  # 2 N in 10 samples from sample 150
+    glitch = np.where(k == 100, 0.01, 0.0)
+    quantised = np.round(rng.normal(0.0, 0.004, k.size) / 0.01) * 0.01  # 0.4 LSB of noise
     force = np.stack([ramp + 0.3, ramp + rng.normal(0.0, 0.01, k.size),
-                      rng.normal(0.0, 0.01, k.size), np.where(k == 10, np.nan, ramp)])
-    flat = np.full((4, 1, k.size), 30.0)  # a reading where no detector finds a contact
-    data = TrialSet(flat, 200.0, np.array(["a", "b", "c", "d"]), np.array([-1, -1, 77, -1]),
-                    force=force)
-    assert force_onsets(data).tolist() == [150, 150, -1, -1]
-    assert force_onsets(dataclasses.replace(data, force=None)).tolist() == [-1] * 4
+                      rng.normal(0.0, 0.01, k.size), np.where(k == 10, np.nan, ramp),
+                      glitch, quantised, 2.0 - ramp])
+    n = len(force)
+    flat = np.full((n, 1, k.size), 30.0)  # a reading where no detector finds a contact
+    onset = np.full(n, -1)
+    onset[2] = 77
+    data = TrialSet(flat, 200.0, np.array(list("abcdefg")), onset, force=force)
+    assert force_onsets(data).tolist() == [150, 150, -1, -1, -1, -1, -1]
+    assert force_onsets(dataclasses.replace(data, force=None)).tolist() == [-1] * n
+    # noise alone never passes: 200 Gaussian and 200 quantised traces
+    noise = np.concatenate([rng.normal(0.0, 0.01, (200, k.size)),
+                            np.round(rng.normal(0.0, 0.004, (200, k.size)) / 0.01) * 0.01])
+    quiet = TrialSet(np.full((400, 1, k.size), 30.0), 200.0, np.array(["a"] * 400),
+                     np.full(400, -1), force=noise)
+    assert (force_onsets(quiet) == -1).all()
     # trials dated by force skip the detector; a known onset is kept; the rest still must
     # be found in the reading, and here cannot
-    with pytest.raises(DatasetError, match="no contact onset found in trial 3 \\(1 trial"):
+    with pytest.raises(DatasetError, match="no contact onset found in trial 3 \\(4 trial"):
         with_detected_onsets(data)
-    found = with_detected_onsets(dataclasses.replace(data, onset=np.array([-1, -1, 77, 5])))
-    assert found.onset.tolist() == [150, 150, 77, 5]
+    known = np.array([-1, -1, 77, 5, 6, 7, 8])
+    found = with_detected_onsets(dataclasses.replace(data, onset=known))
+    assert found.onset.tolist() == [150, 150, 77, 5, 6, 7, 8]

@@ -54,6 +54,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--merge", default=None, metavar="A+B,C+D",
                     help="also report the accuracy with these classes merged (from the "
                          "confusion matrix), e.g. aluminium+steel,glass+porcelain")
+    ev.add_argument("--sensor", default=None, metavar="PRESET|FILE",
+                    help="the sensor the trials were recorded with: its detector finds their "
+                         "unknown onsets (default: the one --model was trained with, if "
+                         "recorded, else the paper's)")
     ev.add_argument("--calibration", default=None, metavar="FILE",
                     help="also report the joint physics fit of all channels with each "
                          "taxel's constants from this calibration file (skin calibrate "
@@ -504,8 +508,15 @@ def main(args: argparse.Namespace) -> int:
     data = require_classes(load_trials(args.data or args.train))
     test = load_trials(args.test) if args.test else None
     detected = int(np.sum(data.onset < 0)) + (0 if test is None else int(np.sum(test.onset < 0)))
-    data = with_detected_onsets(data)
-    test = None if test is None else with_detected_onsets(test)
+    recorded_with = args.sensor
+    if recorded_with is None and model_doc is not None:
+        recorded_with = model_doc.get("training", {}).get("sensor")
+    if recorded_with is not None:  # a bad name or file fails before the work starts
+        from skin.models.sensors import load_sensor
+
+        recorded_with = load_sensor(recorded_with)
+    data = with_detected_onsets(data, sensor=recorded_with)
+    test = None if test is None else with_detected_onsets(test, sensor=recorded_with)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     for m in methods:
         parse_method(m)

@@ -60,7 +60,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--sensor", default=None, metavar="PRESET|FILE",
                     help="simulate this sensor's stream and set the detector by it (`skin "
                          "sensors`); adds detected_5sigma, delay_floor_ratio_median and "
-                         "detectable_5sigma (Lorden's bound)")
+                         "detectable_5sigma (Lorden's bound). With --data: the sensor that "
+                         "recorded the trials (default the paper's), re-rated to their "
+                         "sample rate when it has no smoothing")
     ev.add_argument("--commissioned", action="store_true",
                     help="set the detector by noise commissioned (`skin commission`'s quiet "
                          "figures) on a quiet minute of another simulated unit (seed + 1000), "
@@ -84,14 +86,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                          "sigmas the flat margin applies (and before the filters settle), so "
                          "a larger Z brings the margin closer to --flat-envelope's. With "
                          "--flat-envelope: the flat margin's sigmas (default 8). Diagnosis: "
-                         "what sets the delay; with --sensor")
+                         "what sets the delay")
     ev.add_argument("--flat-envelope", action="store_true",
                     help="the gust-envelope margin flat, 8 sigmas of the reading (the "
                          "detector's envelope_noise=False; the default is the fall's noise "
-                         "table, capped at the flat margin; with --sensor)")
+                         "table, capped at the flat margin)")
     ev.add_argument("--smooth-tau", type=float, default=None, metavar="S",
                     help="the detector's smoothing time constant, s (default max(0.03 s, one "
-                         "sample); diagnosis; with --sensor)")
+                         "sample); diagnosis)")
     ev.add_argument("--json", action="store_true", help="print one JSON document")
     ev.set_defaults(func=main)
 
@@ -294,10 +296,7 @@ def main(args: argparse.Namespace) -> int:
     # judged at its own rate whatever the description's (default: the paper's sensor)
     judged = load_sensor(sensor)
     if judged.sample_rate != fs:
-        try:
-            judged = judged.with_body(sample_rate=fs)
-        except SkinError as exc:
-            raise SkinError(f"{args.data}: {exc}") from None
+        judged = judged.at_rate(fs, f"{args.data}")
         source += f", sensor {judged.name} at the recording's {fs:g} Hz"
     elif sensor is not None:
         source += f", sensor {sensor.name}"

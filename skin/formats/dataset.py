@@ -32,6 +32,7 @@ code.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -273,41 +274,56 @@ def load_trials(path: str | Path) -> TrialSet:
 #: A force trace dates its contact where it first rises this share of the way from its
 #: pre-contact level to its peak (`force_onsets`).
 FORCE_ONSET_SHARE = 0.05
-#: ...provided the peak stands this many times the pre-contact noise (MAD) above that level.
+#: ...provided the peak stands this many times the pre-contact noise above that level,
 FORCE_MIN_SNR = 10.0
+#: ...the pre-contact stretch is at least this long (s, and 10 samples),
+FORCE_MIN_BEFORE = 0.1
+#: ...and the force stays over the onset's threshold this long from the onset (s, 3 samples).
+FORCE_MIN_HELD = 0.05
 
 
 def force_onsets(data: TrialSet) -> np.ndarray:
-    """Date each trial's contact from its force channel (``force``), where it has one.
+    """Date each trial's contact from its force channel (``force``, compression positive).
 
-    The pre-contact level is the median of the samples before the force first reaches half
-    its peak, its noise their scaled median absolute deviation; the onset is the first
-    sample where the force exceeds the level by `FORCE_ONSET_SHARE` of the peak's rise
-    (a ramp of r seconds is dated about 0.05 r late).
+    The pre-contact stretch is the samples before the force first reaches halfway from its
+    first sample to its peak; its level is their median, its noise their scaled median
+    absolute deviation, but at least their resolution (the smallest step between two of
+    them; a quantised force has a MAD of 0). The onset is the first sample where the force
+    exceeds the level by `FORCE_ONSET_SHARE` of the peak's rise (a ramp of r seconds is
+    dated about 0.05 r late).
 
     Returns
     -------
     numpy.ndarray
-        int (n_trials,): the onset sample of each trial with a finite force trace whose peak
-        stands `FORCE_MIN_SNR` noise levels above its pre-contact level; -1 elsewhere (no
-        force channel, NaN samples, no contact in it, or the contact from the first sample).
+        int (n_trials,): the onset sample of each trial with a finite force trace whose
+        pre-contact stretch lasts `FORCE_MIN_BEFORE`, whose peak stands `FORCE_MIN_SNR` noise
+        levels above its level and whose force stays over the threshold `FORCE_MIN_HELD` from
+        the onset; -1 elsewhere (no force channel, NaN samples, no contact in it, a contact
+        from the first samples, a force that falls at contact), left to the reading.
     """
     out = np.full(len(data), -1, dtype=int)
     if data.force is None:
         return out
+    n_before = max(10, math.ceil(FORCE_MIN_BEFORE * data.fs))
+    n_held = max(3, math.ceil(FORCE_MIN_HELD * data.fs))
     for i, f in enumerate(np.asarray(data.force, dtype=float)):
         if not np.all(np.isfinite(f)):
             continue
         half = int(np.argmax(f >= 0.5 * (f.max() + f[0])))
-        if half < 2:
+        if half < n_before:
             continue
         before = f[:half]
         level = float(np.median(before))
-        noise = 1.4826 * float(np.median(np.abs(before - level)))
+        steps = np.abs(np.diff(np.unique(before)))
+        noise = max(1.4826 * float(np.median(np.abs(before - level))),
+                    float(steps.min()) if steps.size else 0.0)
         rise = float(f.max()) - level
         if not rise > FORCE_MIN_SNR * noise or not rise > 0:
             continue
-        out[i] = int(np.argmax(f > level + FORCE_ONSET_SHARE * rise))
+        over = f > level + FORCE_ONSET_SHARE * rise
+        on = int(np.argmax(over))
+        if on + n_held <= f.size and over[on:on + n_held].all():
+            out[i] = on
     return out
 
 
@@ -325,15 +341,15 @@ def with_detected_onsets(data: TrialSet, sensor: object | None = None) -> TrialS
         The trials; those with onset -1 are searched.
     sensor : SensorDescription or str, optional
         The sensor that recorded them (a description, preset name or file; default the
-        paper's). The detector runs at the trials' own rate ``data.fs`` whatever the
-        description's sample rate: its smoothing, CUSUM thresholds and hole test are per
-        sample.
+        paper's). The detector runs at the trials' own rate ``data.fs``: its smoothing, CUSUM
+        thresholds and hole test are per sample (`SensorDescription.at_rate`: a sensor
+        without smoothing is re-rated; a smoothed one must be described at that rate).
 
     Raises
     ------
     DatasetError
-        Naming the first trial in which no onset was found, or a rate no sensor description
-        takes.
+        Naming the first trial in which no onset was found, or a rate the sensor cannot be
+        re-rated to.
     """
     from skin.models.sensors import SensorError, load_sensor
     from skin.stream.onset import OnsetDetector
@@ -348,12 +364,12 @@ def with_detected_onsets(data: TrialSet, sensor: object | None = None) -> TrialS
         return dataclasses.replace(data, onset=onset)
     y = data.primary[todo]
     times = np.arange(y.shape[1]) / data.fs
+    described = load_sensor(sensor)
     try:
-        described = load_sensor(sensor)
-        if described.sample_rate != data.fs:
-            described = described.with_body(sample_rate=data.fs)
+        described = described.at_rate(data.fs, "the trials")
     except SensorError as exc:
-        raise DatasetError(f"{data.source}: {exc}") from None
+        raise DatasetError(f"{data.source}: {exc}: give their onsets (or a force channel), "
+                           f"or resample") from None
     detector = OnsetDetector(todo.size, sensor=described)
     events, _ = detector.process(times, y.T, detector.initial_state())
     first: dict[int, object] = {}
@@ -363,8 +379,10 @@ def with_detected_onsets(data: TrialSet, sensor: object | None = None) -> TrialS
     missing = [int(todo[k]) for k in range(todo.size) if k not in first]
     if missing:
         raise DatasetError(f"{data.source}: no contact onset found in trial {missing[0]} "
-                           f"({len(missing)} trial(s)); give its onset or a longer recording "
-                           f"(the detector needs 0.5 s before contact)")
+                           f"({len(missing)} trial(s)) by sensor {described.name!r}'s "
+                           f"detector; give its onset, a force channel, or a longer "
+                           f"recording (the detector needs {detector.warmup:g} s before "
+                           f"contact, and a contact that moves the reading beyond its noise)")
     for k, ev in first.items():
         t_on, _ = refine_onset(times, y[k], ev.time, ev.baseline, ev.slope, described.depth,
                                described.diffusivity, sensor=described)
