@@ -162,6 +162,15 @@ def test_unknown_onsets_are_found_by_the_detector():
     # a smoothing counted in samples does not carry to another rate: refused, saying what to do
     with pytest.raises(DatasetError, match="describe the sensor at 20 Hz"):
         with_detected_onsets(slow, sensor="fast-film")
+    # a PID-held sensor's trials (50 Hz) are found by its own detector, not the paper's
+    held = simulate_trials([MATS["aluminium"], MATS["glass"]], Protocol(trials=4, pre=3.0),
+                           seed=3, sensor="pid-logger")
+    blind = dataclasses.replace(held, onset=np.full(len(held), -1))
+    err = (with_detected_onsets(blind, sensor="pid-logger").onset / held.fs
+           - held.extra["true_onset_time"])
+    assert np.all(np.abs(err) < 0.1)
+    with pytest.raises(DatasetError, match="by sensor 'paper''s detector"):
+        with_detected_onsets(blind)
     flat = TrialSet(np.full((2, 400), 30.0), 200.0, np.array(["a", "b"]), np.array([-1, 50]))
     with pytest.raises(DatasetError, match="no contact onset found in trial 0"):
         with_detected_onsets(flat)

@@ -169,6 +169,7 @@ def test_evaluate_onset_command_on_a_stream_and_on_trials(tmp_path):
     doc = json.loads(out.stdout)
     assert "sensor paper at the recording's 20 Hz" in doc["source"]
     assert doc["contacts"] == 12 and doc["detection_rate"] > 0.8
+    assert doc["onset_error_ms"]["median"] < 30  # the detector at 200 Hz: 35.5 ms
     out = skin("evaluate-onset", "--materials", "unobtainium")
     assert out.returncode == 2 and "unobtainium" in out.stderr
     # the common mode needs a described sensor, a calibration or a commissioning
