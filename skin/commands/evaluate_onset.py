@@ -71,12 +71,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--why", action="store_true",
                     help="give every missed contact (the 5-sigma ones with --sensor) and every "
                          "false alarm its cause (`skin.bench.onset_why`; simulated streams)")
-    ev.add_argument("--common-mode", action="store_true",
-                    help="take a change shared by nearly every taxel (the room) off the readings "
-                         "first (the detector's common_mode; every column is one board, of "
-                         "at least 4 taxels; with --sensor, --calibration or --commissioned; "
-                         "a PID-held heater's: the median of the free taxels' departures, "
-                         "taken off on every sample)")
+    common = ev.add_mutually_exclusive_group()
+    common.add_argument("--common-mode", dest="common_mode", action="store_true", default=None,
+                        help="require the board common mode: a change shared alike by nearly "
+                             "every taxel (the room) taken off the readings first (the "
+                             "detector's common_mode, its default where the board has 4 taxels "
+                             "or more; every column is one board); refused with fewer than 4 "
+                             "taxels; with --data off unless asked for (its trials are "
+                             "separate recordings, no board). A PID-held heater's: the "
+                             "median of the free taxels' departures, taken off on every sample")
+    common.add_argument("--no-common-mode", dest="common_mode", action="store_false",
+                        help="the detector without its board common mode (common_mode=False)")
     ev.add_argument("--envelope-sigmas", type=float, default=None, metavar="Z",
                     help="the detector's gust-envelope noise margin, sigmas: the z of the "
                          "fall's noise table (default the false-alarm target's Gaussian "
@@ -221,10 +226,6 @@ def main(args: argparse.Namespace) -> int:
     from skin.bench.onset_eval import evaluate_onsets, release_window
     from skin.bench.streams import GUST_DEPTH
 
-    if args.common_mode and args.sensor is None and not args.calibration \
-            and not args.commissioned:
-        raise SkinError("--common-mode sets the detector's common mode: give --sensor, "
-                        "--calibration or --commissioned too")
     if (args.envelope_sigmas is not None or args.smooth_tau is not None
             or args.flat_envelope) and args.sensor is None:
         raise SkinError("--envelope-sigmas, --flat-envelope and --smooth-tau "
@@ -292,21 +293,26 @@ def main(args: argparse.Namespace) -> int:
     if args.commissioned:
         sigma = _commissioned_elsewhere(table, names, args.taxels, args.seed + 1000, sensor)
         source += f", noise commissioned on unit seed {args.seed + 1000}"
-    if args.sensor is not None or sigma is not None:
-        from skin.stream.onset import OnsetDetector
+    from skin.stream.onset import OnsetDetector
 
+    # the board common mode: the detector's default (on where a board has COMMON_MIN taxels),
+    # but not across a dataset's trials (separate recordings, no room shared) unless asked for
+    common = not args.data if args.common_mode is None else args.common_mode
+    if args.sensor is not None or sigma is not None:
         knobs = {k: v for k, v in (("envelope_sigmas", args.envelope_sigmas),
                                    ("smooth_tau", args.smooth_tau)) if v is not None}
         if args.flat_envelope:
             knobs["envelope_noise"] = False
         detector = OnsetDetector(temperature.shape[1], sensor=sensor, sigma=sigma,
-                                 common_mode=args.common_mode, **knobs)
+                                 common_mode=common, **knobs)
         source += "".join(f", {k.replace('_', ' ')} {v:g}" for k, v in knobs.items()
                           if k != "envelope_noise")
         source += "" if sensor is None else f", sensor {sensor.name}"
-        source += ", common mode" if args.common_mode else ""
+    else:
+        detector = OnsetDetector(temperature.shape[1], common_mode=common)
+    source += ", common mode" if detector.common_active else ", no common mode"
     # which gust-envelope margin ran (evaluate_onsets' own detector: the default, the table)
-    source += (", flat envelope margin" if detector is not None and not detector.envelope_noise
+    source += (", flat envelope margin" if not detector.envelope_noise
                else ", noise-table envelope margin")
     result = evaluate_onsets(times, temperature, truth, fs, min_duration=args.min_duration,
                              progress=lambda d, n: progress.bar(d, n, "samples", started),
@@ -328,7 +334,8 @@ def main(args: argparse.Namespace) -> int:
                        if c.material == name and c.duration >= args.min_duration]
             by_material[name] = {"contacts": len(counted),
                                  "detected": int(sum(flags[k] for k in counted))}
-    doc = {"machine": machine(), "source": source, **result,
+    doc = {"machine": machine(), "source": source, "common_mode": detector.common_active,
+           **result,
            "wall_time": round(time.monotonic() - started, 2)}
     if by_material is not None:
         doc["by_material"] = by_material

@@ -291,7 +291,8 @@ def with_detected_onsets(data: TrialSet, depth: float = 8e-5,
         return data
     y = data.primary[todo]
     times = np.arange(y.shape[1]) / data.fs
-    detector = OnsetDetector(todo.size)
+    # each trial its own recording: no room shared across them (no board common mode)
+    detector = OnsetDetector(todo.size, common_mode=False)
     events, _ = detector.process(times, y.T, detector.initial_state())
     first: dict[int, object] = {}
     for ev in events:
