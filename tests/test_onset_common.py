@@ -69,16 +69,16 @@ def test_no_room_change_no_common_mode():
     assert [(e.taxel, e.time, e.detected_at) for e in on] == \
         [(e.taxel, e.time, e.detected_at) for e in off]
     np.testing.assert_allclose([e.baseline for e in on], [e.baseline for e in off], atol=1e-3)
-    # on by default where a board has COMMON_MIN taxels; off when asked
-    assert OnsetDetector(COMMON_MIN, sensor="low-cost").common_active
-    assert not OnsetDetector(16, sensor="low-cost", common_mode=False).common_active
+    # none unless asked for; when asked, on boards of COMMON_MIN taxels
+    assert not OnsetDetector(16, sensor="low-cost").common_active
+    assert OnsetDetector(COMMON_MIN, sensor="low-cost", common_mode=True).common_active
 
 
 def test_a_small_board_has_no_common_mode_and_is_no_error():
-    """The default is on, but a board of fewer than COMMON_MIN taxels has none: the detector
+    """A board of fewer than COMMON_MIN taxels has no common mode: asked for, the detector
     runs (no refusal) and gives the events of one without it, its common mode 0 throughout."""
     t, y, s = _board(n=COMMON_MIN - 1, touched=(0,), fall=0.6, fall_at=65.0)
-    d = OnsetDetector(COMMON_MIN - 1, sensor=s)
+    d = OnsetDetector(COMMON_MIN - 1, sensor=s, common_mode=True)
     assert d.common_mode and not d.common_active
     on, state = _onsets(t, y, s, common_mode=d.common_mode)
     off, _ = _onsets(t, y, s, common_mode=False)
@@ -86,19 +86,8 @@ def test_a_small_board_has_no_common_mode_and_is_no_error():
     assert 0 in {e.taxel for e in on if 70.0 <= e.time <= 76.0}
     # two boards of 3 and 16: the 16 have theirs, the 3 none
     boards = np.repeat([0, 1], [3, 16])
-    d = OnsetDetector(19, sensor=s, boards=boards)
+    d = OnsetDetector(19, sensor=s, boards=boards, common_mode=True)
     assert d.common_active
-
-
-def test_the_default_detector_takes_a_room_fall_on_every_taxel_for_no_contact():
-    """The default detector (no common_mode argument): the room's 0.6 K fall in 13 s on every
-    taxel of a 16-taxel low-cost board raises no onset (without the common mode: several)."""
-    t, y, s = _board(seconds=240.0)
-    d = OnsetDetector(16, sensor=s)
-    events, _ = d.process(t, y, d.initial_state())
-    assert [e for e in events if e.kind == "onset" and e.time > 55.0] == []
-    off, _ = _onsets(t, y, s, common_mode=False)
-    assert len({e.taxel for e in off if e.time > 55.0}) >= 4
 
 
 def test_the_common_mode_is_each_boards_own():
@@ -418,11 +407,10 @@ def _warming(n=16, seconds=60.0, sensor="paper", touched=(), touch_at=20.0, touc
 def test_a_board_warming_up_together_is_no_room(sensor):
     """Every taxel rises at once after power-on, each by its own distance from its steady
     state: not one change shared alike, so no common mode is taken off (taken for the room,
-    its order statistic stepped as taxels were touched: the default scene's touches named
-    right 373 -> 232 of 450 over seeds 0-29), and the onsets are those without it."""
+    its order statistic stepped as taxels were touched: with it on, the default scene's touches
+    named right 373 -> 232 of 450 over seeds 0-29), and the onsets are those without it."""
     t, y, s = _warming(sensor=sensor, touched=(3, 4))
-    d = OnsetDetector(16, sensor=s)
-    assert d.common_mode  # the default
+    d = OnsetDetector(16, sensor=s, common_mode=True)
     state = d.initial_state()
     worst = 0.0
     on = []

@@ -158,12 +158,9 @@ def test_evaluate_onset_command_on_a_stream_and_on_trials(tmp_path):
     assert out.returncode == 0, out.stderr
     doc = json.loads(out.stdout)
     assert doc["contacts"] == 12 and doc["detection_rate"] > 0.8
-    # a dataset's trials are separate recordings, no board: no common mode unless asked for
     assert doc["common_mode"] is False and "no common mode" in doc["source"]
     out = skin("evaluate-onset", "--materials", "unobtainium")
     assert out.returncode == 2 and "unobtainium" in out.stderr
-    out = skin("evaluate-onset", "--common-mode", "--no-common-mode")
-    assert out.returncode == 2 and "--no-common-mode" in out.stderr
 
 
 def test_evaluate_onset_refuses_a_common_mode_on_fewer_than_common_min_taxels(tmp_path):
@@ -188,13 +185,6 @@ def test_evaluate_onset_refuses_a_common_mode_on_fewer_than_common_min_taxels(tm
                "--minutes", "0.5", "--common-mode", "--json")
     assert out.returncode == 0, out.stderr
     assert json.loads(out.stdout)["common_mode"] is True
-    # without --common-mode (the default) a small board is no error: its common mode is just
-    # not there
-    out = skin("evaluate-onset", "--sensor", "low-cost", "--taxels", few, "--minutes", "0.5",
-               "--json")
-    assert out.returncode == 0, out.stderr
-    doc = json.loads(out.stdout)
-    assert doc["common_mode"] is False and "no common mode" in doc["source"]
 
 
 def test_sensor_constants_are_recovered_from_reference_contacts():

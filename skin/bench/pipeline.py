@@ -82,7 +82,7 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
         The onset detector's gust-envelope margin (`skin.stream.onset.OnsetDetector`'s
         ``envelope_noise``; None: its default); one process only (``workers`` 1).
     common_mode : bool, optional
-        The onset detector's board common mode (``common_mode``; None: its default, on);
+        The onset detector's board common mode (``common_mode``; None: its default, off);
         one process only (``workers`` 1).
 
     Returns
@@ -135,8 +135,7 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
         writer.close()
         detector = (None if envelope_noise is None and common_mode is None
                     else _detector_for(layout, envelope_noise=envelope_noise,
-                                       common_mode=True if common_mode is None
-                                       else common_mode))
+                                       common_mode=bool(common_mode)))
         pipe = Pipeline(layout, JointClassifier(layout), budget=budget, detector=detector)
         if workers == 1:
             timed = _one_process(pipe, WireSource(folder, tuple(boards)), n, block)

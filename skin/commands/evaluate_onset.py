@@ -71,17 +71,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--why", action="store_true",
                     help="give every missed contact (the 5-sigma ones with --sensor) and every "
                          "false alarm its cause (`skin.bench.onset_why`; simulated streams)")
-    common = ev.add_mutually_exclusive_group()
-    common.add_argument("--common-mode", dest="common_mode", action="store_true", default=None,
-                        help="require the board common mode: a change shared alike by nearly "
-                             "every taxel (the room) taken off the readings first (the "
-                             "detector's common_mode, its default where the board has 4 taxels "
-                             "or more; every column is one board); refused with fewer than 4 "
-                             "taxels; with --data off unless asked for (its trials are "
-                             "separate recordings, no board). A PID-held heater's: the "
-                             "median of the free taxels' departures, taken off on every sample")
-    common.add_argument("--no-common-mode", dest="common_mode", action="store_false",
-                        help="the detector without its board common mode (common_mode=False)")
+    ev.add_argument("--common-mode", action="store_true",
+                    help="take a change shared alike by nearly every taxel (the room) off the "
+                         "readings first (the detector's common_mode; every column is one "
+                         "board, of at least 4 taxels: refused with fewer). A PID-held "
+                         "heater's: the median of the free taxels' departures, taken off on "
+                         "every sample")
     ev.add_argument("--envelope-sigmas", type=float, default=None, metavar="Z",
                     help="the detector's gust-envelope noise margin, sigmas: the z of the "
                          "fall's noise table (default the false-alarm target's Gaussian "
@@ -295,9 +290,7 @@ def main(args: argparse.Namespace) -> int:
         source += f", noise commissioned on unit seed {args.seed + 1000}"
     from skin.stream.onset import OnsetDetector
 
-    # the board common mode: the detector's default (on where a board has COMMON_MIN taxels),
-    # but not across a dataset's trials (separate recordings, no room shared) unless asked for
-    common = not args.data if args.common_mode is None else args.common_mode
+    common = args.common_mode
     if args.sensor is not None or sigma is not None:
         knobs = {k: v for k, v in (("envelope_sigmas", args.envelope_sigmas),
                                    ("smooth_tau", args.smooth_tau)) if v is not None}

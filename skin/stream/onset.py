@@ -19,8 +19,8 @@ simulator's family) plus the steepest heater step could make in the time since, 
 what moves its sensor slowly: there the gusts, the heater steps and the room's drift are taken
 as the reading shows them through the loop (`loop_envelope`), and such an onset is dated when
 raised (its reference can date from long before the contact; `refine_onset` searches before
-it). A board's common mode (``common_mode``, on by default where a board has `COMMON_MIN`
-taxels or more) takes the room off first: gated on a change (nearly) every free taxel shows
+it). A board's common mode (opt-in, ``common_mode``; on boards of `COMMON_MIN` taxels or
+more) takes the room off first: gated on a change (nearly) every free taxel shows
 by (nearly) the same amount, or, on a PID-held board, the median of its free taxels'
 departures on every sample (`OnsetDetector._loop_common`).
 
@@ -780,31 +780,33 @@ class OnsetDetector:
         Each taxel's board (default: all on one). The common mode is a board's.
     common_mode : bool
         Whether a change shared by (nearly) every free taxel of a board is taken off their
-        readings before anything else (default: yes, where a board has `COMMON_MIN` taxels
-        or more; inactive on smaller boards, `common_active`; False: off). A PID-held
-        heater's board (``sensor.heater
-        == "pid"``, with the gust-envelope test) has its own (`_loop_common`): the loop
-        high-passes the room into a band-limited noise that never moves (nearly) every taxel
-        beyond its noise at once, so the gated form below switched on and off with it, a step in
-        every reading of the board (pid-logger seed 0: 1.25 false alarms per taxel-hour, three
-        at one instant); there the median of the free taxels' departures is taken off on every
-        sample, the envelope's room allowance scaled by what it leaves, and the CUSUM's
-        allowance made to hold the family's gusts through the loop (`_gust_allowance`); it needs
-        a board of `COMMON_MIN` taxels or more (with none, neither it nor the gust allowance is
-        used). The room warming or cooling moves every heated taxel alike; a touch moves the
-        taxels it covers; a skin warming up after power-on moves each taxel by its own distance
-        from its steady state. Per board, each free taxel's departure (its reading averaged as the
-        slow channel's) from its own level (followed with ``slow_tau``, the common mode taken
+        readings before anything else (default: no; when asked, active on boards of
+        `COMMON_MIN` taxels or more only, `common_active`). A PID-held heater's board
+        (``sensor.heater == "pid"``, with the gust-envelope test) has its own
+        (`_loop_common`): the loop high-passes the room into a band-limited noise that never
+        moves (nearly) every taxel beyond its noise at once, so the gated form below
+        switched on and off with it, a step in every reading of the board (pid-logger seed
+        0: 1.25 false alarms per taxel-hour, three at one instant); there the median of the
+        free taxels' departures is taken off on every sample, the envelope's room allowance
+        scaled by what it leaves, and the CUSUM's allowance made to hold the family's gusts
+        through the loop (`_gust_allowance`); it needs a board of `COMMON_MIN` taxels or
+        more (with none, neither it nor the gust allowance is used). The room warming or
+        cooling moves every heated taxel alike; a touch moves the taxels it covers; a skin
+        warming up after power-on moves each taxel by its own distance from its steady
+        state. Per board, each free taxel's departure (its reading averaged as the slow
+        channel's) from its own level (followed with ``slow_tau``, the common mode taken
         off, and the room's change with `COMMON_FORGET` times ``slow_tau``), plus
-        `COMMON_MARGIN` of that average's noise sigmas: when at least k of the board's n free
-        taxels fell beyond their noise, k = ceil((1 - `COMMON_SHARE`) n) (`_shared`: 4 of 4, 15
-        of 16), the k-th largest fall is the common mode (for a rise: the k-th largest rise less
-        the margin), provided k of them (consecutive in size) lie within `COMMON_AGREE` noise
-        sigmas of each other (one change, alike: a warm-up's rises are not, and are left on the
-        readings); else 0, so that noise and a touch covering fewer than k of a board's free
-        taxels leave the readings alone. A touch that covers k or more of them at once is taken
-        for the room. Boards of fewer than `COMMON_MIN` free taxels have none (a loop-held
-        board's holds its last one, fading).
+        `COMMON_MARGIN` of that average's noise sigmas: when at least k of the board's n
+        free taxels fell beyond their noise, k = ceil((1 - `COMMON_SHARE`) n) (`_shared`: 4
+        of 4, 15 of 16), the k-th largest fall is the common mode (for a rise: the k-th
+        largest rise less the margin), provided k of them (consecutive in size) lie within
+        `COMMON_AGREE` noise sigmas of each other (one change, alike: a warm-up's rises are
+        not, and are left on the readings); else 0, so that noise and a touch covering fewer
+        than k of a board's free taxels leave the readings alone (one that ends abruptly,
+        a second touch while the room moves, is held and fades as the levels absorb it,
+        `COMMON_FORGET`). A touch that covers k or
+        more of them at once is taken for the room. Boards of fewer than `COMMON_MIN` free
+        taxels have none (a loop-held board's holds its last one, fading).
 
     Every kelvin threshold left as None follows from ``sigma`` and the sensor; the figures in
     the descriptions above are the paper sensor's.
@@ -848,7 +850,7 @@ class OnsetDetector:
         gust_depth: float | None = None,
         gust_rise: float = GUST_RISE,
         boards: np.ndarray | None = None,
-        common_mode: bool = True,
+        common_mode: bool = False,
     ) -> None:
         from skin.models.sensors import load_sensor
 
@@ -1185,7 +1187,8 @@ class OnsetDetector:
         moved = (count >= COMMON_MIN) & ((down >= _shared(count)) | (up >= _shared(count)))
         if moved.any():
             # ... by the same amount (`COMMON_AGREE`): a warm-up's rises, each taxel's own, are
-            # no room (the default scene: 373 -> 232 of 450 touches named right without this)
+            # no room (the default scene with it on: 373 -> 232 of 450 touches named right
+            # without this, seeds 0-29)
             moved &= self._agree(part, use, table, count)
         # a board whose common mode ends otherwise than by fading into its noise (a second
         # touch while the room moves: too few free taxels left moving alike) holds it, fading

@@ -283,7 +283,7 @@ class Pipeline:
         provisional: Sequence[float] = (),
         noise: np.ndarray | None = None,
         workers: int = 1,
-        common_mode: bool = True,
+        common_mode: bool = False,
     ) -> None:
         rates = {b.sample_rate for b in layout.boards.values()}
         if len(rates) != 1:
@@ -482,7 +482,7 @@ class Pipeline:
 
 def _detector_for(layout: Layout, noise: np.ndarray | None = None,
                   envelope_noise: bool | None = None,
-                  common_mode: bool = True) -> OnsetDetector:
+                  common_mode: bool = False) -> OnsetDetector:
     """Return an onset detector set by the boards' sensors (each taxel's noise: its board's).
 
     ``envelope_noise``: the detector's (None: its default); ``common_mode``: the detector's
