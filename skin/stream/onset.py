@@ -802,11 +802,11 @@ class OnsetDetector:
         largest rise less the margin), provided k of them (consecutive in size) lie within
         `COMMON_AGREE` noise sigmas of each other (one change, alike: a warm-up's rises are
         not, and are left on the readings); else 0, so that noise and a touch covering fewer
-        than k of a board's free taxels leave the readings alone (one that ends abruptly,
-        a second touch while the room moves, is held and fades as the levels absorb it,
-        `COMMON_FORGET`). A touch that covers k or
-        more of them at once is taken for the room. Boards of fewer than `COMMON_MIN` free
-        taxels have none (a loop-held board's holds its last one, fading).
+        than k of a board's free taxels leave the readings alone (one that ends abruptly, a
+        second touch while the room moves, is held and fades as the levels absorb it,
+        `COMMON_FORGET`). A touch that covers k or more of them at once is taken for the
+        room. Boards of fewer than `COMMON_MIN` free taxels have none (a loop-held board's
+        holds its last one, fading).
 
     Every kelvin threshold left as None follows from ``sigma`` and the sensor; the figures in
     the descriptions above are the paper sensor's.
