@@ -28,7 +28,7 @@ contact on stderr); any other entry ending in ``.jsonl`` is a JSON-lines file of
 GROUPS: dict[str, tuple[str, ...]] = {
     "source": ("port", "reconnect", "first_frame_timeout", "firmware_sim", "scene", "seed",
                "duration", "speed", "contact"),
-    "skin": ("layout", "calibration", "workers"),
+    "skin": ("layout", "calibration", "workers", "common_mode"),
     "classifier": ("model", "classifier", "threshold", "expect", "window", "provisional",
                    "object_temperature_range"),
     "output": ("out", "force", "sinks", "publish", "record", "map", "arm", "view", "video",
@@ -133,6 +133,11 @@ class Setup:
         boards' ports and decodes, assembles, calibrates and detects onsets
         (`skin.stream.board_workers`); otherwise onset detection alone is sharded across that
         many processes, this one included (`skin.stream.shards`). The same results.
+    common_mode : bool
+        The onset detector's board common mode (`skin.stream.onset.OnsetDetector`'s
+        ``common_mode``: the room's change, shared alike by nearly every free taxel of a
+        board of 4 or more, taken off first; default off). With it, onset shards keep whole
+        boards (fewer worker processes than ``workers`` on a skin of fewer boards).
     origin : dict
         Field name -> where its value came from (``default`` when absent).
     """
@@ -166,6 +171,7 @@ class Setup:
     video: str | None = None
     view_mode: str = "material"
     workers: int = 1
+    common_mode: bool = False
     robot: str = "skin"
     robot_pose: list[float] = field(default_factory=list)
     origin: dict[str, str] = field(default_factory=dict, compare=False)
@@ -361,6 +367,7 @@ _CHECKS: dict[str, Callable[[Any], Any]] = {
     "video": _optional_text,
     "view_mode": _choice("material", "temperature"),
     "workers": _count,
+    "common_mode": _flag,
     "robot": _name,
     "robot_pose": _pose,
 }

@@ -34,6 +34,21 @@ def test_shards_are_whole_boards_when_there_are_enough():
     halves = shard_taxels(one_board, 2)  # fewer boards than workers: even runs of taxels
     assert [h.size for h in halves] == [36, 36]
     assert len(shard_taxels(one_board, 100)) == 72  # never an empty shard
+    # the board common mode needs its whole board in one shard: never split then
+    assert [h.size for h in shard_taxels(one_board, 2, whole_boards=True)] == [72]
+    assert len(shard_taxels(layout, 8, whole_boards=True)) == 4
+
+
+def test_with_the_common_mode_a_board_is_never_split_across_workers():
+    scene = load_scene("default")
+    pipe = Pipeline(scene.layout, HistogramClassifier(scene.layout), workers=2, common_mode=True)
+    try:
+        assert pipe.detector.common_active
+        pipe.start()
+        # one board of 72: one shard, detected in this process (no worker started)
+        assert [sh.size for sh in pipe.onset_workers.shards] == [72]
+    finally:
+        pipe.close()
 
 
 def test_a_sub_detector_is_the_whole_detector_on_its_taxels():

@@ -46,7 +46,8 @@ def cylinder_layout(n: int, radius: float = 0.05, pitch: float = 0.02) -> Layout
 
 def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minute: float = 6.0,
         budget: float | None = 0.001, chunk: int = 200, workers: int = 1,
-        keep_results: bool = False, block: int = 1, envelope_noise: bool | None = None) -> dict:
+        keep_results: bool = False, block: int = 1, envelope_noise: bool | None = None,
+        common_mode: bool | None = None) -> dict:
     """Push ``duration`` s of a simulated ``n_taxels`` skin through the chain; see the module.
 
     Parameters
@@ -80,6 +81,9 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
     envelope_noise : bool, optional
         The onset detector's gust-envelope margin (`skin.stream.onset.OnsetDetector`'s
         ``envelope_noise``; None: its default); one process only (``workers`` 1).
+    common_mode : bool, optional
+        The onset detector's board common mode (``common_mode``; None: its default, off);
+        one process only (``workers`` 1).
 
     Returns
     -------
@@ -102,9 +106,9 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
     from skin.stream.calibration import Calibration
     from skin.stream.pipeline import Pipeline, _detector_for
 
-    if envelope_noise is not None and workers != 1:
-        raise ValueError("envelope_noise is set in one process only (workers 1): the board "
-                         "workers build their own detectors")
+    if (envelope_noise is not None or common_mode is not None) and workers != 1:
+        raise ValueError("envelope_noise and common_mode are set in one process only (workers "
+                         "1): the board workers build their own detectors")
     peak0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     layout = cylinder_layout(n_taxels)
     table = load_materials()
@@ -129,8 +133,9 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
                                           float(part.ambient[i]), duty[: wires[b].size])
                             for b in boards])
         writer.close()
-        detector = (None if envelope_noise is None
-                    else _detector_for(layout, envelope_noise=envelope_noise))
+        detector = (None if envelope_noise is None and common_mode is None
+                    else _detector_for(layout, envelope_noise=envelope_noise,
+                                       common_mode=bool(common_mode)))
         pipe = Pipeline(layout, JointClassifier(layout), budget=budget, detector=detector)
         if workers == 1:
             timed = _one_process(pipe, WireSource(folder, tuple(boards)), n, block)
@@ -147,6 +152,7 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
            "budget_ms": None if budget is None else budget * 1e3,
            # the margin that ran (the default detector's too)
            "envelope": "noise" if pipe.detector.envelope_noise else "flat",
+           "common_mode": pipe.detector.common_active,
            "taxel_samples_per_s": round(samples / total),
            "stages": {k: round(samples / v) if v > 0 else None for k, v in stages.items()},
            "stage_share": {k: round(v / total, 3) for k, v in stages.items()},

@@ -28,7 +28,7 @@ SURE = 0.9
 
 
 def play(scene: str, seed: int, duration: float | None = None,
-         ceiling: bool = False) -> dict[str, Any]:
+         ceiling: bool = False, common_mode: bool = False) -> dict[str, Any]:
     """Run ``scene`` with ``seed`` through `skin.Skin`; return its figures and its misses.
 
     With ``ceiling``, also ``ceiling`` (touches the known-nuisance ceiling names right, and
@@ -43,6 +43,7 @@ def play(scene: str, seed: int, duration: float | None = None,
     started, cpu = time.monotonic(), time.process_time()
     quiet = Progress(io.StringIO())  # the run's own status lines; the bench shows its bar
     with Skin(scene=scene, seed=seed, speed=0.0, duration=duration, out=None, map=False,
+              common_mode=common_mode,
               sinks=[], progress=quiet) as skin:
         if ceiling:
             import copy
@@ -209,8 +210,10 @@ def _median(values: list) -> float | None:
 def run(scene: str = "default", seeds: Sequence[int] = tuple(range(10)),
         duration: float | None = None,
         progress: Callable[[int, int], None] | None = None,
-        ceiling: bool = False) -> dict[str, Any]:
+        ceiling: bool = False, common_mode: bool = False) -> dict[str, Any]:
     """Play ``scene`` once per seed; return the runs and the figures over all of them.
+
+    ``common_mode``: the onset detector's board common mode (`skin.setup.Setup`'s).
 
     Returns
     -------
@@ -227,7 +230,7 @@ def run(scene: str = "default", seeds: Sequence[int] = tuple(range(10)),
     """
     runs = []
     for i, seed in enumerate(seeds):
-        runs.append(play(scene, int(seed), duration, ceiling))
+        runs.append(play(scene, int(seed), duration, ceiling, common_mode))
         if progress is not None:
             progress(i + 1, len(seeds))
     keys = ("touches", "detected", "material", "family", "unknown", "wrong", "sure_wrong",

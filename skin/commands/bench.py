@@ -137,6 +137,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                            "flat one, and give the first's throughput over the second's "
                            "(same run, in the order noise, flat, flat, noise: each margin's "
                            "run with the faster onset stage)")
+    pipe.add_argument("--compare-common-mode", action="store_true",
+                      help="also run each size (one process) with the onset detector's board "
+                           "common mode on and off (its default), and give on's throughput "
+                           "over off's (same run, in the order on, off, off, on: each one's "
+                           "run with the faster onset stage)")
     pipe.add_argument("--json", action="store_true", help="print one JSON document")
     pipe.set_defaults(func=main_pipeline)
     soak = kinds.add_parser("soak", help="the whole chain for hours of simulated time")
@@ -738,11 +743,29 @@ def main_pipeline(args: argparse.Namespace) -> int:
             flat.append({"taxels": n, **both, "runs_each": 2, "noise_over_flat": {
                 "chain": round(a["taxel_samples_per_s"] / b["taxel_samples_per_s"], 3),
                 "onset": round(a["stages"]["onset"] / b["stages"]["onset"], 3)}})
+    common = []
+    if args.compare_common_mode:
+        for n in sizes:
+            # alternated (ABBA), as --compare-envelope
+            pair: dict[str, list[dict]] = {"on": [], "off": []}
+            for kind in ("on", "off", "off", "on"):
+                progress.message(f"{n} taxels x {args.seconds:g} s, common mode {kind}")
+                pair[kind].append(run(n, args.seconds,
+                                      contacts_per_minute=args.contacts_per_minute,
+                                      budget=budget, workers=1, block=args.block,
+                                      common_mode=kind == "on"))
+            best = {k: max(v, key=lambda r: r["stages"]["onset"]) for k, v in pair.items()}
+            a, b = best["on"], best["off"]
+            common.append({"taxels": n, **best, "runs_each": 2, "on_over_off": {
+                "chain": round(a["taxel_samples_per_s"] / b["taxel_samples_per_s"], 3),
+                "onset": round(a["stages"]["onset"] / b["stages"]["onset"], 3)}})
     progress.done()
     doc = {"machine": bench.machine(), "block": args.block, "results": rows,
            "speedup": _speedups(rows, workers)}
     if flat:
         doc["envelope_compare"] = flat
+    if common:
+        doc["common_mode_compare"] = common
     if args.json:
         print(json.dumps(doc))
         return 0
@@ -772,6 +795,12 @@ def main_pipeline(args: argparse.Namespace) -> int:
               f"{f['noise']['stages']['onset']}), the flat one's "
               f"{f['flat']['taxel_samples_per_s']} ({f['flat']['stages']['onset']}): "
               f"x{f['noise_over_flat']['chain']} chain, x{f['noise_over_flat']['onset']} onset")
+    for f in common:
+        print(f"\n{f['taxels']} taxels, one process, each one's faster onset stage of two runs "
+              f"(on, off, off, on), taxel-samples/s: board common mode on "
+              f"{f['on']['taxel_samples_per_s']} (onset stage {f['on']['stages']['onset']}), "
+              f"off {f['off']['taxel_samples_per_s']} ({f['off']['stages']['onset']}): "
+              f"x{f['on_over_off']['chain']} chain, x{f['on_over_off']['onset']} onset")
     for sp in doc["speedup"]:
         print(f"\n{sp['taxels']} taxels, samples in blocks of {args.block}: speed-up over "
               f"{workers[0]} worker{'s' if workers[0] > 1 else ''} (same run): "

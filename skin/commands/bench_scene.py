@@ -25,6 +25,8 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
                        help="also the known-nuisance ceiling of each touch (the best classifier "
                             "told all but the material) and the gap from the run to it, in "
                             "steps (skin.bench.scene_ceiling)")
+    scene.add_argument("--common-mode", action="store_true",
+                       help="the onset detector's board common mode on (skin run --common-mode)")
     scene.add_argument("--json", action="store_true", help="print one JSON document")
     scene.set_defaults(func=main)
     fit = kinds.add_parser("fit-calibration", help="fit the joint classifier's calibration "
@@ -79,7 +81,8 @@ def main(args: argparse.Namespace) -> int:
     progress = Progress()
     started = time.monotonic()
     out = run(args.scene, seeds, args.duration,
-              progress=lambda d, n: progress.bar(d, n, "runs", started), ceiling=args.ceiling)
+              progress=lambda d, n: progress.bar(d, n, "runs", started), ceiling=args.ceiling,
+              common_mode=args.common_mode)
     progress.done()
     if args.json:
         print(json.dumps({"machine": machine(), **out,

@@ -74,11 +74,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     help="give every missed contact (the 5-sigma ones with --sensor) and every "
                          "false alarm its cause (`skin.bench.onset_why`; simulated streams)")
     ev.add_argument("--common-mode", action="store_true",
-                    help="take a change shared by nearly every taxel (the room) off the readings "
-                         "first (the detector's common_mode; every column is one board, of "
-                         "at least 4 taxels; with --sensor, --calibration or --commissioned; "
-                         "a PID-held heater's: the median of the free taxels' departures, "
-                         "taken off on every sample)")
+                    help="take a change shared alike by nearly every taxel (the room) off the "
+                         "readings first (the detector's common_mode; every column is one "
+                         "board, of at least 4 taxels: refused with fewer). A PID-held "
+                         "heater's: the median of the free taxels' departures, taken off on "
+                         "every sample")
     ev.add_argument("--envelope-sigmas", type=float, default=None, metavar="Z",
                     help="the detector's gust-envelope noise margin, sigmas: the z of the "
                          "fall's noise table (default the false-alarm target's Gaussian "
@@ -223,10 +223,6 @@ def main(args: argparse.Namespace) -> int:
     from skin.bench.onset_eval import evaluate_onsets, release_window
     from skin.bench.streams import GUST_DEPTH
 
-    if args.common_mode and args.sensor is None and not args.calibration \
-            and not args.commissioned:
-        raise SkinError("--common-mode sets the detector's common mode: give --sensor, "
-                        "--calibration or --commissioned too")
     if any(v is not None and not v > 0 for v in (args.envelope_sigmas, args.smooth_tau)):
         raise SkinError("--envelope-sigmas and --smooth-tau must be positive")
     if args.commissioned and (args.data or args.calibration):
@@ -308,7 +304,7 @@ def main(args: argparse.Namespace) -> int:
                              common_mode=args.common_mode, **knobs)
     source += "".join(f", {k.replace('_', ' ')} {v:g}" for k, v in knobs.items()
                       if k != "envelope_noise")
-    source += ", common mode" if args.common_mode else ""
+    source += ", common mode" if detector.common_active else ", no common mode"
     source += (", flat envelope margin" if not detector.envelope_noise
                else ", noise-table envelope margin")
     result = evaluate_onsets(times, temperature, truth, fs, min_duration=args.min_duration,
@@ -330,7 +326,8 @@ def main(args: argparse.Namespace) -> int:
                        if c.material == name and c.duration >= args.min_duration]
             by_material[name] = {"contacts": len(counted),
                                  "detected": int(sum(flags[k] for k in counted))}
-    doc = {"machine": machine(), "source": source, **result,
+    doc = {"machine": machine(), "source": source, "common_mode": detector.common_active,
+           **result,
            "wall_time": round(time.monotonic() - started, 2)}
     if by_material is not None:
         doc["by_material"] = by_material

@@ -125,6 +125,10 @@ def add_setup_options(run: argparse.ArgumentParser) -> None:
                      help="worker processes: with N or more serial --port (one board each), "
                           "each worker reads and processes its own boards; otherwise onset "
                           "detection is sharded across them (default 1; the same results)")
+    run.add_argument("--common-mode", action="store_true",
+                     help="the onset detector's board common mode: the room's change, shared "
+                          "alike by nearly every free taxel of a board of 4 or more, taken "
+                          "off first (OnsetDetector common_mode; default off)")
 
 
 def main(args: argparse.Namespace) -> int:

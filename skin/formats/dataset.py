@@ -370,7 +370,8 @@ def with_detected_onsets(data: TrialSet, sensor: object | None = None) -> TrialS
     except SensorError as exc:
         raise DatasetError(f"{data.source}: {exc}: give their onsets (or a force channel), "
                            f"or resample") from None
-    detector = OnsetDetector(todo.size, sensor=described)
+    # each trial its own recording: no room shared across them (no board common mode)
+    detector = OnsetDetector(todo.size, sensor=described, common_mode=False)
     events, _ = detector.process(times, y.T, detector.initial_state())
     first: dict[int, object] = {}
     for ev in events:

@@ -19,9 +19,10 @@ simulator's family) plus the steepest heater step could make in the time since, 
 what moves its sensor slowly: there the gusts, the heater steps and the room's drift are taken
 as the reading shows them through the loop (`loop_envelope`), and such an onset is dated when
 raised (its reference can date from long before the contact; `refine_onset` searches before
-it). A board's common mode (opt-in, ``common_mode``) takes the room off first: gated on a
-change (nearly) every free taxel shows, or, on a PID-held board, the median of its free
-taxels' departures on every sample (`OnsetDetector._loop_common`).
+it). A board's common mode (opt-in, ``common_mode``; on boards of `COMMON_MIN` taxels or
+more) takes the room off first: gated on a change (nearly) every free taxel shows
+by (nearly) the same amount, or, on a PID-held board, the median of its free taxels'
+departures on every sample (`OnsetDetector._loop_common`).
 
 What rises without a contact is told apart so: the heater's duty stepping up and ambient drift
 move the reading slowly (through the taxel's ~63 s mode), and the baseline follows them; the
@@ -133,6 +134,14 @@ COMMON_MIN = 4
 COMMON_MARGIN = 2.0
 #: ... and is forgotten (each taxel's level follows the room) within this many ``slow_tau``.
 COMMON_FORGET = 10.0
+#: ... and moves those taxels by the same amount: the room moves every heated taxel of a board
+#: alike, a skin warming up after power-on (or reheating after touches) moves each by its own
+#: distance from its steady state. At least `_shared` of the free taxels' departures lie
+#: within this many noise sigmas (the departure's, `COMMON_MARGIN`'s sigma) of each other:
+#: the range of 16 Gaussian departures exceeds it with probability below 2 x 16 x Q(4) = 1e-3.
+COMMON_AGREE = 8.0
+#: ... and, held after it ended abruptly, is 0 once below this share of the noise margin.
+COMMON_SNAP = 0.01
 
 
 def _shared(count: np.ndarray) -> np.ndarray:
@@ -771,28 +780,33 @@ class OnsetDetector:
         Each taxel's board (default: all on one). The common mode is a board's.
     common_mode : bool
         Whether a change shared by (nearly) every free taxel of a board is taken off their
-        readings before anything else (default: no). A PID-held heater's board (``sensor.heater
-        == "pid"``, with the gust-envelope test) has its own (`_loop_common`): the loop
-        high-passes the room into a band-limited noise that never moves (nearly) every taxel
-        beyond its noise at once, so the gated form below switched on and off with it, a step in
-        every reading of the board (pid-logger seed 0: 1.25 false alarms per taxel-hour, three
-        at one instant); there the median of the free taxels' departures is taken off on every
-        sample, the envelope's room allowance scaled by what it leaves, and the CUSUM's
-        allowance made to hold the family's gusts through the loop (`_gust_allowance`); it needs
-        a board of `COMMON_MIN` taxels or more (with none, neither it nor the gust allowance is
-        used). The gated form is not, as it stands, for a skin whose taxels warm up together
-        (the default scene's first seconds: taken for the room, it changed one contact of scene
-        seed 8). The room warming or cooling moves every heated taxel alike; a touch moves the
-        taxels it covers. Per board, each free taxel's departure (its reading averaged as the
-        slow channel's) from its own level (followed with ``slow_tau``, the common mode taken
+        readings before anything else (default: no; when asked, active on boards of
+        `COMMON_MIN` taxels or more only, `common_active`). A PID-held heater's board
+        (``sensor.heater == "pid"``, with the gust-envelope test) has its own
+        (`_loop_common`): the loop high-passes the room into a band-limited noise that never
+        moves (nearly) every taxel beyond its noise at once, so the gated form below
+        switched on and off with it, a step in every reading of the board (pid-logger seed
+        0: 1.25 false alarms per taxel-hour, three at one instant); there the median of the
+        free taxels' departures is taken off on every sample, the envelope's room allowance
+        scaled by what it leaves, and the CUSUM's allowance made to hold the family's gusts
+        through the loop (`_gust_allowance`); it needs a board of `COMMON_MIN` taxels or
+        more (with none, neither it nor the gust allowance is used). The room warming or
+        cooling moves every heated taxel alike; a touch moves the taxels it covers; a skin
+        warming up after power-on moves each taxel by its own distance from its steady
+        state. Per board, each free taxel's departure (its reading averaged as the slow
+        channel's) from its own level (followed with ``slow_tau``, the common mode taken
         off, and the room's change with `COMMON_FORGET` times ``slow_tau``), plus
-        `COMMON_MARGIN` of that average's noise sigmas: when at least k of the board's n free
-        taxels fell beyond their noise, k = ceil((1 - `COMMON_SHARE`) n) (`_shared`: 4 of 4, 15
-        of 16), the k-th largest fall is the common mode (for a rise: the k-th largest rise less
-        the margin); else 0, so that noise and a touch covering fewer than k of a board's free
-        taxels leave the readings alone. A touch that covers k or more of them at once is taken
-        for the room. Boards of fewer than `COMMON_MIN` free taxels have none (a loop-held
-        board's holds its last one, fading).
+        `COMMON_MARGIN` of that average's noise sigmas: when at least k of the board's n
+        free taxels fell beyond their noise, k = ceil((1 - `COMMON_SHARE`) n) (`_shared`: 4
+        of 4, 15 of 16), the k-th largest fall is the common mode (for a rise: the k-th
+        largest rise less the margin), provided k of them (consecutive in size) lie within
+        `COMMON_AGREE` noise sigmas of each other (one change, alike: a warm-up's rises are
+        not, and are left on the readings); else 0, so that noise and a touch covering fewer
+        than k of a board's free taxels leave the readings alone (one that ends abruptly, a
+        second touch while the room moves, is held and fades as the levels absorb it,
+        `COMMON_FORGET`). A touch that covers k or more of them at once is taken for the
+        room. Boards of fewer than `COMMON_MIN` free taxels have none (a loop-held board's
+        holds its last one, fading).
 
     Every kelvin threshold left as None follows from ``sigma`` and the sensor; the figures in
     the descriptions above are the paper sensor's.
@@ -1120,6 +1134,11 @@ class OnsetDetector:
             taus.append(COMMON_FORGET * self.slow_tau)
         return np.array(taus)[:, None]
 
+    @property
+    def common_active(self) -> bool:
+        """Whether a board common mode runs: ``common_mode`` and a board of `COMMON_MIN`."""
+        return self._groups() is not None
+
     def _groups(self) -> tuple[np.ndarray, np.ndarray] | None:
         """Return each board's taxel indices (a row each, padded with n) and each taxel's row.
 
@@ -1167,7 +1186,22 @@ class OnsetDetector:
         # a common fall (rise) needs at least `_shared` of the free taxels below (above) 0
         moved = (count >= COMMON_MIN) & ((down >= _shared(count)) | (up >= _shared(count)))
         if moved.any():
+            # ... by the same amount (`COMMON_AGREE`): a warm-up's rises, each taxel's own, are
+            # no room (the default scene with it on: 373 -> 232 of 450 touches named right
+            # without this, seeds 0-29)
+            moved &= self._agree(part, use, table, count)
+        # a board whose common mode ends otherwise than by fading into its noise (a second
+        # touch while the room moves: too few free taxels left moving alike) holds it, fading
+        # as each taxel's level absorbs it (`COMMON_FORGET` ``slow_tau``), rather than
+        # dropping it to 0: a step of the room's change in every reading, which hid a slow
+        # touch under way (low-cost seed 8, taxel 6 at 648 s: a 0.16 K room rise dropped)
+        held = s.common * (1.0 - gain[7])
+        held[np.abs(held) < COMMON_SNAP * self._common_margin] = 0.0
+        if moved.any():
             common = self._board_common(fall_part, rise_part, use, table, row, count)
+            common = np.where(moved[row], common, held)
+        elif held.any():
+            common = held
         else:
             common = 0.0
         np.copyto(s.common, common, where=live)
@@ -1177,7 +1211,7 @@ class OnsetDetector:
         np.copyto(s.common_level, s.common_level
                   + (s.common_smooth - common - s.common_level) * gain[1]
                   + common * gain[7], where=live)
-        return y - common if moved.any() else y
+        return y - common if np.any(common) else y
 
     def _loop_common(self, t: float, y: np.ndarray, s: DetectorState, live: np.ndarray,
                      gain: np.ndarray, table: np.ndarray, row: np.ndarray) -> np.ndarray:
@@ -1225,6 +1259,25 @@ class OnsetDetector:
         np.copyto(s.common_level, s.common_level + left * gain[1] + common * gain[7],
                   where=live)
         return y - common
+
+    def _agree(self, part: np.ndarray, use: np.ndarray, table: np.ndarray,
+               count: np.ndarray) -> np.ndarray:
+        """Return whether `_shared` of each board's free taxels' departures agree in size.
+
+        True where some `_shared` (k) of them, consecutive in order, span no more than
+        `COMMON_AGREE` noise sigmas of the departure (the board's largest): one change moving
+        them all alike, not each taxel's own (a warm-up, a reheat).
+        """
+        values = np.append(np.where(use, part, np.nan), np.nan)[table]
+        values.sort(axis=1)  # NaN last
+        k = np.maximum(_shared(count), 1).astype(np.int64)
+        width = values.shape[1]
+        start = np.arange(width)[None, :]
+        end = start + (k - 1)[:, None]
+        spread = (np.take_along_axis(values, np.minimum(end, width - 1), 1) - values)
+        spread = np.where(end < count[:, None], spread, np.inf)
+        sigma = np.append(self._common_margin / COMMON_MARGIN, 0.0)[table].max(axis=1)
+        return np.min(spread, axis=1, initial=np.inf) <= COMMON_AGREE * sigma
 
     @staticmethod
     def _board_common(fall_part: np.ndarray, rise_part: np.ndarray, use: np.ndarray,

@@ -283,6 +283,7 @@ class Pipeline:
         provisional: Sequence[float] = (),
         noise: np.ndarray | None = None,
         workers: int = 1,
+        common_mode: bool = False,
     ) -> None:
         rates = {b.sample_rate for b in layout.boards.values()}
         if len(rates) != 1:
@@ -296,7 +297,7 @@ class Pipeline:
         self.classifier = classifier
         self.assembler = FrameAssembler(layout, max_skew=max_skew, wait=skew_wait)
         self.calibration = calibration or Calibration.from_layout(layout)
-        self.detector = detector or _detector_for(layout, noise)
+        self.detector = detector or _detector_for(layout, noise, common_mode=common_mode)
         # the refinement fits the detector's sensor's own response, over its span
         self.refine_sensor = getattr(self.detector, "sensor", None)
         self.tracker = ContactTracker(layout, rates.pop(), window=window,
@@ -480,10 +481,12 @@ class Pipeline:
 
 
 def _detector_for(layout: Layout, noise: np.ndarray | None = None,
-                  envelope_noise: bool | None = None) -> OnsetDetector:
+                  envelope_noise: bool | None = None,
+                  common_mode: bool = False) -> OnsetDetector:
     """Return an onset detector set by the boards' sensors (each taxel's noise: its board's).
 
-    ``envelope_noise``: the detector's (None: its default).
+    ``envelope_noise``: the detector's (None: its default); ``common_mode``: the detector's
+    board common mode (on boards of `skin.stream.onset.COMMON_MIN` taxels or more).
     """
     from skin.models.sensors import SensorDescription
 
@@ -493,4 +496,5 @@ def _detector_for(layout: Layout, noise: np.ndarray | None = None,
              for t in layout.taxels]
     knobs = {} if envelope_noise is None else {"envelope_noise": envelope_noise}
     return OnsetDetector(len(layout), sensor=first, sigma=sigma if noise is None else noise,
-                         boards=[t.board for t in layout.taxels], **knobs)
+                         boards=[t.board for t in layout.taxels], common_mode=common_mode,
+                         **knobs)

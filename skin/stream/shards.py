@@ -1,16 +1,18 @@
 """Onset detection sharded across worker processes (``skin run --workers N``).
 
 Onset detection is the per-taxel streaming stage that costs most (`skin.bench.pipeline`'s
-stages), and each taxel's detector is independent of the others'. `OnsetShards` splits the
-taxels into ``workers`` shards - whole boards when there are at least as many boards as
-workers, else even runs of taxels - and runs one `skin.stream.onset.OnsetDetector` per shard in
-a process of its own (the standard library's ``multiprocessing``, ``spawn`` start method: safe
-with the drivers' reader threads) - except shard 0, which the pipeline's process detects itself
-while the workers detect theirs. The pipeline's process keeps everything else: assembling
-frames, calibrating (so observers such as a recording have every block before it is sent),
-tracking, refining and classifying. Each block's events come back and are merged in the
-detector's own order (sample, `OnsetEvent.channel`, taxel), so the results are those of one
-process by construction, and contacts that span shards are tracked in the parent as always.
+stages), and each taxel's detector is independent of the others' but for its board's common
+mode (`skin.stream.onset.OnsetDetector`'s ``common_mode``). `OnsetShards` splits the taxels
+into ``workers`` shards - whole boards when there are at least as many boards as workers or the
+common mode runs (then no more shards than boards), else even runs of taxels - and runs one
+`skin.stream.onset.OnsetDetector` per shard in a process of its own (the standard library's
+``multiprocessing``, ``spawn`` start method: safe with the drivers' reader threads) - except
+shard 0, which the pipeline's process detects itself while the workers detect theirs. The
+pipeline's process keeps everything else: assembling frames, calibrating (so observers such as
+a recording have every block before it is sent), tracking, refining and classifying. Each
+block's events come back and are merged in the detector's own order (sample,
+`OnsetEvent.channel`, taxel), so the results are those of one process by construction, and
+contacts that span shards are tracked in the parent as always.
 
 A worker that dies or fails raises `skin.errors.SkinError` naming it (its number, process id,
 exit code and taxels); the block it was given has already been calibrated and observed.
@@ -35,8 +37,12 @@ from skin.stream.onset import DetectorState, OnsetDetector, OnsetEvent
 JOIN_TIMEOUT = 5.0
 
 
-def shard_taxels(layout: Layout, workers: int) -> list[np.ndarray]:
+def shard_taxels(layout: Layout, workers: int, whole_boards: bool = False) -> list[np.ndarray]:
     """Split the layout's taxel indices into ``workers`` shards (see the module docstring).
+
+    With ``whole_boards`` a board is never split, even when there are fewer boards than
+    ``workers`` (then as many shards as boards): the detector's board common mode needs
+    every taxel of its board in one shard to give the results of one process.
 
     Returns
     -------
@@ -47,6 +53,8 @@ def shard_taxels(layout: Layout, workers: int) -> list[np.ndarray]:
     n = len(layout)
     boards = np.array([t.board for t in layout.taxels])
     ids = sorted(set(boards.tolist()))
+    if whole_boards:
+        workers = min(workers, len(ids))
     if len(ids) >= workers:  # whole boards, each to the shard with the fewest taxels so far
         sizes = {b: int((boards == b).sum()) for b in ids}
         load = [0] * workers
@@ -131,7 +139,8 @@ class OnsetShards:
         if workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
         self.n_taxels = detector.n_taxels
-        self.shards = shard_taxels(layout, workers)
+        # a board's common mode is taken over the whole board: never split one then
+        self.shards = shard_taxels(layout, workers, whole_boards=detector.common_active)
         self.in_contact = np.zeros(self.n_taxels, dtype=bool)
         self.busy = np.zeros((len(self.shards), 2))
         context = multiprocessing.get_context("spawn")
