@@ -592,6 +592,7 @@ def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: 
         cache["coarse"] = np.full(llr.shape, np.nan)
     sub = family.subset(5)
     lags = np.arange(n)[None, :]
+    highest = [-np.inf]  # the largest exact T so far
 
     def windows(sel: np.ndarray) -> np.ndarray:
         """Return the windows of flat indices ``sel``, (len(sel), n)."""
@@ -619,7 +620,10 @@ def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: 
         up[sel] = np.minimum(up[sel], lr[sel] - gain(sub, cache["coarse"], sel))
         st[sel] = 2
         sel = pool[(up[pool] >= h - margin) & (st[pool] == 2)]
-        stat.reshape(-1)[sel] = lr[sel] - gain(family, cache["best"], sel)
+        if sel.size:
+            exact = lr[sel] - gain(family, cache["best"], sel)
+            stat.reshape(-1)[sel] = exact
+            highest[0] = max(highest[0], float(np.max(exact)))
         st[sel] = 3
         return int(sel.size)
 
@@ -640,7 +644,7 @@ def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: 
         # with ``needed`` is the highest, as if every window at or above ``level`` were
         # weighed first (the levels above the last pass's were counted short there). The
         # first pass weighs every window its bounds leave at or above ``start``.
-        top = float(np.max(stat))
+        top = highest[0]
         if np.isfinite(above):
             top = max(top, above)  # windows under the last level are not all weighed yet
         hs = np.arange(level, max(top, level) + step, step)
@@ -648,7 +652,7 @@ def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: 
             if h >= above:
                 continue
             weighed += weigh(pool, float(h))
-            if float(np.max(stat)) >= h and count(float(h)) >= needed:
+            if highest[0] >= h and count(float(h)) >= needed:
                 return _refine(list(stat), float(h), step, needed, n), weighed, "found"
         weighed += weigh(pool, level)
         above = level
