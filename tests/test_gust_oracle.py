@@ -260,6 +260,9 @@ def test_the_pruned_search_returns_what_the_unpruned_one_does(name: str) -> None
             want = _unpruned_search(stats, needed, 15.0, -50.0, n)
             fresh = null_threshold(x, m, fam, needed, 15.0, -50.0)
             shared = null_threshold(x, m, fam, needed, 15.0, -50.0, cache=cache)
+            spread = null_threshold(x, m, fam, needed, 15.0, -50.0, spread_at=0)
+            assert spread[2] == want[1]
+            assert spread[0] == pytest.approx(want[0], abs=1e-9)
             assert fresh[2] == want[1] and shared[2] == want[1]
             assert fresh[0] == pytest.approx(want[0], abs=1e-9)
             assert shared[0] == pytest.approx(want[0], abs=1e-9)

@@ -515,7 +515,8 @@ def residual_bounds(template: np.ndarray, family: Family,
 
 def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: int,
                    start: float, stop: float, step: float = 0.5, budget: int = 60_000,
-                   chunk: int = 256, cache: dict | None = None) -> tuple[float, int, str]:
+                   chunk: int = 256, cache: dict | None = None,
+                   spread_at: int = 20_000) -> tuple[float, int, str]:
     """Search the lowest threshold at which the test raises at most ``needed`` alarms on ``x``.
 
     ``x`` (blocks, taxels) is disturbance-only; every window start is weighed; per taxel, an
@@ -548,6 +549,9 @@ def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: 
         The null family's best gain on the windows of ``x`` already weighed, kept between
         calls on the same ``x`` and ``family`` (it does not depend on the contact); filled
         here. Each window's statistic is the same with it or without.
+    spread_at : int
+        Windows reaching a level, unbounded yet, past which the best-fitting member's
+        linear bound is applied to every window by one convolution (a speed choice only).
 
     Returns
     -------
@@ -575,15 +579,15 @@ def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: 
     stat = np.full(llr.shape, -np.inf)
     # upper bounds on T, each exact: a window under the level by one is under the level
     # (its exact T is computed once the level comes down to it). First the linear bounds
-    # of `residual_bounds` (the best-fitting member's on every window at once, the others
-    # where that one leaves the window at or above the level), then T against every 5th
-    # member only, then the whole family. Margin: the bounds' rounding differs from T's.
+    # of `residual_bounds` (on the windows whose LLR reaches the level), then T against
+    # every 5th member only, then the whole family. Margin: the bounds' rounding differs from T's.
     margin = 1e-6
     rf, ro = residual_bounds(template, family)
     upper = llr.copy()
-    if rf.shape[0]:
-        first = fftconvolve(x, rf[0, ::-1, None], mode="valid", axes=0) + ro[0]
-        upper = np.minimum(upper, first.T)
+    # the best-fitting member's bound on every window at once (one convolution), once as
+    # many windows reach a level as make that cheaper than gathering them (a speed choice:
+    # every bound is applied to a window before the family weighs it, either way)
+    spread = rf.shape[0] == 0
     stage = np.zeros(llr.shape, dtype=np.int8)  # bounds applied: 1 linear, 2 coarse, 3 exact
     if cache is None:
         cache = {}
@@ -613,7 +617,7 @@ def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: 
         sel = pool[(up[pool] >= h - margin) & (st[pool] == 0)]
         for a in range(0, sel.size, chunk):
             part = sel[a:a + chunk]
-            bound = np.min(windows(part) @ rf[1:].T + ro[1:], axis=1, initial=np.inf)
+            bound = np.min(windows(part) @ rf.T + ro, axis=1, initial=np.inf)
             up[part] = np.minimum(up[part], bound)
         st[sel] = 1
         sel = pool[(up[pool] >= h - margin) & (st[pool] == 1)]
@@ -635,6 +639,11 @@ def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: 
     while True:
         # the windows this pass may weigh: those whose first bounds reach its level
         pool = np.flatnonzero(upper.reshape(-1) >= level - margin)
+        if not spread and np.count_nonzero(stage.reshape(-1)[pool] == 0) > spread_at:
+            first = fftconvolve(x, rf[0, ::-1, None], mode="valid", axes=0) + ro[0]
+            np.minimum(upper, first.T, out=upper)
+            spread = True
+            pool = np.flatnonzero(upper.reshape(-1) >= level - margin)
         pool = pool[stage.reshape(-1)[pool] < 3]
         if not np.isfinite(above):
             weighed += weigh(pool, level)
