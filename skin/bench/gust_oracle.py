@@ -520,9 +520,11 @@ def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: 
     """Search the lowest threshold at which the test raises at most ``needed`` alarms on ``x``.
 
     ``x`` (blocks, taxels) is disturbance-only; every window start is weighed; per taxel, an
-    alarm restarts the test after the window's end. T is never above the contact's own LLR,
-    so only the windows whose LLR reaches the level being tried are weighed against the
-    family. The level goes down from ``start`` (by ``step``, the step doubling) until
+    alarm restarts the test after the window's end. T is never above the contact's own LLR
+    nor above the linear bounds of `residual_bounds`, nor above T against every 5th member,
+    so only the windows all of these leave at or above a level are weighed against the
+    whole family there (the grid's levels are walked down one by one; a window's exact T
+    is the same whichever way). The level goes down from ``start`` (by ``step``, the step doubling) until
     ``needed`` alarms are counted at it, or it falls below ``stop`` (the caller's smallest
     statistic on the contact: any threshold below it detects every draw), or ``budget``
     windows were weighed; a level found is then refined (`_refine`).
