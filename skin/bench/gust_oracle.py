@@ -524,7 +524,8 @@ def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: 
     nor above the linear bounds of `residual_bounds`, nor above T against every 5th member,
     so only the windows all of these leave at or above a level are weighed against the
     whole family there (the grid's levels are walked down one by one; a window's exact T
-    is the same whichever way). The level goes down from ``start`` (by ``step``, the step doubling) until
+    is the same whichever way). The level goes down from ``start`` (by ``step``, the step
+    doubling) until
     ``needed`` alarms are counted at it, or it falls below ``stop`` (the caller's smallest
     statistic on the contact: any threshold below it detects every draw), or ``budget``
     windows were weighed; a level found is then refined (`_refine`).
