@@ -184,3 +184,85 @@ def test_frozen_draws_are_free_before_the_onset_and_stopped_during_the_contact(
     assert got < free
     if name == "paper":
         assert abs(got / (2.0 * raw**2 / block) - 1.0) < 0.05
+
+
+def test_residual_bounds_are_upper_bounds_on_the_statistic_on_disturbance_windows() -> None:
+    # the linear bounds that prune the null streams' windows hold on every window (gusts,
+    # heater switches and drift in them, none of it Gaussian), and for a contact the family
+    # nearly mimics they leave far fewer windows at a level than the plain LLR does (that is
+    # the pruning)
+    from skin.bench.gust_oracle import residual_bounds
+
+    sensor = load_sensor("pid-logger")
+    block = block_size(sensor)
+    raw = sensor.noise_kelvin(25.0 + sensor.heated_rise)
+    n = round(4 * sensor.sample_rate / block)
+    fam = Family(sensor, n, block, raw, grid_factor=0.5)
+    x = null_streams(sensor, 11, 3.0, 2, block, raw)
+    t = np.arange(n) * block / sensor.sample_rate
+    contact = np.where(t >= 2.0, -0.002 * (1.0 - np.exp(-(t - 2.0) / 0.5)), 0.0)
+    m = 0.2 * fam.shapes[_gust_inside(fam)] + contact
+    filters, offsets = residual_bounds(m, fam)
+    assert filters.shape == (16, n)
+    for j in range(x.shape[1]):
+        w = np.lib.stride_tricks.sliding_window_view(x[:, j], n).T
+        stat, llr = _statistic(fam, m, w)
+        bound = np.min(filters @ w + offsets[:, None], axis=0)
+        assert np.all(bound >= stat - 1e-9)
+        # windows a level of 0 nats leaves to the family: a tenth of the plain LLR's or fewer
+        assert np.sum(bound >= 0.0) <= 0.1 * np.sum(llr >= 0.0)
+        assert np.sum(llr >= 0.0) > 100
+
+
+def _unpruned_search(stats: list[np.ndarray], needed: int, start: float, stop: float,
+                     n: int, step: float = 0.5) -> tuple[float, str]:
+    """The threshold search with every window's T exact from the start (no bounds)."""
+    from skin.bench.gust_oracle import _refine
+
+    level, drop = start, step
+    while True:
+        top = max(float(np.max(st[st >= level], initial=-np.inf)) for st in stats)
+        hs = np.arange(level, max(top, level) + step, step)
+        ok = [sum(_count(st, float(h), n) for st in stats) >= needed for h in hs]
+        if any(ok):
+            return _refine(stats, float(hs[np.flatnonzero(ok)[-1]]), step, needed, n), "found"
+        if level < stop:
+            return float(level), "below"
+        level -= drop
+        drop *= 2.0
+
+
+@pytest.mark.parametrize("name", ["paper", "pid-logger"])
+def test_the_pruned_search_returns_what_the_unpruned_one_does(name: str) -> None:
+    # null_threshold weighs the family only on the windows its exact bounds leave at or
+    # above the level it tries, walks the grid down lazily and keeps the family's gains
+    # between contacts (cache): the same threshold and status as weighing every window,
+    # for contacts the family nearly mimics and ones it does not, cache fresh or shared
+    from skin.bench.gust_oracle import null_threshold
+
+    sensor = load_sensor(name)
+    block = block_size(sensor)
+    fb = sensor.sample_rate / block
+    raw = sensor.noise_kelvin(25.0 + sensor.heated_rise)
+    n = round(4 * fb)
+    fam = Family(sensor, n, block, raw, grid_factor=0.5)
+    x = null_streams(sensor, 7, 2.0, 2, block, raw)
+    t = np.arange(n) / fb
+    contact = np.where(t >= 2.0, -0.03 * (1.0 - np.exp(-(t - 2.0) / 0.3)), 0.0)
+    near = 0.2 * fam.shapes[_gust_inside(fam)] + 0.1 * contact
+    cache: dict = {}
+    for m in (contact, near, 0.3 * contact):
+        stats = []
+        for j in range(x.shape[1]):
+            w = np.lib.stride_tricks.sliding_window_view(x[:, j], n).T
+            stats.append(_statistic(fam, m, w)[0])
+        for needed in (1, 3):
+            want = _unpruned_search(stats, needed, 15.0, -50.0, n)
+            fresh = null_threshold(x, m, fam, needed, 15.0, -50.0)
+            shared = null_threshold(x, m, fam, needed, 15.0, -50.0, cache=cache)
+            spread = null_threshold(x, m, fam, needed, 15.0, -50.0, spread_at=0)
+            assert spread[2] == want[1]
+            assert spread[0] == pytest.approx(want[0], abs=1e-9)
+            assert fresh[2] == want[1] and shared[2] == want[1]
+            assert fresh[0] == pytest.approx(want[0], abs=1e-9)
+            assert shared[0] == pytest.approx(want[0], abs=1e-9)

@@ -472,15 +472,60 @@ def _refine(stat: Sequence[np.ndarray], level: float, step: float, needed: int,
     return float(level + step)
 
 
+def residual_bounds(template: np.ndarray, family: Family,
+                    members: int = 16) -> tuple[np.ndarray, np.ndarray]:
+    """Return linear upper bounds on the statistic ``T``, for the null streams' pruning.
+
+    For any member ``g`` of the family and any amplitude ``a`` in its range, the null's
+    profiled gain is at least ``a <g, w> - a^2 <g, g> / 2`` (``w`` the whitened, profiled
+    window), so ``T = <u, w> - <u, u> / 2 - best <= <u - a g, w> - <u, u> / 2 +
+    a^2 <g, g> / 2``: a linear function of the window, exact whatever the window holds.
+    The members that fit the noise-free template best (its amplitude there, within range)
+    make the tightest ones: under the null their random part has the variance of the
+    template's residual after that member, far smaller than the template's own for a
+    contact the family nearly mimics.
+
+    Parameters
+    ----------
+    template : numpy.ndarray
+        (n,) the contact's block-averaged template.
+    family : Family
+        The null family on windows of ``n`` blocks.
+    members : int
+        Bounds (the best-fitting members), at most.
+
+    Returns
+    -------
+    filters : numpy.ndarray
+        (k, n): ``filters @ x + offsets`` is at or above ``T`` for every window ``x``.
+    offsets : numpy.ndarray
+        (k,), nats.
+    """
+    filt, energy = family.whiten(template[:, None])
+    v, q = filt[0], float(energy[0])
+    c = family.filters @ template
+    a = np.clip(c / family.energy, family.lo, family.hi)
+    gain = a * c - 0.5 * a * a * family.energy
+    order = np.argsort(-gain, kind="stable")[:members]
+    order = order[gain[order] > 0.0]
+    filters = v[None, :] - a[order, None] * family.filters[order]
+    offsets = -0.5 * q + 0.5 * a[order] ** 2 * family.energy[order]
+    return filters, offsets
+
+
 def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: int,
                    start: float, stop: float, step: float = 0.5, budget: int = 60_000,
-                   chunk: int = 256) -> tuple[float, int, str]:
+                   chunk: int = 256, cache: dict | None = None,
+                   spread_at: int = 20_000) -> tuple[float, int, str]:
     """Search the lowest threshold at which the test raises at most ``needed`` alarms on ``x``.
 
     ``x`` (blocks, taxels) is disturbance-only; every window start is weighed; per taxel, an
-    alarm restarts the test after the window's end. T is never above the contact's own LLR,
-    so only the windows whose LLR reaches the level being tried are weighed against the
-    family. The level goes down from ``start`` (by ``step``, the step doubling) until
+    alarm restarts the test after the window's end. T is never above the contact's own LLR
+    nor above the linear bounds of `residual_bounds`, nor above T against every 5th member,
+    so only the windows all of these leave at or above a level are weighed against the
+    whole family there (the grid's levels are walked down one by one; a window's exact T
+    is the same whichever way). The level goes down from ``start`` (by ``step``, the step
+    doubling) until
     ``needed`` alarms are counted at it, or it falls below ``stop`` (the caller's smallest
     statistic on the contact: any threshold below it detects every draw), or ``budget``
     windows were weighed; a level found is then refined (`_refine`).
@@ -503,6 +548,13 @@ def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: 
         Windows weighed against the whole family, at most.
     chunk : int
         Windows weighed at once.
+    cache : dict, optional
+        The null family's best gain on the windows of ``x`` already weighed, kept between
+        calls on the same ``x`` and ``family`` (it does not depend on the contact); filled
+        here. Each window's statistic is the same with it or without.
+    spread_at : int
+        Windows reaching a level, unbounded yet, past which the best-fitting member's
+        linear bound is applied to every window by one convolution (a speed choice only).
 
     Returns
     -------
@@ -520,39 +572,102 @@ def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: 
     from scipy.signal import fftconvolve
 
     n = family.n
+    taxels = x.shape[1]
     filt, energy = family.whiten(template[:, None])
     v, q = filt[0], float(energy[0])
-    llr = list((fftconvolve(x, v[::-1, None], mode="valid", axes=0) - 0.5 * q).T)
-    stat = [np.full(r.size, -np.inf) for r in llr]
-    done = [np.zeros(r.size, dtype=bool) for r in llr]
-    # T against every 5th member only is an upper bound on T: a window under the level by
-    # it is under the level (its exact T is computed once the level comes down to it)
-    upper = [r.copy() for r in llr]
-    coarse = [np.zeros(r.size, dtype=bool) for r in llr]
+    # (taxels, windows), flat index = taxel x windows + window
+    llr = np.ascontiguousarray((fftconvolve(x, v[::-1, None], mode="valid", axes=0)
+                                - 0.5 * q).T)
+    size = llr.shape[1]
+    stat = np.full(llr.shape, -np.inf)
+    # upper bounds on T, each exact: a window under the level by one is under the level
+    # (its exact T is computed once the level comes down to it). First the linear bounds
+    # of `residual_bounds` (on the windows whose LLR reaches the level), then T against
+    # every 5th member only, then the whole family. Margin: the bounds' rounding differs from T's.
+    margin = 1e-6
+    rf, ro = residual_bounds(template, family)
+    upper = llr.copy()
+    # the best-fitting member's bound on every window at once (one convolution), once as
+    # many windows reach a level as make that cheaper than gathering them (a speed choice:
+    # every bound is applied to a window before the family weighs it, either way)
+    spread = rf.shape[0] == 0
+    stage = np.zeros(llr.shape, dtype=np.int8)  # bounds applied: 1 linear, 2 coarse, 3 exact
+    if cache is None:
+        cache = {}
+    if "best" not in cache:
+        cache["best"] = np.full(llr.shape, np.nan)
+        cache["coarse"] = np.full(llr.shape, np.nan)
     sub = family.subset(5)
-    level, drop, weighed = start, step, 0
+    lags = np.arange(n)[None, :]
+    highest = [-np.inf]  # the largest exact T so far
+
+    def windows(sel: np.ndarray) -> np.ndarray:
+        """Return the windows of flat indices ``sel``, (len(sel), n)."""
+        return x[sel[:, None] % size + lags, (sel // size)[:, None]]
+
+    def gain(fam: Family, store: np.ndarray, sel: np.ndarray) -> np.ndarray:
+        """Return the family's best gain on the windows ``sel``, from the cache or new."""
+        flat = store.reshape(-1)
+        new = sel[np.isnan(flat[sel])]
+        for a in range(0, new.size, chunk):
+            part = new[a:a + chunk]
+            flat[part] = fam.best(windows(part).T)
+        return flat[sel]
+
+    def weigh(pool: np.ndarray, h: float) -> int:
+        """Make T exact on the windows of ``pool`` whose bounds reach ``h``; return how many."""
+        up, st, lr = upper.reshape(-1), stage.reshape(-1), llr.reshape(-1)
+        sel = pool[(up[pool] >= h - margin) & (st[pool] == 0)]
+        for a in range(0, sel.size, chunk):
+            part = sel[a:a + chunk]
+            bound = np.min(windows(part) @ rf.T + ro, axis=1, initial=np.inf)
+            up[part] = np.minimum(up[part], bound)
+        st[sel] = 1
+        sel = pool[(up[pool] >= h - margin) & (st[pool] == 1)]
+        up[sel] = np.minimum(up[sel], lr[sel] - gain(sub, cache["coarse"], sel))
+        st[sel] = 2
+        sel = pool[(up[pool] >= h - margin) & (st[pool] == 2)]
+        if sel.size:
+            exact = lr[sel] - gain(family, cache["best"], sel)
+            stat.reshape(-1)[sel] = exact
+            highest[0] = max(highest[0], float(np.max(exact)))
+        st[sel] = 3
+        return int(sel.size)
+
+    def count(h: float) -> int:
+        """Alarms of the restarted test at ``h`` over every taxel."""
+        return sum(_count(stat[j], h, n) for j in range(taxels))
+
+    level, drop, weighed, above = start, step, 0, np.inf
     while True:
-        for j in range(x.shape[1]):
-            cand = np.flatnonzero((upper[j] >= level) & ~coarse[j])
-            for a in range(0, cand.size, chunk):
-                sel = cand[a:a + chunk]
-                win = x[sel[:, None] + np.arange(n)[None, :], j].T
-                upper[j][sel] = llr[j][sel] - sub.best(win)
-            coarse[j][cand] = True
-            cand = np.flatnonzero((upper[j] >= level) & ~done[j])
-            for a in range(0, cand.size, chunk):
-                sel = cand[a:a + chunk]
-                win = x[sel[:, None] + np.arange(n)[None, :], j].T
-                stat[j][sel] = llr[j][sel] - family.best(win)
-            done[j][cand] = True
-            weighed += cand.size
-        top = max(float(np.max(st)) if st.size else -np.inf for st in stat)
+        # the windows this pass may weigh: those whose first bounds reach its level
+        pool = np.flatnonzero(upper.reshape(-1) >= level - margin)
+        if not spread and np.count_nonzero(stage.reshape(-1)[pool] == 0) > spread_at:
+            first = fftconvolve(x, rf[0, ::-1, None], mode="valid", axes=0) + ro[0]
+            np.minimum(upper, first.T, out=upper)
+            spread = True
+            pool = np.flatnonzero(upper.reshape(-1) >= level - margin)
+        pool = pool[stage.reshape(-1)[pool] < 3]
+        if not np.isfinite(above):
+            weighed += weigh(pool, level)
+        # the grid's levels (level + k step) under the last pass's level, from the top down:
+        # the count of alarms only grows as the level falls (the restarted test's alarms
+        # are the most windows n apart among those at or above it), so the first level
+        # with ``needed`` is the highest, as if every window at or above ``level`` were
+        # weighed first (the levels above the last pass's were counted short there). The
+        # first pass weighs every window its bounds leave at or above ``start``.
+        top = highest[0]
+        if np.isfinite(above):
+            top = max(top, above)  # windows under the last level are not all weighed yet
         hs = np.arange(level, max(top, level) + step, step)
-        counts = np.array([sum(_count(st, h, n) for st in stat) for h in hs])
-        ok = counts >= needed
-        if ok.any():
-            return _refine(stat, float(hs[np.flatnonzero(ok)[-1]]), step, needed, n), \
-                weighed, "found"
+        for h in hs[::-1]:
+            if h >= above:
+                continue
+            weighed += weigh(pool, float(h))
+            if highest[0] >= h and count(float(h)) >= needed:
+                return _refine(list(stat), float(h), step, needed, n), weighed, "found"
+        weighed += weigh(pool, level)
+        above = level
         if level < stop:
             return float(level), weighed, "below"
         if weighed >= budget:
@@ -632,6 +747,8 @@ def measure_gust_oracle(stream: object, sensor: object, which: Sequence[int], se
     log_arl = math.log(fb * 3600.0 / false_alarms)
     rng = np.random.default_rng(seed + 271828)
     families: dict[int, Family] = {}
+    # the null family's gains on the null windows, shared by the contacts of one window length
+    caches: dict[int, dict] = {}
     out: dict[str, list] = {key: [] for key in ("detection", "threshold", "threshold_status",
                                                 "noise_free", "information", "block_kept", "draws")}
     windows = 0
@@ -652,7 +769,7 @@ def measure_gust_oracle(stream: object, sensor: object, which: Sequence[int], se
         stat = v @ x - 0.5 * q - fam.best(x)
         start = max(log_arl, float(np.max(stat))) + 0.5
         h, weighed, status = null_threshold(null, m, fam, needed, start, float(np.min(stat)),
-                                            budget=budget)
+                                            budget=budget, cache=caches.setdefault(n, {}))
         windows += weighed
         if status != "below" and found_repeats > repeats:
             more = m[:, None] + _noise(fam, sensor, block, raw, span, rng,
