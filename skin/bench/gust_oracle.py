@@ -545,7 +545,9 @@ def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: 
     step : float
         The search grid's first step, nats.
     budget : int
-        Windows weighed against the whole family, at most.
+        Windows weighed against the whole family, at most (those the bounds leave: the
+        search is exact, the old one's result, as long as the budget does not bind; where
+        it binds it stops later than a search that weighed every window reaching a level).
     chunk : int
         Windows weighed at once.
     cache : dict, optional
@@ -748,7 +750,11 @@ def measure_gust_oracle(stream: object, sensor: object, which: Sequence[int], se
     rng = np.random.default_rng(seed + 271828)
     families: dict[int, Family] = {}
     # the null family's gains on the null windows, shared by the contacts of one window length
+    # (two float arrays the size of the null windows each: freed after a length's last contact)
     caches: dict[int, dict] = {}
+    lengths = [block_template(stream.templates[k], block, pre_blocks, round(fb)).size
+               for k in which]
+    last = {n: i for i, n in enumerate(lengths)}
     out: dict[str, list] = {key: [] for key in ("detection", "threshold", "threshold_status",
                                                 "noise_free", "information", "block_kept", "draws")}
     windows = 0
@@ -770,6 +776,8 @@ def measure_gust_oracle(stream: object, sensor: object, which: Sequence[int], se
         start = max(log_arl, float(np.max(stat))) + 0.5
         h, weighed, status = null_threshold(null, m, fam, needed, start, float(np.min(stat)),
                                             budget=budget, cache=caches.setdefault(n, {}))
+        if last[n] == i:
+            del caches[n]
         windows += weighed
         if status != "below" and found_repeats > repeats:
             more = m[:, None] + _noise(fam, sensor, block, raw, span, rng,
