@@ -385,7 +385,7 @@ class Skin:
                 # shards never split a board while its common mode runs, nor leave one empty
                 why = ("each board in one process (the board common mode)"
                        if self.pipeline.detector.common_active else "fewer taxels than asked")
-                log.info("onset detection in %d processes of the %d asked: %s", len(shards),
+                log.info("onset detection in %d of the %d processes asked: %s", len(shards),
                          s.workers, why)
             else:
                 log.info("onset detection in %d worker processes", len(shards))
