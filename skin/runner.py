@@ -380,7 +380,15 @@ class Skin:
         self._make_sinks()
         if s.workers > 1:  # started before the first frame, stopped with the sources
             self._closers.append(self.pipeline.start())
-            log.info("onset detection in %d worker processes", s.workers)
+            shards = self.pipeline.onset_workers.shards
+            if len(shards) < s.workers:
+                # shards never split a board while its common mode runs, nor leave one empty
+                why = ("each board in one process (the board common mode)"
+                       if self.pipeline.detector.common_active else "fewer taxels than asked")
+                log.info("onset detection in %d of the %d processes asked: %s", len(shards),
+                         s.workers, why)
+            else:
+                log.info("onset detection in %d worker processes", len(shards))
         log.info("sinks: %s", ", ".join(type(k).__name__ for k in self.pipeline.sinks))
         if s.view or s.video:
             self._live = self._live_view()

@@ -425,3 +425,41 @@ def test_a_board_warming_up_together_is_no_room(sensor):
     # nothing else
     found = {e.taxel for e in on}
     assert 3 in found and found <= {3, 4}
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_board_left_with_too_few_free_taxels_holds_its_common_mode(seed):
+    """Modelled on low-cost seed 8: the room rose 0.4 K (the common mode engaged, 0.25 K), then
+    a touch leaves fewer free taxels than the gate needs (a warm block on one taxel of a board
+    of 4: 3 free) while a slow touch is under way on another. The common mode is held, fading,
+    not dropped to 0 (a step of the room's change in every reading, which hid the slow touch),
+    and the slow touch is raised no later than without the common mode."""
+    s = load_sensor("low-cost")
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(90.0 * s.sample_rate)) / s.sample_rate
+    heated = 25.0 + s.heated_rise
+    room = 0.4 * np.clip((t - 60.0) / 8.0, 0.0, 1.0)
+    y = np.full((t.size, COMMON_MIN), heated) + room[:, None]
+    warm = (t >= 69.0) & (t < 73.0)
+    y[warm, 0] = contact_reading(t[warm] - 69.0, heated, 45.0, 2.4e4, s, ambient=25.0) + room[warm]
+    y[t >= 73.0, 0] = y[warm, 0][-1] + room[t >= 73.0]
+    slow = t >= 70.0
+    y[slow, 2] = contact_reading(t[slow] - 70.0, heated, 24.0, 450.0, s, ambient=25.0) + room[slow]
+    y = smooth(apply_dynamics(y, s, axis=0) + rng.normal(0.0, s.noise, y.shape), s, axis=0)
+    d = OnsetDetector(COMMON_MIN, sensor=s, common_mode=True)
+    state = d.initial_state()
+    common, on = [], []
+    for k in range(t.size):
+        new, state = d.process(t[k:k + 1], y[k:k + 1], state)
+        on += [e for e in new if e.kind == "onset"]
+        common.append(state.common[1])
+    common = np.array(common)
+    assert common.max() > 0.2  # engaged, large
+    # no step when the gate goes off (the warm touch's taxel no longer free): continuous
+    # within a small part of the noise margin (a step of 0.25 K without the hold)
+    assert np.abs(np.diff(common)).max() < 0.2 * d._common_margin[1]
+    assert common[-1] > 0.1  # held, fading as the levels absorb it
+    off = _onsets(t, y, s, chunk=1, common_mode=False)[0]
+    slow_on = [e.detected_at for e in on if e.taxel == 2 and e.time > 69.0]
+    slow_off = [e.detected_at for e in off if e.taxel == 2 and e.time > 69.0]
+    assert slow_on and slow_off and slow_on[0] <= slow_off[0]

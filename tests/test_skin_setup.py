@@ -171,6 +171,8 @@ def test_config_show_prints_a_skin_file_that_reads_back():
     ("[classifier]\nprovisional = [\n  0.5,\n  -1,\n]\nwindow = 'x'\n",
      "bad.toml:2: provisional: must be more than 0"),
     ("[source\n", "bad.toml: not valid TOML"),
+    ("[skin]\ncommon_mode = \"yes\"\n", "bad.toml:2: common_mode: must be true or false, "
+     "got 'yes'"),
 ])
 def test_skin_file_errors_name_the_file_and_line(tmp_path, text, message):
     from skin.formats.skin_file import load_skin_file
@@ -271,6 +273,20 @@ def test_skin_run_is_a_thin_shell_over_skin():
     lines, _ = inspect.getsourcelines(run.main)
     assert len(lines) <= 60
     assert "Skin(" in "".join(lines)
+
+
+def test_the_board_common_mode_reaches_the_detector_from_python_and_a_skin_file(tmp_path):
+    """``common_mode`` (off by default) switches the detector's board common mode on: the
+    default scene's arm is one board of 72 taxels (>= COMMON_MIN), so it runs."""
+    from skin.formats.skin_file import load_skin_file
+
+    (tmp_path / "on.toml").write_text("[skin]\ncommon_mode = true\n")
+    asked = [(Setup(), False), (Setup(common_mode=True), True),
+             (load_skin_file(tmp_path / "on.toml"), True)]
+    for setup, active in asked:
+        with Skin(setup, speed=0.0, duration=1.0, out=None, map=False, sinks=[]) as s:
+            assert s.pipeline.detector.n_taxels >= 4
+            assert s.pipeline.detector.common_active is active
 
 
 def test_leaving_the_with_block_closes_sources_sinks_and_the_simulation(tmp_path):

@@ -124,11 +124,14 @@ def add_setup_options(run: argparse.ArgumentParser) -> None:
     run.add_argument("--workers", type=int, metavar="N",
                      help="worker processes: with N or more serial --port (one board each), "
                           "each worker reads and processes its own boards; otherwise onset "
-                          "detection is sharded across them (default 1; the same results)")
+                          "detection is sharded across them (default 1; the same results); "
+                          "with --common-mode each board stays in one process (a board's "
+                          "common mode needs all its taxels), so a one-board skin runs in one")
     run.add_argument("--common-mode", action="store_true",
                      help="the onset detector's board common mode: the room's change, shared "
                           "alike by nearly every free taxel of a board of 4 or more, taken "
-                          "off first (OnsetDetector common_mode; default off)")
+                          "off first (OnsetDetector common_mode; default off); it keeps "
+                          "each board in one process, so --workers shards by whole boards")
 
 
 def main(args: argparse.Namespace) -> int:

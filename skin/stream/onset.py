@@ -802,11 +802,14 @@ class OnsetDetector:
         largest rise less the margin), provided k of them (consecutive in size) lie within
         `COMMON_AGREE` noise sigmas of each other (one change, alike: a warm-up's rises are
         not, and are left on the readings); else 0, so that noise and a touch covering fewer
-        than k of a board's free taxels leave the readings alone (one that ends abruptly, a
-        second touch while the room moves, is held and fades as the levels absorb it,
-        `COMMON_FORGET`). A touch that covers k or more of them at once is taken for the
-        room. Boards of fewer than `COMMON_MIN` free taxels have none (a loop-held board's
-        holds its last one, fading).
+        than k of a board's free taxels leave the readings alone. Whenever the gate goes
+        off the common mode is held, fading as the levels absorb it (`COMMON_FORGET`), and
+        is 0 once within `COMMON_SNAP` of the margin: one that went off as the departures
+        fell into their noise is near 0 already; one that ends abruptly (a second touch while
+        the room moves) makes no step. A touch that covers k or more of them at once is
+        taken for the room. A board with fewer than `COMMON_MIN` free taxels takes no new
+        common mode: one that had one (its taxels touched) holds it, fading, in either form;
+        a board of fewer than `COMMON_MIN` taxels never has one.
 
     Every kelvin threshold left as None follows from ``sigma`` and the sensor; the figures in
     the descriptions above are the paper sensor's.
@@ -1190,11 +1193,13 @@ class OnsetDetector:
             # no room (the default scene with it on: 373 -> 232 of 450 touches named right
             # without this, seeds 0-29)
             moved &= self._agree(part, use, table, count)
-        # a board whose common mode ends otherwise than by fading into its noise (a second
-        # touch while the room moves: too few free taxels left moving alike) holds it, fading
-        # as each taxel's level absorbs it (`COMMON_FORGET` ``slow_tau``), rather than
-        # dropping it to 0: a step of the room's change in every reading, which hid a slow
-        # touch under way (low-cost seed 8, taxel 6 at 648 s: a 0.16 K room rise dropped)
+        # a board whose gate is off, whatever the reason, holds its last common mode, fading
+        # as each taxel's level absorbs it (`COMMON_FORGET` ``slow_tau``), 0 once within
+        # `COMMON_SNAP` of the margin. One that faded into its noise is near 0 already; one
+        # that ended abruptly (a second touch while the room moves: too few free taxels left
+        # moving alike) would otherwise drop to 0: a step of the room's change in every
+        # reading, which hid a slow touch under way (low-cost seed 8, taxel 6 at 648 s: a
+        # 0.16 K room rise dropped)
         held = s.common * (1.0 - gain[7])
         held[np.abs(held) < COMMON_SNAP * self._common_margin] = 0.0
         if moved.any():

@@ -252,6 +252,13 @@ class Pipeline:
         Processes for onset detection: 1 runs it here; more shard the taxels across that
         many processes, this one included (`skin.stream.shards`); the others are started by
         `start` (or at the first block) and stopped by `close`. The results are the same.
+        With the board common mode on, a board is never split, so there are at most as many
+        processes as boards (`skin.stream.shards.shard_taxels`' ``whole_boards``).
+    common_mode : bool
+        Switch the default detector's board common mode on (`OnsetDetector`'s
+        ``common_mode``: the room's change, shared alike by nearly every free taxel of a board
+        of `skin.stream.onset.COMMON_MIN` taxels or more, taken off first). Ignored when
+        ``detector`` is given: that detector's own setting holds.
 
     Attributes
     ----------
