@@ -132,13 +132,10 @@ def test_delay_bound_disturbances_reports_the_oracle_over_the_5sigma_contacts(ca
     assert len(out["disturbance_oracle_contacts"]) == out["disturbance_oracle_under_99"]
 
 
-def test_the_counted_threshold_raises_at_most_the_allowed_alarms_brute_force() -> None:
-    # every window of a small disturbance-only stream weighed exactly; at the threshold the
-    # search returns the restarted test raises at most `needed` alarms, and at the next
-    # exact statistic value down at least `needed` (no lower level is left on the table)
-    from skin.bench.gust_oracle import null_threshold
-
-    sensor = load_sensor("paper")
+def _small_search(name: str) -> tuple[Family, np.ndarray, np.ndarray]:
+    """A 4 s window's family on sensor ``name``, 2 taxels x 2 min of its disturbance-only
+    streams, and a small contact's template (0.03 K, 0.3 s, from 2 s)."""
+    sensor = load_sensor(name)
     block = block_size(sensor)
     fb = sensor.sample_rate / block
     raw = sensor.noise_kelvin(25.0 + sensor.heated_rise)
@@ -146,11 +143,24 @@ def test_the_counted_threshold_raises_at_most_the_allowed_alarms_brute_force() -
     fam = Family(sensor, n, block, raw, grid_factor=0.5)
     x = null_streams(sensor, 7, 2.0, 2, block, raw)
     t = np.arange(n) / fb
-    m = np.where(t >= 2.0, -0.03 * (1.0 - np.exp(-(t - 2.0) / 0.3)), 0.0)
-    stats = []
-    for j in range(x.shape[1]):
-        w = np.lib.stride_tricks.sliding_window_view(x[:, j], n).T
-        stats.append(_statistic(fam, m, w)[0])
+    return fam, x, np.where(t >= 2.0, -0.03 * (1.0 - np.exp(-(t - 2.0) / 0.3)), 0.0)
+
+
+def _window_statistics(fam: Family, m: np.ndarray, x: np.ndarray) -> list[np.ndarray]:
+    """The exact statistic of template ``m`` on every window of each column of ``x``."""
+    return [_statistic(fam, m, np.lib.stride_tricks.sliding_window_view(x[:, j], m.size).T)[0]
+            for j in range(x.shape[1])]
+
+
+def test_the_counted_threshold_raises_at_most_the_allowed_alarms_brute_force() -> None:
+    # every window of a small disturbance-only stream weighed exactly; at the threshold the
+    # search returns the restarted test raises at most `needed` alarms, and at the next
+    # exact statistic value down at least `needed` (no lower level is left on the table)
+    from skin.bench.gust_oracle import null_threshold
+
+    fam, x, m = _small_search("paper")
+    n = m.size
+    stats = _window_statistics(fam, m, x)
     for needed in (1, 3):
         h, _, status = null_threshold(x, m, fam, needed, 15.0, -50.0)
         assert status == "found"
@@ -240,22 +250,12 @@ def test_the_pruned_search_returns_what_the_unpruned_one_does(name: str) -> None
     # for contacts the family nearly mimics and ones it does not, cache fresh or shared
     from skin.bench.gust_oracle import null_threshold
 
-    sensor = load_sensor(name)
-    block = block_size(sensor)
-    fb = sensor.sample_rate / block
-    raw = sensor.noise_kelvin(25.0 + sensor.heated_rise)
-    n = round(4 * fb)
-    fam = Family(sensor, n, block, raw, grid_factor=0.5)
-    x = null_streams(sensor, 7, 2.0, 2, block, raw)
-    t = np.arange(n) / fb
-    contact = np.where(t >= 2.0, -0.03 * (1.0 - np.exp(-(t - 2.0) / 0.3)), 0.0)
+    fam, x, contact = _small_search(name)
+    n = contact.size
     near = 0.2 * fam.shapes[_gust_inside(fam)] + 0.1 * contact
     cache: dict = {}
     for m in (contact, near, 0.3 * contact):
-        stats = []
-        for j in range(x.shape[1]):
-            w = np.lib.stride_tricks.sliding_window_view(x[:, j], n).T
-            stats.append(_statistic(fam, m, w)[0])
+        stats = _window_statistics(fam, m, x)
         for needed in (1, 3):
             want = _unpruned_search(stats, needed, 15.0, -50.0, n)
             fresh = null_threshold(x, m, fam, needed, 15.0, -50.0)

@@ -40,8 +40,8 @@ def test_bench_pipeline_command_prints_one_json_document():
 
 def test_bench_pipeline_compares_the_two_envelope_margins_in_the_same_run():
     out = subprocess.run([str(SKIN), "bench", "pipeline", "--taxels", "16", "--seconds", "3",
-                          "--compare-envelope", "--json"], capture_output=True, text=True,
-                         timeout=300)
+                          "--compare-envelope", "--compare-common-mode", "--json"],
+                         capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     doc = json.loads(out.stdout)
     (row,), (both,) = doc["results"], doc["envelope_compare"]
@@ -53,3 +53,9 @@ def test_bench_pipeline_compares_the_two_envelope_margins_in_the_same_run():
     assert ratio["onset"] == round(both["noise"]["stages"]["onset"]
                                    / both["flat"]["stages"]["onset"], 3)
     assert ratio["chain"] > 0
+    # the board common mode on and off, alternated alike (16 taxels: one board, so it runs)
+    (pair,) = doc["common_mode_compare"]
+    assert pair["on"]["common_mode"] is True and pair["off"]["common_mode"] is False
+    assert row["common_mode"] is False  # off by default
+    assert pair["on_over_off"]["onset"] == round(pair["on"]["stages"]["onset"]
+                                                 / pair["off"]["stages"]["onset"], 3)

@@ -696,6 +696,26 @@ def main_spread(args: argparse.Namespace) -> int:
     return 0
 
 
+def _alternated(run: object, n: int, args: argparse.Namespace, budget: float | None,
+                knob: str, label: object, progress: Progress
+                ) -> tuple[dict[bool, dict], dict[str, float]]:
+    """Run ``n`` taxels with a pipeline option on and off, alternated (on, off, off, on).
+
+    Neither side always runs first (a warm cache, a load that comes or goes); each side's
+    run with the faster onset stage is kept. Returns those runs ({True: on, False: off})
+    and the on / off throughput ratios of the chain and the onset stage.
+    """
+    runs: dict[bool, list[dict]] = {True: [], False: []}
+    for on in (True, False, False, True):
+        progress.message(f"{n} taxels x {args.seconds:g} s, {label(on)}")
+        runs[on].append(run(n, args.seconds, contacts_per_minute=args.contacts_per_minute,
+                            budget=budget, workers=1, block=args.block, **{knob: on}))
+    best = {k: max(v, key=lambda r: r["stages"]["onset"]) for k, v in runs.items()}
+    a, b = best[True], best[False]
+    return best, {"chain": round(a["taxel_samples_per_s"] / b["taxel_samples_per_s"], 3),
+                  "onset": round(a["stages"]["onset"] / b["stages"]["onset"], 3)}
+
+
 def main_pipeline(args: argparse.Namespace) -> int:
     """Run the pipeline throughput benchmark."""
     from skin import bench
@@ -728,37 +748,19 @@ def main_pipeline(args: argparse.Namespace) -> int:
     flat = []
     if args.compare_envelope:
         for n in sizes:
-            # alternated (ABBA), so that neither margin always runs first (a warm cache, a
-            # load that comes or goes); each margin's best run of two is compared
-            runs: dict[str, list[dict]] = {"noise": [], "flat": []}
-            for kind in ("noise", "flat", "flat", "noise"):
-                progress.message(f"{n} taxels x {args.seconds:g} s, {kind} envelope margin")
-                runs[kind].append(run(n, args.seconds,
-                                      contacts_per_minute=args.contacts_per_minute,
-                                      budget=budget, workers=1, block=args.block,
-                                      envelope_noise=kind == "noise"))
-            # each margin's run with the faster onset stage, compared
-            both = {k: max(v, key=lambda r: r["stages"]["onset"]) for k, v in runs.items()}
-            a, b = both["noise"], both["flat"]
-            flat.append({"taxels": n, **both, "runs_each": 2, "noise_over_flat": {
-                "chain": round(a["taxel_samples_per_s"] / b["taxel_samples_per_s"], 3),
-                "onset": round(a["stages"]["onset"] / b["stages"]["onset"], 3)}})
+            best, ratio = _alternated(run, n, args, budget, "envelope_noise",
+                                      lambda on: f"{'noise' if on else 'flat'} envelope margin",
+                                      progress)
+            flat.append({"taxels": n, "noise": best[True], "flat": best[False],
+                         "runs_each": 2, "noise_over_flat": ratio})
     common = []
     if args.compare_common_mode:
         for n in sizes:
-            # alternated (ABBA), as --compare-envelope
-            pair: dict[str, list[dict]] = {"on": [], "off": []}
-            for kind in ("on", "off", "off", "on"):
-                progress.message(f"{n} taxels x {args.seconds:g} s, common mode {kind}")
-                pair[kind].append(run(n, args.seconds,
-                                      contacts_per_minute=args.contacts_per_minute,
-                                      budget=budget, workers=1, block=args.block,
-                                      common_mode=kind == "on"))
-            best = {k: max(v, key=lambda r: r["stages"]["onset"]) for k, v in pair.items()}
-            a, b = best["on"], best["off"]
-            common.append({"taxels": n, **best, "runs_each": 2, "on_over_off": {
-                "chain": round(a["taxel_samples_per_s"] / b["taxel_samples_per_s"], 3),
-                "onset": round(a["stages"]["onset"] / b["stages"]["onset"], 3)}})
+            best, ratio = _alternated(run, n, args, budget, "common_mode",
+                                      lambda on: f"common mode {'on' if on else 'off'}",
+                                      progress)
+            common.append({"taxels": n, "on": best[True], "off": best[False], "runs_each": 2,
+                           "on_over_off": ratio})
     progress.done()
     doc = {"machine": bench.machine(), "block": args.block, "results": rows,
            "speedup": _speedups(rows, workers)}
