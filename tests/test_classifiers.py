@@ -201,6 +201,26 @@ def test_train_then_evaluate_across_datasets_reports_unseen_classes(tmp_path, da
     assert r["accuracy"] > 0.6
 
 
+def test_a_model_trained_with_a_sensor_file_is_evaluated_on_trials_with_unknown_onsets(
+        tmp_path, data):
+    """The model file keeps the sensor's name only: a sensor file's cannot be loaded back, so
+    `skin evaluate --model` finds unknown onsets with the paper's detector and says so."""
+    sensors = tmp_path / "mine.toml"
+    sensors.write_text('[[sensors]]\nname = "mine"\nsummary = "custom"\n')
+    train = data.save(tmp_path / "train.npz")
+    out = skin("train", "--data", str(train), "--method", "svm-pca", "--duration", "1",
+               "--sensor", str(sensors), "-o", str(tmp_path / "m.skops"))
+    assert out.returncode == 0, out.stderr
+    ds = simulate_trials([MATS["aluminium"], MATS["pine"]], Protocol(trials=4, pre=1.5),
+                         seed=12)
+    blind = dataclasses.replace(ds, onset=np.full(len(ds), -1), extra={})
+    out = skin("evaluate", "--model", str(tmp_path / "m.skops"), "--data",
+               str(blind.save(tmp_path / "blind.npz")), "--json")
+    assert out.returncode == 0, out.stderr
+    assert "trained with sensor 'mine', not a preset" in out.stderr
+    assert json.loads(out.stdout)["onsets_detected"] == len(ds)
+
+
 def test_evaluate_plots_and_detects_unknown_onsets(tmp_path):
     ds = simulate_trials([MATS["glass"], MATS["aluminium"]], Protocol(trials=15, pre=1.5),
                          seed=3)

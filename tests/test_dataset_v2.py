@@ -142,6 +142,15 @@ def test_force_dates_unknown_onsets_where_it_shows_the_contact():
     quiet = TrialSet(np.full((400, 1, k.size), 30.0), 200.0, np.array(["a"] * 400),
                      np.full(400, -1), force=noise)
     assert (force_onsets(quiet) == -1).all()
+    # a peak only 12 noise levels up (1 N ramped over 0.2 s, 1/12 N of noise): nearly every
+    # trial dated (a noise level read high from the ramp's start leaves a few), none more
+    # than a sample before the ramp, none more than 12 samples after its start
+    ramp = np.clip((k - 149) / 40.0, 0.0, 1.0)
+    weak = TrialSet(np.full((200, 1, k.size), 30.0), 200.0, np.array(["a"] * 200),
+                    np.full(200, -1), force=ramp + rng.normal(0.0, 1.0 / 12.0, (200, k.size)))
+    dated = force_onsets(weak)
+    dated = dated[dated >= 0] - 150
+    assert dated.size >= 190 and dated.min() >= -1 and dated.max() <= 12
     # trials dated by force skip the detector; a known onset is kept; the rest still must
     # be found in the reading, and here cannot
     with pytest.raises(DatasetError, match="no contact onset found in trial 3 \\(4 trial"):

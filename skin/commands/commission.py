@@ -59,7 +59,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     source.add_argument("--data", metavar="NPZ", default=None,
                         help="fit each taxel's sensor response from a trial dataset (version 2, "
                              "README 'Trial datasets') of labelled reference contacts with "
-                             "their onsets, taxel ids and 0.4 s before each onset")
+                             "their onsets (an unknown one, -1, dated by the trial's force "
+                             "channel, else left out), taxel ids and 0.4 s before each onset")
     source.add_argument("--port", metavar="URL",
                      help="where the quiet stretch comes from: replay://quiet.mcap?speed=0, a "
                           "device URL, or sim://SCENE?speed=0")

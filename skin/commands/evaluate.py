@@ -3,7 +3,9 @@
 Methods (`skin.models.classifiers`): the paper's ``svm-pca``, ``knn-pca``, ``hmm``, ``model``,
 each with ``:raw``, ``:slope`` or ``:both`` features (``svm-pca:both``), and ``default``, the
 library's recommendation. ``--train A --test B`` trains on one dataset and tests on another.
-Trials whose onset is -1 are first run through the onset detector. K-fold cross-validation
+Trials whose onset is -1 are dated by their force channel where it shows the contact, else run
+through the onset detector of ``--sensor`` (default the model's recorded sensor, else the
+paper's) at the trials' rate. K-fold cross-validation
 grouped so that no taxel is on both sides of a fold (the dataset's ``group`` and ``taxel``
 columns; a model is tested on taxels it never saw, as on a new skin); ``--split stratified``
 ignores them (optimistic wherever a taxel's constants mark its class). The output says which
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 
 import numpy as np
@@ -487,6 +490,27 @@ def _parse_merge(text: str | None, classes: list[str]) -> list[set[str]]:
     return merge
 
 
+def _trained_sensor(model_doc: dict, path: str) -> object:
+    """Return the preset a model file says it was trained with, or None (the paper's).
+
+    A model file keeps the sensor's name only: one from a sensor file (not a preset) cannot
+    be loaded back, and the paper's detector finds the onsets, with a warning.
+    """
+    from skin.errors import SensorError
+    from skin.models.sensors import load_sensor
+
+    name = model_doc.get("training", {}).get("sensor")
+    if name is None:
+        return None
+    try:
+        return load_sensor(name)
+    except SensorError:
+        print(f"warning: {path} was trained with sensor {name!r}, not a preset: unknown "
+              f"onsets are found by the paper's detector; give --sensor FILE for that "
+              f"sensor's", file=sys.stderr)
+        return None
+
+
 def main(args: argparse.Namespace) -> int:
     """Run the evaluation and print a table (or JSON)."""
     from skin.formats.dataset import load_trials, require_classes, with_detected_onsets
@@ -508,13 +532,14 @@ def main(args: argparse.Namespace) -> int:
     data = require_classes(load_trials(args.data or args.train))
     test = load_trials(args.test) if args.test else None
     detected = int(np.sum(data.onset < 0)) + (0 if test is None else int(np.sum(test.onset < 0)))
-    recorded_with = args.sensor
-    if recorded_with is None and model_doc is not None:
-        recorded_with = model_doc.get("training", {}).get("sensor")
-    if recorded_with is not None:  # a bad name or file fails before the work starts
+    recorded_with = None
+    if args.sensor is not None:  # a bad name or file fails before the work starts
         from skin.models.sensors import load_sensor
 
-        recorded_with = load_sensor(recorded_with)
+        recorded_with = load_sensor(args.sensor)
+    elif model_doc is not None and (np.any(data.onset < 0)
+                                    or (test is not None and np.any(test.onset < 0))):
+        recorded_with = _trained_sensor(model_doc, args.model)
     data = with_detected_onsets(data, sensor=recorded_with)
     test = None if test is None else with_detected_onsets(test, sensor=recorded_with)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]

@@ -62,7 +62,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                          "sensors`); adds detected_5sigma, delay_floor_ratio_median and "
                          "detectable_5sigma (Lorden's bound). With --data: the sensor that "
                          "recorded the trials (default the paper's), re-rated to their "
-                         "sample rate when it has no smoothing")
+                         "sample rate when it has no smoothing (a smoothed one at another "
+                         "rate is refused: describe it at the recording's rate)")
     ev.add_argument("--commissioned", action="store_true",
                     help="set the detector by noise commissioned (`skin commission`'s quiet "
                          "figures) on a quiet minute of another simulated unit (seed + 1000), "

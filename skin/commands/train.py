@@ -32,9 +32,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                          "pipeline then answers from the longest window each taxel has")
     tr.add_argument("--sensor", default=None, metavar="PRESET|FILE",
                     help="the sensor the training data was recorded (or simulated) with "
-                         "(its unknown onsets are found by its detector), "
-                         "recorded in the model file: `skin run` warns when its layout's "
-                         "boards use another (default: not recorded)")
+                         "(its unknown onsets are found by its detector at the trials' rate; "
+                         "without it, by the paper's), recorded in the model file by name: "
+                         "`skin run` warns when its layout's boards use another (default: "
+                         "not recorded)")
     tr.add_argument("--calibration", default=None, metavar="FILE",
                     help="train on every taxel's traces warped to the design's time scale with "
                          "its thermal constants from this calibration file (skin calibrate "

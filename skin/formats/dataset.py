@@ -289,17 +289,19 @@ def force_onsets(data: TrialSet) -> np.ndarray:
     first sample to its peak; its level is their median, its noise their scaled median
     absolute deviation, but at least their resolution (the smallest step between two of
     them; a quantised force has a MAD of 0). The onset is the first sample where the force
-    exceeds the level by `FORCE_ONSET_SHARE` of the peak's rise (a ramp of r seconds is
-    dated about 0.05 r late).
+    exceeds the level by `FORCE_ONSET_SHARE` of the peak's rise and stays over it
+    `FORCE_MIN_HELD` (a noise sample over it before the contact is passed by). A ramp of r
+    seconds is dated about 0.05 r late, later where the noise is near the threshold.
 
     Returns
     -------
     numpy.ndarray
         int (n_trials,): the onset sample of each trial with a finite force trace whose
         pre-contact stretch lasts `FORCE_MIN_BEFORE`, whose peak stands `FORCE_MIN_SNR` noise
-        levels above its level and whose force stays over the threshold `FORCE_MIN_HELD` from
-        the onset; -1 elsewhere (no force channel, NaN samples, no contact in it, a contact
-        from the first samples, a force that falls at contact), left to the reading.
+        levels above its level and whose force stays over the threshold `FORCE_MIN_HELD`
+        from some sample on (the first such is the onset); -1 elsewhere (no force channel,
+        NaN samples, no contact in it, a contact from the first samples, a force that falls
+        at contact), left to the reading.
     """
     out = np.full(len(data), -1, dtype=int)
     if data.force is None:
@@ -320,10 +322,10 @@ def force_onsets(data: TrialSet) -> np.ndarray:
         rise = float(f.max()) - level
         if not rise > FORCE_MIN_SNR * noise or not rise > 0:
             continue
-        over = f > level + FORCE_ONSET_SHARE * rise
-        on = int(np.argmax(over))
-        if on + n_held <= f.size and over[on:on + n_held].all():
-            out[i] = on
+        over = (f > level + FORCE_ONSET_SHARE * rise).astype(int)
+        held = np.flatnonzero(np.convolve(over, np.ones(n_held, dtype=int), "valid") == n_held)
+        if held.size:  # the first crossing held (a noise sample over it before is passed by)
+            out[i] = int(held[0])
     return out
 
 
