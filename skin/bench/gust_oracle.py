@@ -668,8 +668,7 @@ def null_threshold(x: np.ndarray, template: np.ndarray, family: Family, needed: 
             weighed += weigh(pool, float(h))
             if highest[0] >= h and count(float(h)) >= needed:
                 return _refine(list(stat), float(h), step, needed, n), weighed, "found"
-        weighed += weigh(pool, level)
-        above = level
+        above = level  # the walk ended at ``level`` (hs[0]): every window there is weighed
         if level < stop:
             return float(level), weighed, "below"
         if weighed >= budget:

@@ -537,8 +537,7 @@ def main(args: argparse.Namespace) -> int:
         from skin.models.sensors import load_sensor
 
         recorded_with = load_sensor(args.sensor)
-    elif model_doc is not None and (np.any(data.onset < 0)
-                                    or (test is not None and np.any(test.onset < 0))):
+    elif model_doc is not None and detected:
         recorded_with = _trained_sensor(model_doc, args.model)
     data = with_detected_onsets(data, sensor=recorded_with)
     test = None if test is None else with_detected_onsets(test, sensor=recorded_with)
