@@ -221,6 +221,22 @@ def test_a_model_trained_with_a_sensor_file_is_evaluated_on_trials_with_unknown_
     assert json.loads(out.stdout)["onsets_detected"] == len(ds)
 
 
+def test_evaluate_counts_onsets_dated_by_force_apart_from_detected_ones(tmp_path):
+    """Unknown onsets that the force channel dates are reported as such, not as detected."""
+    ds = simulate_trials([MATS["aluminium"], MATS["pine"]], Protocol(trials=12, pre=1.5),
+                         seed=12)
+    k = np.arange(ds.temperature.shape[-1])
+    force = np.full((len(ds), k.size), np.nan)  # NaN: no force trace, left to the reading
+    for i in range(3):
+        force[i] = np.clip((k - ds.onset[i]) / 10.0, 0.0, 1.0) + 0.001 * np.sin(k)
+    blind = dataclasses.replace(ds, onset=np.full(len(ds), -1), force=force, extra={})
+    out = skin("evaluate", "--data", str(blind.save(tmp_path / "blind.npz")), "--methods",
+               "svm-pca", "--durations", "0.5", "--cv", "2", "--json")
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout)
+    assert (doc["onsets_from_force"], doc["onsets_detected"]) == (3, len(ds) - 3)
+
+
 def test_evaluate_plots_and_detects_unknown_onsets(tmp_path):
     ds = simulate_trials([MATS["glass"], MATS["aluminium"]], Protocol(trials=15, pre=1.5),
                          seed=3)

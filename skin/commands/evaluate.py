@@ -513,7 +513,12 @@ def _trained_sensor(model_doc: dict, path: str) -> object:
 
 def main(args: argparse.Namespace) -> int:
     """Run the evaluation and print a table (or JSON)."""
-    from skin.formats.dataset import load_trials, require_classes, with_detected_onsets
+    from skin.formats.dataset import (
+        force_onsets,
+        load_trials,
+        require_classes,
+        with_detected_onsets,
+    )
     from skin.models.classifiers import parse_method
 
     if args.train and not args.test:
@@ -531,7 +536,9 @@ def main(args: argparse.Namespace) -> int:
             check_time_scale(model_doc, args.model, None)
     data = require_classes(load_trials(args.data or args.train))
     test = load_trials(args.test) if args.test else None
-    detected = int(np.sum(data.onset < 0)) + (0 if test is None else int(np.sum(test.onset < 0)))
+    sets = [s for s in (data, test) if s is not None]  # unknown onsets: force, else detector
+    from_force = sum(int(np.sum((s.onset < 0) & (force_onsets(s) >= 0))) for s in sets)
+    detected = sum(int(np.sum(s.onset < 0)) for s in sets) - from_force
     recorded_with = None
     if args.sensor is not None:  # a bad name or file fails before the work starts
         from skin.models.sensors import load_sensor
@@ -648,7 +655,8 @@ def main(args: argparse.Namespace) -> int:
             r["family_accuracy"] = round(merged_accuracy(r, families), 4)
     doc = {"data": str(args.data or args.train), "trials": len(data), "classes": data.classes,
            "cv": args.cv if cv else None, "split": split_line,
-           "merge": [sorted(g) for g in merge], "onsets_detected": detected,
+           "merge": [sorted(g) for g in merge], "onsets_from_force": from_force,
+           "onsets_detected": detected,
            "results": results}
     if test is not None:
         doc["test"] = {"data": str(args.test), "trials": len(test), "classes": test.classes}
