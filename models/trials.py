@@ -39,10 +39,11 @@ contacts and resting 10 minutes every 10 trials; initial sensor temperatures spr
   paper's limit switch, read at 200 Hz).
 - **Sensor** (``sensor``, a `skin.models.sensors.SensorDescription`; default the paper's):
   its thermal body is the centre of the taxels' spread, its heater mode shapes the contact
-  (`skin.models.sensors.contact_reading`; a PID-held sensor sits at its setpoint and reheats
-  with the loop), its PID loop and lag act on the whole trace, its sample rate and ADC noise
-  replace the protocol's, its temperature noise and ADC bits apply before rounding, and its
-  smoothing after (a logger's). The paper's sensor gives exactly the datasets made before
+  (`skin.models.sensors.contact_reading`; a PID-held sensor meets every touch at its
+  setpoint above the room of that touch, settled: the loop's recovery, ``control_time``, is
+  short beside the reheat), its PID loop and lag act on the whole trace, its sample rate and
+  ADC noise replace the protocol's, its temperature noise and ADC bits apply before rounding,
+  and its smoothing after (a logger's). The paper's sensor gives exactly the datasets made before
   sensor descriptions existed.
 - **Channels** (``Protocol.channels``): each contact is seen by one or more taxels touching
   the same object: ``"heated"`` (the paper's constant-power heater, with the protocol's
@@ -415,7 +416,17 @@ def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorDescrip
                      else heated_temperature(amb[j], s))
         if j == 0 or run[j] != run[j - 1]:  # a run starts rested, with a cool object
             sensor_now, excess = full, 0.0
-        t0 = sensor_now if kinds[0][1] is None else amb[j] + kinds[0][1]
+        if kinds[0][1] is not None:
+            t0 = amb[j] + kinds[0][1]
+        elif s.heater == "pid":
+            # the loop holds its setpoint, which follows the room, between touches: its
+            # recovery from the last release (control_time) is over by the next touch. Not
+            # the last touch's setpoint reheated towards this one's, which left a ramp of
+            # (room drift) / control_time (0.1 K/s) stopped at contact, that the loop's
+            # high-pass (`apply_dynamics`) then counted a second time
+            t0 = full
+        else:
+            t0 = sensor_now
         base = _object_temperature(mat, amb[j], offset[j], rng)
         tobj = base + (excess if mat.temperature is None else 0.0)
         t_sensor[j, 0], t_object[j] = t0, tobj
@@ -452,7 +463,8 @@ def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorDescrip
 def _reheat_time_constant(p: Protocol, sensor: SensorDescription) -> float:
     """Return the protocol's reheat time constant, scaled to the sensor's l^2 / alpha.
 
-    A PID-held sensor reheats with its loop (``control_time``).
+    A PID-held sensor reheats with its loop (``control_time``); its primary channel meets each
+    touch at its setpoint (`_closed_form_protocol`), so this serves no reading of it.
     """
     if sensor.heater == "pid":
         return sensor.control_time

@@ -228,3 +228,56 @@ def test_bench_forward_prints_both_reading_models_per_preset():
     for r in rows:
         assert r["contacts"] == 11 and 0 <= r["forward"] <= 1 and r["forward_ms"] > 0
     assert rows[0]["paper_model"] == rows[0]["forward"]  # the same computation on the paper's
+
+
+@pytest.mark.parametrize("name", PRESETS)
+def test_the_protocols_noise_free_contacts_are_the_classifiers_forward_model(name):
+    """`simulate_trials` (the benchmarks' simulator, its protocol and room drift) against
+    `contact_basis` told each contact's true nuisances: the reading is the model's within a
+    tenth of the sensor's own reading noise, and the true material reads nearest (the
+    protocol's reheating slope before contact, which the model leaves out, aside).
+
+    The pid-logger's datasets met each touch at the last touch's setpoint (the room drifts
+    0.1 K between touches) and ramped to this one's, 0.1 K/s stopped at contact and then
+    high-passed again by the loop: 8 mK median and 0.2 K worst against this model, above its
+    3.6 mK noise and its 25-50 mK swing in the first second.
+    """
+    from skin.models.contact import split_contact_rows
+    from skin.models.features import contact_matrix
+    from skin.models.joint import with_constants
+    from skin.models.trials import PAPER_MATERIALS, Protocol, simulate_trials
+
+    s = load_sensor(name)
+    quiet = dataclasses.replace(s, noise=0.0, adc_noise=0.0, adc_bits=24)
+    mats = [MATS[m] for m in PAPER_MATERIALS]
+    data = simulate_trials(mats, dataclasses.replace(Protocol(), trials=4, duration=1.7,
+                                                             n_taxels=2),
+                           sensor=quiet, seed=5)
+    x = data.extra  # two units: runs of two touches, the second after a reheat
+    amb, t0, w = split_contact_rows(contact_matrix(data, 1.5), 1)
+    lags = np.arange(w.shape[2]) / data.fs
+    floor = s.noise_kelvin(AMB + s.heated_rise)
+    worst = 0.0
+    for i in range(len(data)):
+        taxel = with_constants(s, SensorConstants(
+            depth=float(x["true_sensor_depth"][i]),
+            diffusivity=float(x["true_sensor_diffusivity"][i]),
+            conductivity=float(x["true_sensor_conductivity"][i])))
+        since = lags - (x["true_onset_time"][i] - Protocol().pre)  # from the true contact
+        t_s, t_o = float(x["true_sensor_temperature"][i]), float(x["true_object_temperature"][i])
+        # the classifier's T0 (the readings before onset) is the sensor's at contact, but for
+        # a reheating sensor's slope over the samples it averages (the paper's: up to 4 mK)
+        assert abs(t0[i, 0] - t_s) < 0.2 * floor, (name, i, t0[i, 0] - t_s, floor)
+        misfit = []
+        for m in mats:
+            p, q, a = contact_basis(since, m.effusivity, float(x["true_conductance"][i]), taxel)
+            model = (t_s + (t_o - t_s) * p + (0.0 if q is None else (amb[i] - t_s) * q)
+                     + (0.0 if a is None else a))
+            misfit.append(float(np.max(np.abs(w[i, 0] - model))))
+        own = PAPER_MATERIALS.index(data.label[i])
+        worst = max(worst, misfit[own])
+        assert misfit[own] < 0.1 * floor, (name, i, data.label[i], misfit[own], floor)
+        # nearest, but for the reheating slope the model leaves out (low-cost's steel reads
+        # 1.4 mK from aluminium's in 1.5 s, its noise is 0.2 K)
+        assert misfit[own] <= min(misfit) + 0.01 * floor, (name, i, data.label[i], misfit)
+    assert worst > 0.0  # the readings went through the ADC (24 bits), not copied
