@@ -996,7 +996,13 @@ class OnsetDetector:
         end_floor = END_SIGMAS * self.smoothed_sigma
         self.end_threshold = np.maximum(self.threshold, end_floor)
         self.end_rise_threshold = np.maximum(self.rise_threshold, end_floor)
-        self.onset_span = self.level_tau + self.smooth_tau
+        # the in-contact trend at an onset is taken over at least the baseline level's and the
+        # smoothing's time constants where the smoothing spans under two samples (below
+        # about 67 Hz for the paper's 0.03 s): it cannot average the noise of the sample that
+        # raised the alarm. Above, the span the CUSUM gathered over (at 200 Hz, 35 ms
+        # median): a floor there delayed the releases of paper seed 2 by 5 ms to 10 s
+        self.onset_span = (self.level_tau + self.smooth_tau if self.smooth_tau * fs < 2.0
+                           else 1e-3)
         self.noise_tau = noise_tau
         self.warmup = 0.5 * stretch if warmup is None else warmup
         self.stale = 1.0 * stretch if stale is None else stale
