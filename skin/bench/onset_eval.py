@@ -194,6 +194,9 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
     result = {
         **_figures(keys, spans_of, found, delay, error, min_duration),
         "min_duration": min_duration, "detected": len(found),
+        # the detector's events: one onset per contact found, one release per contact ended
+        # (more: a contact released and found again)
+        "onsets": len(onsets), "releases": sum(len(r) for r in releases.values()),
         "false_alarms": n_false, "false_alarms_by_direction": false_alarms,
         "taxel_hours": round(hours, 3),
         "false_alarms_per_taxel_hour": round(n_false / hours, 3),

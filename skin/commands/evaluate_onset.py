@@ -356,7 +356,8 @@ def main(args: argparse.Namespace) -> int:
     print(f"detected {doc['detection_rate']:.2%} of contacts >= {args.min_duration:g} s "
           f"({doc['detection_rate_all']:.2%} of all); false alarms "
           f"{doc['false_alarms_per_taxel_hour']:g} per taxel-hour ({doc['false_alarms']}: "
-          f"{fa['fall']} falls, {fa['rise']} rises)")
+          f"{fa['fall']} falls, {fa['rise']} rises); {doc['onsets']} onsets, "
+          f"{doc['releases']} releases")
     if "detected_5sigma" in doc:
         print(f"sensor {doc['sensor']} (noise {doc['noise_sigma_k']:g} K): detected "
               f"{doc['detected_5sigma']:.2%} of the {doc['contacts_5sigma']} contacts that move "

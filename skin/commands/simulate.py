@@ -70,6 +70,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     trials.add_argument("--sensor", default=None, metavar="PRESET|FILE",
                         help="sensor description: a preset (`skin sensors`) or a sensor file "
                              "(default: the paper's)")
+    trials.add_argument("--run-length", type=int, default=None, metavar="N",
+                        help="trials per recording run, one unit of taxels each (default: a "
+                             "material's trials split into one run per unit)")
+    trials.add_argument("--decimate", type=int, default=1, metavar="N",
+                        help="keep every N-th sample: the recording of a logger at the "
+                             "sensor's rate / N, onsets at the kept sample at or before them "
+                             "(default 1: all)")
     trials.add_argument("--json", action="store_true", help="print one JSON summary")
     trials.set_defaults(func=main_trials)
 
@@ -188,8 +195,12 @@ def main_trials(args: argparse.Namespace) -> int:
     if args.model == "multilayer" and len(kinds) > 1:
         raise SkinError("--channels with several channels needs --model contact or "
                         "semi-infinite")
+    if args.run_length is not None and args.run_length < 1:
+        raise SkinError("--run-length must be at least 1")
+    if args.decimate < 1:
+        raise SkinError("--decimate must be at least 1")
     protocol = Protocol(trials=args.trials, ambient=args.ambient, duration=args.duration,
-                        object_offset=offset, channels=channels)
+                        object_offset=offset, channels=channels, run_length=args.run_length)
     sensor = None
     if args.sensor is not None:
         from skin.models.sensors import load_sensor
@@ -205,6 +216,7 @@ def main_trials(args: argparse.Namespace) -> int:
                          progress=lambda d, n: progress.bar(d, n, "trials", started))
     progress.done()
     wall = time.monotonic() - started
+    ds = ds.decimated(args.decimate)  # a factor leaving under two samples is refused
     path = ds.save(args.out)
     t0 = ds.extra["true_sensor_temperature"]
     summary = {"out": str(path), "trials": len(ds), "classes": names, "model": args.model,

@@ -145,6 +145,33 @@ class TrialSet:
                         self.source, pick(self.heated), pick(self.setpoint), self.force,
                         self.object_temperature)
 
+    def decimated(self, factor: int) -> TrialSet:
+        """Return every ``factor``-th sample, as a logger at ``fs / factor`` would record them.
+
+        Each trial's onset becomes the kept sample at or before it (``onset // factor``; -1
+        stays unknown); the force trace and any extra array sampled like the readings (its
+        last axis as long) are decimated alike.
+
+        Raises
+        ------
+        DatasetError
+            ``factor`` below 1, or leaving fewer than two samples.
+        """
+        n = self.temperature.shape[-1]
+        if not (isinstance(factor, int | np.integer) and 1 <= factor <= n - 1):
+            raise DatasetError(f"{self.source}: decimation factor must be an integer from 1 to "
+                               f"{n - 1} (the trials hold {n} samples), got {factor}")
+        if factor == 1:
+            return self
+        cut = (lambda a: None if a is None else a[..., ::factor])  # noqa: E731
+        extra = {k: (v[..., ::factor] if np.ndim(v) >= 2 and np.shape(v)[-1] == n else v)
+                 for k, v in self.extra.items()}
+        onset = np.where(self.onset < 0, -1, self.onset // factor)
+        return TrialSet(self.temperature[..., ::factor], self.fs / factor, self.label, onset,
+                        self.ambient, self.group, self.taxel, extra,
+                        f"{self.source}, every {factor}th sample", self.heated, self.setpoint,
+                        cut(self.force), self.object_temperature)
+
     def save(self, path: str | Path) -> Path:
         """Write the dataset (version 2) as a compressed ``.npz``."""
         path = Path(path)

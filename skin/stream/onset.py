@@ -35,7 +35,10 @@ In contact the baseline follows the in-contact trend.  Release is the return of 
 temperature from its in-contact extreme (a rise above the minimum after a fall, a fall below
 the maximum after a rise), dated at the extreme, or the trend stopping short (the CUSUM of the
 other sign), dated where that CUSUM left zero: a taxel still reheating from an earlier contact
-keeps rising after a warm touch ends.  `skin.stream.onset_refine.refine_onset` then dates the onset
+keeps rising after a warm touch ends. Both stay clear of one sample's noise at any rate: the
+return by ``release_rise``, the stopping short by `END_SIGMAS` of the smoothed reading's noise
+(at 20 Hz a sample's noise is no longer averaged), and the in-contact trend is taken at the
+onset over at least ``onset_span`` s.  `skin.stream.onset_refine.refine_onset` then dates the onset
 precisely by fitting the heated sensor's contact response to the window.
 
 A free taxel read again after a hole longer than ``warmup`` (its board's samples lost, or its
@@ -124,6 +127,10 @@ FLAT_SIGMAS = 8.0
 #: from there took that transient for a fall, fast-film's evaluate-onset seed 4 two false
 #: alarms 4-20 ms after the warm-up).
 SETTLE_TAUS = 3.0
+#: In contact, the CUSUM of the other sign (the departure stopping short: a release) needs at
+#: least this many noise sigmas of the smoothed reading, per sample, as the release by return
+#: (``release_rise``) stays this many clear of noise (`FLAT_SIGMAS`' 8).
+END_SIGMAS = 8.0
 #: The common mode (`OnsetDetector`'s ``common_mode``) is a change shared by all but this
 #: share of a board's free taxels, rounded up (`_shared`), and needs at least `COMMON_MIN` of
 #: them.
@@ -819,7 +826,8 @@ class OnsetDetector:
     #: slices these, and only these, for a shard. Other arrays (the noise table
     #: ``_drop_sd``, indexed by time since the reference) are shared, whatever their length.
     PER_TAXEL = ("sigma", "drift", "noise_floor", "noise_threshold", "smoothed_sigma",
-                 "_resid_sigma", "threshold", "rise_threshold", "release_rise",
+                 "_resid_sigma", "threshold", "rise_threshold", "end_threshold",
+                 "end_rise_threshold", "release_rise",
                  "slow_threshold", "slow_begin", "_common_margin", "board")
 
     def __init__(
@@ -978,6 +986,23 @@ class OnsetDetector:
         self.release_rise = scaled(release_rise, "release_rise", False)
         self.slow_threshold = scaled(slow_threshold, "slow_threshold", False)
         self.slow_begin = scaled(slow_begin, "slow_begin", False)
+        # in contact the CUSUM of the other sign watches for the contact's end (a departure
+        # stopping short): no easier for noise to trip than the release by return
+        # (``release_rise``), `END_SIGMAS` of the smoothed reading's noise per sample at the
+        # least. At 200 Hz the disturbance floors lie far above it (paper: 0.6 K x samples
+        # against 0.074); at 20 Hz the one-sample smoothing averages nothing and the floor
+        # (0.06) lay below one sample's noise, so one noisy sample stopped the baseline and
+        # its extrapolated, decelerating trend made a release within the contact
+        end_floor = END_SIGMAS * self.smoothed_sigma
+        self.end_threshold = np.maximum(self.threshold, end_floor)
+        self.end_rise_threshold = np.maximum(self.rise_threshold, end_floor)
+        # the in-contact trend at an onset is taken over at least the baseline level's and the
+        # smoothing's time constants where the smoothing spans under two samples (below
+        # about 67 Hz for the paper's 0.03 s): it cannot average the noise of the sample that
+        # raised the alarm. Above, the span the CUSUM gathered over (at 200 Hz, 35 ms
+        # median): a floor there delayed the releases of paper seed 2 by 5 ms to 10 s
+        self.onset_span = (self.level_tau + self.smooth_tau if self.smooth_tau * fs < 2.0
+                           else 1e-3)
         self.noise_tau = noise_tau
         self.warmup = 0.5 * stretch if warmup is None else warmup
         self.stale = 1.0 * stretch if stale is None else stale
@@ -1542,9 +1567,15 @@ class OnsetDetector:
             s.extreme[onset] = s.smooth[onset]
             s.t_extreme[onset] = t
             # from the onset on (or a reheat's rebound), the baseline follows the trend from
-            # where the reading is now
+            # where the reading is now, taken over at least the baseline level's and the
+            # smoothing's time constants (`onset_span`): a CUSUM that alarms within a sample
+            # or two gives the difference of two noisy readings, the later one noisy enough
+            # to raise the alarm (at 20 Hz, one sample: 0.6 K/s of noise; a paper trial's
+            # aluminium contact re-based at -2.6 K/s, its trend -1.5), and the baseline,
+            # extrapolating too steep a fall, took the next noisy sample for the fall
+            # stopping short (a release, then the contact again)
             o = onset & np.isfinite(t0)
-            since = np.maximum(t - t0[o], 1e-3)
+            since = np.maximum(t - t0[o], self.onset_span)
             start = s.level[o] + s.slope[o] * (t0[o] - s.t_level[o])
             s.slope[o] = (s.smooth[o] - start) / since
             s.slope[onset & ~o] = 0.0
@@ -1562,9 +1593,13 @@ class OnsetDetector:
         rise_ok = u <= self.rise_threshold / 4
         follow = calm & fall_ok & rise_ok
         if any_contact:
-            stopped = ((warm & fell) | (cool & rose)) if self.ends_when_stopped else \
-                np.zeros_like(live)
-            follow |= (warm & ~stopped & fall_ok) | (cool & ~stopped & rise_ok)
+            # in contact, against the end's thresholds (`END_SIGMAS`)
+            end_fall_ok = g <= self.end_threshold / 4
+            end_rise_ok = u <= self.end_rise_threshold / 4
+            stopped = ((warm & (g > self.end_threshold) & ~stale)
+                       | (cool & (u > self.end_rise_threshold) & ~rise_stale)
+                       ) if self.ends_when_stopped else np.zeros_like(live)
+            follow |= (warm & ~stopped & end_fall_ok) | (cool & ~stopped & end_rise_ok)
             b = np.where(idle, gain[3], gain[4])
         else:
             b = gain[3]

@@ -1,0 +1,91 @@
+"""The onset detector on slowly sampled recordings (20-50 Hz): a contact is one event."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from skin.errors import SkinError
+from skin.models import load_materials
+from skin.models.sensors import load_sensor
+from skin.models.trials import Protocol, simulate_trials
+from skin.stream.onset import OnsetDetector
+
+MATS = load_materials()
+
+
+@pytest.fixture(scope="module")
+def trials():
+    """The 12 aluminium / pine trials of `test_onset_eval` (seed 1), at 200 Hz."""
+    return simulate_trials([MATS["aluminium"], MATS["pine"]], Protocol(trials=6, run_length=3),
+                           seed=1)
+
+
+def _events(data, chunk=None):
+    sensor = load_sensor("paper").at_rate(data.fs, "the trials")
+    temperature = data.primary.T.copy()
+    times = np.arange(temperature.shape[0]) / data.fs
+    detector = OnsetDetector(temperature.shape[1], sensor=sensor)
+    state, events = detector.initial_state(), []
+    step = chunk or len(times)
+    for i in range(0, len(times), step):
+        got, state = detector.process(times[i:i + step], temperature[i:i + step], state)
+        events += got
+    return detector, events
+
+
+@pytest.mark.parametrize("factor", [10, 4])  # 20 Hz, 50 Hz
+def test_a_slowly_sampled_contact_is_one_onset_not_a_release_and_a_new_onset(trials, factor):
+    data = trials.decimated(factor)
+    assert data.fs == 200.0 / factor and data.temperature.shape[-1] == 700 // factor
+    _, events = _events(data)
+    # every trial holds one contact from its onset to its end: one onset each, no release (the
+    # detector released and re-detected 3 of the 12 contacts at 20 Hz, 1 at 50 Hz)
+    assert sorted(e.taxel for e in events) == list(range(len(data)))
+    assert all(e.kind == "onset" and e.direction == -1 for e in events)
+    onsets = data.onset / data.fs
+    for e in events:
+        assert onsets[e.taxel] - 0.1 <= e.time <= onsets[e.taxel] + 0.6  # dated in the contact
+    # chunks of any size give the same events
+    _, chunked = _events(data, chunk=3)
+    assert [(e.taxel, e.kind, e.time, e.detected_at) for e in chunked] == \
+        [(e.taxel, e.kind, e.time, e.detected_at) for e in events]
+
+
+def test_the_contacts_end_test_stays_clear_of_one_samples_noise():
+    # in contact, the CUSUM of the other sign needs END_SIGMAS of the smoothed reading's noise
+    # at the least: at 20 Hz that floor sets it (the disturbance floor, 0.06 K x samples, lay
+    # below one sample's noise); at the paper's 200 Hz the disturbance floors lie above it
+    slow = OnsetDetector(2, sensor=load_sensor("paper").at_rate(20.0))
+    assert np.all(slow.end_rise_threshold > slow.rise_threshold)
+    assert np.allclose(slow.end_rise_threshold, 8.0 * slow.smoothed_sigma)
+    paper = OnsetDetector(2, sensor="paper")
+    assert np.array_equal(paper.end_threshold, np.broadcast_to(paper.threshold, (2,)))
+    assert np.array_equal(paper.end_rise_threshold, np.broadcast_to(paper.rise_threshold, (2,)))
+
+
+def test_decimated_trials_keep_every_nth_sample_and_date_onsets_at_or_before(trials):
+    slow = trials.decimated(10)
+    assert np.array_equal(slow.temperature, trials.temperature[..., ::10])
+    assert np.array_equal(slow.onset, trials.onset // 10) and "every 10th sample" in slow.source
+    assert trials.decimated(1) is trials
+    for bad in (0, 700):
+        with pytest.raises(SkinError, match="decimation factor"):
+            trials.decimated(bad)
+
+
+def test_simulate_trials_decimate_writes_the_slow_dataset(tmp_path, trials):
+    out = subprocess.run([sys.executable, "-m", "skin", "simulate", "trials", "--materials",
+                          "aluminium,pine", "--trials", "6", "--run-length", "3", "--seed", "1",
+                          "--decimate", "10", "-o", str(tmp_path / "slow.npz"), "--json"],
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout)
+    assert doc["fs"] == 20.0 and doc["samples"] == 70
+    from skin.formats.dataset import load_trials
+
+    slow = load_trials(tmp_path / "slow.npz")
+    assert np.array_equal(slow.temperature, trials.temperature[..., ::10])
+    assert np.array_equal(slow.onset, trials.onset // 10)
