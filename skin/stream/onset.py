@@ -1300,6 +1300,14 @@ class OnsetDetector:
         `COMMON_AGREE` noise sigmas of the departure (the board's largest): one change moving
         them all alike, not each taxel's own (a warm-up, a reheat).
         """
+        if table.shape[0] == 1:
+            # one board (a skin warming up passes the count on most samples): the same
+            # spreads and sigma without the padded table
+            values = np.sort(part[use])
+            k = max(int(_shared(values.size)), 1)
+            spread = values[k - 1:] - values[: values.size - k + 1]
+            sigma = np.max(self._common_margin, initial=0.0) / COMMON_MARGIN
+            return np.array([np.min(spread, initial=np.inf) <= COMMON_AGREE * sigma])
         values = np.append(np.where(use, part, np.nan), np.nan)[table]
         values.sort(axis=1)  # NaN last
         k = np.maximum(_shared(count), 1).astype(np.int64)
