@@ -1174,15 +1174,22 @@ class OnsetDetector:
         """
         if not self.common_mode:
             return None
+        # built once per board array (`process` asks at every call: a live skin's call is a
+        # sample or a few); a shard's detector (`skin.stream.shards.sub_detector`) has its own
+        cached = getattr(self, "_groups_of", None)
+        if cached is not None and cached[0] is self.board:
+            return cached[1]
         ids, row, counts = np.unique(self.board, return_inverse=True, return_counts=True)
-        if counts.max(initial=0) < COMMON_MIN:
-            return None
-        order = np.argsort(row, kind="stable")
-        table = np.full((ids.size, int(counts.max())), self.n_taxels, dtype=np.int64)
-        start = np.concatenate([[0], np.cumsum(counts)[:-1]])
-        col = np.arange(self.n_taxels) - np.repeat(start, counts)
-        table[row[order], col] = order
-        return table, row
+        groups = None
+        if counts.max(initial=0) >= COMMON_MIN:
+            order = np.argsort(row, kind="stable")
+            table = np.full((ids.size, int(counts.max())), self.n_taxels, dtype=np.int64)
+            start = np.concatenate([[0], np.cumsum(counts)[:-1]])
+            col = np.arange(self.n_taxels) - np.repeat(start, counts)
+            table[row[order], col] = order
+            groups = (table, row)
+        self._groups_of = (self.board, groups)
+        return groups
 
     def _common(self, t: float, y: np.ndarray, s: DetectorState, live: np.ndarray,
                 gain: np.ndarray, groups: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
@@ -1194,25 +1201,37 @@ class OnsetDetector:
                   where=live)
         part = s.common_smooth - s.common_level
         # beyond the noise: a board's noise alone (all its taxels a little low at once) is
-        # taken for nothing, and the common mode stays continuous as it leaves 0
-        fall_part, rise_part = part + self._common_margin, part - self._common_margin
+        # taken for nothing, and the common mode stays continuous as it leaves 0. A departure
+        # beyond the margin, ``part + margin < 0`` (``part - margin > 0``), is counted as
+        # ``part < -margin`` (``part > margin``): the same test (a sum of two doubles has the
+        # sign of the exact sum), without the shifted arrays a quiet skin never needs
+        margin = self._common_margin
         # a taxel in contact, or recovering from one, is no free taxel: one that rejoined at
         # its release, far from its level, switched a room's rise off at once (paper seed 4:
         # 12 taxels' rise alarms)
         use = live & ~s.in_contact & (t >= s.recover_until)
         # the quantiles can leave 0 only when nearly every free taxel moved the same way:
-        # counted first, sorted only then (a free board's departures are noise, half each way)
+        # counted first (a free board's departures are noise, half each way), sorted only
+        # then; a quiet skin stops at the count (`skin bench pipeline --compare-common-mode`)
         if table.shape[0] == 1:
-            count = np.array([np.count_nonzero(use)])
-            down = np.array([np.count_nonzero(use & (fall_part < 0))])
-            up = np.array([np.count_nonzero(use & (rise_part > 0))])
+            free = np.count_nonzero(use)
+            count = np.array([free])
+            moved = np.zeros(1, dtype=bool)
+            if free >= COMMON_MIN:
+                need = int(_shared(free))
+                moved[0] = (np.count_nonzero(use & (part < -margin)) >= need
+                            or np.count_nonzero(use & (part > margin)) >= need)
         else:
             size = table.shape[0]
             count = np.bincount(row, weights=use, minlength=size)
-            down = np.bincount(row, weights=use & (fall_part < 0), minlength=size)
-            up = np.bincount(row, weights=use & (rise_part > 0), minlength=size)
-        # a common fall (rise) needs at least `_shared` of the free taxels below (above) 0
-        moved = (count >= COMMON_MIN) & ((down >= _shared(count)) | (up >= _shared(count)))
+            moved = count >= COMMON_MIN
+            if moved.any():
+                # a common fall (rise) needs at least `_shared` of the free taxels below
+                # (above) 0
+                need = _shared(count)
+                down = np.bincount(row, weights=use & (part < -margin), minlength=size)
+                up = np.bincount(row, weights=use & (part > margin), minlength=size)
+                moved &= (down >= need) | (up >= need)
         if moved.any():
             # ... by the same amount (`COMMON_AGREE`): a warm-up's rises, each taxel's own, are
             # no room (the default scene with it on: 373 -> 232 of 450 touches named right
@@ -1225,15 +1244,23 @@ class OnsetDetector:
         # moving alike) would otherwise drop to 0: a step of the room's change in every
         # reading, which hid a slow touch under way (low-cost seed 8, taxel 6 at 648 s: a
         # 0.16 K room rise dropped)
-        held = s.common * (1.0 - gain[7])
-        held[np.abs(held) < COMMON_SNAP * self._common_margin] = 0.0
+        held = None  # none: every board's common mode is 0 (a quiet skin's)
+        if s.common.any():
+            held = s.common * (1.0 - gain[7])
+            held[np.abs(held) < COMMON_SNAP * margin] = 0.0
         if moved.any():
-            common = self._board_common(fall_part, rise_part, use, table, row, count)
-            common = np.where(moved[row], common, held)
-        elif held.any():
+            common = self._board_common(part + margin, part - margin, use, table, row, count)
+            common = np.where(moved[row], common, 0.0 if held is None else held)
+        elif held is not None and held.any():
             common = held
         else:
             common = 0.0
+        if held is None and not isinstance(common, np.ndarray):
+            # no common mode before nor now: the level follows the reading (the terms of the
+            # room's change below are 0)
+            np.copyto(s.common_level, s.common_level
+                      + (s.common_smooth - s.common_level) * gain[1], where=live)
+            return y
         np.copyto(s.common, common, where=live)
         # the level follows the reading with the common mode taken off, and slowly the room
         # too: a room that settled elsewhere is each taxel's new level (the common mode, and
@@ -1298,6 +1325,14 @@ class OnsetDetector:
         `COMMON_AGREE` noise sigmas of the departure (the board's largest): one change moving
         them all alike, not each taxel's own (a warm-up, a reheat).
         """
+        if table.shape[0] == 1:
+            # one board (a skin warming up passes the count on most samples): the same
+            # spreads and sigma without the padded table
+            values = np.sort(part[use])
+            k = max(int(_shared(values.size)), 1)
+            spread = values[k - 1:] - values[: values.size - k + 1]
+            sigma = np.max(self._common_margin, initial=0.0) / COMMON_MARGIN
+            return np.array([np.min(spread, initial=np.inf) <= COMMON_AGREE * sigma])
         values = np.append(np.where(use, part, np.nan), np.nan)[table]
         values.sort(axis=1)  # NaN last
         k = np.maximum(_shared(count), 1).astype(np.int64)
