@@ -6,8 +6,12 @@ object touches it, the thermistor follows the contact response from the temperat
 that moment, so initial conditions vary with each taxel's recent contacts. The contact has a
 perfect conductance (eq. 5), or with ``contact="finite"`` a conductance h per taxel and
 touch, drawn log-uniformly from the material's range (a light touch through the material's
-air gap, `skin.models.materials.Material.gap`). Readings get Gaussian noise and pass through the
-thermistor divider and the 10-bit ADC.
+air gap, `skin.models.materials.Material.gap`). A PID-held sensor (``heater = "pid"``) sits at
+its setpoint from the start; its loop acts once, on the whole stream
+(`skin.models.sensors.StreamingDynamics`): a contact's deviation from the setpoint is
+high-passed with ``control_time``, and after the release the reading returns to the setpoint
+with that loop alone. Readings get Gaussian noise
+and pass through the thermistor divider and the 10-bit ADC.
 
 `SimDriver` hands those frames over directly (``sim://``); `PtySerialDevice` writes them, as
 wire-protocol bytes, into a real pseudo-terminal, so that the serial driver reads them exactly
@@ -197,8 +201,18 @@ class SkinSimulator:
         sensor = self.sensor
         each = self.taxel_sensor
         e_s = np.broadcast_to(np.asarray(each.effusivity, dtype=float), n)
-        relax = sensor.control_time if sensor.heater == "pid" else each.reheat_time_constant
-        decay = np.exp(-1.0 / (self.sample_rate * relax))
+        # A PID loop acts once, in `dynamics` (the reading is the loop's high-pass of the
+        # contact's un-looped deviation): the loop holds its setpoint from the start (the
+        # series' first sample is its settled level), a released taxel's un-looped value
+        # stays where the contact left it (the loop alone returns the reading to the
+        # setpoint, with control_time, once), and a contact's swing starts from the setpoint
+        # the loop holds, not from that un-looped value. Not relaxed here with control_time
+        # as well: that counted the loop's recovery twice (an overshoot above the setpoint
+        # of 60 % of the release's deviation, still 47 % 5 s later, on pid-logger)
+        pid = sensor.heater == "pid"
+        if pid:
+            free = np.full(n, heated)
+        decay = None if pid else np.exp(-1.0 / (self.sample_rate * each.reheat_time_constant))
         e_obj_now = np.zeros(n)
         touching = np.zeros(n, dtype=bool)
         t0 = np.zeros(n)
@@ -222,13 +236,18 @@ class SkinSimulator:
                 for _, _, idx, t_obj, e_obj, log_h in starts.get(k, ()):
                     touching[idx] = True
                     t0[idx] = free[idx]
-                    ts[idx] = contact_temperature(free[idx], t_obj, e_s[idx], e_obj)
+                    if pid:  # the swing from the setpoint, added to the un-looped value
+                        ts[idx] = free[idx] + (contact_temperature(heated, t_obj, e_s[idx],
+                                                                   e_obj) - heated)
+                    else:
+                        ts[idx] = contact_temperature(free[idx], t_obj, e_s[idx], e_obj)
                     start[idx] = t
                     e_obj_now[idx] = e_obj
                     if self.contact == "finite":
                         h = 10.0 ** h_rng.uniform(log_h[0], log_h[1], idx.size)
                         rate[idx] = conductance_rate(h, e_s[idx], e_obj)
-                free = np.where(touching, free, heated + (free - heated) * decay)
+                if decay is not None:
+                    free = np.where(touching, free, heated + (free - heated) * decay)
                 if touching.any():
                     here = self._sensor_of(touching)
                     resp = contact_response(t - start[touching], rate[touching], here)

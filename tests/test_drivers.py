@@ -76,3 +76,52 @@ def test_simulator_follows_the_paper_during_contact(sim):
     assert np.all(np.isfinite(temps))
     # free taxels reheat towards the heated steady state, never above it
     assert temps.max() <= sim.heated + 1e-9
+
+
+def test_a_pid_scene_counts_its_loop_once():
+    # A noise-free pid-logger taxel touched twice, started below its setpoint: the loop holds
+    # the setpoint before each touch, the contact is the classifiers' forward model (eq. 5
+    # from the setpoint, through the loop and the lag), and after the release the reading
+    # returns to the setpoint with the loop once: no overshoot. The loop used to be counted
+    # twice (the un-looped value relaxed with control_time and was then high-passed): an
+    # overshoot of 60 % of the release's deviation, still 47 % 5 s after it.
+    from skin.formats.scene import parse_scene
+    from skin.models import load_materials
+    from skin.models.sensors import apply_dynamics, contact_reading, load_sensor
+
+    hold, rest = 5.0, 15.0
+    lines = ['name = "pid"', 'layout = "arm"', f"duration = {3.0 + 2 * (hold + rest)}",
+             "ambient = 25.0", "seed = 3", "taxel_spread = 0.0",
+             "initial_temperature = [28.0, 33.0]", 'sensor = "pid-logger"',
+             '[[objects]]', 'name = "al"', 'material = "aluminium"',
+             '[[objects]]', 'name = "pine"', 'material = "pine"']
+    for k, name in enumerate(("al", "pine")):
+        lines += ["[[touches]]", f'object = "{name}"', "taxels = [0]",
+                  f"start = {3.0 + k * (hold + rest)}", f"duration = {hold}"]
+    scene = parse_scene("\n".join(lines) + "\n", "pid.toml")
+    sim = SkinSimulator(scene, contact="perfect")
+    sensor = load_sensor("pid-logger")
+    assert sim.sensor.heater == "pid"
+    y = sim.temperatures()[:, scene.layout.index(0)]
+    fs, noise = sim.sample_rate, sensor.noise
+    setpoint = scene.ambient + sensor.setpoint
+    materials = load_materials()
+    first = round(scene.touches[0].start * fs)
+    assert abs(y[:first] - setpoint).max() < 0.1 * noise, "settled at the setpoint from the start"
+    for touch in scene.touches:
+        k0, k1 = round(touch.start * fs), round(touch.end * fs)
+        k2 = k1 + round(rest * fs) - 1
+        assert abs(y[k0 - 1] - setpoint) < 0.1 * noise, "the loop holds its setpoint"
+        mat = materials[scene.objects[touch.object].material]
+        raw = contact_reading(np.arange(k1 - k0) / fs, setpoint,
+                              mat.resting_temperature(scene.ambient), mat.effusivity, sensor)
+        # settled at the setpoint; the un-looped value held after the release
+        model = apply_dynamics(np.concatenate([np.full(100, setpoint), raw,
+                                               np.full(k2 - k1 + 1, raw[-1])]), sensor, fs)[100:]
+        assert abs(y[k0:k2 + 1] - model).max() < 0.1 * noise
+        after = y[k1:k2 + 1] - setpoint
+        assert after[0] < -0.3  # a cool object: the reading is under the setpoint at release
+        assert after.max() < 0.1 * noise, "no overshoot above the setpoint after the release"
+        # 3 loop times and 3 lags after the release: 5 % of the release's deviation is left
+        later = round(3 * (sensor.control_time + sensor.lag) * fs)
+        assert abs(after[later]) < 0.06 * abs(after[0])
