@@ -20,7 +20,9 @@ temperature (or a cold or warm object, within ``object_offset``), through a cont
 conductance from the material's range; the thermistor follows the closed-form contact
 response from the temperature it had. After release, the reading returns to the free reading
 with the taxel's recovery (a fast 2 s part and the slow mode), so a taxel reheats after each
-contact.
+contact. A PID-held sensor's loop acts once, over the whole stream (see below): its contact
+swings from the setpoint the loop holds, and after release the loop alone returns the
+reading to it (`_recovery`).
 
 Most objects are cooler than the heated taxel, so a contact makes its reading fall. With
 ``warm`` > 0, that fraction of the contacts with materials that hold no temperature of their own
@@ -321,7 +323,7 @@ def _sensor_stream(materials: Sequence[Material], n_taxels: int, duration: float
         k2 = max(k1, min(int(np.ceil(end * fs)), len(reading)))
         since = part.times[k1:k2] - c.release
         own = np.concatenate([step, (step[-1] if step.size > 1 else 0.0)
-                              * recovery_shape(since, recovery)])
+                              * _recovery(since, recovery, sensor.heater == "pid")])
         detectable, information = detectability(own, part.times[k0:k2] - c.onset, sensor,
                                                 raw, fs)
         template = apply_dynamics(own, sensor, fs)[1:]
@@ -340,6 +342,19 @@ def _sensor_stream(materials: Sequence[Material], n_taxels: int, duration: float
     truth.sort(key=lambda ct: (ct[0].onset, ct[0].taxel))
     return Stream(part.times, temperature, part.ambient, [c for c, _ in truth], fs, part.gusts,
                   part.switches, [m for _, m in truth], raw)
+
+
+def _recovery(after: np.ndarray, tau: float, held: bool) -> np.ndarray:
+    """`recovery_shape`, or for a PID-held sensor (``held``) 1: its un-looped change stays.
+
+    A PID loop (`skin.models.sensors.apply_dynamics`, over the whole stream) alone returns
+    the reading to its setpoint after a release, with ``control_time``, once; the un-looped
+    change recovering as well was the loop's recovery counted a second time (an overshoot of
+    the setpoint by a quarter of the release's deviation, lasting over 10 s).
+    """
+    if held:
+        return np.ones_like(np.asarray(after, dtype=float))
+    return recovery_shape(after, tau)
 
 
 def recovery_shape(after: np.ndarray, tau: float) -> np.ndarray:
@@ -552,11 +567,13 @@ disturbances, tau, warm, warm_margin
         scale = sensor.heated_rise / load_sensor("paper").heated_rise
         tau = tau * sensor.reheat_time_constant / load_sensor("paper").reheat_time_constant
         full_excess = sensor.heated_rise
+        held = sensor.heater == "pid"
 
         def trace_of(since, t0, t_obj, e, s, h):  # the sensor's heater mode in contact too
             return contact_reading(since, t0, t_obj, e, s, h, ambient)
     else:
         sensor = SensorConstants()
+        held = False
     n = round(duration * fs)
     if described and chunk < n:
         raise ValueError("a described sensor's stream comes whole (simulate_stream): its loop, "
@@ -652,7 +669,7 @@ disturbances, tau, warm, warm_margin
         free = amb[:, None] + excess + gust
         reading = free.copy()
         for j, c in latest.items():  # the contacts before the chunk: their trace, recovery
-            _write_contact(reading, free, times, a, j, c, tau)
+            _write_contact(reading, free, times, a, j, c, tau, held)
         found = []
         while i_contact < len(schedule) and schedule[i_contact][0] < b:
             k0, j, t, length, mat, offset, h, margin = schedule[i_contact]
@@ -660,19 +677,25 @@ disturbances, tau, warm, warm_margin
             amb_at = amb[round(t * fs) - a] if round(t * fs) >= a else amb_last
             t_obj = mat.resting_temperature(float(amb_at)) + offset
             t0 = float(reading[k0 - 1 - a, j] if k0 > a else reading_last[j])
+            # a PID loop holds its setpoint (the loop's high-pass keeps the reading there,
+            # whatever the un-looped drift): the contact's swing starts from it, added to
+            # the un-looped value
+            base = ambient + full_excess if held else t0
             if margin is not None:
-                t_obj = t0 + margin
+                t_obj = base + margin
             k1 = int(np.ceil((t + length) * fs))
             since = np.arange(k0, min(k1, n)) / fs - t
-            trace = trace_of(since, t0, t_obj, mat.effusivity, sensor, h)
-            end = float(trace_of(length, t0, t_obj, mat.effusivity, sensor, h))
+            trace = trace_of(since, base, t_obj, mat.effusivity, sensor, h)
+            end = float(trace_of(length, base, t_obj, mat.effusivity, sensor, h))
+            if held:
+                trace, end = trace + (t0 - base), end + (t0 - base)
             change = np.abs(trace - t0) >= VISIBLE
             seen = float(since[np.argmax(change)]) if change.any() else float("inf")
             peak = float(np.max(np.abs(trace - t0))) if k1 > k0 else 0.0
             found.append(StreamContact(j, float(t), float(t + length), mat.name, float(t_obj),
                                        t0, seen, peak))
             latest[j] = [k0, k1, trace, t + length, end, None]
-            _write_contact(reading, free, times, a, j, latest[j], tau)
+            _write_contact(reading, free, times, a, j, latest[j], tau, held)
         amb_last, reading_last = amb[-1], reading[-1].copy()
         # a described sensor's readout follows in `simulate_stream`, over the whole stream
         temperature = reading if described else adc_readings(reading, adc_rng, 0.5)
@@ -684,8 +707,11 @@ disturbances, tau, warm, warm_margin
 
 
 def _write_contact(reading: np.ndarray, free: np.ndarray, times: np.ndarray, a: int, j: int,
-                   c: list, tau: float) -> None:
-    """Write a contact's trace and the recovery after it into the chunk starting at ``a``."""
+                   c: list, tau: float, held: bool = False) -> None:
+    """Write a contact's trace and the recovery after it into the chunk starting at ``a``.
+
+    ``held``: a PID-held sensor, whose un-looped change stays after the release (`_recovery`).
+    """
     k0, k1, trace, release, end, gap = c
     b = a + len(times)
     if k0 < b and k1 > a:
@@ -695,5 +721,5 @@ def _write_contact(reading: np.ndarray, free: np.ndarray, times: np.ndarray, a: 
         lo = max(k1, a)
         if gap is None:  # the first free sample after release sets the gap
             gap = c[5] = end - free[k1 - a, j]
-        reading[lo - a:, j] = free[lo - a:, j] + gap * recovery_shape(times[lo - a:] - release,
-                                                                      tau)
+        reading[lo - a:, j] = free[lo - a:, j] + gap * _recovery(times[lo - a:] - release, tau,
+                                                                 held)
