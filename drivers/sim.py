@@ -7,10 +7,8 @@ that moment, so initial conditions vary with each taxel's recent contacts. The c
 perfect conductance (eq. 5), or with ``contact="finite"`` a conductance h per taxel and
 touch, drawn log-uniformly from the material's range (a light touch through the material's
 air gap, `skin.models.materials.Material.gap`). A PID-held sensor (``heater = "pid"``) sits at
-its setpoint from the start; its loop acts once, on the whole stream
-(`skin.models.sensors.StreamingDynamics`): a contact's deviation from the setpoint is
-high-passed with ``control_time``, and after the release the reading returns to the setpoint
-with that loop alone. Readings get Gaussian noise
+its setpoint from the start, its contacts swing from it, and its loop acts on the whole stream
+(`skin.models.sensors.StreamingDynamics`). Readings get Gaussian noise
 and pass through the thermistor divider and the 10-bit ADC.
 
 `SimDriver` hands those frames over directly (``sim://``); `PtySerialDevice` writes them, as
@@ -201,18 +199,19 @@ class SkinSimulator:
         sensor = self.sensor
         each = self.taxel_sensor
         e_s = np.broadcast_to(np.asarray(each.effusivity, dtype=float), n)
-        # A PID loop acts once, in `dynamics` (the reading is the loop's high-pass of the
-        # contact's un-looped deviation): the loop holds its setpoint from the start (the
-        # series' first sample is its settled level), a released taxel's un-looped value
-        # stays where the contact left it (the loop alone returns the reading to the
-        # setpoint, with control_time, once), and a contact's swing starts from the setpoint
-        # the loop holds, not from that un-looped value. Not relaxed here with control_time
-        # as well: that counted the loop's recovery twice (an overshoot above the setpoint
-        # of 60 % of the release's deviation, still 47 % 5 s later, on pid-logger)
+        # A PID loop acts in `dynamics` (the reading is the loop's high-pass of the un-looped
+        # temperature): it holds its setpoint from the start (the series' first sample is its
+        # settled level: a free start below it read that far under the setpoint for good),
+        # and a contact's swing starts from the setpoint the loop holds (added to the
+        # un-looped value, which may still be recovering from the last touch). After a
+        # release the un-looped drain recovers fast (near the thermistor; ``control_time`` as
+        # before), and the loop's raised power overshoots the setpoint once the object is
+        # gone: the lift-off that `skin.models.commission` finds a PID touch's end by
         pid = sensor.heater == "pid"
         if pid:
             free = np.full(n, heated)
-        decay = None if pid else np.exp(-1.0 / (self.sample_rate * each.reheat_time_constant))
+        relax = sensor.control_time if pid else each.reheat_time_constant
+        decay = np.exp(-1.0 / (self.sample_rate * relax))
         e_obj_now = np.zeros(n)
         touching = np.zeros(n, dtype=bool)
         t0 = np.zeros(n)
@@ -246,8 +245,7 @@ class SkinSimulator:
                     if self.contact == "finite":
                         h = 10.0 ** h_rng.uniform(log_h[0], log_h[1], idx.size)
                         rate[idx] = conductance_rate(h, e_s[idx], e_obj)
-                if decay is not None:
-                    free = np.where(touching, free, heated + (free - heated) * decay)
+                free = np.where(touching, free, heated + (free - heated) * decay)
                 if touching.any():
                     here = self._sensor_of(touching)
                     resp = contact_response(t - start[touching], rate[touching], here)

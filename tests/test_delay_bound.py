@@ -232,14 +232,12 @@ def test_the_oracles_5sigma_contacts_are_evaluate_onsets(capsys) -> None:
         assert row["peak_sigmas"] > 5.0
 
 
-def test_a_pid_stream_counts_its_loop_once() -> None:
-    # The loop (`apply_dynamics`, over the whole stream) alone holds a PID sensor at its
-    # setpoint: a contact's own change is eq. 5 from the setpoint through the loop and lag,
-    # whatever the un-looped drift (heater switches, room, gusts), and after the release the
-    # reading returns to the setpoint once, with the loop: no overshoot. It used to start the
-    # swing from the un-looped drifted value (a median 19 % too small on evaluate-onset's
-    # seed 0) and recover the un-looped change as well (the setpoint overshot by a quarter of
-    # the release's deviation for over 10 s).
+def test_a_pid_streams_contacts_swing_from_the_setpoint() -> None:
+    # The loop (`apply_dynamics`, over the whole stream) holds a PID sensor's reading at its
+    # setpoint whatever moves the un-looped temperature (heater switches, room, gusts): a
+    # contact's own change is eq. 5 from the setpoint through the loop and lag. It used to
+    # swing from the un-looped value (median 1.6 K under the setpoint on evaluate-onset's
+    # seed 0: swings a median 19 % too small).
     from dataclasses import replace
 
     from skin.models.sensors import apply_dynamics, contact_reading
@@ -263,15 +261,3 @@ def test_a_pid_stream_counts_its_loop_once() -> None:
                                   mat.effusivity, sensor, h) - setpoint
             want = apply_dynamics(raw, sensor, stream.fs)[1:]
             np.testing.assert_allclose(m[:want.size], want, rtol=0, atol=1e-9)
-            if m.size > want.size:  # after the release: back to the setpoint, no overshoot
-                after = m[want.size:] * np.sign(m[want.size])
-                assert after.min() > -1e-9
-                later = round(3 * (sensor.control_time + sensor.lag) * stream.fs)
-                if after.size > later:  # the loop's recovery (and the lag's), once
-                    assert after[later] <= 0.06 * after.max()
-    # the quiet stream, noise-free: the reading sits at the setpoint outside the contacts
-    quiet = replace(sensor, noise=0.0, adc_noise=0.0, adc_bits=24, smoothing="none")
-    stream = simulate_stream(mats, n_taxels=3, duration=240.0, seed=4, sensor=quiet,
-                             disturbances=False)
-    assert abs(stream.temperature - setpoint).max() < 1.0
-    assert (stream.temperature - setpoint).max() < 1e-4, "never above the setpoint"

@@ -78,13 +78,14 @@ def test_simulator_follows_the_paper_during_contact(sim):
     assert temps.max() <= sim.heated + 1e-9
 
 
-def test_a_pid_scene_counts_its_loop_once():
-    # A noise-free pid-logger taxel touched twice, started below its setpoint: the loop holds
-    # the setpoint before each touch, the contact is the classifiers' forward model (eq. 5
-    # from the setpoint, through the loop and the lag), and after the release the reading
-    # returns to the setpoint with the loop once: no overshoot. The loop used to be counted
-    # twice (the un-looped value relaxed with control_time and was then high-passed): an
-    # overshoot of 60 % of the release's deviation, still 47 % 5 s after it.
+def test_a_pid_scene_holds_its_setpoint_and_swings_from_it():
+    # A noise-free pid-logger taxel touched twice, its scene starting below the setpoint: the
+    # loop holds the setpoint before the first touch, the contact is the classifiers' forward
+    # model (eq. 5 from the setpoint, through the loop and the lag), and the lift-off shows
+    # (the loop's raised power overshoots the setpoint, then settles: what
+    # `skin.models.commission` ends a PID touch by). The stream used to read the scene's
+    # initial temperature for good (the loop's high-pass anchors at the first sample): 6.5 K
+    # under the setpoint here, with the swing from where the un-looped value had got to.
     from skin.formats.scene import parse_scene
     from skin.models import load_materials
     from skin.models.sensors import apply_dynamics, contact_reading, load_sensor
@@ -105,23 +106,14 @@ def test_a_pid_scene_counts_its_loop_once():
     y = sim.temperatures()[:, scene.layout.index(0)]
     fs, noise = sim.sample_rate, sensor.noise
     setpoint = scene.ambient + sensor.setpoint
-    materials = load_materials()
-    first = round(scene.touches[0].start * fs)
-    assert abs(y[:first] - setpoint).max() < 0.1 * noise, "settled at the setpoint from the start"
-    for touch in scene.touches:
-        k0, k1 = round(touch.start * fs), round(touch.end * fs)
-        k2 = k1 + round(rest * fs) - 1
-        assert abs(y[k0 - 1] - setpoint) < 0.1 * noise, "the loop holds its setpoint"
-        mat = materials[scene.objects[touch.object].material]
-        raw = contact_reading(np.arange(k1 - k0) / fs, setpoint,
-                              mat.resting_temperature(scene.ambient), mat.effusivity, sensor)
-        # settled at the setpoint; the un-looped value held after the release
-        model = apply_dynamics(np.concatenate([np.full(100, setpoint), raw,
-                                               np.full(k2 - k1 + 1, raw[-1])]), sensor, fs)[100:]
-        assert abs(y[k0:k2 + 1] - model).max() < 0.1 * noise
-        after = y[k1:k2 + 1] - setpoint
-        assert after[0] < -0.3  # a cool object: the reading is under the setpoint at release
-        assert after.max() < 0.1 * noise, "no overshoot above the setpoint after the release"
-        # 3 loop times and 3 lags after the release: 5 % of the release's deviation is left
-        later = round(3 * (sensor.control_time + sensor.lag) * fs)
-        assert abs(after[later]) < 0.06 * abs(after[0])
+    touch = scene.touches[0]
+    k0, k1 = round(touch.start * fs), round(touch.end * fs)
+    assert abs(y[:k0] - setpoint).max() < 0.1 * noise, "settled at the setpoint from the start"
+    mat = load_materials()["aluminium"]
+    raw = contact_reading(np.arange(k1 - k0) / fs, setpoint,
+                          mat.resting_temperature(scene.ambient), mat.effusivity, sensor)
+    model = apply_dynamics(np.concatenate([np.full(100, setpoint), raw]), sensor, fs)[100:]
+    assert abs(y[k0:k1] - model).max() < 0.1 * noise
+    after = y[k1:k1 + round(rest * fs)] - setpoint
+    assert after[0] < -0.3 and after.max() > 0.1  # the lift-off overshoots the setpoint
+    assert abs(after[-1]) < 0.01 * abs(after[0])  # and settles before the next touch

@@ -20,9 +20,8 @@ temperature (or a cold or warm object, within ``object_offset``), through a cont
 conductance from the material's range; the thermistor follows the closed-form contact
 response from the temperature it had. After release, the reading returns to the free reading
 with the taxel's recovery (a fast 2 s part and the slow mode), so a taxel reheats after each
-contact. A PID-held sensor's loop acts once, over the whole stream (see below): its contact
-swings from the setpoint the loop holds, and after release the loop alone returns the
-reading to it (`_recovery`).
+contact. A PID-held sensor's contact swings from the setpoint its loop holds (the loop acts
+over the whole stream, see below, whatever the un-looped drift).
 
 Most objects are cooler than the heated taxel, so a contact makes its reading fall. With
 ``warm`` > 0, that fraction of the contacts with materials that hold no temperature of their own
@@ -323,7 +322,7 @@ def _sensor_stream(materials: Sequence[Material], n_taxels: int, duration: float
         k2 = max(k1, min(int(np.ceil(end * fs)), len(reading)))
         since = part.times[k1:k2] - c.release
         own = np.concatenate([step, (step[-1] if step.size > 1 else 0.0)
-                              * _recovery(since, recovery, sensor.heater == "pid")])
+                              * recovery_shape(since, recovery)])
         detectable, information = detectability(own, part.times[k0:k2] - c.onset, sensor,
                                                 raw, fs)
         template = apply_dynamics(own, sensor, fs)[1:]
@@ -342,19 +341,6 @@ def _sensor_stream(materials: Sequence[Material], n_taxels: int, duration: float
     truth.sort(key=lambda ct: (ct[0].onset, ct[0].taxel))
     return Stream(part.times, temperature, part.ambient, [c for c, _ in truth], fs, part.gusts,
                   part.switches, [m for _, m in truth], raw)
-
-
-def _recovery(after: np.ndarray, tau: float, held: bool) -> np.ndarray:
-    """`recovery_shape`, or for a PID-held sensor (``held``) 1: its un-looped change stays.
-
-    A PID loop (`skin.models.sensors.apply_dynamics`, over the whole stream) alone returns
-    the reading to its setpoint after a release, with ``control_time``, once; the un-looped
-    change recovering as well was the loop's recovery counted a second time (an overshoot of
-    the setpoint by a quarter of the release's deviation, lasting over 10 s).
-    """
-    if held:
-        return np.ones_like(np.asarray(after, dtype=float))
-    return recovery_shape(after, tau)
 
 
 def recovery_shape(after: np.ndarray, tau: float) -> np.ndarray:
@@ -669,7 +655,7 @@ disturbances, tau, warm, warm_margin
         free = amb[:, None] + excess + gust
         reading = free.copy()
         for j, c in latest.items():  # the contacts before the chunk: their trace, recovery
-            _write_contact(reading, free, times, a, j, c, tau, held)
+            _write_contact(reading, free, times, a, j, c, tau)
         found = []
         while i_contact < len(schedule) and schedule[i_contact][0] < b:
             k0, j, t, length, mat, offset, h, margin = schedule[i_contact]
@@ -695,7 +681,7 @@ disturbances, tau, warm, warm_margin
             found.append(StreamContact(j, float(t), float(t + length), mat.name, float(t_obj),
                                        t0, seen, peak))
             latest[j] = [k0, k1, trace, t + length, end, None]
-            _write_contact(reading, free, times, a, j, latest[j], tau, held)
+            _write_contact(reading, free, times, a, j, latest[j], tau)
         amb_last, reading_last = amb[-1], reading[-1].copy()
         # a described sensor's readout follows in `simulate_stream`, over the whole stream
         temperature = reading if described else adc_readings(reading, adc_rng, 0.5)
@@ -707,11 +693,8 @@ disturbances, tau, warm, warm_margin
 
 
 def _write_contact(reading: np.ndarray, free: np.ndarray, times: np.ndarray, a: int, j: int,
-                   c: list, tau: float, held: bool = False) -> None:
-    """Write a contact's trace and the recovery after it into the chunk starting at ``a``.
-
-    ``held``: a PID-held sensor, whose un-looped change stays after the release (`_recovery`).
-    """
+                   c: list, tau: float) -> None:
+    """Write a contact's trace and the recovery after it into the chunk starting at ``a``."""
     k0, k1, trace, release, end, gap = c
     b = a + len(times)
     if k0 < b and k1 > a:
@@ -721,5 +704,5 @@ def _write_contact(reading: np.ndarray, free: np.ndarray, times: np.ndarray, a: 
         lo = max(k1, a)
         if gap is None:  # the first free sample after release sets the gap
             gap = c[5] = end - free[k1 - a, j]
-        reading[lo - a:, j] = free[lo - a:, j] + gap * _recovery(times[lo - a:] - release, tau,
-                                                                 held)
+        reading[lo - a:, j] = free[lo - a:, j] + gap * recovery_shape(times[lo - a:] - release,
+                                                                      tau)
