@@ -8,8 +8,8 @@ perfect conductance (eq. 5), or with ``contact="finite"`` a conductance h per ta
 touch, drawn log-uniformly from the material's range (a light touch through the material's
 air gap, `skin.models.materials.Material.gap`). A PID-held sensor (``heater = "pid"``) sits at
 its setpoint from the start, its contacts swing from it, and its loop acts on the whole stream
-(`skin.models.sensors.StreamingDynamics`). Readings get Gaussian noise
-and pass through the thermistor divider and the 10-bit ADC.
+(`skin.models.sensors.StreamingDynamics`). Readings get Gaussian noise and pass through the
+thermistor divider and the 10-bit ADC.
 
 `SimDriver` hands those frames over directly (``sim://``); `PtySerialDevice` writes them, as
 wire-protocol bytes, into a real pseudo-terminal, so that the serial driver reads them exactly
