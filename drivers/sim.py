@@ -6,7 +6,9 @@ object touches it, the thermistor follows the contact response from the temperat
 that moment, so initial conditions vary with each taxel's recent contacts. The contact has a
 perfect conductance (eq. 5), or with ``contact="finite"`` a conductance h per taxel and
 touch, drawn log-uniformly from the material's range (a light touch through the material's
-air gap, `skin.models.materials.Material.gap`). Readings get Gaussian noise and pass through the
+air gap, `skin.models.materials.Material.gap`). A PID-held sensor (``heater = "pid"``) sits at
+its setpoint from the start, its contacts swing from it, and its loop acts on the whole stream
+(`skin.models.sensors.StreamingDynamics`). Readings get Gaussian noise and pass through the
 thermistor divider and the 10-bit ADC.
 
 `SimDriver` hands those frames over directly (``sim://``); `PtySerialDevice` writes them, as
@@ -197,7 +199,18 @@ class SkinSimulator:
         sensor = self.sensor
         each = self.taxel_sensor
         e_s = np.broadcast_to(np.asarray(each.effusivity, dtype=float), n)
-        relax = sensor.control_time if sensor.heater == "pid" else each.reheat_time_constant
+        # A PID loop acts in `dynamics` (the reading is the loop's high-pass of the un-looped
+        # temperature): it holds its setpoint from the start (the series' first sample is its
+        # settled level: a free start below it read that far under the setpoint for good),
+        # and a contact's swing starts from the setpoint the loop holds (added to the
+        # un-looped value, which may still be recovering from the last touch). After a
+        # release the un-looped drain recovers fast (near the thermistor; ``control_time`` as
+        # before), and the loop's raised power overshoots the setpoint once the object is
+        # gone: the lift-off that `skin.models.commission` finds a PID touch's end by
+        pid = sensor.heater == "pid"
+        if pid:
+            free = np.full(n, heated)
+        relax = sensor.control_time if pid else each.reheat_time_constant
         decay = np.exp(-1.0 / (self.sample_rate * relax))
         e_obj_now = np.zeros(n)
         touching = np.zeros(n, dtype=bool)
@@ -222,7 +235,11 @@ class SkinSimulator:
                 for _, _, idx, t_obj, e_obj, log_h in starts.get(k, ()):
                     touching[idx] = True
                     t0[idx] = free[idx]
-                    ts[idx] = contact_temperature(free[idx], t_obj, e_s[idx], e_obj)
+                    if pid:  # the swing from the setpoint, added to the un-looped value
+                        ts[idx] = free[idx] + (contact_temperature(heated, t_obj, e_s[idx],
+                                                                   e_obj) - heated)
+                    else:
+                        ts[idx] = contact_temperature(free[idx], t_obj, e_s[idx], e_obj)
                     start[idx] = t
                     e_obj_now[idx] = e_obj
                     if self.contact == "finite":

@@ -230,3 +230,34 @@ def test_the_oracles_5sigma_contacts_are_evaluate_onsets(capsys) -> None:
     for row in missed:
         assert row["cause"] in MISS_CAUSES and 0.0 <= row["oracle_detection"] <= 1.0
         assert row["peak_sigmas"] > 5.0
+
+
+def test_a_pid_streams_contacts_swing_from_the_setpoint() -> None:
+    # The loop (`apply_dynamics`, over the whole stream) holds a PID sensor's reading at its
+    # setpoint whatever moves the un-looped temperature (heater switches, room, gusts): a
+    # contact's own change is eq. 5 from the setpoint through the loop and lag. It used to
+    # swing from the un-looped value (median 1.6 K under the setpoint on evaluate-onset's
+    # seed 0: swings a median 19 % too small).
+    from dataclasses import replace
+
+    from skin.models.sensors import apply_dynamics, contact_reading
+
+    table = load_materials()
+    # one air gap, so one contact conductance, that the test knows (as the stream draws it)
+    mats = [replace(table[n], gap=(5.0, 5.0)) for n in ("aluminium", "pine", "glass")]
+    h = 10.0 ** np.log10(mats[0].conductance_range[0])
+    table = {m.name: m for m in mats}
+    sensor = load_sensor("pid-logger")
+    setpoint = 25.0 + sensor.heated_rise
+    for disturbances in (True, False):
+        stream = simulate_stream(mats, n_taxels=3, duration=240.0, seed=4, sensor=sensor,
+                                 disturbances=disturbances)
+        assert stream.contacts
+        for c, m in zip(stream.contacts, stream.templates, strict=True):
+            mat = table[c.material]
+            since = np.arange(math.ceil(c.onset * stream.fs) - 1,
+                              math.ceil(c.release * stream.fs)) / stream.fs - c.onset
+            raw = contact_reading(np.maximum(since, 0.0), setpoint, c.object_temperature,
+                                  mat.effusivity, sensor, h) - setpoint
+            want = apply_dynamics(raw, sensor, stream.fs)[1:]
+            np.testing.assert_allclose(m[:want.size], want, rtol=0, atol=1e-9)

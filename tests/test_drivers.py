@@ -76,3 +76,44 @@ def test_simulator_follows_the_paper_during_contact(sim):
     assert np.all(np.isfinite(temps))
     # free taxels reheat towards the heated steady state, never above it
     assert temps.max() <= sim.heated + 1e-9
+
+
+def test_a_pid_scene_holds_its_setpoint_and_swings_from_it():
+    # A noise-free pid-logger taxel touched twice, its scene starting below the setpoint: the
+    # loop holds the setpoint before the first touch, the contact is the classifiers' forward
+    # model (eq. 5 from the setpoint, through the loop and the lag), and the lift-off shows
+    # (the loop's raised power overshoots the setpoint, then settles: what
+    # `skin.models.commission` ends a PID touch by). The stream used to read the scene's
+    # initial temperature for good (the loop's high-pass anchors at the first sample): 6.5 K
+    # under the setpoint here, with the swing from where the un-looped value had got to.
+    from skin.formats.scene import parse_scene
+    from skin.models import load_materials
+    from skin.models.sensors import apply_dynamics, contact_reading, load_sensor
+
+    hold, rest = 5.0, 15.0
+    lines = ['name = "pid"', 'layout = "arm"', f"duration = {3.0 + 2 * (hold + rest)}",
+             "ambient = 25.0", "seed = 3", "taxel_spread = 0.0",
+             "initial_temperature = [28.0, 33.0]", 'sensor = "pid-logger"',
+             '[[objects]]', 'name = "al"', 'material = "aluminium"',
+             '[[objects]]', 'name = "pine"', 'material = "pine"']
+    for k, name in enumerate(("al", "pine")):
+        lines += ["[[touches]]", f'object = "{name}"', "taxels = [0]",
+                  f"start = {3.0 + k * (hold + rest)}", f"duration = {hold}"]
+    scene = parse_scene("\n".join(lines) + "\n", "pid.toml")
+    sim = SkinSimulator(scene, contact="perfect")
+    sensor = load_sensor("pid-logger")
+    assert sim.sensor.heater == "pid"
+    y = sim.temperatures()[:, scene.layout.index(0)]
+    fs, noise = sim.sample_rate, sensor.noise
+    setpoint = scene.ambient + sensor.setpoint
+    touch = scene.touches[0]
+    k0, k1 = round(touch.start * fs), round(touch.end * fs)
+    assert abs(y[:k0] - setpoint).max() < 0.1 * noise, "settled at the setpoint from the start"
+    mat = load_materials()["aluminium"]
+    raw = contact_reading(np.arange(k1 - k0) / fs, setpoint,
+                          mat.resting_temperature(scene.ambient), mat.effusivity, sensor)
+    model = apply_dynamics(np.concatenate([np.full(100, setpoint), raw]), sensor, fs)[100:]
+    assert abs(y[k0:k1] - model).max() < 0.1 * noise
+    after = y[k1:k1 + round(rest * fs)] - setpoint
+    assert after[0] < -0.3 and after.max() > 0.1  # the lift-off overshoots the setpoint
+    assert abs(after[-1]) < 0.01 * abs(after[0])  # and settles before the next touch

@@ -20,7 +20,8 @@ temperature (or a cold or warm object, within ``object_offset``), through a cont
 conductance from the material's range; the thermistor follows the closed-form contact
 response from the temperature it had. After release, the reading returns to the free reading
 with the taxel's recovery (a fast 2 s part and the slow mode), so a taxel reheats after each
-contact.
+contact. A PID-held sensor's contact swings from the setpoint its loop holds (the loop acts
+over the whole stream, see below, whatever the un-looped drift).
 
 Most objects are cooler than the heated taxel, so a contact makes its reading fall. With
 ``warm`` > 0, that fraction of the contacts with materials that hold no temperature of their own
@@ -552,11 +553,13 @@ disturbances, tau, warm, warm_margin
         scale = sensor.heated_rise / load_sensor("paper").heated_rise
         tau = tau * sensor.reheat_time_constant / load_sensor("paper").reheat_time_constant
         full_excess = sensor.heated_rise
+        held = sensor.heater == "pid"
 
         def trace_of(since, t0, t_obj, e, s, h):  # the sensor's heater mode in contact too
             return contact_reading(since, t0, t_obj, e, s, h, ambient)
     else:
         sensor = SensorConstants()
+        held = False
     n = round(duration * fs)
     if described and chunk < n:
         raise ValueError("a described sensor's stream comes whole (simulate_stream): its loop, "
@@ -660,12 +663,18 @@ disturbances, tau, warm, warm_margin
             amb_at = amb[round(t * fs) - a] if round(t * fs) >= a else amb_last
             t_obj = mat.resting_temperature(float(amb_at)) + offset
             t0 = float(reading[k0 - 1 - a, j] if k0 > a else reading_last[j])
+            # a PID loop holds its setpoint (the loop's high-pass keeps the reading there,
+            # whatever the un-looped drift): the contact's swing starts from it, added to
+            # the un-looped value
+            base = ambient + full_excess if held else t0
             if margin is not None:
-                t_obj = t0 + margin
+                t_obj = base + margin
             k1 = int(np.ceil((t + length) * fs))
             since = np.arange(k0, min(k1, n)) / fs - t
-            trace = trace_of(since, t0, t_obj, mat.effusivity, sensor, h)
-            end = float(trace_of(length, t0, t_obj, mat.effusivity, sensor, h))
+            trace = trace_of(since, base, t_obj, mat.effusivity, sensor, h)
+            end = float(trace_of(length, base, t_obj, mat.effusivity, sensor, h))
+            if held:
+                trace, end = trace + (t0 - base), end + (t0 - base)
             change = np.abs(trace - t0) >= VISIBLE
             seen = float(since[np.argmax(change)]) if change.any() else float("inf")
             peak = float(np.max(np.abs(trace - t0))) if k1 > k0 else 0.0
