@@ -686,6 +686,16 @@ def test_bench_commission_classify_gives_true_and_commissioned_constants_alike(c
     assert doc["commissioning"]["own"]["response_time"]["median"] < 0.02
     (row,) = doc["rows"]
     assert row["contacts"] == 22 and row["duration"] == 1.0
+    # per taxel: the contacts add up, the accuracies are the arms' on them, the source named
+    per = row["taxels"]
+    assert [t["taxel"] for t in per] == [0, 1]
+    assert sum(t["contacts"] for t in per) == 22
+    for arm in ("true", "commissioned"):
+        assert sum(t[arm] * t["contacts"] for t in per) / 22 == pytest.approx(
+            row[arm]["accuracy"], abs=1e-3)
+    assert doc["commissioning"]["own"]["board_taxels"] == []
+    assert all(t["fit"] == "taxel" and abs(t["response_time_error"]) < 0.05
+               and abs(t["effusivity_error"]) < 0.2 for t in per)
     for arm in ("true", "commissioned", "other_unit", "nominal"):
         assert 0 <= row[arm]["accuracy"] <= 1 and row[arm]["std"] >= 0
     gap = row["commissioned_gap"]
