@@ -549,6 +549,47 @@ def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict
     return out
 
 
+def touches_wanted(fits: list[ResponseFit], touches: list[ReferenceTouch], layout: object,
+                   materials: dict) -> dict[int, dict[str, int]]:
+    """Return, per taxel given its board's pooled fit, the touches it lacks to be fitted alone.
+
+    A taxel left to its board's pool (too few of its own touches named: left out, ambiguous
+    or never recorded) takes the board's constants, and with them the spread between the
+    board's taxels (pid-logger, `skin bench commission --classify`, seed 7: two such taxels
+    10-16 % off in response time, classified at chance at 2.5 s where the true constants
+    give 36 %). What it lacks: `MIN_TOUCHES` named touches of each of `MIN_MATERIALS` of
+    ``materials``, the references it already has most of first.
+
+    Returns
+    -------
+    dict
+        Taxel id -> {reference: further touches of it}, for the board-pooled taxels only.
+    """
+    wanted = {}
+    for f in fits:
+        if f.scope == "taxel":
+            continue
+        for k in f.columns:
+            have = {m: sum(tc.column == k and tc.material == m for tc in touches)
+                    for m in materials}
+            lack = sorted(((max(MIN_TOUCHES - n, 0), m) for m, n in have.items()),
+                          key=lambda v: v[0])[:MIN_MATERIALS]
+            wanted[int(layout.ids[int(k)])] = {m: n for n, m in lack if n}
+    return wanted
+
+
+def wanted_said(wanted: dict[int, dict[str, int]]) -> str:
+    """Say which taxels took their board's pooled fit and what to record to fit them alone."""
+    if not wanted:
+        return ""
+    return ("taxel" + ("s " if len(wanted) > 1 else " ")
+            + "; ".join(f"{k} (touch again: " + ", ".join(f"{n} x {m}" for m, n in w.items())
+                        + ")" for k, w in sorted(wanted.items()))
+            + " took their board's pooled fit (too few of their own touches were named, the "
+            "rest left out or ambiguous): the board's spread stays in their constants; "
+            "record those touches on them, at room temperature, to fit each alone")
+
+
 def hold_and_rest(sensors: list) -> tuple[float, float]:
     """How long to hold each reference touch and to rest between them, s.
 
@@ -648,14 +689,18 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
     -------
     fits : list of ResponseFit
     counts : dict
-        Touches ``detected``, ``left_out`` (short, warm or incomplete) and ``ambiguous``.
+        Touches ``detected``, ``left_out`` (short, warm or incomplete) and ``ambiguous``;
+        ``wanted``: the touches each board-pooled taxel lacks to be fitted alone
+        (`touches_wanted`).
     """
     sensors = described(layout, sensors)
     if labels is not None:
         touches, short = labelled_touches(times, temperature, layout, labels,
                                           touch_seconds(sensors))
         counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": 0}
-        return fit_responses(touches, layout, materials, sensors, room), counts
+        fits = fit_responses(touches, layout, materials, sensors, room)
+        counts["wanted"] = touches_wanted(fits, touches, layout, materials)
+        return fits, counts
     touches, left = find_touches(times, temperature, layout, sensors, noise)
     if not touches and not any(left.values()):
         hold, rest = hold_and_rest(sensors)
@@ -667,5 +712,7 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
     assigned, ambiguous = assign_materials(touches, materials, sensors, room, noise=noise)
     short = sum(left.values())
     counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": len(ambiguous)}
-    return fit_responses(assigned, layout, materials, sensors, room,
-                         {**left, "ambiguous": len(ambiguous)}), counts
+    fits = fit_responses(assigned, layout, materials, sensors, room,
+                         {**left, "ambiguous": len(ambiguous)})
+    counts["wanted"] = touches_wanted(fits, assigned, layout, materials)
+    return fits, counts

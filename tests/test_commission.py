@@ -243,7 +243,12 @@ def test_touches_pool_per_board_when_a_taxel_has_too_few():
     """Two taxels with 2 + 1 touches of each reference: one board fit for both."""
     from skin.formats.layout import load_layout as _load
     from skin.models import load_materials
-    from skin.models.commission import ReferenceTouch, fit_responses
+    from skin.models.commission import (
+        ReferenceTouch,
+        fit_responses,
+        touches_wanted,
+        wanted_said,
+    )
     from skin.models.physics import SensorConstants, contact_trace
 
     layout = _load("arm")
@@ -263,6 +268,18 @@ def test_touches_pool_per_board_when_a_taxel_has_too_few():
     got = fits[0].fit.sensor
     assert got.depth**2 / got.diffusivity == pytest.approx(true.depth**2 / true.diffusivity,
                                                            rel=0.01)
+    # what each pooled taxel lacks to be fitted alone: 1 and 2 of each reference, 3 untouched
+    wanted = touches_wanted(fits, touches, layout, mats)
+    assert set(wanted) == {int(layout.ids[int(k)]) for k in fits[0].columns}
+    assert wanted[int(layout.ids[0])] == {"aluminium": 1, "pine": 1}
+    assert wanted[int(layout.ids[1])] == {"aluminium": 2, "pine": 2}
+    said = wanted_said(wanted)
+    assert f"{int(layout.ids[0])} (touch again: 1 x aluminium, 1 x pine)" in said
+    assert "board's pooled fit" in said
+    more = [*touches, touches[0], touches[2]]  # taxel 0: 3 of each, fitted alone
+    own = fit_responses(more, layout, mats, nominal, 25.0)
+    assert [(f.scope, list(f.columns)) for f in own] == [("taxel", [0])]
+    assert touches_wanted(own, more, layout, mats) == {}  # taxel 1's 1 + 1 pin no board
     with pytest.raises(CommissioningError, match="at least 3 touches"):
         fit_responses(touches[:2], layout, mats, nominal, 25.0)
 
@@ -291,7 +308,7 @@ def test_labelled_touches_are_fitted_without_the_detector(tmp_path):
     _, sensors = CalibrationFile().apply(scene.layout)
     mats = {o.material: table[o.material] for o in scene.objects.values()}
     fits, counts = commission_response(t, y, scene.layout, mats, sensors, 25.0, labels=parsed)
-    assert counts == {"detected": 12, "left_out": 0, "ambiguous": 0}
+    assert counts == {"detected": 12, "left_out": 0, "ambiguous": 0, "wanted": {}}
     assert [int(f.columns[0]) for f in fits] == [0, 1] and all(f.scope == "taxel" for f in fits)
     truth = sim.taxel_sensor
     for f in fits:
@@ -510,7 +527,8 @@ def test_bench_commission_fits_a_fast_film_unit_from_detected_touches(capsys):
                       "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["sensor"] == "fast-film" and doc["hold"] == 3.0
-    assert doc["counts"] == {"detected": 6, "left_out": 0, "ambiguous": 0, "taxels_fitted": 1}
+    assert doc["counts"] == {"detected": 6, "left_out": 0, "ambiguous": 0, "wanted": {},
+                             "taxels_fitted": 1}
     for key in ("response_time", "effusivity"):
         assert doc[key]["fitted"]["median"] < doc[key]["nominal"]["median"] / 3
     assert doc["fit_cpu_seconds"] > 0
@@ -694,6 +712,7 @@ def test_bench_commission_classify_gives_true_and_commissioned_constants_alike(c
         assert sum(t[arm] * t["contacts"] for t in per) / 22 == pytest.approx(
             row[arm]["accuracy"], abs=1e-3)
     assert doc["commissioning"]["own"]["board_taxels"] == []
+    assert doc["commissioning"]["own"]["wanted"] == {}  # no taxel lacks touches
     assert all(t["fit"] == "taxel" and abs(t["response_time_error"]) < 0.05
                and abs(t["effusivity_error"]) < 0.2 for t in per)
     for arm in ("true", "commissioned", "other_unit", "nominal"):
