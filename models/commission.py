@@ -132,6 +132,14 @@ def quiet_figures(times: np.ndarray, temperature: np.ndarray,
 
 #: Least touches of each material, and least materials, that pin a sensor response.
 MIN_TOUCHES, MIN_MATERIALS = 3, 2
+#: Least named touches of each of `MIN_MATERIALS` references that fit a taxel alone (one
+#: asked for but left out or ambiguous). Its board's pooled fit is the alternative, and it
+#: carries the spread between the board's taxels (+-10 % in depth and diffusivity: up to
+#: 20 % in response time). Measured (`skin bench commission --classify --sensor pid-logger`,
+#: T 40, 2.5 s): seed 7's taxels 4 and 6, each with one of 6 touches ambiguous, pooled: response
+#: time -12 / +16 % off, classified at chance (.091; true constants .364); alone from 2 + 3
+#: touches: -6 / -3 % (effusivity +11 / -17 %), .255 / .236.
+MIN_TAXEL_TOUCHES = 2
 #: Seconds of each touch fitted after its onset (the touch must last this long) on the
 #: paper's sensor; a slower sensor's window is longer by its half-response time's ratio to
 #: the paper's (`touch_seconds`).
@@ -493,11 +501,11 @@ def assign_materials(touches: list, materials: dict, sensors: list, room: float,
     return assigned, ambiguous
 
 
-def _pins(touches: list[ReferenceTouch]) -> bool:
+def _pins(touches: list[ReferenceTouch], least: int = MIN_TOUCHES) -> bool:
     counts: dict[str, int] = {}
     for tc in touches:
         counts[tc.material] = counts.get(tc.material, 0) + 1
-    return sum(c >= MIN_TOUCHES for c in counts.values()) >= MIN_MATERIALS
+    return sum(c >= least for c in counts.values()) >= MIN_MATERIALS
 
 
 def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict,
@@ -505,8 +513,9 @@ def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict
                   ) -> list[ResponseFit]:
     """Fit each taxel's response, or its board's where the taxel has too few touches.
 
-    A taxel (or a board, pooling its taxels' touches) needs `MIN_TOUCHES` touches of each of
-    `MIN_MATERIALS` references; the fit is `skin.models.sensor_fit.fit_sensor_constants`.
+    A taxel needs `MIN_TAXEL_TOUCHES` touches of each of `MIN_MATERIALS` references, a board
+    (pooling the touches of its taxels short of them) `MIN_TOUCHES`; the fit is
+    `skin.models.sensor_fit.fit_sensor_constants`.
 
     ``left_out``: the touches left out before the fit, by reason (`find_touches`, with
     ``ambiguous``): they name what to record instead when the rest cannot pin the response.
@@ -520,7 +529,7 @@ def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict
     for tc in touches:
         by_taxel.setdefault(tc.column, []).append(tc)
     groups = [(np.array([k]), "taxel", tcs) for k, tcs in sorted(by_taxel.items())
-              if _pins(tcs)]
+              if _pins(tcs, MIN_TAXEL_TOUCHES)]
     done = {int(g[0][0]) for g in groups}
     for b in layout.boards:
         cols = [i for i, tx in enumerate(layout.taxels) if tx.board == b and i not in done]
@@ -547,6 +556,47 @@ def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict
             counts[tc.material] = counts.get(tc.material, 0) + 1
         out.append(ResponseFit(cols, scope, len(tcs), counts, fit))
     return out
+
+
+def touches_wanted(fits: list[ResponseFit], touches: list[ReferenceTouch], layout: object,
+                   materials: dict) -> dict[int, dict[str, int]]:
+    """Return, per taxel given its board's pooled fit, the touches it lacks to be fitted alone.
+
+    A taxel left to its board's pool (too few of its own touches named: left out, ambiguous
+    or never recorded) takes the board's constants, and with them the spread between the
+    board's taxels (pid-logger, `skin bench commission --classify`, seed 7: two such taxels
+    10-16 % off in response time, classified at chance at 2.5 s where the true constants
+    give 36 %). What it lacks: `MIN_TAXEL_TOUCHES` named touches of each of `MIN_MATERIALS`
+    of ``materials``, the references it already has most of first.
+
+    Returns
+    -------
+    dict
+        Taxel id -> {reference: further touches of it}, for the board-pooled taxels only.
+    """
+    wanted = {}
+    for f in fits:
+        if f.scope == "taxel":
+            continue
+        for k in f.columns:
+            have = {m: sum(tc.column == k and tc.material == m for tc in touches)
+                    for m in materials}
+            lack = sorted(((max(MIN_TAXEL_TOUCHES - n, 0), m) for m, n in have.items()),
+                          key=lambda v: v[0])[:MIN_MATERIALS]
+            wanted[int(layout.ids[int(k)])] = {m: n for n, m in lack if n}
+    return wanted
+
+
+def wanted_said(wanted: dict[int, dict[str, int]]) -> str:
+    """Say which taxels took their board's pooled fit and what to record to fit them alone."""
+    if not wanted:
+        return ""
+    return ("taxel" + ("s " if len(wanted) > 1 else " ")
+            + "; ".join(f"{k} (touch again: " + ", ".join(f"{n} x {m}" for m, n in w.items())
+                        + ")" for k, w in sorted(wanted.items()))
+            + " took their board's pooled fit (too few of their own touches were named, the "
+            "rest left out or ambiguous): the board's spread stays in their constants; "
+            "record those touches on them, at room temperature, to fit each alone")
 
 
 def hold_and_rest(sensors: list) -> tuple[float, float]:
@@ -648,14 +698,18 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
     -------
     fits : list of ResponseFit
     counts : dict
-        Touches ``detected``, ``left_out`` (short, warm or incomplete) and ``ambiguous``.
+        Touches ``detected``, ``left_out`` (short, warm or incomplete) and ``ambiguous``;
+        ``wanted``: the touches each board-pooled taxel lacks to be fitted alone
+        (`touches_wanted`).
     """
     sensors = described(layout, sensors)
     if labels is not None:
         touches, short = labelled_touches(times, temperature, layout, labels,
                                           touch_seconds(sensors))
         counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": 0}
-        return fit_responses(touches, layout, materials, sensors, room), counts
+        fits = fit_responses(touches, layout, materials, sensors, room)
+        counts["wanted"] = touches_wanted(fits, touches, layout, materials)
+        return fits, counts
     touches, left = find_touches(times, temperature, layout, sensors, noise)
     if not touches and not any(left.values()):
         hold, rest = hold_and_rest(sensors)
@@ -667,5 +721,7 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
     assigned, ambiguous = assign_materials(touches, materials, sensors, room, noise=noise)
     short = sum(left.values())
     counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": len(ambiguous)}
-    return fit_responses(assigned, layout, materials, sensors, room,
-                         {**left, "ambiguous": len(ambiguous)}), counts
+    fits = fit_responses(assigned, layout, materials, sensors, room,
+                         {**left, "ambiguous": len(ambiguous)})
+    counts["wanted"] = touches_wanted(fits, assigned, layout, materials)
+    return fits, counts

@@ -240,10 +240,17 @@ def test_touches_that_cannot_pin_the_response_say_what_to_record(tmp_path, capsy
 
 
 def test_touches_pool_per_board_when_a_taxel_has_too_few():
-    """Two taxels with 2 + 1 touches of each reference: one board fit for both."""
+    """Three taxels with 1 touch of each reference: one board fit for the three (and the
+    board's other taxels); 2 of each fit a taxel alone (`MIN_TAXEL_TOUCHES`: one of 3 asked
+    for lost to ambiguity leaves it its own constants, not the board's spread)."""
     from skin.formats.layout import load_layout as _load
     from skin.models import load_materials
-    from skin.models.commission import ReferenceTouch, fit_responses
+    from skin.models.commission import (
+        ReferenceTouch,
+        fit_responses,
+        touches_wanted,
+        wanted_said,
+    )
     from skin.models.physics import SensorConstants, contact_trace
 
     layout = _load("arm")
@@ -251,16 +258,31 @@ def test_touches_pool_per_board_when_a_taxel_has_too_few():
     true = SensorConstants(diffusivity=SensorConstants().diffusivity * 1.08)
     t = np.arange(-80, 501) / 200.0  # the fit dates each onset: it needs samples before it
     touches = []
-    for k, n in ((0, 2), (1, 1)):
+    for k in (0, 1, 2):
         for name, m in mats.items():
-            for _ in range(n):
-                y = contact_trace(t, 36.0, 25.0, m.effusivity, true, np.inf)
-                touches.append(ReferenceTouch(k, 1.0, 36.0, name, t, y))
+            y = contact_trace(t, 36.0, 25.0, m.effusivity, true, np.inf)
+            touches.append(ReferenceTouch(k, 1.0, 36.0, name, t, y))
     nominal = [SensorConstants()] * len(layout)
     fits = fit_responses(touches, layout, mats, nominal, 25.0)
     assert len(fits) == 1 and fits[0].scope == "board" and fits[0].touches == 6
-    assert 0 in fits[0].columns and 1 in fits[0].columns
+    assert {0, 1, 2} <= set(fits[0].columns.tolist())
     got = fits[0].fit.sensor
+    assert got.depth**2 / got.diffusivity == pytest.approx(true.depth**2 / true.diffusivity,
+                                                           rel=0.01)
+    # what each pooled taxel lacks to be fitted alone: 1 of each touched, 2 untouched
+    wanted = touches_wanted(fits, touches, layout, mats)
+    assert set(wanted) == {int(layout.ids[int(k)]) for k in fits[0].columns}
+    assert wanted[int(layout.ids[0])] == {"aluminium": 1, "pine": 1}
+    assert all(wanted[int(layout.ids[int(k)])] == {"aluminium": 2, "pine": 2}
+               for k in fits[0].columns if k > 2)
+    said = wanted_said(wanted)
+    assert f"{int(layout.ids[0])} (touch again: 1 x aluminium, 1 x pine)" in said
+    assert "board's pooled fit" in said
+    more = [*touches, touches[0], touches[1]]  # taxel 0: 2 of each, fitted alone
+    own = fit_responses(more, layout, mats, nominal, 25.0)
+    assert [(f.scope, list(f.columns)) for f in own] == [("taxel", [0])]
+    assert touches_wanted(own, more, layout, mats) == {}  # 2 + 2 left pin no board
+    got = own[0].fit.sensor
     assert got.depth**2 / got.diffusivity == pytest.approx(true.depth**2 / true.diffusivity,
                                                            rel=0.01)
     with pytest.raises(CommissioningError, match="at least 3 touches"):
@@ -291,7 +313,7 @@ def test_labelled_touches_are_fitted_without_the_detector(tmp_path):
     _, sensors = CalibrationFile().apply(scene.layout)
     mats = {o.material: table[o.material] for o in scene.objects.values()}
     fits, counts = commission_response(t, y, scene.layout, mats, sensors, 25.0, labels=parsed)
-    assert counts == {"detected": 12, "left_out": 0, "ambiguous": 0}
+    assert counts == {"detected": 12, "left_out": 0, "ambiguous": 0, "wanted": {}}
     assert [int(f.columns[0]) for f in fits] == [0, 1] and all(f.scope == "taxel" for f in fits)
     truth = sim.taxel_sensor
     for f in fits:
@@ -510,7 +532,8 @@ def test_bench_commission_fits_a_fast_film_unit_from_detected_touches(capsys):
                       "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["sensor"] == "fast-film" and doc["hold"] == 3.0
-    assert doc["counts"] == {"detected": 6, "left_out": 0, "ambiguous": 0, "taxels_fitted": 1}
+    assert doc["counts"] == {"detected": 6, "left_out": 0, "ambiguous": 0, "wanted": {},
+                             "taxels_fitted": 1}
     for key in ("response_time", "effusivity"):
         assert doc[key]["fitted"]["median"] < doc[key]["nominal"]["median"] / 3
     assert doc["fit_cpu_seconds"] > 0
@@ -686,6 +709,17 @@ def test_bench_commission_classify_gives_true_and_commissioned_constants_alike(c
     assert doc["commissioning"]["own"]["response_time"]["median"] < 0.02
     (row,) = doc["rows"]
     assert row["contacts"] == 22 and row["duration"] == 1.0
+    # per taxel: the contacts add up, the accuracies are the arms' on them, the source named
+    per = row["taxels"]
+    assert [t["taxel"] for t in per] == [0, 1]
+    assert sum(t["contacts"] for t in per) == 22
+    for arm in ("true", "commissioned"):
+        assert sum(t[arm] * t["contacts"] for t in per) / 22 == pytest.approx(
+            row[arm]["accuracy"], abs=1e-3)
+    assert doc["commissioning"]["own"]["board_taxels"] == []
+    assert doc["commissioning"]["own"]["wanted"] == {}  # no taxel lacks touches
+    assert all(t["fit"] == "taxel" and abs(t["response_time_error"]) < 0.05
+               and abs(t["effusivity_error"]) < 0.2 for t in per)
     for arm in ("true", "commissioned", "other_unit", "nominal"):
         assert 0 <= row[arm]["accuracy"] <= 1 and row[arm]["std"] >= 0
     gap = row["commissioned_gap"]

@@ -299,6 +299,34 @@ def _constants_of(fits: list, layout: object, own_only: bool = False) -> dict[in
     return out
 
 
+def _per_taxel(data: Any, right: dict[str, np.ndarray], unit: dict) -> list[dict[str, Any]]:
+    """Each recording taxel's contacts, true and commissioned accuracy and its constants' errors.
+
+    ``fit`` says where the taxel's commissioned constants came from: ``"taxel"`` (its own
+    reference touches) or ``"board"`` (its board's pooled fit: too few of its own touches
+    were named); ``response_time_error`` and ``effusivity_error`` are the commissioned
+    constants' relative errors against the simulator's truth (`classify`'s diagnosis).
+    """
+    layout, truth = unit["layout"], unit["sim"].taxel_sensor
+    scope = {int(layout.ids[int(k)]): (f.scope, f.fit.sensor) for f in unit["fits"]
+             for k in f.columns}
+    tax = np.asarray(data.taxel, dtype=float)[:, 0]
+    out = []
+    for k in sorted({int(v) for v in tax if np.isfinite(v) and v >= 0}):
+        on = tax == k
+        i = layout.index(k)
+        fit, got = scope[k]
+        want_tau = truth.depth[i] ** 2 / truth.diffusivity[i]
+        out.append({"taxel": k, "fit": fit, "contacts": int(on.sum()),
+                    "true": round(float(right["true"][on].mean()), 4),
+                    "commissioned": round(float(right["commissioned"][on].mean()), 4),
+                    "response_time_error": round(float(
+                        got.depth ** 2 / got.diffusivity / want_tau - 1.0), 4),
+                    "effusivity_error": round(float(
+                        got.effusivity / truth.effusivity[i] - 1.0), 4)})
+    return out
+
+
 def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None,
              trials: int = 40, durations: tuple[float, ...] = (0.5, 1.0, 2.5),
              taxels: int = 8, touches: int = 6, spread: float = 0.10,
@@ -347,7 +375,8 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     -------
     dict
         ``commissioning``: per unit (``own``, ``other``) the taxels fitted from their own
-        touches, those given their board's pooled fit, the touch counts, the fit's CPU time
+        touches, those given their board's pooled fit (``board_fitted``, their ids
+        ``board_taxels``), the touch counts, the fit's CPU time
         and the response-time error of the taxels fitted from their own touches.
         Per duration (``rows``): each arm's accuracy and binomial standard error, and the
         gap ``true - commissioned`` (and ``true - other_unit``) on the same contacts with
@@ -355,7 +384,9 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
         other wrong) and its ``verdict`` against 3 points either way (a classifier told
         biased constants can beat the true ones at one window and lose at another): ``met``
         when gap +- 1.96 standard errors lies within, ``not met`` when wholly outside, else
-        ``unresolved`` (`_verdict`); the classification's CPU ms per contact.
+        ``unresolved`` (`_verdict`); the classification's CPU ms per contact; ``taxels``:
+        per recording taxel its contacts, true and commissioned accuracy, whether its
+        constants are its own fit or its board's pooled one and their errors (`_per_taxel`).
         ``hold`` and ``rest``: the reference touches' (default: what `skin commission`
         asks for).
     """
@@ -400,9 +431,11 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
         got = _constants_of(unit["fits"], unit["layout"], own_only=True)
         cols = np.array([unit["layout"].index(i) for i in sorted(got)], dtype=int)
         tau = np.array([got[i].depth ** 2 / got[i].diffusivity for i in sorted(got)])
-        pooled = sum(len(f.columns) for f in unit["fits"] if f.scope != "taxel")
+        pooled = sorted(int(unit["layout"].ids[int(k)]) for f in unit["fits"]
+                        if f.scope != "taxel" for k in f.columns)
         doc["commissioning"][key] = {
-            "taxels_fitted": int(cols.size), "board_fitted": pooled, **unit["counts"],
+            "taxels_fitted": int(cols.size), "board_fitted": len(pooled),
+            "board_taxels": pooled, **unit["counts"],
             "fit_cpu_seconds": unit["fit_cpu_seconds"],
             **({"response_time": _errors(tau, truth.depth[cols] ** 2
                                          / truth.diffusivity[cols])} if cols.size else {})}
@@ -458,6 +491,7 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
         for name in ("commissioned", "other_unit"):
             gap = _paired(right["true"], right[name])
             row[f"{name}_gap"] = {**gap, "verdict": _verdict(gap["gap"], gap["std"])}
+        row["taxels"] = _per_taxel(data, right, own)
         rows.append(row)
     doc["rows"] = rows
     return doc

@@ -220,7 +220,12 @@ def _dataset(args: argparse.Namespace, layout: object, progress: Progress) -> in
     from skin.formats.calibration_file import CalibrationFile, load_calibration
     from skin.formats.dataset import load_trials
     from skin.models import load_materials
-    from skin.models.commission import dataset_touches, described, fit_responses
+    from skin.models.commission import (
+        dataset_touches,
+        described,
+        fit_responses,
+        touches_wanted,
+    )
 
     if args.labels or args.touches:
         raise SkinError("--data names its touches' materials and onsets: no --labels or "
@@ -241,7 +246,8 @@ def _dataset(args: argparse.Namespace, layout: object, progress: Progress) -> in
     room = float(np.nanmedian(trials.ambient))
     fits = fit_responses(touches, layout, {m: table[m] for m in names},
                          described(layout, sensors), room)
-    counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": 0}
+    counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": 0,
+              "wanted": touches_wanted(fits, touches, layout, {m: table[m] for m in names})}
     return _write_response(args, layout, cal_file, out, fits, counts,
                            f"{len(touches)} contacts of {', '.join(names)} in {args.data}",
                            room, started, progress, note)
@@ -281,6 +287,10 @@ def _write_response(args: argparse.Namespace, layout: object, cal_file: object, 
           f"{counts['detected']} touches at {room:.2f} C ({counts['left_out']} too short or "
           f"warm, {counts['ambiguous']} ambiguous); fit rms median "
           f"{doc['thermal_rms_k']['median']:.3g} K")
+    if counts.get("wanted"):
+        from skin.models.commission import wanted_said
+
+        print(wanted_said(counts["wanted"]))
     return 0
 
 
