@@ -36,8 +36,9 @@ temperature from its in-contact extreme (a rise above the minimum after a fall, 
 the maximum after a rise), dated at the extreme, or the trend stopping short (the CUSUM of the
 other sign), dated where that CUSUM left zero: a taxel still reheating from an earlier contact
 keeps rising after a warm touch ends. Both stay clear of one sample's noise at any rate: the
-return by ``release_rise``, the stopping short by `END_SIGMAS` of the smoothed reading's noise
-(at 20 Hz a sample's noise is no longer averaged), and the in-contact trend is taken at the
+return by ``release_rise``, the stopping short by `END_SIGMAS` of the raw reading's noise per
+sample (at 20 Hz a sample's noise is no longer averaged, nor is a slow fall's quantisation
+staircase at any rate), and the in-contact trend is taken at the
 onset over at least ``onset_span`` s.  `skin.stream.onset_refine.refine_onset` then dates the onset
 precisely by fitting the heated sensor's contact response to the window.
 
@@ -128,8 +129,9 @@ FLAT_SIGMAS = 8.0
 #: alarms 4-20 ms after the warm-up).
 SETTLE_TAUS = 3.0
 #: In contact, the CUSUM of the other sign (the departure stopping short: a release) needs at
-#: least this many noise sigmas of the smoothed reading, per sample, as the release by return
-#: (``release_rise``) stays this many clear of noise (`FLAT_SIGMAS`' 8).
+#: least this many noise sigmas of the raw reading (``sigma``, quantisation included), per
+#: sample, as the release by return (``release_rise``) stays this many clear of noise
+#: (`FLAT_SIGMAS`' 8).
 END_SIGMAS = 8.0
 #: The common mode (`OnsetDetector`'s ``common_mode``) is a change shared by all but this
 #: share of a board's free taxels, rounded up (`_shared`), and needs at least `COMMON_MIN` of
@@ -988,12 +990,17 @@ class OnsetDetector:
         self.slow_begin = scaled(slow_begin, "slow_begin", False)
         # in contact the CUSUM of the other sign watches for the contact's end (a departure
         # stopping short): no easier for noise to trip than the release by return
-        # (``release_rise``), `END_SIGMAS` of the smoothed reading's noise per sample at the
-        # least. At 200 Hz the disturbance floors lie far above it (paper: 0.6 K x samples
-        # against 0.074); at 20 Hz the one-sample smoothing averages nothing and the floor
-        # (0.06) lay below one sample's noise, so one noisy sample stopped the baseline and
-        # its extrapolated, decelerating trend made a release within the contact
-        end_floor = END_SIGMAS * self.smoothed_sigma
+        # (``release_rise``), `END_SIGMAS` of the raw reading's noise per sample at the least.
+        # At the presets' own rates the disturbance floors lie above it (paper 200 Hz: 0.4 /
+        # 0.6 K x samples against 0.25; low-cost 20 Hz: 0.92 against 0.73); at 20 Hz the
+        # one-sample smoothing averages nothing and the paper's floor (0.06) lay below one
+        # sample's noise, so one noisy sample stopped the baseline and its extrapolated,
+        # decelerating trend made a release within the contact. The raw sigma, not the
+        # smoothed one: a slow fall read through the ADC is a staircase whose rounding error
+        # is correlated from sample to sample (not the white noise the smoothing's average
+        # assumes), and a one-count reversal (0.055-0.065 K) passed 8 smoothed sigmas' follow gate
+        # (0.043) - a copper contact released at 2.95 s during a steady -1.3 K/s fall
+        end_floor = END_SIGMAS * self.sigma
         self.end_threshold = np.maximum(self.threshold, end_floor)
         self.end_rise_threshold = np.maximum(self.rise_threshold, end_floor)
         # the in-contact trend at an onset is taken over at least the baseline level's and the
