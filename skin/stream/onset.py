@@ -38,8 +38,11 @@ other sign), dated where that CUSUM left zero: a taxel still reheating from an e
 keeps rising after a warm touch ends. Both stay clear of one sample's noise at any rate: the
 return by ``release_rise``, the stopping short by `END_SIGMAS` of the raw reading's noise per
 sample (at 20 Hz a sample's noise is no longer averaged, nor is a slow fall's quantisation
-staircase at any rate), and the in-contact trend is taken at the
-onset over at least ``onset_span`` s.  `skin.stream.onset_refine.refine_onset` then dates the onset
+staircase at any rate); and where the smoothing spans under two samples (the paper's below
+~67 Hz) the in-contact trend at the onset is the change over the last ``onset_span`` s (0.13-0.15
+s), the baseline's prediction standing in for the reading before the CUSUM left zero, not the
+one or two noisy samples the CUSUM alarmed in (above, ``onset_span`` is 1e-3 s, a guard only: a
+step in the rule at that rate).  `skin.stream.onset_refine.refine_onset` then dates the onset
 precisely by fitting the heated sensor's contact response to the window.
 
 A free taxel read again after a hole longer than ``warmup`` (its board's samples lost, or its
@@ -1003,13 +1006,16 @@ class OnsetDetector:
         end_floor = END_SIGMAS * self.sigma
         self.end_threshold = np.maximum(self.threshold, end_floor)
         self.end_rise_threshold = np.maximum(self.rise_threshold, end_floor)
-        # the in-contact trend at an onset is taken over at least the baseline level's and the
-        # smoothing's time constants where the smoothing spans under two samples (below
-        # about 67 Hz for the paper's 0.03 s): it cannot average the noise of the sample that
-        # raised the alarm. Above, the span the CUSUM gathered over (at 200 Hz, 35 ms
-        # median): a floor there delayed the releases of paper seed 2 by 5 ms to 10 s
+        # the in-contact trend at an onset: where the smoothing spans under two samples (below
+        # about 67 Hz for the paper's 0.03 s) the reading's change over the last level_tau +
+        # smooth_tau (0.13 s at 50 Hz, 0.15 at 20), the baseline's prediction standing in for
+        # the reading before the CUSUM left zero - the trend of the one or two samples the
+        # CUSUM gathered over carries the noise of the sample that raised the alarm. Above,
+        # the trend over the span the CUSUM gathered over (at 200 Hz, 35 ms median; 1e-3 s
+        # only guards a zero span): a longer span there delayed the releases of paper seed 2
+        # by 5 ms to 10 s. The rule steps at the switch (a sample-count criterion)
         self.onset_span = (self.level_tau + self.smooth_tau if self.smooth_tau * fs < 2.0
-                           else 1e-3)
+                           else 1e-3)  # > 1e-3 only where the span is taken (see `process`)
         self.noise_tau = noise_tau
         self.warmup = 0.5 * stretch if warmup is None else warmup
         self.stale = 1.0 * stretch if stale is None else stale
@@ -1574,17 +1580,26 @@ class OnsetDetector:
             s.extreme[onset] = s.smooth[onset]
             s.t_extreme[onset] = t
             # from the onset on (or a reheat's rebound), the baseline follows the trend from
-            # where the reading is now, taken over at least the baseline level's and the
-            # smoothing's time constants (`onset_span`): a CUSUM that alarms within a sample
-            # or two gives the difference of two noisy readings, the later one noisy enough
-            # to raise the alarm (at 20 Hz, one sample: 0.6 K/s of noise; a paper trial's
-            # aluminium contact re-based at -2.6 K/s, its trend -1.5), and the baseline,
-            # extrapolating too steep a fall, took the next noisy sample for the fall
-            # stopping short (a release, then the contact again)
+            # where the reading is now: the change since the CUSUM left zero (t0), over at
+            # least `onset_span`, the baseline's own trend filling the span before t0 (the
+            # slope over [t - onset_span, t] of the baseline's prediction until t0, the
+            # reading after). A CUSUM that alarms within a sample or two gives the difference
+            # of two noisy readings, the later one noisy enough to raise the alarm (at 20 Hz,
+            # one sample: 0.6 K/s of noise; a paper trial's aluminium contact re-based at
+            # -2.6 K/s, its trend -1.5), and the baseline, extrapolating too steep a fall,
+            # took the next noisy sample for the fall stopping short (a release, then the
+            # contact again). Where `onset_span` is the 1e-3 s guard, as before: the change
+            # over max(t - t0, 1e-3)
             o = onset & np.isfinite(t0)
-            since = np.maximum(t - t0[o], self.onset_span)
+            since = t - t0[o]
             start = s.level[o] + s.slope[o] * (t0[o] - s.t_level[o])
-            s.slope[o] = (s.smooth[o] - start) / since
+            span = self.onset_span
+            if span > 1e-3:
+                s.slope[o] = (s.smooth[o] - start
+                              + s.slope[o] * np.maximum(span - since, 0.0)) / np.maximum(
+                                  since, span)
+            else:
+                s.slope[o] = (s.smooth[o] - start) / np.maximum(since, span)
             s.slope[onset & ~o] = 0.0
             s.level[onset] = s.smooth[onset]
             s.t_level[onset] = t
