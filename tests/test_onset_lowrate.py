@@ -107,3 +107,18 @@ def test_simulate_trials_decimate_writes_the_slow_dataset(tmp_path, trials):
     slow = load_trials(tmp_path / "slow.npz")
     assert np.array_equal(slow.temperature, trials.temperature[..., ::10])
     assert np.array_equal(slow.onset, trials.onset // 10)
+
+
+@pytest.mark.parametrize(("args", "says"), [
+    (["--decimate", "0"], "--decimate must be at least 1"),
+    (["--run-length", "0"], "--run-length must be at least 1"),
+    (["--decimate", "800"], "--decimate 800 leaves fewer than two of a trial's 700 samples"),
+    (["--decimate", "11"], "18.1818 Hz, outside the 20-1000 Hz"),
+    (["--decimate", "2", "--sensor", "fast-film"], "sensor 'fast-film' smooths its reading"),
+])
+def test_simulate_trials_refuses_a_bad_decimation_before_simulating(tmp_path, args, says):
+    out = subprocess.run([sys.executable, "-m", "skin", "simulate", "trials", "--materials",
+                          "aluminium", "--trials", "2", *args, "-o", str(tmp_path / "x.npz")],
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 2 and says in out.stderr
+    assert "trials [" not in out.stderr and not (tmp_path / "x.npz").exists()  # nothing ran
