@@ -87,9 +87,11 @@ def test_a_quantised_slow_fall_is_not_released_on_a_one_count_reversal():
 def test_decimated_trials_keep_every_nth_sample_and_date_onsets_at_or_before(trials):
     slow = trials.decimated(10)
     assert np.array_equal(slow.temperature, trials.temperature[..., ::10])
-    assert np.array_equal(slow.onset, trials.onset // 10) and "every 10th sample" in slow.source
+    assert np.array_equal(slow.onset, trials.onset // 10) and "1 sample in 10" in slow.source
+    assert np.all(slow.onset / slow.fs <= trials.onset / trials.fs)  # at or before
+    assert np.all(trials.onset / trials.fs - slow.onset / slow.fs <= 9 / trials.fs)
     assert trials.decimated(1) is trials
-    for bad in (0, 700):
+    for bad in (0, 700, True, 2.0):
         with pytest.raises(SkinError, match="decimation factor"):
             trials.decimated(bad)
 

@@ -78,7 +78,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         help="trials per recording run, one unit of taxels each (default: a "
                              "material's trials split into one run per unit)")
     trials.add_argument("--decimate", type=int, default=1, metavar="N",
-                        help="keep every N-th sample: the recording of a logger at the "
+                        help="keep 1 sample in N (point samples): the recording of a logger at the "
                              "sensor's rate / N, onsets at the kept sample at or before them "
                              "(default 1: all; an unsmoothed sensor, the slower rate within "
                              "20-1000 Hz)")
