@@ -10,11 +10,15 @@ import argparse
 import json
 import sys
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from skin.errors import SkinError
 from skin.progress import Progress
+
+if TYPE_CHECKING:
+    from skin.models.trials import Protocol
 
 TRACE_MODELS = ("semi-infinite", "contact", "multilayer")
 
@@ -74,9 +78,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         help="trials per recording run, one unit of taxels each (default: a "
                              "material's trials split into one run per unit)")
     trials.add_argument("--decimate", type=int, default=1, metavar="N",
-                        help="keep every N-th sample: the recording of a logger at the "
+                        help="keep 1 sample in N (point samples): the recording of a logger at the "
                              "sensor's rate / N, onsets at the kept sample at or before them "
-                             "(default 1: all)")
+                             "(default 1: all; an unsmoothed sensor, the slower rate within "
+                             "20-1000 Hz)")
     trials.add_argument("--json", action="store_true", help="print one JSON summary")
     trials.set_defaults(func=main_trials)
 
@@ -167,6 +172,40 @@ def main_trace(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_decimate(factor: int, protocol: Protocol, sensor: object | None) -> None:
+    """Refuse a ``--decimate`` factor before the trials are simulated.
+
+    Raises
+    ------
+    SkinError
+        The factor below 1, keeping fewer than two samples of a trial, a rate outside the
+        sensor descriptions' `SAMPLE_RATE_RANGE`, or a smoothed sensor (its smoothing is
+        counted in samples of its own rate: a logger's point samples of it are not a reading
+        the detector, judging at the recording's rate, can describe).
+    """
+    from skin.models.sensors import SAMPLE_RATE_RANGE, load_sensor
+
+    described = load_sensor("paper") if sensor is None else sensor
+    fs = described.sample_rate
+    n = round(protocol.pre * fs) + round(protocol.duration * fs)
+    if factor < 1:
+        raise SkinError(f"--decimate must be at least 1, got {factor}")
+    if factor > n - 1:
+        raise SkinError(f"--decimate {factor} leaves fewer than two of a trial's {n} samples "
+                        f"({fs:g} Hz, {protocol.pre:g} s before the onset and "
+                        f"{protocol.duration:g} s after): at most {n - 1}")
+    lo, hi = SAMPLE_RATE_RANGE
+    if not lo <= fs / factor <= hi:
+        raise SkinError(f"--decimate {factor}: {fs:g} Hz / {factor} = {fs / factor:g} Hz, "
+                        f"outside the {lo:g}-{hi:g} Hz a sensor description takes (at most "
+                        f"{int(fs // lo)} for {fs:g} Hz)")
+    if described.smoothing != "none":
+        raise SkinError(f"--decimate {factor}: sensor {described.name!r} smooths its reading "
+                        f"({described.smoothing}, counted in samples of its {fs:g} Hz): "
+                        f"a slower recording of it needs its own description (a sensor file "
+                        f"with sample_rate = {fs / factor:g}), not --decimate")
+
+
 def main_trials(args: argparse.Namespace) -> int:
     """Write a trial dataset."""
     from skin.models import load_materials
@@ -197,8 +236,6 @@ def main_trials(args: argparse.Namespace) -> int:
                         "semi-infinite")
     if args.run_length is not None and args.run_length < 1:
         raise SkinError("--run-length must be at least 1")
-    if args.decimate < 1:
-        raise SkinError("--decimate must be at least 1")
     protocol = Protocol(trials=args.trials, ambient=args.ambient, duration=args.duration,
                         object_offset=offset, channels=channels, run_length=args.run_length)
     sensor = None
@@ -209,6 +246,8 @@ def main_trials(args: argparse.Namespace) -> int:
         if args.model == "multilayer" and sensor.heater != "constant":
             raise SkinError(f"--model multilayer runs a constant-power heater; sensor "
                             f"{sensor.name!r} has heater {sensor.heater!r}")
+    if args.decimate != 1:
+        _check_decimate(args.decimate, protocol, sensor)
     progress = Progress()
     started = time.monotonic()
     ds = simulate_trials([materials[m] for m in names], protocol, model=args.model,

@@ -146,21 +146,37 @@ class TrialSet:
                         self.object_temperature)
 
     def decimated(self, factor: int) -> TrialSet:
-        """Return every ``factor``-th sample, as a logger at ``fs / factor`` would record them.
+        """Return 1 sample in ``factor``, as a sample-and-hold logger at ``fs / factor`` reads.
 
-        Each trial's onset becomes the kept sample at or before it (``onset // factor``; -1
-        stays unknown); the force trace and any extra array sampled like the readings (its
-        last axis as long) are decimated alike.
+        The kept samples are point samples of the readings (samples 0, ``factor``,
+        2 ``factor``, ...): no anti-alias average, so each keeps its own noise, as a slower
+        logger's would.
+
+        Parameters
+        ----------
+        factor : int
+            Keep 1 sample in ``factor``: from 1 (the dataset itself, returned as is) to one
+            less than the samples per trial (at least two samples kept). A bool is refused.
+
+        Returns
+        -------
+        TrialSet
+            At ``fs / factor``. Each trial's onset becomes the kept sample at or before it
+            (``onset // factor``: up to ``(factor - 1) / fs`` s early; -1 stays unknown). The
+            force trace and every extra array of two axes or more whose last axis is as long
+            as the readings' (``n_samples``) are decimated alike; other extras (per trial)
+            are kept whole.
 
         Raises
         ------
         DatasetError
-            ``factor`` below 1, or leaving fewer than two samples.
+            ``factor`` not an integer from 1 to ``n_samples - 1``.
         """
         n = self.temperature.shape[-1]
-        if not (isinstance(factor, int | np.integer) and 1 <= factor <= n - 1):
+        if not (isinstance(factor, int | np.integer) and not isinstance(factor, bool)
+                and 1 <= factor <= n - 1):
             raise DatasetError(f"{self.source}: decimation factor must be an integer from 1 to "
-                               f"{n - 1} (the trials hold {n} samples), got {factor}")
+                               f"{n - 1} (the trials hold {n} samples), got {factor!r}")
         if factor == 1:
             return self
         cut = (lambda a: None if a is None else a[..., ::factor])  # noqa: E731
@@ -169,7 +185,7 @@ class TrialSet:
         onset = np.where(self.onset < 0, -1, self.onset // factor)
         return TrialSet(self.temperature[..., ::factor], self.fs / factor, self.label, onset,
                         self.ambient, self.group, self.taxel, extra,
-                        f"{self.source}, every {factor}th sample", self.heated, self.setpoint,
+                        f"{self.source}, 1 sample in {factor}", self.heated, self.setpoint,
                         cut(self.force), self.object_temperature)
 
     def save(self, path: str | Path) -> Path:

@@ -36,9 +36,13 @@ temperature from its in-contact extreme (a rise above the minimum after a fall, 
 the maximum after a rise), dated at the extreme, or the trend stopping short (the CUSUM of the
 other sign), dated where that CUSUM left zero: a taxel still reheating from an earlier contact
 keeps rising after a warm touch ends. Both stay clear of one sample's noise at any rate: the
-return by ``release_rise``, the stopping short by `END_SIGMAS` of the smoothed reading's noise
-(at 20 Hz a sample's noise is no longer averaged), and the in-contact trend is taken at the
-onset over at least ``onset_span`` s.  `skin.stream.onset_refine.refine_onset` then dates the onset
+return by ``release_rise``, the stopping short by `END_SIGMAS` of the raw reading's noise per
+sample (at 20 Hz a sample's noise is no longer averaged, nor is a slow fall's quantisation
+staircase at any rate); and where the smoothing spans under two samples (the paper's below
+~67 Hz) the in-contact trend at the onset is the change over the last ``onset_span`` s (0.13-0.15
+s), the baseline's prediction standing in for the reading before the CUSUM left zero, not the
+one or two noisy samples the CUSUM alarmed in (above, ``onset_span`` is 1e-3 s, a guard only: a
+step in the rule at that rate).  `skin.stream.onset_refine.refine_onset` then dates the onset
 precisely by fitting the heated sensor's contact response to the window.
 
 A free taxel read again after a hole longer than ``warmup`` (its board's samples lost, or its
@@ -128,8 +132,9 @@ FLAT_SIGMAS = 8.0
 #: alarms 4-20 ms after the warm-up).
 SETTLE_TAUS = 3.0
 #: In contact, the CUSUM of the other sign (the departure stopping short: a release) needs at
-#: least this many noise sigmas of the smoothed reading, per sample, as the release by return
-#: (``release_rise``) stays this many clear of noise (`FLAT_SIGMAS`' 8).
+#: least this many noise sigmas of the raw reading (``sigma``, quantisation included), per
+#: sample, as the release by return (``release_rise``) stays this many clear of noise
+#: (`FLAT_SIGMAS`' 8).
 END_SIGMAS = 8.0
 #: The common mode (`OnsetDetector`'s ``common_mode``) is a change shared by all but this
 #: share of a board's free taxels, rounded up (`_shared`), and needs at least `COMMON_MIN` of
@@ -988,21 +993,29 @@ class OnsetDetector:
         self.slow_begin = scaled(slow_begin, "slow_begin", False)
         # in contact the CUSUM of the other sign watches for the contact's end (a departure
         # stopping short): no easier for noise to trip than the release by return
-        # (``release_rise``), `END_SIGMAS` of the smoothed reading's noise per sample at the
-        # least. At 200 Hz the disturbance floors lie far above it (paper: 0.6 K x samples
-        # against 0.074); at 20 Hz the one-sample smoothing averages nothing and the floor
-        # (0.06) lay below one sample's noise, so one noisy sample stopped the baseline and
-        # its extrapolated, decelerating trend made a release within the contact
-        end_floor = END_SIGMAS * self.smoothed_sigma
+        # (``release_rise``), `END_SIGMAS` of the raw reading's noise per sample at the least.
+        # At the presets' own rates the disturbance floors lie above it (paper 200 Hz: 0.4 /
+        # 0.6 K x samples against 0.25; low-cost 20 Hz: 0.92 against 0.73); at 20 Hz the
+        # one-sample smoothing averages nothing and the paper's floor (0.06) lay below one
+        # sample's noise, so one noisy sample stopped the baseline and its extrapolated,
+        # decelerating trend made a release within the contact. The raw sigma, not the
+        # smoothed one: a slow fall read through the ADC is a staircase whose rounding error
+        # is correlated from sample to sample (not the white noise the smoothing's average
+        # assumes), and a one-count reversal (0.055-0.065 K) passed 8 smoothed sigmas' follow gate
+        # (0.043) - a copper contact released at 2.95 s during a steady -1.3 K/s fall
+        end_floor = END_SIGMAS * self.sigma
         self.end_threshold = np.maximum(self.threshold, end_floor)
         self.end_rise_threshold = np.maximum(self.rise_threshold, end_floor)
-        # the in-contact trend at an onset is taken over at least the baseline level's and the
-        # smoothing's time constants where the smoothing spans under two samples (below
-        # about 67 Hz for the paper's 0.03 s): it cannot average the noise of the sample that
-        # raised the alarm. Above, the span the CUSUM gathered over (at 200 Hz, 35 ms
-        # median): a floor there delayed the releases of paper seed 2 by 5 ms to 10 s
+        # the in-contact trend at an onset: where the smoothing spans under two samples (below
+        # about 67 Hz for the paper's 0.03 s) the reading's change over the last level_tau +
+        # smooth_tau (0.13 s at 50 Hz, 0.15 at 20), the baseline's prediction standing in for
+        # the reading before the CUSUM left zero - the trend of the one or two samples the
+        # CUSUM gathered over carries the noise of the sample that raised the alarm. Above,
+        # the trend over the span the CUSUM gathered over (at 200 Hz, 35 ms median; 1e-3 s
+        # only guards a zero span): a longer span there delayed the releases of paper seed 2
+        # by 5 ms to 10 s. The rule steps at the switch (a sample-count criterion)
         self.onset_span = (self.level_tau + self.smooth_tau if self.smooth_tau * fs < 2.0
-                           else 1e-3)
+                           else 1e-3)  # > 1e-3 only where the span is taken (see `process`)
         self.noise_tau = noise_tau
         self.warmup = 0.5 * stretch if warmup is None else warmup
         self.stale = 1.0 * stretch if stale is None else stale
@@ -1602,17 +1615,26 @@ class OnsetDetector:
             s.extreme[onset] = s.smooth[onset]
             s.t_extreme[onset] = t
             # from the onset on (or a reheat's rebound), the baseline follows the trend from
-            # where the reading is now, taken over at least the baseline level's and the
-            # smoothing's time constants (`onset_span`): a CUSUM that alarms within a sample
-            # or two gives the difference of two noisy readings, the later one noisy enough
-            # to raise the alarm (at 20 Hz, one sample: 0.6 K/s of noise; a paper trial's
-            # aluminium contact re-based at -2.6 K/s, its trend -1.5), and the baseline,
-            # extrapolating too steep a fall, took the next noisy sample for the fall
-            # stopping short (a release, then the contact again)
+            # where the reading is now: the change since the CUSUM left zero (t0), over at
+            # least `onset_span`, the baseline's own trend filling the span before t0 (the
+            # slope over [t - onset_span, t] of the baseline's prediction until t0, the
+            # reading after). A CUSUM that alarms within a sample or two gives the difference
+            # of two noisy readings, the later one noisy enough to raise the alarm (at 20 Hz,
+            # one sample: 0.6 K/s of noise; a paper trial's aluminium contact re-based at
+            # -2.6 K/s, its trend -1.5), and the baseline, extrapolating too steep a fall,
+            # took the next noisy sample for the fall stopping short (a release, then the
+            # contact again). Where `onset_span` is the 1e-3 s guard, as before: the change
+            # over max(t - t0, 1e-3)
             o = onset & np.isfinite(t0)
-            since = np.maximum(t - t0[o], self.onset_span)
+            since = t - t0[o]
             start = s.level[o] + s.slope[o] * (t0[o] - s.t_level[o])
-            s.slope[o] = (s.smooth[o] - start) / since
+            span = self.onset_span
+            if span > 1e-3:
+                s.slope[o] = (s.smooth[o] - start
+                              + s.slope[o] * np.maximum(span - since, 0.0)) / np.maximum(
+                                  since, span)
+            else:
+                s.slope[o] = (s.smooth[o] - start) / np.maximum(since, span)
             s.slope[onset & ~o] = 0.0
             s.level[onset] = s.smooth[onset]
             s.t_level[onset] = t
