@@ -1212,6 +1212,11 @@ class OnsetDetector:
             # no room (the default scene with it on: 373 -> 232 of 450 touches named right
             # without this, seeds 0-29)
             moved &= self._agree(part, use, table, count)
+        if not moved.any() and not s.common.any():
+            # a quiet skin: no board's common mode, before nor now (no held mode, no terms of
+            # the room's change)
+            self._follow_level(s, live, gain, 0.0)
+            return y
         # a board whose gate is off, whatever the reason, holds its last common mode, fading
         # as each taxel's level absorbs it (`COMMON_FORGET` ``slow_tau``), 0 once within
         # `COMMON_SNAP` of the margin. One that faded into its noise is near 0 already; one
@@ -1219,31 +1224,31 @@ class OnsetDetector:
         # moving alike) would otherwise drop to 0: a step of the room's change in every
         # reading, which hid a slow touch under way (low-cost seed 8, taxel 6 at 648 s: a
         # 0.16 K room rise dropped)
-        held = None  # none: every board's common mode is 0 (a quiet skin's)
-        if s.common.any():
-            held = s.common * (1.0 - gain[7])
-            held[np.abs(held) < COMMON_SNAP * margin] = 0.0
+        held = s.common * (1.0 - gain[7])
+        held[np.abs(held) < COMMON_SNAP * margin] = 0.0
         if moved.any():
             common = self._board_common(part + margin, part - margin, use, table, row, count)
-            common = np.where(moved[row], common, 0.0 if held is None else held)
-        elif held is not None and held.any():
+            common = np.where(moved[row], common, held)
+        elif held.any():
             common = held
         else:
             common = 0.0
-        if held is None and not isinstance(common, np.ndarray):
-            # no common mode before nor now: the level follows the reading (the terms of the
-            # room's change below are 0)
-            np.copyto(s.common_level, s.common_level
-                      + (s.common_smooth - s.common_level) * gain[1], where=live)
-            return y
         np.copyto(s.common, common, where=live)
-        # the level follows the reading with the common mode taken off, and slowly the room
-        # too: a room that settled elsewhere is each taxel's new level (the common mode, and
-        # its noise, gone again); slower changes reach the baseline as a trend
+        self._follow_level(s, live, gain, common)
+        return y - common if np.any(common) else y
+
+    @staticmethod
+    def _follow_level(s: DetectorState, live: np.ndarray, gain: np.ndarray,
+                      common: np.ndarray | float) -> None:
+        """Move each live taxel's ``common_level`` (`_common`) one step.
+
+        The level follows the reading with the common mode taken off, and slowly the room
+        too: a room that settled elsewhere is each taxel's new level (the common mode, and its
+        noise, gone again); slower changes reach the baseline as a trend.
+        """
         np.copyto(s.common_level, s.common_level
                   + (s.common_smooth - common - s.common_level) * gain[1]
                   + common * gain[7], where=live)
-        return y - common if np.any(common) else y
 
     def _loop_common(self, t: float, y: np.ndarray, s: DetectorState, live: np.ndarray,
                      gain: np.ndarray, table: np.ndarray, row: np.ndarray) -> np.ndarray:
