@@ -515,3 +515,23 @@ def test_one_boards_fast_paths_give_the_general_paths_answers():
     assert len(quiet) >= 40 and len(engaged) >= 10 and max(quiet) > max(engaged)
     assert onsets == {2, 3, 4}
 
+
+
+def test_the_board_table_is_built_once_and_a_shards_is_its_own():
+    from skin.stream.shards import sub_detector
+
+    d = OnsetDetector(32, sensor="low-cost", common_mode=True, boards=np.repeat([0, 1], 16))
+    assert d._groups() is d._groups()  # cached
+    with pytest.raises(ValueError):
+        d.board[0] = 1  # read-only: an in-place edit would leave the cached table stale
+    for taxels, rows in ((np.arange(16, 32), 1), (np.arange(8, 32), 2)):
+        sub = sub_detector(d, taxels)  # after the parent's table was cached
+        table, row = sub._groups()
+        fresh = OnsetDetector(taxels.size, sensor="low-cost", common_mode=True,
+                              boards=d.board[taxels])._groups()
+        assert table.shape == (rows, 16) and row.shape == (taxels.size,)
+        assert np.array_equal(table, fresh[0]) and np.array_equal(row, fresh[1])
+        assert not sub.board.flags.writeable and sub._groups() is sub._groups()
+    # a new board array (another wiring) is a new table
+    d.board = np.zeros(32, dtype=np.int64)
+    assert d._groups()[0].shape == (1, 32)

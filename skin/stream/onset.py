@@ -997,7 +997,12 @@ class OnsetDetector:
         self._common_margin = COMMON_MARGIN * np.broadcast_to(slow_sigma, (n_taxels,))
         self.board = (np.zeros(n_taxels, dtype=np.int64) if boards is None
                       else np.asarray(boards, dtype=np.int64).reshape(n_taxels).copy())
+        # read-only: `_groups` caches the board table for this array (an in-place edit would
+        # leave it stale); another wiring is another array (``detector.board = ...``)
+        self.board.flags.writeable = False
         self.common_mode = common_mode
+        # `_groups`' cache: the board array it was built for and its table (None: not built)
+        self._groups_of: tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None] | None = None
         # a loop-held board's common mode (`_loop_common`): the median of its free taxels'
         # departures, always taken off; the envelope's room allowance then scaled by what it
         # leaves (``common_var``) against the room's own variance through the loop
@@ -1151,7 +1156,7 @@ class OnsetDetector:
             return None
         # built once per board array (`process` asks at every call: a live skin's call is a
         # sample or a few); a shard's detector (`skin.stream.shards.sub_detector`) has its own
-        cached = getattr(self, "_groups_of", None)
+        cached = self._groups_of
         if cached is not None and cached[0] is self.board:
             return cached[1]
         ids, row, counts = np.unique(self.board, return_inverse=True, return_counts=True)
