@@ -1312,9 +1312,10 @@ class OnsetDetector:
         """
         if table.shape[0] == 1:
             # one board (a skin warming up passes the count on most samples): the same
-            # spreads and sigma without the padded table
+            # spreads and sigma without the padded table; ``count[0]`` is ``values.size``
+            # (`_common` counted the same ``use``)
             values = np.sort(part[use])
-            k = max(int(_shared(values.size)), 1)
+            k = max(int(_shared(count[0])), 1)
             spread = values[k - 1:] - values[: values.size - k + 1]
             sigma = np.max(self._common_margin, initial=0.0) / COMMON_MARGIN
             return np.array([np.min(spread, initial=np.inf) <= COMMON_AGREE * sigma])
