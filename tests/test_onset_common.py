@@ -463,3 +463,75 @@ def test_a_board_left_with_too_few_free_taxels_holds_its_common_mode(seed):
     slow_on = [e.detected_at for e in on if e.taxel == 2 and e.time > 69.0]
     slow_off = [e.detected_at for e in off if e.taxel == 2 and e.time > 69.0]
     assert slow_on and slow_off and slow_on[0] <= slow_off[0]
+
+
+def _warming_then_room(n=16, seed=3):
+    """A low-cost board warming up after power-on (each taxel its own 0.5-8 K below its heated
+    state, a 15 s mode), then quiet, then the room falling 0.6 K over 13 s from 90 s while an
+    aluminium block touches taxels 2-4 at 96 s for 4 s; 150 s at 20 Hz."""
+    s = load_sensor("low-cost")
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(150.0 * s.sample_rate)) / s.sample_rate
+    heated = 25.0 + s.heated_rise
+    room = -0.6 * np.clip((t - 90.0) / 13.0, 0.0, 1.0) ** 3
+    y = heated - rng.uniform(0.5, 8.0, n)[None, :] * np.exp(-t / 15.0)[:, None] + room[:, None]
+    inside = (t >= 96.0) & (t < 100.0)
+    for k in (2, 3, 4):
+        y[inside, k] += contact_reading(t[inside] - 96.0, heated, 22.0, 2.4e4, s,
+                                        ambient=25.0) - heated
+    y = apply_dynamics(y, s, axis=0) + rng.normal(0.0, s.noise, y.shape)
+    return t, smooth(y, s, axis=0), s
+
+
+def test_one_boards_fast_paths_give_the_general_paths_answers():
+    """The one-board shortcuts of `_common` and `_agree` (no padded table) against the general
+    path: a 16-taxel board alone and the same readings twice over two boards of 16 give the
+    same events and byte-equal states at every chunk, through a warm-up (the count gate passes,
+    the agreement test refuses), a quiet stretch (no common mode: the early return) and a room
+    fall with a touch (the common mode engaged, then held and fading)."""
+    t, y, s = _warming_then_room()
+    one = OnsetDetector(16, sensor=s, common_mode=True)
+    two = OnsetDetector(32, sensor=s, common_mode=True, boards=np.repeat([0, 1], 16))
+    assert one._groups()[0].shape == (1, 16) and two._groups()[0].shape == (2, 16)
+    a, b = one.initial_state(), two.initial_state()
+    quiet, engaged, onsets = [], [], set()
+    for k in range(0, t.size, 20):
+        got_a, a = one.process(t[k:k + 20], y[k:k + 20], a)
+        onsets |= {e.taxel for e in got_a if e.kind == "onset"}
+        got_b, b = two.process(t[k:k + 20], np.hstack([y[k:k + 20], y[k:k + 20]]), b)
+        mine = [(e.taxel, e.time, e.kind, e.channel) for e in got_a]
+        assert [(e.taxel, e.time, e.kind, e.channel) for e in got_b if e.taxel < 16] == mine
+        assert [(e.taxel - 16, e.time, e.kind, e.channel) for e in got_b if e.taxel >= 16] == mine
+        for name in ("common", "common_level", "common_smooth", "level", "cusum", "in_contact"):
+            mine = getattr(a, name)
+            theirs = getattr(b, name)
+            assert mine.tobytes() == theirs[:16].tobytes() == theirs[16:].tobytes(), (name, k)
+        if not a.common.any():
+            quiet.append(t[k])
+        if np.any(np.abs(a.common) > 0.1):
+            engaged.append(t[k])
+    # every stretch was met: quiet through the warm-up (rising, each taxel its own way), the
+    # common mode engaged in the fall, held, faded and snapped to 0 after it; the touch found
+    assert len(quiet) >= 40 and len(engaged) >= 10 and max(quiet) > max(engaged)
+    assert onsets == {2, 3, 4}
+
+
+
+def test_the_board_table_is_built_once_and_a_shards_is_its_own():
+    from skin.stream.shards import sub_detector
+
+    d = OnsetDetector(32, sensor="low-cost", common_mode=True, boards=np.repeat([0, 1], 16))
+    assert d._groups() is d._groups()  # cached
+    with pytest.raises(ValueError):
+        d.board[0] = 1  # read-only: an in-place edit would leave the cached table stale
+    for taxels, rows in ((np.arange(16, 32), 1), (np.arange(8, 32), 2)):
+        sub = sub_detector(d, taxels)  # after the parent's table was cached
+        table, row = sub._groups()
+        fresh = OnsetDetector(taxels.size, sensor="low-cost", common_mode=True,
+                              boards=d.board[taxels])._groups()
+        assert table.shape == (rows, 16) and row.shape == (taxels.size,)
+        assert np.array_equal(table, fresh[0]) and np.array_equal(row, fresh[1])
+        assert not sub.board.flags.writeable and sub._groups() is sub._groups()
+    # a new board array (another wiring) is a new table
+    d.board = np.zeros(32, dtype=np.int64)
+    assert d._groups()[0].shape == (1, 32)

@@ -1035,7 +1035,12 @@ class OnsetDetector:
         self._common_margin = COMMON_MARGIN * np.broadcast_to(slow_sigma, (n_taxels,))
         self.board = (np.zeros(n_taxels, dtype=np.int64) if boards is None
                       else np.asarray(boards, dtype=np.int64).reshape(n_taxels).copy())
+        # read-only: `_groups` caches the board table for this array (an in-place edit would
+        # leave it stale); another wiring is another array (``detector.board = ...``)
+        self.board.flags.writeable = False
         self.common_mode = common_mode
+        # `_groups`' cache: the board array it was built for and its table (None: not built)
+        self._groups_of: tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None] | None = None
         # a loop-held board's common mode (`_loop_common`): the median of its free taxels'
         # departures, always taken off; the envelope's room allowance then scaled by what it
         # leaves (``common_var``) against the room's own variance through the loop
@@ -1189,7 +1194,7 @@ class OnsetDetector:
             return None
         # built once per board array (`process` asks at every call: a live skin's call is a
         # sample or a few); a shard's detector (`skin.stream.shards.sub_detector`) has its own
-        cached = getattr(self, "_groups_of", None)
+        cached = self._groups_of
         if cached is not None and cached[0] is self.board:
             return cached[1]
         ids, row, counts = np.unique(self.board, return_inverse=True, return_counts=True)
@@ -1250,6 +1255,11 @@ class OnsetDetector:
             # no room (the default scene with it on: 373 -> 232 of 450 touches named right
             # without this, seeds 0-29)
             moved &= self._agree(part, use, table, count)
+        if not moved.any() and not s.common.any():
+            # a quiet skin: no board's common mode, before nor now (no held mode, no terms of
+            # the room's change)
+            self._follow_level(s, live, gain, 0.0)
+            return y
         # a board whose gate is off, whatever the reason, holds its last common mode, fading
         # as each taxel's level absorbs it (`COMMON_FORGET` ``slow_tau``), 0 once within
         # `COMMON_SNAP` of the margin. One that faded into its noise is near 0 already; one
@@ -1257,31 +1267,31 @@ class OnsetDetector:
         # moving alike) would otherwise drop to 0: a step of the room's change in every
         # reading, which hid a slow touch under way (low-cost seed 8, taxel 6 at 648 s: a
         # 0.16 K room rise dropped)
-        held = None  # none: every board's common mode is 0 (a quiet skin's)
-        if s.common.any():
-            held = s.common * (1.0 - gain[7])
-            held[np.abs(held) < COMMON_SNAP * margin] = 0.0
+        held = s.common * (1.0 - gain[7])
+        held[np.abs(held) < COMMON_SNAP * margin] = 0.0
         if moved.any():
             common = self._board_common(part + margin, part - margin, use, table, row, count)
-            common = np.where(moved[row], common, 0.0 if held is None else held)
-        elif held is not None and held.any():
+            common = np.where(moved[row], common, held)
+        elif held.any():
             common = held
         else:
             common = 0.0
-        if held is None and not isinstance(common, np.ndarray):
-            # no common mode before nor now: the level follows the reading (the terms of the
-            # room's change below are 0)
-            np.copyto(s.common_level, s.common_level
-                      + (s.common_smooth - s.common_level) * gain[1], where=live)
-            return y
         np.copyto(s.common, common, where=live)
-        # the level follows the reading with the common mode taken off, and slowly the room
-        # too: a room that settled elsewhere is each taxel's new level (the common mode, and
-        # its noise, gone again); slower changes reach the baseline as a trend
+        self._follow_level(s, live, gain, common)
+        return y - common if np.any(common) else y
+
+    @staticmethod
+    def _follow_level(s: DetectorState, live: np.ndarray, gain: np.ndarray,
+                      common: np.ndarray | float) -> None:
+        """Move each live taxel's ``common_level`` (`_common`) one step.
+
+        The level follows the reading with the common mode taken off, and slowly the room
+        too: a room that settled elsewhere is each taxel's new level (the common mode, and its
+        noise, gone again); slower changes reach the baseline as a trend.
+        """
         np.copyto(s.common_level, s.common_level
                   + (s.common_smooth - common - s.common_level) * gain[1]
                   + common * gain[7], where=live)
-        return y - common if np.any(common) else y
 
     def _loop_common(self, t: float, y: np.ndarray, s: DetectorState, live: np.ndarray,
                      gain: np.ndarray, table: np.ndarray, row: np.ndarray) -> np.ndarray:
@@ -1340,9 +1350,10 @@ class OnsetDetector:
         """
         if table.shape[0] == 1:
             # one board (a skin warming up passes the count on most samples): the same
-            # spreads and sigma without the padded table
+            # spreads and sigma without the padded table; ``count[0]`` is ``values.size``
+            # (`_common` counted the same ``use``)
             values = np.sort(part[use])
-            k = max(int(_shared(values.size)), 1)
+            k = max(int(_shared(count[0])), 1)
             spread = values[k - 1:] - values[: values.size - k + 1]
             sigma = np.max(self._common_margin, initial=0.0) / COMMON_MARGIN
             return np.array([np.min(spread, initial=np.inf) <= COMMON_AGREE * sigma])

@@ -84,7 +84,9 @@ def sub_detector(detector: OnsetDetector, taxels: np.ndarray) -> OnsetDetector:
         if not (isinstance(value, np.ndarray) and value.shape == (n,)):
             raise TypeError(f"OnsetDetector.{name} is not one value per taxel ({n}): "
                             f"{getattr(value, 'shape', type(value).__name__)}")
-        setattr(sub, name, value[taxels].copy())
+        part = value[taxels].copy()
+        part.flags.writeable = value.flags.writeable  # the board stays read-only (`_groups`)
+        setattr(sub, name, part)
     sub.n_taxels = int(taxels.size)
     return sub
 
