@@ -515,7 +515,11 @@ def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict
 
     A taxel needs `MIN_TAXEL_TOUCHES` touches of each of `MIN_MATERIALS` references, a board
     (pooling the touches of its taxels short of them) `MIN_TOUCHES`; the fit is
-    `skin.models.sensor_fit.fit_sensor_constants`.
+    `skin.models.sensor_fit.fit_sensor_constants`. Where the taxels short of them hold too
+    few touches to pool (one taxel with 1 + 1 beside taxels fitted alone), the board's fit
+    pools all its named touches instead, the fitted taxels' too: every taxel of a board
+    with enough touches gets constants ("board" scope; `touches_wanted` says what it
+    lacks), none is left to be read as nominal.
 
     ``left_out``: the touches left out before the fit, by reason (`find_touches`, with
     ``ambiguous``): they name what to record instead when the rest cannot pin the response.
@@ -532,8 +536,14 @@ def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict
               if _pins(tcs, MIN_TAXEL_TOUCHES)]
     done = {int(g[0][0]) for g in groups}
     for b in layout.boards:
-        cols = [i for i, tx in enumerate(layout.taxels) if tx.board == b and i not in done]
+        board = [i for i, tx in enumerate(layout.taxels) if tx.board == b]
+        cols = [i for i in board if i not in done]
         pool = [tc for k in cols for tc in by_taxel.get(k, [])]
+        if cols and not _pins(pool):
+            # the leftovers' own touches are too few to pool: they take the board's fit
+            # from all its named touches (the fitted taxels' too), so that no taxel of a
+            # board that pins its response is left without constants
+            pool = [tc for k in board for tc in by_taxel.get(k, [])]
         if cols and _pins(pool):
             groups.append((np.array(cols), "board", pool))
     if not groups:
@@ -579,7 +589,7 @@ def touches_wanted(fits: list[ResponseFit], touches: list[ReferenceTouch], layou
         if f.scope == "taxel":
             continue
         for k in f.columns:
-            have = {m: sum(tc.column == k and tc.material == m for tc in touches)
+            have = {m: sum(int(tc.column) == int(k) and tc.material == m for tc in touches)
                     for m in materials}
             lack = sorted(((max(MIN_TAXEL_TOUCHES - n, 0), m) for m, n in have.items()),
                           key=lambda v: v[0])[:MIN_MATERIALS]

@@ -280,11 +280,18 @@ def test_touches_pool_per_board_when_a_taxel_has_too_few():
     assert "board's pooled fit" in said
     more = [*touches, touches[0], touches[1]]  # taxel 0: 2 of each, fitted alone
     own = fit_responses(more, layout, mats, nominal, 25.0)
-    assert [(f.scope, list(f.columns)) for f in own] == [("taxel", [0])]
-    assert touches_wanted(own, more, layout, mats) == {}  # 2 + 2 left pin no board
-    got = own[0].fit.sensor
-    assert got.depth**2 / got.diffusivity == pytest.approx(true.depth**2 / true.diffusivity,
-                                                           rel=0.01)
+    # taxels 1 and 2 (1 + 1 each: 2 + 2 left pin no board) and the untouched rest are not
+    # left without constants: they take the board's fit from all its 8 named touches
+    assert [(f.scope, f.touches) for f in own] == [("taxel", 4), ("board", 8)]
+    assert list(own[0].columns) == [0]
+    assert sorted(own[1].columns.tolist()) == list(range(1, len(layout)))
+    for f in own:
+        got = f.fit.sensor
+        assert got.depth**2 / got.diffusivity == pytest.approx(
+            true.depth**2 / true.diffusivity, rel=0.01)
+    wanted = touches_wanted(own, more, layout, mats)
+    assert int(layout.ids[0]) not in wanted
+    assert wanted[int(layout.ids[1])] == {"aluminium": 1, "pine": 1}
     with pytest.raises(CommissioningError, match="at least 3 touches"):
         fit_responses(touches[:2], layout, mats, nominal, 25.0)
 
@@ -342,10 +349,11 @@ def test_bad_touch_labels_name_the_file_and_line(tmp_path, capsys, body, problem
     assert not out.exists()
 
 
-def _reference_dataset(scene, path, seed=2, by_force=False):
+def _reference_dataset(scene, path, seed=2, by_force=False, lone=None):
     """The scene's touches of taxels 0 and 1 as a trial dataset (version 2) at ``path``.
 
-    ``by_force``: onsets unknown (-1), a force channel rising from sample 200 instead."""
+    ``by_force``: onsets unknown (-1), a force channel rising from sample 200 instead.
+    ``lone``: a further taxel, recorded at the first touch of each reference only."""
     from skin.drivers.sim import SkinSimulator
     from skin.formats.dataset import TrialSet
 
@@ -353,10 +361,12 @@ def _reference_dataset(scene, path, seed=2, by_force=False):
     y = sim.temperatures()
     y = y + np.random.default_rng(seed).normal(0.0, 0.02, y.shape)
     fs = sim.sample_rate
-    temps, labels, taxels = [], [], []
+    temps, labels, taxels, seen = [], [], [], set()
     for tc in scene.touches:
         k0 = round(tc.start * fs)
-        for k in (0, 1):
+        first = tc.object not in seen
+        seen.add(tc.object)
+        for k in (0, 1, *((lone,) if lone is not None and first else ())):
             temps.append(y[k0 - 200:k0 + 580, k])
             labels.append(scene.objects[tc.object].material)
             taxels.append(k)
@@ -385,7 +395,10 @@ def test_skin_commission_fits_the_response_from_a_trial_dataset(tmp_path, capsys
     doc = json.loads(out.out)
     assert "air gap" not in out.err  # water and neoprene conform: no note
     assert "air_gap_note" not in doc
-    assert doc["fitted"] == doc["per_taxel"] == 2 and doc["detected"] == 12
+    assert doc["per_taxel"] == 2 and doc["detected"] == 12
+    # the board's other taxels, untouched, take its fit from all its touches (said so)
+    assert doc["fitted"] == len(scene.layout) and doc["per_board"] == len(scene.layout) - 2
+    assert doc["wanted"][str(int(scene.layout.ids[5]))] == {"water": 2, "neoprene": 2}
     _, fitted = load_calibration(cal).apply(scene.layout)
     truth = sim.taxel_sensor
     for k in (0, 1):
@@ -403,6 +416,40 @@ def test_skin_commission_fits_the_response_from_a_trial_dataset(tmp_path, capsys
     for k in (0, 1):
         assert by_force[k].depth**2 / by_force[k].diffusivity == pytest.approx(
             fitted[k].depth**2 / fitted[k].diffusivity, rel=1e-6)
+
+
+def test_a_taxel_too_few_touches_to_pool_takes_the_boards_fit_from_all_its_touches(tmp_path,
+                                                                                   capsys):
+    """Taxels 0 and 1 with 3 touches of each reference, taxel 2 with 1 of each: 1 + 1 pin
+    no board pool of their own, yet taxel 2 (and the untouched rest of the board) is not
+    left without constants, which the classifier would read as nominal (`skin bench
+    commission --classify` refused such a unit): the board's fit from all its named touches,
+    written with scope "board" and what taxel 2 lacks said."""
+    from skin.bench.commission import _calibration_for
+    from skin.formats.dataset import load_trials
+    from skin.formats.scene import load_scene
+
+    scene = load_scene("reference-touches")
+    _, path = _reference_dataset(scene, tmp_path / "refs.npz", lone=2)
+    cal = tmp_path / "cal.json"
+    assert skin_main(["commission", "--data", str(path), "-o", str(cal), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    n = len(scene.layout)
+    assert doc["detected"] == 14 and doc["per_taxel"] == 2
+    assert doc["fitted"] == n and doc["per_board"] == n - 2
+    two = int(scene.layout.ids[2])
+    assert doc["wanted"][str(two)] == {"water": 1, "neoprene": 1}
+    entry = load_calibration(cal).taxels[two]
+    assert entry["thermal_scope"] == "board" and entry["thermal_contacts"] == 14
+    assert load_calibration(cal).taxels[int(scene.layout.ids[0])]["thermal_scope"] == "taxel"
+    _, fitted = load_calibration(cal).apply(scene.layout)
+    assert fitted[2] == fitted[n - 1] and fitted[2] != fitted[0]
+    # the bench's check that the constants hold every taxel of the trials passes
+    data = load_trials(path)
+    assert set(_calibration_for(data, dict(enumerate(fitted)), "commissioned")) >= {0, 1, 2}
+    assert skin_main(["commission", "--data", str(path), "-o", str(tmp_path / "b.json")]) == 0
+    said = capsys.readouterr().out
+    assert f"{two} (touch again: 1 x water, 1 x neoprene)" in said  # order: as it lacks
 
 
 def test_a_dataset_of_hard_references_through_their_gaps_gets_the_air_gap_note(tmp_path,
