@@ -349,8 +349,8 @@ def test_bad_touch_labels_name_the_file_and_line(tmp_path, capsys, body, problem
     assert not out.exists()
 
 
-def _reference_dataset(scene, path, seed=2, by_force=False, lone=None):
-    """The scene's touches of taxels 0 and 1 as a trial dataset (version 2) at ``path``.
+def _reference_dataset(scene, path, seed=2, by_force=False, lone=None, recorded=(0, 1)):
+    """The scene's touches of taxels ``recorded`` as a trial dataset (version 2) at ``path``.
 
     ``by_force``: onsets unknown (-1), a force channel rising from sample 200 instead.
     ``lone``: a further taxel, recorded at the first touch of each reference only."""
@@ -366,7 +366,7 @@ def _reference_dataset(scene, path, seed=2, by_force=False, lone=None):
         k0 = round(tc.start * fs)
         first = tc.object not in seen
         seen.add(tc.object)
-        for k in (0, 1, *((lone,) if lone is not None and first else ())):
+        for k in (*recorded, *((lone,) if lone is not None and first else ())):
             temps.append(y[k0 - 200:k0 + 580, k])
             labels.append(scene.objects[tc.object].material)
             taxels.append(k)
@@ -450,6 +450,18 @@ def test_a_taxel_too_few_touches_to_pool_takes_the_boards_fit_from_all_its_touch
     assert skin_main(["commission", "--data", str(path), "-o", str(tmp_path / "b.json")]) == 0
     said = capsys.readouterr().out
     assert f"{two} (touch again: 1 x water, 1 x neoprene)" in said  # order: as it lacks
+    # a later recording of taxel 2 alone: its own fit replaces the board's, while the own
+    # fits of taxels 0 and 1 already in the file are kept (not overwritten by the board's)
+    before = load_calibration(cal).taxels
+    _, path = _reference_dataset(scene, tmp_path / "two.npz", recorded=(2,))
+    assert skin_main(["commission", "--data", str(path), "-o", str(cal), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["per_taxel"] == 1 and doc["kept_own"] == 2 and doc["per_board"] == n - 3
+    assert str(int(scene.layout.ids[0])) not in doc["wanted"]
+    after = load_calibration(cal).taxels
+    assert after[two]["thermal_scope"] == "taxel"
+    for k in (0, 1):
+        assert after[int(scene.layout.ids[k])] == before[int(scene.layout.ids[k])]
 
 
 def test_a_dataset_of_hard_references_through_their_gaps_gets_the_air_gap_note(tmp_path,

@@ -258,11 +258,19 @@ def _write_response(args: argparse.Namespace, layout: object, cal_file: object, 
                     progress: Progress, note: str | None = None) -> int:
     """Write the fitted responses into the calibration file and report them.
 
-    ``note``: the air-gap note (`air_gap_note`), in ``--json`` as ``air_gap_note``.
+    ``note``: the air-gap note (`air_gap_note`), in ``--json`` as ``air_gap_note``. A
+    board's pooled fit does not replace a taxel's own fit already in the file (an earlier
+    recording's touches of that taxel beat its board's spread): those taxels are counted in
+    ``kept_own`` and left out of ``wanted``.
     """
+    kept = []
     for f in fits:
         for k in f.columns:
-            cal_file.taxels.setdefault(int(layout.ids[k]), {}).update(
+            entry = cal_file.taxels.setdefault(int(layout.ids[k]), {})
+            if f.scope == "board" and entry.get("thermal_scope") == "taxel":
+                kept.append(int(layout.ids[k]))
+                continue
+            entry.update(
                 diffusivity=f.fit.sensor.diffusivity, conductivity=f.fit.sensor.conductivity,
                 depth=f.fit.sensor.depth, thermal_rms=round(f.fit.rms, 5),
                 thermal_contacts=f.touches, thermal_converged=f.fit.converged,
@@ -270,10 +278,13 @@ def _write_response(args: argparse.Namespace, layout: object, cal_file: object, 
     cal_file.references["thermal"] = reference
     cal_file.save(out)
     progress.done()
-    fitted = sum(len(f.columns) for f in fits)
+    counts = {**counts, "wanted": {k: w for k, w in counts.get("wanted", {}).items()
+                                   if k not in kept}}
+    per_board = sum(len(f.columns) for f in fits if f.scope == "board") - len(kept)
+    per_taxel = sum(len(f.columns) for f in fits if f.scope == "taxel")
+    fitted = per_taxel + per_board
     doc = {"out": str(out), "taxels": len(layout), "fitted": fitted,
-           "per_taxel": sum(len(f.columns) for f in fits if f.scope == "taxel"),
-           "per_board": sum(len(f.columns) for f in fits if f.scope == "board"),
+           "per_taxel": per_taxel, "per_board": per_board, "kept_own": len(kept),
            "room_c": round(room, 3), **counts,
            "thermal_rms_k": _stats(np.array([f.fit.rms for f in fits])),
            "wall_time": round(time.monotonic() - started, 2)}
@@ -287,6 +298,9 @@ def _write_response(args: argparse.Namespace, layout: object, cal_file: object, 
           f"{counts['detected']} touches at {room:.2f} C ({counts['left_out']} too short or "
           f"warm, {counts['ambiguous']} ambiguous); fit rms median "
           f"{doc['thermal_rms_k']['median']:.3g} K")
+    if kept:
+        print(f"kept the own fits already in {out} of {len(kept)} taxels this recording "
+              "gave only their board's pooled fit")
     if counts.get("wanted"):
         from skin.models.commission import wanted_said
 
