@@ -82,10 +82,11 @@ def test_a_pid_scene_holds_its_setpoint_and_swings_from_it():
     # A noise-free pid-logger taxel touched twice, its scene starting below the setpoint: the
     # loop holds the setpoint before the first touch, the contact is the classifiers' forward
     # model (eq. 5 from the setpoint, through the loop and the lag), and the lift-off shows
-    # (the loop's raised power overshoots the setpoint, then settles: what
-    # `skin.models.commission` ends a PID touch by). The stream used to read the scene's
-    # initial temperature for good (the loop's high-pass anchors at the first sample): 6.5 K
-    # under the setpoint here, with the swing from where the un-looped value had got to.
+    # (the reading overshoots the setpoint, then settles: what `skin.models.commission` ends
+    # a PID touch by; the overshoot's size is not modelled, see `skin.drivers.sim`). The
+    # stream used to read the scene's initial temperature for good (the loop's high-pass
+    # anchors at the first sample): 6.5 K under the setpoint here, with the swing from where
+    # the un-looped value had got to.
     from skin.formats.scene import parse_scene
     from skin.models import load_materials
     from skin.models.sensors import apply_dynamics, contact_reading, load_sensor
