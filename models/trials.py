@@ -40,8 +40,11 @@ contacts and resting 10 minutes every 10 trials; initial sensor temperatures spr
 - **Sensor** (``sensor``, a `skin.models.sensors.SensorDescription`; default the paper's):
   its thermal body is the centre of the taxels' spread, its heater mode shapes the contact
   (`skin.models.sensors.contact_reading`; a PID-held sensor meets every touch at its
-  setpoint above the room of that touch, settled: the loop's recovery, ``control_time``, is
-  short beside the reheat), its PID loop and lag act on the whole trace, its sample rate and
+  setpoint above the room of that touch, settled, i.e. the setpoint follows the room, touch
+  by touch: the post-release transient is not modelled, though it need not be over by the
+  next touch (the scene simulator, `skin.drivers.sim`, still reads +0.77 K above the
+  setpoint 2 s after a 5 s aluminium hold)), its PID loop and lag act on the whole trace,
+  its sample rate and
   ADC noise replace the protocol's, its temperature noise and ADC bits apply before rounding,
   and its smoothing after (a logger's). The paper's sensor gives exactly the datasets made before
   sensor descriptions existed.
@@ -419,8 +422,9 @@ def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorDescrip
         if kinds[0][1] is not None:
             t0 = amb[j] + kinds[0][1]
         elif s.heater == "pid":
-            # the loop holds its setpoint, which follows the room, between touches: its
-            # recovery from the last release (control_time) is over by the next touch. Not
+            # the loop holds its setpoint (this touch's room + its rise: each trace's loop
+            # high-pass starts settled there) and the touch meets it settled: the transient
+            # after the last release is not modelled (not assumed over). Not
             # the last touch's setpoint reheated towards this one's, which left a ramp of
             # (room drift) / control_time (0.1 K/s) stopped at contact, that the loop's
             # high-pass (`apply_dynamics`) then counted a second time

@@ -21,7 +21,10 @@ conductance from the material's range; the thermistor follows the closed-form co
 response from the temperature it had. After release, the reading returns to the free reading
 with the taxel's recovery (a fast 2 s part and the slow mode), so a taxel reheats after each
 contact. A PID-held sensor's contact swings from the setpoint its loop holds (the loop acts
-over the whole stream, see below, whatever the un-looped drift).
+over the whole stream, see below, whatever the un-looped drift). Setpoint convention: the
+setpoint is absolute, the nominal ``ambient`` plus the sensor's heated rise (the loop's
+high-pass is anchored at the first sample, so the room's drift is high-passed away); the
+trials (`skin.models.trials`) follow each touch's room instead, and a scene's room is constant.
 
 Most objects are cooler than the heated taxel, so a contact makes its reading fall. With
 ``warm`` > 0, that fraction of the contacts with materials that hold no temperature of their own

@@ -81,6 +81,8 @@ class Scene:
     ``contact`` is how the touches meet the skin when the simulation is not told otherwise
     (``skin run --contact``): ``"perfect"`` (the paper's eq. 5) or ``"finite"`` (through each
     material's air gap, a conductance drawn from its range, as real contacts are).
+    ``initial_temperature`` is the range each free taxel starts in; a PID-held sensor
+    (``heater = "pid"``) ignores it and starts at its setpoint (ambient + heated rise).
     """
 
     name: str
