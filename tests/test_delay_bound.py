@@ -249,10 +249,12 @@ def test_a_pid_streams_contacts_swing_from_the_setpoint() -> None:
     table = {m.name: m for m in mats}
     sensor = load_sensor("pid-logger")
     setpoint = 25.0 + sensor.heated_rise
-    for disturbances in (True, False):
+    # warm: the warm-object rule (object = setpoint + margin) swings up from the setpoint too
+    for disturbances, warm in ((True, 0.0), (False, 0.0), (True, 0.3)):
         stream = simulate_stream(mats, n_taxels=3, duration=240.0, seed=4, sensor=sensor,
-                                 disturbances=disturbances)
+                                 disturbances=disturbances, warm=warm)
         assert stream.contacts
+        assert any(c.object_temperature > setpoint for c in stream.contacts) == (warm > 0)
         for c, m in zip(stream.contacts, stream.templates, strict=True):
             mat = table[c.material]
             since = np.arange(math.ceil(c.onset * stream.fs) - 1,
