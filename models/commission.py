@@ -516,10 +516,11 @@ def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict
     A taxel needs `MIN_TAXEL_TOUCHES` touches of each of `MIN_MATERIALS` references, a board
     (pooling the touches of its taxels short of them) `MIN_TOUCHES`; the fit is
     `skin.models.sensor_fit.fit_sensor_constants`. Where the taxels short of them hold too
-    few touches to pool (one taxel with 1 + 1 beside taxels fitted alone), the board's fit
-    pools all its named touches instead, the fitted taxels' too: every taxel of a board
-    with enough touches gets constants ("board" scope; `touches_wanted` says what it
-    lacks), none is left to be read as nominal.
+    few touches to pool (one taxel with 1 + 1 beside taxels fitted alone), those of them
+    with named touches take the board's fit from all its named touches, the fitted taxels'
+    too ("board" scope; `touches_wanted` says what they lack): no touched taxel of a board
+    with enough touches is left to be read as nominal. Untouched taxels get a board fit
+    only when the leftovers' own touches pin one (as before).
 
     ``left_out``: the touches left out before the fit, by reason (`find_touches`, with
     ``ambiguous``): they name what to record instead when the rest cannot pin the response.
@@ -540,9 +541,11 @@ def fit_responses(touches: list[ReferenceTouch], layout: object, materials: dict
         cols = [i for i in board if i not in done]
         pool = [tc for k in cols for tc in by_taxel.get(k, [])]
         if cols and not _pins(pool):
-            # the leftovers' own touches are too few to pool: they take the board's fit
-            # from all its named touches (the fitted taxels' too), so that no taxel of a
-            # board that pins its response is left without constants
+            # the leftovers' own touches are too few to pool: those with named touches
+            # take the board's fit from all its named touches (the fitted taxels' too), so
+            # that no touched taxel of a board that pins its response is left without
+            # constants (untouched ones are left as before)
+            cols = [k for k in cols if k in by_taxel]
             pool = [tc for k in board for tc in by_taxel.get(k, [])]
         if cols and _pins(pool):
             groups.append((np.array(cols), "board", pool))
