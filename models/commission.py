@@ -136,9 +136,10 @@ MIN_TOUCHES, MIN_MATERIALS = 3, 2
 #: asked for but left out or ambiguous). Its board's pooled fit is the alternative, and it
 #: carries the spread between the board's taxels (+-10 % in depth and diffusivity: up to
 #: 20 % in response time). Measured (`skin bench commission --classify --sensor pid-logger`,
-#: T 40, 2.5 s): seed 7's taxels 4 and 6, each with one of 6 touches ambiguous, pooled: response
-#: time -12 / +16 % off, classified at chance (.091; true constants .364); alone from 2 + 3
-#: touches: -6 / -3 % (effusivity +11 / -17 %), .255 / .236.
+#: T 40, 2.5 s, on the scene simulator before its PID swing was fixed): seed 7's taxels 4 and
+#: 6, each with one of 6 touches ambiguous, pooled: response time -12 / +16 % off, classified
+#: at chance (.091; true constants .364); alone from 2 + 3 touches: -6 / -3 % (effusivity
+#: +11 / -17 %), .255 / .236.
 MIN_TAXEL_TOUCHES = 2
 #: Seconds of each touch fitted after its onset (the touch must last this long) on the
 #: paper's sensor; a slower sensor's window is longer by its half-response time's ratio to
