@@ -579,7 +579,7 @@ def touches_wanted(fits: list[ResponseFit], touches: list[ReferenceTouch], layou
     A taxel left to its board's pool (too few of its own touches named: left out, ambiguous
     or never recorded) takes the board's constants, and with them the spread between the
     board's taxels (pid-logger, `skin bench commission --classify`, seed 7: two such taxels
-    10-16 % off in response time, classified at chance at 2.5 s where the true constants
+    12-16 % off in response time, classified at chance at 2.5 s where the true constants
     give 36 %). What it lacks: `MIN_TAXEL_TOUCHES` named touches of each of `MIN_MATERIALS`
     of ``materials``, the references it already has most of first.
 
@@ -602,15 +602,33 @@ def touches_wanted(fits: list[ResponseFit], touches: list[ReferenceTouch], layou
 
 
 def wanted_said(wanted: dict[int, dict[str, int]]) -> str:
-    """Say which taxels took their board's pooled fit and what to record to fit them alone."""
+    """Say which taxels took their board's pooled fit and what to record to fit them alone.
+
+    Taxels with some named touches are listed with what each lacks; those without a named
+    touch of their own (never touched, or every touch left out or ambiguous) are counted,
+    with their first ids, rather than listed one by one.
+    """
     if not wanted:
         return ""
-    return ("taxel" + ("s " if len(wanted) > 1 else " ")
-            + "; ".join(f"{k} (touch again: " + ", ".join(f"{n} x {m}" for m, n in w.items())
-                        + ")" for k, w in sorted(wanted.items()))
-            + " took their board's pooled fit (too few of their own touches were named, the "
-            "rest left out or ambiguous): the board's spread stays in their constants; "
-            "record those touches on them, at room temperature, to fit each alone")
+    full = MIN_TAXEL_TOUCHES * MIN_MATERIALS
+    none = sorted(k for k, w in wanted.items() if sum(w.values()) >= full)
+    some = sorted(k for k in wanted if k not in set(none))
+    parts = []
+    if some:
+        parts.append("taxel" + ("s " if len(some) > 1 else " ")
+                     + "; ".join(f"{k} (touch again: "
+                                 + ", ".join(f"{n} x {m}" for m, n in wanted[k].items()) + ")"
+                                 for k in some)
+                     + (" have" if len(some) > 1 else " has")
+                     + " too few of its own touches named (the rest left out or ambiguous)")
+    if none:
+        ids = ", ".join(str(k) for k in none[:10]) + (", ..." if len(none) > 10 else "")
+        parts.append(f"{len(none)} taxel{'s' if len(none) > 1 else ''} without a named touch "
+                     f"of {'their' if len(none) > 1 else 'its'} own ({ids}: "
+                     f"{MIN_TAXEL_TOUCHES} x each of two references on each)")
+    return ("; ".join(parts) + ": the board's pooled fit, and with it the board's spread, "
+            "stands for their constants; record those touches on them, at room temperature, "
+            "to fit each alone")
 
 
 def hold_and_rest(sensors: list) -> tuple[float, float]:

@@ -278,6 +278,10 @@ def test_touches_pool_per_board_when_a_taxel_has_too_few():
     said = wanted_said(wanted)
     assert f"{int(layout.ids[0])} (touch again: 1 x aluminium, 1 x pine)" in said
     assert "board's pooled fit" in said
+    # the untouched rest counted, not listed one by one
+    untouched = len(fits[0].columns) - 3
+    assert f"{untouched} taxels without a named touch of their own" in said
+    assert f"{int(layout.ids[5])} (touch again" not in said
     more = [*touches, touches[0], touches[1]]  # taxel 0: 2 of each, fitted alone
     own = fit_responses(more, layout, mats, nominal, 25.0)
     # taxels 1 and 2 (1 + 1 each: 2 + 2 left pin no board) are not left without constants:

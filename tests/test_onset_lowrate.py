@@ -114,8 +114,9 @@ def test_simulate_trials_decimate_writes_the_slow_dataset(tmp_path, trials):
 @pytest.mark.parametrize(("args", "says"), [
     (["--decimate", "0"], "--decimate must be at least 1"),
     (["--run-length", "0"], "--run-length must be at least 1"),
-    (["--decimate", "800"], "--decimate 800 leaves fewer than two of a trial's 700 samples"),
-    (["--decimate", "11"], "18.1818 Hz, outside the 20-1000 Hz"),
+    (["--decimate", "800"], "0.25 Hz, 1 of a trial's 700 samples: a sensor description "
+                            "takes 20-1000 Hz and a trial at least two samples (at most 10"),
+    (["--decimate", "11"], "18.1818 Hz, 64 of a trial's 700 samples"),
     (["--decimate", "2", "--sensor", "fast-film"], "sensor 'fast-film' smooths its reading"),
 ])
 def test_simulate_trials_refuses_a_bad_decimation_before_simulating(tmp_path, args, says):

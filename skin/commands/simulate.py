@@ -178,8 +178,8 @@ def _check_decimate(factor: int, protocol: Protocol, sensor: object | None) -> N
     Raises
     ------
     SkinError
-        The factor below 1, keeping fewer than two samples of a trial, a rate outside the
-        sensor descriptions' `SAMPLE_RATE_RANGE`, or a smoothed sensor (its smoothing is
+        The factor below 1, a rate outside the sensor descriptions' `SAMPLE_RATE_RANGE` or
+        fewer than two samples of a trial kept, or a smoothed sensor (its smoothing is
         counted in samples of its own rate: a logger's point samples of it are not a reading
         the detector, judging at the recording's rate, can describe).
     """
@@ -190,15 +190,13 @@ def _check_decimate(factor: int, protocol: Protocol, sensor: object | None) -> N
     n = round(protocol.pre * fs) + round(protocol.duration * fs)
     if factor < 1:
         raise SkinError(f"--decimate must be at least 1, got {factor}")
-    if factor > n - 1:
-        raise SkinError(f"--decimate {factor} leaves fewer than two of a trial's {n} samples "
-                        f"({fs:g} Hz, {protocol.pre:g} s before the onset and "
-                        f"{protocol.duration:g} s after): at most {n - 1}")
     lo, hi = SAMPLE_RATE_RANGE
-    if not lo <= fs / factor <= hi:
+    most = min(n - 1, int(fs // lo))  # two samples of a trial at least (`TrialSet.decimated`)
+    if not (lo <= fs / factor <= hi and factor <= n - 1):
         raise SkinError(f"--decimate {factor}: {fs:g} Hz / {factor} = {fs / factor:g} Hz, "
-                        f"outside the {lo:g}-{hi:g} Hz a sensor description takes (at most "
-                        f"{int(fs // lo)} for {fs:g} Hz)")
+                        f"{-(-n // factor)} of a trial's {n} samples: a sensor description takes "
+                        f"{lo:g}-{hi:g} Hz and a trial at least two samples (at most "
+                        f"{most} for {fs:g} Hz)")
     if described.smoothing != "none":
         raise SkinError(f"--decimate {factor}: sensor {described.name!r} smooths its reading "
                         f"({described.smoothing}, counted in samples of its {fs:g} Hz): "

@@ -93,6 +93,7 @@ def sub_detector(detector: OnsetDetector, taxels: np.ndarray) -> OnsetDetector:
 
 def _serve(conn: Connection, detector: OnsetDetector, taxels: np.ndarray) -> None:
     """Worker loop: ``(times, temperature)`` in, ``("ok", events, in_contact, busy)`` out."""
+    detector.board.flags.writeable = False  # as in the parent: unpickled arrays are writeable
     state: DetectorState = detector.initial_state()
     try:
         while True:
