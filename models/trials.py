@@ -39,15 +39,14 @@ contacts and resting 10 minutes every 10 trials; initial sensor temperatures spr
   paper's limit switch, read at 200 Hz).
 - **Sensor** (``sensor``, a `skin.models.sensors.SensorDescription`; default the paper's):
   its thermal body is the centre of the taxels' spread, its heater mode shapes the contact
-  (`skin.models.sensors.contact_reading`; a PID-held sensor meets every touch at its
-  setpoint above the room of that touch, settled, i.e. the setpoint follows the room, touch
-  by touch: the post-release transient is not modelled, though it need not be over by the
-  next touch (the scene simulator, `skin.drivers.sim`, still reads +0.77 K above the
-  setpoint 2 s after a 5 s aluminium hold)), its PID loop and lag act on the whole trace,
-  its sample rate and
-  ADC noise replace the protocol's, its temperature noise and ADC bits apply before rounding,
-  and its smoothing after (a logger's). The paper's sensor gives exactly the datasets made before
-  sensor descriptions existed.
+  (`skin.models.sensors.contact_reading`; a PID-held sensor meets every touch settled at its
+  setpoint above the room of that touch, so the setpoint follows the room touch by touch; the
+  transient after the last release is not modelled, though it need not be over by the next
+  touch: the scene simulator, `skin.drivers.sim`, still reads +0.77 K above the setpoint 2 s
+  after a 5 s aluminium hold), its PID loop and lag act on the whole trace, its sample rate
+  and ADC noise replace the protocol's, its temperature noise and ADC bits apply before
+  rounding, and its smoothing after (a logger's). The paper's sensor gives exactly the
+  datasets made before sensor descriptions existed.
 - **Channels** (``Protocol.channels``): each contact is seen by one or more taxels touching
   the same object: ``"heated"`` (the paper's constant-power heater, with the protocol's
   reheat history; further heated channels start within +-0.3 K of the first),
@@ -423,11 +422,11 @@ def _closed_form_protocol(mat: Material, p: Protocol, taxels: list[SensorDescrip
             t0 = amb[j] + kinds[0][1]
         elif s.heater == "pid":
             # the loop holds its setpoint (this touch's room + its rise: each trace's loop
-            # high-pass starts settled there) and the touch meets it settled: the transient
-            # after the last release is not modelled (not assumed over). Not
-            # the last touch's setpoint reheated towards this one's, which left a ramp of
-            # (room drift) / control_time (0.1 K/s) stopped at contact, that the loop's
-            # high-pass (`apply_dynamics`) then counted a second time
+            # high-pass starts settled there) and the touch meets it settled; the transient
+            # after the last release is not modelled (not assumed over). Not the last
+            # touch's setpoint reheated towards this one's: that left a ramp of (room drift)
+            # / control_time (0.1 K/s) stopped at contact, which the loop's high-pass
+            # (`apply_dynamics`) then counted a second time
             t0 = full
         else:
             t0 = sensor_now
