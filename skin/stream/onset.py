@@ -65,8 +65,12 @@ follows from the taxel's noise and the sensor description (`skin.models.sensors`
   over the smoothing factor), so the
   CUSUM's threshold against noise is ``arl_threshold`` (Siegmund's approximation of the
   average run length of a one-sided CUSUM) for one false alarm per ``1 / false_alarm_rate``
-  taxel-hours, in units of that noise: an upper bound on the false alarms (measured far
-  fewer: the allowance is in units of the smoothed, not the summed, noise).
+  taxel-hours, in units of that noise, computed for an allowance of 4 smoothed sigmas where
+  the CUSUM subtracts 3.3: not a guaranteed bound (measured far fewer false alarms: the
+  allowance is in units of the smoothed, not the summed, noise). Computed at the CUSUM's own
+  3.3 it would rise 23 % where it binds (low-cost; the paper sensor at 20-50 Hz) and date a
+  20 Hz paper set's onsets 10 ms later (median 31.5 -> 41.5 ms), with no false alarm
+  fewer on low-cost seeds 0 and 2 (0.75 and 0 per taxel-hour either way).
 - Levels (the slow channel's; the gust-envelope test's flat margin, which caps its noise
   table's and stands alone before the filters settle) stay 8 sigmas of the averaged
   reading they look at clear of noise, that sigma computed through the sensor's own
@@ -908,7 +912,8 @@ class OnsetDetector:
         self.drift = 0.03 * ratio if drift is None else drift
         self.noise_floor = 0.003 * ratio if noise_floor is None else noise_floor
         # against noise: the ARL threshold for the target rate, with the allowance at 4 sigma of
-        # the smoothed reading (what the CUSUM subtracts), in units of the raw sigma
+        # the smoothed reading (the CUSUM subtracts 3.3: see the module docstring), in units
+        # of the raw sigma
         arl = fs * 3600.0 / max(false_alarm_rate, 1e-12)
         self.noise_threshold = white * arl_threshold(arl, 4.0 * smoothed / white)
 
