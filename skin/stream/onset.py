@@ -703,7 +703,9 @@ class OnsetDetector:
     slow_tau : float
         Time constant of the slow channel's average, s. Contacts with poor conductors through
         an air gap fall too slowly for the CUSUM, whose baseline follows them; the slow channel
-        compares the smoothed reading with a slow average of it instead.
+        compares the smoothed reading with a slow average of it instead. Until a taxel is
+        armed (``warmup`` after its first reading, a hole, a release) the slow average is the
+        reading averaged over ``slow_tau / 10`` itself: no fall is counted from a seed.
     slow_threshold : float
         Fall of the reading (averaged over ``slow_tau / 10``) below the slow average that is a
         contact, deg C (above what air currents and heater switching give within
