@@ -325,3 +325,28 @@ def test_slow_channel_finds_more_contacts_among_air_currents_without_false_alarm
     assert hits > hits_cusum + 5 and false <= false_cusum + 2
     hits_all, false_all = score()  # and the gust envelope beside both
     assert hits_all >= hits and false_all <= false + 2
+
+
+def test_a_low_cost_streams_first_reading_raises_no_slow_alarm():
+    # the slow channel's average was seeded with the first reading, which carries the readout
+    # noise before any averaging (a low-cost stream's: 0.14-0.24 K sd over its taxels, up to
+    # 0.52 K above the next seconds): it stayed there for slow_tau while the medium average
+    # settled, and at arming the difference was a fall past the slow threshold (quiet streams
+    # of seeds 2 and 3: one onset each, at 2.0 / 1.75 s, no contact, no disturbance)
+    from skin.bench.streams import simulate_stream
+    from skin.models import load_materials
+    from skin.models.sensors import load_sensor
+
+    sensor = load_sensor("low-cost")
+    glass = load_materials()["glass"]
+    seeded = 0
+    for seed in (2, 3):
+        s = simulate_stream([glass], n_taxels=16, duration=20.0, contacts_per_minute=1e-6,
+                            disturbances=False, seed=seed, sensor=sensor)
+        assert s.contacts == []
+        det = OnsetDetector(16, sensor=sensor)
+        first = s.temperature[0] - s.temperature[int(s.fs):int(3 * s.fs)].mean(axis=0)
+        seeded += int(np.any(first > det.slow_threshold))  # the case happened
+        events, _ = det.process(s.times, s.temperature, det.initial_state())
+        assert events == []
+    assert seeded == 2

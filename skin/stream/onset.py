@@ -707,7 +707,9 @@ class OnsetDetector:
     slow_tau : float
         Time constant of the slow channel's average, s. Contacts with poor conductors through
         an air gap fall too slowly for the CUSUM, whose baseline follows them; the slow channel
-        compares the smoothed reading with a slow average of it instead.
+        compares the smoothed reading with a slow average of it instead. Until a taxel is
+        armed (``warmup`` after its first reading, a hole, a release) the slow average is the
+        reading averaged over ``slow_tau / 10`` itself: no fall is counted from a seed.
     slow_threshold : float
         Fall of the reading (averaged over ``slow_tau / 10``) below the slow average that is a
         contact, deg C (above what air currents and heater switching give within
@@ -1623,6 +1625,14 @@ class OnsetDetector:
         # while the taxel recovers from a release, the slow average keeps up with it
         np.copyto(s.slow, s.medium, where=calm & (t < s.recover_until)
                   & (s.recover_dir * (s.medium - s.slow) > 0))
+        # and until the taxel is armed it is the slow channel's reading itself: seeded with
+        # one raw reading, whose noise is the readout's before any averaging (low-cost: 0.17-
+        # 0.22 K sd against the reading's first seconds), it would stay there for ``slow_tau``
+        # while the medium average settles, and the difference is a fall of one sample's
+        # noise (low-cost seeds 0, 14, 20, 24: 6 of 17 false alarms, raised 1.75-12 s into a
+        # stream by the slow channel, the first reading 0.30-0.54 K above the next seconds')
+        if unarmed.any():
+            np.copyto(s.slow, s.medium, where=unarmed)
         if any_onset:
             s.slow_start[onset] = np.nan
             s.in_contact[onset] = True
