@@ -84,6 +84,8 @@ class SerialDriver(Driver):
         if data and self.tap is not None:
             self.tap(time.monotonic(), data)
         self._pending.extend(self._decoder.feed(data))
+        if not data:  # the link is quiet: a sample held for its FORCE gets none
+            self._pending.extend(self._decoder.flush())
 
     def _recv_internal(self, timeout: float | None) -> Frame | None:
         if not self._pending:

@@ -1,0 +1,235 @@
+"""The optional force channel: FORCE messages (firmware/PROTOCOL.md), attached to their sample's
+frame by the serial decoder, over a real pseudo-terminal, through the simulator, recording and
+replay; frames and recordings without one behave as before."""
+
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import skin.drivers
+from skin.drivers.protocol import (
+    FORCE_NONE,
+    MAX_FORCE,
+    OPTION_FORCE,
+    Identity,
+    StreamDecoder,
+    crc16,
+    encode_force,
+    encode_sample,
+    force_body,
+    frame_packet,
+)
+from skin.drivers.protocol_vectors import read_vectors
+
+VECTORS = Path(__file__).resolve().parents[1] / "firmware" / "test_vectors"
+FORCE_VECTORS = read_vectors(VECTORS / "serial_force.txt")
+
+
+@pytest.fixture(scope="module")
+def force_sim():
+    from skin.drivers.sim import SkinSimulator
+    from skin.formats.scene import load_scene
+
+    return SkinSimulator(replace(load_scene("default"), force="force"), duration=3.0)
+
+
+def sample(seq: int, n: int = 3) -> bytes:
+    return encode_sample(seq, seq * 5000, [100 + seq % 50] * n, 21.0, [255] * n)
+
+
+def newtons(force_mn: list[int]) -> list[float]:
+    return [math.nan if v == FORCE_NONE else v / 1000 for v in force_mn]
+
+
+@pytest.mark.parametrize("v", FORCE_VECTORS, ids=[v["name"] for v in FORCE_VECTORS])
+def test_force_vectors(v):
+    force = newtons(v["force_mn"])
+    assert force_body(v["seq"], force) == v["body"]
+    assert crc16(v["body"]) == v["crc"]
+    assert encode_force(v["seq"], force) == v["wire"]
+    n = len(force)
+    dec = StreamDecoder(force=True)
+    (frame,) = dec.feed(encode_sample(v["seq"], 0, [1] * n, None, [0] * n) + v["wire"])
+    assert frame.force is not None and frame.force.shape == (n,)
+    np.testing.assert_array_equal(frame.force, np.array(force, dtype=float))
+    assert dec.stats.forces == 1 and dec.stats.force_orphans == dec.stats.force_missing == 0
+
+
+@pytest.mark.parametrize("force, message", [([-0.001], "channel 0"),
+                                            ([0.0, MAX_FORCE + 0.001], "channel 1"),
+                                            ([math.inf], "inf")])
+def test_forces_the_wire_cannot_carry_are_errors(force, message):
+    with pytest.raises(ValueError, match=message):
+        encode_force(0, force)
+
+
+def test_a_board_without_force_is_unchanged_and_frames_come_at_once():
+    dec = StreamDecoder()
+    frames = dec.feed(sample(1) + sample(2))
+    assert [f.seq for f in frames] == [1, 2] and all(f.force is None for f in frames)
+    assert dec.flush() == [] and not dec.has_force
+
+
+def test_force_attaches_to_its_sample_split_anywhere():
+    stream = b"".join(sample(k) + encode_force(k, [0.1 * k, math.nan, 1.0]) for k in range(1, 6))
+    whole = StreamDecoder(force=True).feed(stream)
+    for size in (1, 7, 31):
+        dec = StreamDecoder(force=True)
+        got = []
+        for i in range(0, len(stream), size):
+            got += dec.feed(stream[i:i + size])
+        got += dec.flush()
+        assert [f.seq for f in got] == [1, 2, 3, 4, 5]
+        for a, b in zip(got, whole, strict=True):
+            np.testing.assert_array_equal(a.force, b.force)
+        assert dec.stats.forces == 5 and dec.stats.force_missing == 0
+
+
+def test_the_first_force_of_an_unannounced_board_attaches_within_its_read_only():
+    dec = StreamDecoder()
+    frames = dec.feed(sample(1) + encode_force(1, [1, 1, 1]) + sample(2)
+                      + encode_force(2, [0, 0.5, 1]))
+    assert [f.seq for f in frames] == [1, 2]
+    np.testing.assert_array_equal(frames[0].force, [1, 1, 1])
+    np.testing.assert_array_equal(frames[1].force, [0, 0.5, 1])
+    assert dec.stats.force_orphans == 0 and dec.stats.forces == 2
+    late = StreamDecoder()  # the read ends between the first SAMPLE and its FORCE
+    (first,) = late.feed(sample(1))
+    assert late.feed(encode_force(1, [1, 1, 1])) == [] and first.force is None
+    assert late.stats.force_orphans == 1 and late.has_force
+
+
+def test_an_identity_with_the_force_option_announces_the_channel():
+    ident = Identity(0, 0, 0, 0, 0, 0, 0, OPTION_FORCE, 3, 12, 1, 200, 200, 0, 10000)
+    dec = StreamDecoder()
+    (frame,) = dec.feed(ident.encode() + sample(1) + encode_force(1, [2, 2, 2]))
+    np.testing.assert_array_equal(frame.force, [2, 2, 2])
+    assert dec.stats.force_orphans == 0 and len(dec.replies) == 1
+
+
+def test_lost_corrupt_and_orphaned_forces_are_counted_never_raised():
+    bad_crc = bytearray(encode_force(2, [1, 1, 1]))
+    bad_crc[-3] ^= 0x10  # a CRC byte (COBS keeps it non-zero here)
+    short = frame_packet(force_body(3, [1, 1, 1])[:-1])  # n says 3, 2.5 values follow
+    wrong_n = encode_force(4, [1, 1])
+    stream = (sample(1) + encode_force(1, [0, 0, 0])
+              + sample(2) + bytes(bad_crc)
+              + sample(3) + short
+              + sample(4) + wrong_n
+              + encode_force(99, [1, 1, 1])  # no sample 99
+              + sample(5) + encode_force(5, [3, 3, 3]))
+    dec = StreamDecoder(force=True)
+    frames = dec.feed(stream) + dec.flush()
+    assert [f.seq for f in frames] == [1, 2, 3, 4, 5]
+    assert [np.isnan(f.force).all() for f in frames] == [False, True, True, True, False]
+    np.testing.assert_array_equal(frames[4].force, [3, 3, 3])
+    s = dec.stats
+    assert (s.forces, s.force_missing, s.force_orphans, s.crc_errors, s.malformed) == (
+        2, 3, 2, 1, 1)
+
+
+def test_a_sample_held_at_the_end_is_handed_on_by_flush():
+    dec = StreamDecoder(force=True)
+    assert dec.feed(sample(1)) == []
+    (frame,) = dec.flush()
+    assert frame.seq == 1 and np.isnan(frame.force).all()
+    assert dec.flush() == []
+
+
+def test_serial_driver_reads_a_force_channel_over_a_real_pty(force_sim):
+    from skin.drivers.sim import PtySerialDevice
+
+    expected = list(force_sim.frames())
+    assert all(f.force is not None for f in expected)
+    with PtySerialDevice(force_sim, speed=0) as device, skin.drivers.open(
+        f"serial://{device.port}"
+    ) as driver:
+        device.start()
+        got = []
+        while len(got) < len(expected):
+            frame = driver.recv(timeout=2.0)
+            assert frame is not None, f"stalled after {len(got)} frames"
+            got.append(frame)
+        stats = driver.stats
+    assert stats.crc_errors == stats.malformed == 0
+    assert [f.seq for f in got] == [f.seq for f in expected]
+    # no IDENTITY was asked for: the first FORCE attaches when it came in its sample's read
+    # (the device writes 10 samples with their FORCEs at a time; a read may still cut them)
+    start = 0 if got[0].force is not None else 1
+    assert stats.force_orphans == start
+    for a, b in zip(got[start:], expected[start:], strict=True):
+        np.testing.assert_array_equal(a.force, b.force)
+        assert np.array_equal(a.counts, b.counts)
+    assert stats.forces == len(expected) - start and stats.force_missing == 0
+
+
+def test_the_simulated_force_follows_the_scene_touches(force_sim):
+    frames = list(force_sim.frames())
+    layout = force_sim.layout
+    idx, addr = layout.channel_map(force_sim.board.id)
+    force = np.array([f.force[addr] for f in frames])  # (samples, taxels in idx order)
+    fs = force_sim.sample_rate
+    touched = np.zeros(force.shape, dtype=bool)
+    where = {int(i): j for j, i in enumerate(idx)}
+    for touch in force_sim.scene.touches:
+        k0, k1 = round(touch.start * fs), round(touch.end * fs)
+        for t in touch.taxels:
+            touched[k0:k1, where[layout.index(t)]] = True
+    assert touched.any()
+    assert np.all(force[~touched] < 0.05)  # noise of 5 mN, clipped at 0
+    settled = force[touched & np.roll(touched, 10, axis=0)]  # past the 20 ms rise
+    assert abs(np.median(settled) - 2.0) < 0.01
+    assert np.all(np.isfinite(force))
+    # a contact switch: 1 exactly while touched
+    switch = simulator_with(force_sim, "contact")
+    sw = np.array([f.force[addr] for f in switch.frames()])
+    np.testing.assert_array_equal(sw, touched.astype(float))
+    # no force channel: no force, and the same frames as before
+    plain = simulator_with(force_sim, "")
+    for a, b in zip(plain.frames(), frames, strict=True):
+        assert a.force is None and np.array_equal(a.counts, b.counts)
+
+
+def simulator_with(sim, force: str):
+    from skin.drivers.sim import SkinSimulator
+
+    return SkinSimulator(replace(sim.scene, force=force), duration=sim.duration)
+
+
+def test_recording_and_replay_round_trip_the_force_channel_exactly(force_sim, tmp_path):
+    from skin.drivers.recording import Recorder
+    from skin.drivers.sim import SimDriver
+
+    path = tmp_path / "force.mcap"
+    with Recorder(path, force_sim.layout) as recorder, SimDriver(force_sim, speed=0) as source:
+        recorder.add_driver(source)
+        live = list(source)
+    with skin.drivers.open(f"replay://{path}?speed=0") as replay:
+        again = list(replay)
+        stats = replay.stats
+    assert [f.seq for f in again] == [f.seq for f in live]
+    for a, b in zip(again, live, strict=True):
+        np.testing.assert_array_equal(a.force, b.force)
+        assert np.array_equal(a.counts, b.counts)
+        assert a.device_time == pytest.approx(b.device_time, abs=1e-6)
+    assert stats.forces == len(live) and stats.force_missing == stats.force_orphans == 0
+
+
+def test_a_recording_without_force_replays_as_before(tmp_path):
+    from skin.drivers.recording import Recorder
+
+    path = tmp_path / "plain.mcap"
+    layout = skin.drivers.open("sim://default?speed=0&duration=0.2")
+    with Recorder(path, layout.simulator.layout) as recorder, layout as source:
+        recorder.add_driver(source)
+        live = list(source)
+    with skin.drivers.open(f"replay://{path}?speed=0") as replay:
+        again = list(replay)
+        stats = replay.stats
+    assert len(again) == len(live) == 40
+    assert all(f.force is None for f in again) and stats.forces == stats.force_orphans == 0
+    for a, b in zip(again, live, strict=True):
+        assert a.seq == b.seq and np.array_equal(a.counts, b.counts)
