@@ -24,6 +24,7 @@ more than a contact-free taxel can in that time) or too short is refused with wh
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -238,6 +239,7 @@ def _response_time(sensor: object) -> float:
 
 def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
                  sensors: list, noise: np.ndarray | None = None,
+                 skip: np.ndarray | None = None,
                  ) -> tuple[list[tuple[int, float, float, np.ndarray, np.ndarray]],
                             dict[str, int]]:
     """Detect touches with the pipeline's onset detector and date them with `refine_onset`.
@@ -246,6 +248,7 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
     loop, lag and smoothing, `skin.stream.onset_refine.refine_onset`'s ``sensor``).
 
     A release followed within `MERGE_GAP` by a new onset of the same taxel is one touch.
+    ``skip``: columns (bool, per taxel) whose touches are left alone (dated elsewhere).
 
     Returns
     -------
@@ -284,6 +287,8 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
             held[-1][1] = ev.time
     out, left = [], dict.fromkeys(LEFT_OUT, 0)
     for k, held in sorted(spans.items()):
+        if skip is not None and skip[k]:
+            continue
         for on, off in held:
             why = "rising" if on.direction != -1 else "unended" if off is None else ""
             if why:
@@ -309,6 +314,152 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
                 continue
             out.append((k, float(onset), float(initial), t[window] - onset,
                         y[window, k].copy()))
+    return out, left
+
+
+#: A force channel's contact: the force exceeds the free level by this many noise levels...
+FORCE_CONTACT_SNR = 10.0
+#: ... and by this share of the taxel's strongest touch (`force_touches`).
+FORCE_CONTACT_SHARE = 0.05
+#: A contact (or a release) counts when it holds this long, s: a noise sample does not.
+FORCE_CONTACT_HELD = 0.05
+
+
+def force_contacts(times: np.ndarray, force: np.ndarray) -> list[tuple[float, float]]:
+    """Date one taxel's contacts from its force channel: (onset, release) of each, s.
+
+    The free level is the median of the samples below halfway to the strongest one, the
+    noise their scaled median absolute deviation, or their 84th percentile's distance above
+    the level, or the smallest step between two of them, whichever is largest (a force
+    reading clipped at 0, or a quantised or switched one, has a MAD of 0). A contact begins
+    where the force first exceeds the level by `FORCE_CONTACT_SNR` noise levels and
+    `FORCE_CONTACT_SHARE` of the strongest rise, staying over it `FORCE_CONTACT_HELD`, and
+    ends where it stays under it as long. The onset is taken back to where the rise left
+    the free level, along the line through the first two samples over the threshold, but not
+    before the last sample under it (a linear ramp is dated where it starts; a switch, whose
+    two samples are equal, at its first closed sample: at most one sample late). A NaN
+    sample (no reading) counts as under the threshold.
+
+    Parameters
+    ----------
+    times : numpy.ndarray
+        Sample times, s, (n,).
+    force : numpy.ndarray
+        The taxel's force channel, N (or 0/1 for a contact switch), (n,).
+
+    Returns
+    -------
+    list of tuple
+        (onset, release) of each contact, in time order; a contact still on at the end has
+        release ``inf``. Empty when the channel has no reading or no contact stands out.
+    """
+    t = np.asarray(times, dtype=float)
+    f = np.asarray(force, dtype=float)
+    ok = np.isfinite(f)
+    if ok.sum() < 3:
+        return []
+    lo, hi = float(np.min(f[ok])), float(np.max(f[ok]))
+    free = f[ok & (f <= 0.5 * (lo + hi))]
+    level = float(np.median(free))
+    steps = np.diff(np.unique(free))
+    # the spread above the level too: a force sensor's noise clipped at 0 has a MAD of 0
+    noise = max(1.4826 * float(np.median(np.abs(free - level))),
+                float(np.percentile(free, 84.13)) - level,
+                float(steps.min()) if steps.size else 0.0)
+    rise = hi - level
+    if not rise > FORCE_CONTACT_SNR * noise or not rise > 0:
+        return []
+    threshold = level + max(FORCE_CONTACT_SNR * noise, FORCE_CONTACT_SHARE * rise)
+    step = float(np.median(np.diff(t)))
+    held = max(2, round(FORCE_CONTACT_HELD / step))
+    over = ok & (f > threshold)
+    # runs of `held` samples agreeing: each change of state that holds
+    out, on, k, n = [], None, 0, f.size
+    while k < n:
+        if on is None:
+            k = k + int(np.argmax(over[k:])) if over[k:].any() else n
+            if k >= n:
+                break
+            if over[k:k + held].all():
+                on = _force_onset(t, f, k, level)
+                k += held
+            else:
+                k += 1
+        else:
+            rest = ~over[k:]
+            k = k + int(np.argmax(rest)) if rest.any() else n
+            if k >= n:
+                break
+            if (~over[k:k + held]).all():
+                out.append((on, float(t[k])))
+                on = None
+                k += held
+            else:
+                k += 1
+    if on is not None:
+        out.append((on, math.inf))
+    return out
+
+
+def _force_onset(t: np.ndarray, f: np.ndarray, k: int, level: float) -> float:
+    """Where the rise through sample ``k`` (the first over the threshold) left ``level``."""
+    if k == 0:
+        return float(t[0])
+    a = float(t[k])
+    if k + 1 < f.size and np.isfinite(f[k + 1]) and f[k + 1] > f[k]:
+        slope = (f[k + 1] - f[k]) / (t[k + 1] - t[k])
+        a = float(t[k] - (f[k] - level) / slope)
+    return float(min(max(a, t[k - 1]), t[k]))
+
+
+def force_touches(times: np.ndarray, temperature: np.ndarray, force: np.ndarray,
+                  sensors: list, columns: np.ndarray,
+                  ) -> tuple[list[tuple[int, float, float, np.ndarray, np.ndarray]],
+                             dict[str, int]]:
+    """Touches of the taxels ``columns`` dated by their force channel (as `find_touches`).
+
+    Each contact of `force_contacts` gives a touch: its onset the force's, its end the
+    force's release (a PID-held taxel's lift-off too), its initial temperature the line
+    through the `TOUCH_BEFORE` s before the onset, evaluated at it. Left out as
+    `find_touches` does: ``unended`` (still on at the end), ``short`` (released before
+    `touch_seconds`), ``rising`` (the reading rose: a warm object), ``incomplete`` (the
+    window runs past the recording or misses a sample).
+
+    Returns
+    -------
+    touches : list of tuple
+        (column, onset, initial temperature, time since onset, readings) of each touch.
+    left_out : dict
+        Touches left out, by reason (`LEFT_OUT`).
+    """
+    t = np.asarray(times, dtype=float)
+    y = np.asarray(temperature, dtype=float)
+    step = float(np.median(np.diff(t)))
+    seconds = touch_seconds(sensors)
+    n_before, n_after = round(TOUCH_BEFORE / step), round(seconds / step)
+    out, left = [], dict.fromkeys(LEFT_OUT, 0)
+    for k in columns:
+        for onset, off in force_contacts(t, force[:, k]):
+            if not math.isfinite(off):
+                left["unended"] += 1
+                continue
+            if off - onset < seconds:
+                left["short"] += 1
+                continue
+            first = int(np.searchsorted(t, onset, side="right")) - n_before
+            window = slice(first, first + n_before + n_after)
+            if (first < 0 or first + n_before + n_after > t.size
+                    or t[first + n_before + n_after - 1] > off
+                    or not np.all(np.isfinite(y[window, k]))):
+                left["incomplete"] += 1
+                continue
+            tt, yy = t[window] - onset, y[window, k].copy()
+            line = np.polynomial.polynomial.polyfit(tt[:n_before], yy[:n_before], 1)
+            initial = float(line[0])  # the line before the onset, at the onset
+            if np.median(yy[n_before:]) > initial:
+                left["rising"] += 1
+                continue
+            out.append((int(k), float(onset), initial, tt, yy))
     return out, left
 
 
@@ -717,11 +868,15 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
                         materials: dict, sensors: list, room: float,
                         noise: np.ndarray | None = None,
                         labels: list[Any] | None = None,
+                        force: np.ndarray | None = None,
                         ) -> tuple[list[ResponseFit], dict]:
     """Detect, date, name and fit reference touches (see `fit_responses`).
 
     With ``labels`` (`skin.formats.touch_labels.read_touch_labels`) the touches are those
-    labelled, not detected.
+    labelled, not detected. With ``force`` (the recording's force channel, N, (n, taxels),
+    NaN where a taxel has no reading: `skin.frame.Frame.force`), the touches of each taxel
+    with a reading are found and dated by it (`force_touches`), the others' by the onset
+    detector as without it.
 
     The detector's onsets (refined with the taxels' current constants) only start the fit:
     it dates each touch's onset again, within `ONSET_SEARCH`, with the constants it fits.
@@ -742,7 +897,18 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
         fits = fit_responses(touches, layout, materials, sensors, room)
         counts["wanted"] = touches_wanted(fits, touches, layout, materials)
         return fits, counts
-    touches, left = find_touches(times, temperature, layout, sensors, noise)
+    forced = np.zeros(len(layout), dtype=bool)
+    if force is not None:
+        forced = np.isfinite(np.asarray(force, dtype=float)).any(axis=0)
+    touches, left = ([], dict.fromkeys(LEFT_OUT, 0)) if forced.all() else find_touches(
+        times, temperature, layout, sensors, noise, skip=forced)
+    n_forced = 0
+    if forced.any():
+        by_force, left_force = force_touches(times, temperature, force, sensors,
+                                             np.flatnonzero(forced))
+        n_forced = len(by_force)
+        touches += by_force
+        left = {k: left[k] + left_force[k] for k in left}
     if not touches and not any(left.values()):
         hold, rest = hold_and_rest(sensors)
         raise CommissioningError(
@@ -752,7 +918,8 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
             f"with {rest:g} s or more between them, or give their times with --labels")
     assigned, ambiguous = assign_materials(touches, materials, sensors, room, noise=noise)
     short = sum(left.values())
-    counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": len(ambiguous)}
+    counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": len(ambiguous),
+              "force_dated": n_forced, "force_taxels": int(forced.sum())}
     fits = fit_responses(assigned, layout, materials, sensors, room,
                          {**left, "ambiguous": len(ambiguous)})
     counts["wanted"] = touches_wanted(fits, assigned, layout, materials)

@@ -3,6 +3,7 @@ frame by the serial decoder, over a real pseudo-terminal, through the simulator,
 replay; frames and recordings without one behave as before."""
 
 import math
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -233,3 +234,75 @@ def test_a_recording_without_force_replays_as_before(tmp_path):
     assert all(f.force is None for f in again) and stats.forces == stats.force_orphans == 0
     for a, b in zip(again, live, strict=True):
         assert a.seq == b.seq and np.array_equal(a.counts, b.counts)
+
+
+def test_force_contacts_date_a_ramp_where_it_starts_and_a_switch_at_its_first_sample():
+    from skin.models.commission import force_contacts
+
+    fs = 200.0
+    t = np.arange(2000) / fs
+    rng = np.random.default_rng(3)
+    ramp = np.clip((t - 2.0013) / 0.02, 0, 1) * 2.0 * ((t >= 2.0013) & (t < 6.0))
+    noisy = np.maximum(ramp + rng.normal(0, 0.005, t.size), 0.0)
+    ((on, off),) = force_contacts(t, noisy)
+    assert abs(on - 2.0013) < 0.002 and abs(off - 6.0) <= 1 / fs + 1e-9
+    switch = ((t >= 3.0) & (t < 5.5)).astype(float)
+    switch[100:110] = np.nan  # no reading for a while: not a contact
+    ((on, off),) = force_contacts(t, switch)
+    assert on == 3.0 and off == 5.5
+    assert force_contacts(t, rng.normal(0, 0.005, t.size).clip(0)) == []  # noise alone
+    assert force_contacts(t, np.full(t.size, np.nan)) == []
+    assert force_contacts(t, switch * 0) == []
+    (_, end) = force_contacts(t, (t >= 9.0).astype(float))[0]
+    assert end == math.inf  # still on at the end
+
+
+def test_skin_commission_dates_reference_touches_by_a_recorded_force_channel(tmp_path,
+                                                                           capsys):
+    """A recording of reference touches with a force channel (MCAP, replayed): the touches are
+    dated by the force, the report says so, and the fit is as close as the detector's."""
+    import json
+
+    from skin.cli import main as skin_main
+    from skin.drivers.recording import Recorder
+    from skin.drivers.sim import SimDriver, SkinSimulator
+    from skin.formats.calibration_file import load_calibration
+    from skin.formats.scene import load_scene
+
+    n = 4
+    scene = load_scene("reference-touches")
+    scene = replace(scene, force="force", touches=tuple(
+        replace(tc, taxels=tuple(range(n))) for tc in scene.touches))
+    sim = SkinSimulator(scene)
+    path = tmp_path / "touches.mcap"
+    with Recorder(path, scene.layout) as recorder, SimDriver(sim, speed=0) as source:
+        recorder.add_driver(source)
+        for _ in source:
+            pass
+    docs = {}
+    for name, port in (("force", f"replay://{path}?speed=0"),
+                       ("detector", f"sim://{tmp_path / 'plain.toml'}?speed=0")):
+        if name == "detector":  # the same touches, no force channel
+            text = (Path(__file__).resolve().parents[1] / "skin" / "data" / "scenes"
+                    / "reference-touches.toml").read_text()
+            text = re.sub(r"^taxels = \[[0-9, ]+\]$", f"taxels = {list(range(n))}", text,
+                          flags=re.M)
+            (tmp_path / "plain.toml").write_text(text)
+        cal = tmp_path / f"{name}.json"
+        assert skin_main(["commission", "--port", port, "--touches", "water,neoprene",
+                          "-o", str(cal), "--json"]) == 0
+        out = capsys.readouterr()
+        docs[name] = json.loads(out.out)
+        _, fitted = load_calibration(cal).apply(scene.layout)
+        truth = sim.taxel_sensor
+        eff = np.array([s.effusivity for s in fitted[:n]])
+        docs[name]["eff_error"] = float(np.median(np.abs(eff / truth.effusivity[:n] - 1)))
+        if name == "force":
+            assert "force channel" in out.err
+    f, d = docs["force"], docs["detector"]
+    assert f["force_taxels"] == len(scene.layout) and f["force_dated"] == n * 6
+    assert d.get("force_dated", 0) == 0 and "force_taxels" in d and d["force_taxels"] == 0
+    assert f["fitted"] == d["fitted"] == n and f["ambiguous"] == 0
+    assert f["eff_error"] < 0.02 and d["eff_error"] < 0.02
+    assert "force channel" in json.loads((tmp_path / "force.json").read_text())[
+        "references"]["thermal"]
