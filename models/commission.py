@@ -336,9 +336,9 @@ def force_contacts(times: np.ndarray, force: np.ndarray) -> list[tuple[float, fl
     `FORCE_CONTACT_SHARE` of the strongest rise, staying over it `FORCE_CONTACT_HELD`, and
     ends where it stays under it as long. The onset is taken back to where the rise left
     the free level, along the line through the first two samples over the threshold, but not
-    before the last sample under it (a linear ramp is dated where it starts; a switch, whose
-    two samples are equal, at its first closed sample: at most one sample late). A NaN
-    sample (no reading) counts as under the threshold.
+    before the last sample under it (a linear ramp is dated where it starts); a rise done
+    within one sample (a switch) is dated midway between its last open and first closed
+    sample (within half a sample). A NaN sample (no reading) counts as under the threshold.
 
     Parameters
     ----------
@@ -402,14 +402,18 @@ def force_contacts(times: np.ndarray, force: np.ndarray) -> list[tuple[float, fl
 
 
 def _force_onset(t: np.ndarray, f: np.ndarray, k: int, level: float) -> float:
-    """Where the rise through sample ``k`` (the first over the threshold) left ``level``."""
+    """Where the rise through sample ``k`` (the first over the threshold) left ``level``.
+
+    A rise the samples resolve (the next one higher still) is taken back along its line; a
+    rise completed within one sample (a switch, a press faster than the sampling) began
+    somewhere after the sample before: the middle of that interval (half a sample either way).
+    """
     if k == 0:
         return float(t[0])
-    a = float(t[k])
     if k + 1 < f.size and np.isfinite(f[k + 1]) and f[k + 1] > f[k]:
         slope = (f[k + 1] - f[k]) / (t[k + 1] - t[k])
-        a = float(t[k] - (f[k] - level) / slope)
-    return float(min(max(a, t[k - 1]), t[k]))
+        return float(min(max(t[k] - (f[k] - level) / slope, t[k - 1]), t[k]))
+    return float(0.5 * (t[k - 1] + t[k]))
 
 
 def force_touches(times: np.ndarray, temperature: np.ndarray, force: np.ndarray,

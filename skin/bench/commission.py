@@ -219,20 +219,26 @@ def _assignment(unit: dict, references: tuple[str, ...]) -> dict[str, Any]:
         wrong = 0
         for a in assigned:  # the scene's touch of that taxel that began nearest the onset
             of = [tc for tc in scene.touches if layout.ids[a.column] in tc.taxels]
+            if not of:  # named, on a taxel the scene never touched
+                wrong += 1
+                continue
             near = min(of, key=lambda tc, a=a: abs(tc.start - a.onset))
             wrong += scene.material_of(near) != a.material
         out[key] = {"ambiguous": len(ambiguous), "wrong": int(wrong),
                     "cpu_seconds": round(cpu, 3)}
-    errors = []
+    errors, false = [], 0
     for k, onset, *_ in touches:
         of = [tc for tc in scene.touches if layout.ids[k] in tc.taxels]
+        if not of:  # a touch found on a taxel the scene never touched
+            false += 1
+            continue
         errors.append(onset - min(of, key=lambda tc: abs(tc.start - onset)).start)
     if errors:
         ms = 1e3 * np.array(errors)
         out["onset_error_ms"] = {"median": round(float(np.median(np.abs(ms))), 2),
                                  "p90": round(float(np.percentile(np.abs(ms), 90)), 2),
                                  "signed_median": round(float(np.median(ms)), 2),
-                                 "touches": len(errors)}
+                                 "touches": len(errors), "on_untouched_taxels": false}
     return out
 
 
