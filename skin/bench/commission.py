@@ -366,7 +366,8 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
              labelled: bool = False, object_std: float = 10.0, noise: str = "described",
              contact: str = CONTACT, references: tuple[str, ...] = REFERENCES,
              hold: float | None = None, rest: float | None = None,
-             noiseless: bool = False, progress: Any = None) -> dict[str, Any]:
+             noiseless: bool = False, progress: Any = None,
+             force: str = "") -> dict[str, Any]:
     """Issue 16's classification target: the same classifier, true against commissioned constants.
 
     The unit ``seed`` (its first ``taxels`` taxels, spread +-``spread`` as `SkinSimulator`
@@ -386,8 +387,9 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
       it knows nothing of this unit's own taxels);
     - ``nominal``: the preset's constants.
 
-    ``contact`` and ``references``: the reference touches' contact and materials
-    (`commission_unit`; the benchmark's contacts are finite either way), ``hold`` and
+    ``contact``, ``references`` and ``force``: the reference touches' contact and materials
+    and the taxels' force channel, which dates them (`commission_unit`; the benchmark's
+    contacts are finite either way and dated by their recorded onset), ``hold`` and
     ``rest`` their timing (default: what `skin commission` asks for). ``noise``: the
     classifier's reading noise, ``"described"`` (default): `noise_grid` from the sensor
     description's white noise at its heated temperature
@@ -444,11 +446,12 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     say = progress or (lambda _: None)
     say(f"commissioning unit {seed}")
     own = commission_unit(preset.name, seed, taxels, touches, hold, rest, spread=spread,
-                          labelled=labelled, contact=contact, references=references)
+                          labelled=labelled, contact=contact, references=references,
+                          force=force)
     say(f"commissioning unit {other_seed}")
     other = commission_unit(preset.name, other_seed, taxels, touches, hold, rest,
                             spread=spread, labelled=labelled, contact=contact,
-                            references=references)
+                            references=references, force=force)
     layout = own["layout"]
     fitted = _constants_of(own["fits"], layout)
     theirs = _constants_of(other["fits"], layout, own_only=True) or _constants_of(
@@ -457,7 +460,7 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
         "sensor": preset.name, "seed": seed, "other_seed": other_seed, "trials": trials,
         "taxels": taxels, "touches": touches, "labelled": labelled, "spread": spread,
         "object_std": object_std, "noiseless": noiseless, "contact": contact,
-        "references": list(references),
+        "references": list(references), "force": force,
         "hold": own["hold"], "rest": own["rest"], "commissioning": {}}
     for key, unit in (("own", own), ("other", other)):
         truth = unit["sim"].taxel_sensor

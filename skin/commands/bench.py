@@ -612,7 +612,7 @@ def _commission_classify(args: argparse.Namespace) -> int:
                       args.taxels, args.touches, args.spread, args.labelled,
                       args.object_std, args.noise, args.contact, args.reference_list,
                       args.hold, args.rest, noiseless=args.noiseless,
-                      progress=progress.message)}
+                      progress=progress.message, force=args.force)}
     doc["wall_time"] = round(time.monotonic() - started, 1)
     progress.done()
     if args.json:
