@@ -562,7 +562,8 @@ def main_commission(args: argparse.Namespace) -> int:
     c = doc["counts"]
     print(f"{doc['sensor']}, unit (seed) {doc['seed']}: {doc['touches']} touches held "
           f"{doc['hold']:g} s, {doc['rest']:g} s apart, on {doc['taxels_touched']} taxels "
-          f"({'labelled' if doc['labelled'] else 'detected'}); {c['detected']} taxel-touches, "
+          f"({'labelled' if doc['labelled'] else 'force-dated' if doc['force'] else 'detected'}"
+          f"); {c['detected']} taxel-touches, "
           f"{c['left_out']} left out, {c['ambiguous']} ambiguous; {c['taxels_fitted']} taxels "
           f"fitted in {doc['fit_cpu_seconds']:g} CPU s ({doc['recording_seconds']:g} s "
           f"recorded; {doc['machine']['cpus']} cores)")
