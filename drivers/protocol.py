@@ -722,6 +722,15 @@ def _sample_frame(body: bytes, board: int, host_time: float | None = None) -> Fr
                  board, (words >> 12).astype(np.uint8))
 
 
+def _attach(frame: Frame, force: np.ndarray) -> None:
+    """Set the force of a frame this decoder made and has not handed on yet.
+
+    In place (the frame is frozen for its users; none has seen it yet): a copy by
+    ``dataclasses.replace`` cost as much as decoding the sample.
+    """
+    object.__setattr__(frame, "force", force)
+
+
 class StreamDecoder:
     """Turn a serial byte stream into frames and replies; bad bytes are counted, never raised.
 
@@ -794,7 +803,8 @@ class StreamDecoder:
                     frames.append(self._forced)
                     self._forced = None
                 elif frame is not None:
-                    frames += self.flush()  # a sample still held: its FORCE did not come
+                    if self._held is not None:  # a sample still held: its FORCE did not come
+                        frames += self.flush()
                     if self.has_force:
                         self._held = frame
                     else:
@@ -805,7 +815,7 @@ class StreamDecoder:
                     last = frames[-1] if frames else None
                     if (last is not None and last.force is None and last.seq == seq
                             and last.counts.size == force.size):  # the first, in the same read
-                        frames[-1] = dataclasses.replace(last, force=force)
+                        _attach(last, force)
                         self.stats.forces += 1
                     else:
                         self.stats.force_orphans += 1
@@ -822,7 +832,8 @@ class StreamDecoder:
             self._late = (seq, force)
             return None
         self._held = None
-        self._forced = dataclasses.replace(held, force=force)
+        _attach(held, force)
+        self._forced = held
         self.stats.forces += 1
         return None
 
