@@ -20,6 +20,9 @@ smaller after a longer hold (the stream simulator, `skin.bench.streams`: +0.22 K
 -0.93 K aluminium release). Readings get Gaussian noise and pass through the thermistor
 divider and the 10-bit ADC.
 
+A scene with ``force = "force"`` or ``"contact"`` also gives every frame its taxels' force
+channel (`SkinSimulator.forces`, ``Frame.force``), which the wire carries as FORCE messages.
+
 `SimDriver` hands those frames over directly (``sim://``); `PtySerialDevice` writes them, as
 wire-protocol bytes, into a real pseudo-terminal, so that the serial driver reads them exactly
 as it reads a board, and answers the commands the driver sends.
