@@ -240,6 +240,7 @@ def _response_time(sensor: object) -> float:
 def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
                  sensors: list, noise: np.ndarray | None = None,
                  skip: np.ndarray | None = None,
+                 within: dict[int, list[tuple[float, float]]] | None = None,
                  ) -> tuple[list[tuple[int, float, float, np.ndarray, np.ndarray]],
                             dict[str, int]]:
     """Detect touches with the pipeline's onset detector and date them with `refine_onset`.
@@ -248,7 +249,9 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
     loop, lag and smoothing, `skin.stream.onset_refine.refine_onset`'s ``sensor``).
 
     A release followed within `MERGE_GAP` by a new onset of the same taxel is one touch.
-    ``skip``: columns (bool, per taxel) whose touches are left alone (dated elsewhere).
+    ``skip``: columns (bool, per taxel) whose touches are left alone (dated elsewhere), but
+    for the stretches ``within`` gives a skipped taxel ((start, end) s each): its touches the
+    detector finds starting in one of them are taken (a force channel's gaps, `force_gaps`).
 
     Returns
     -------
@@ -287,9 +290,12 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
             held[-1][1] = ev.time
     out, left = [], dict.fromkeys(LEFT_OUT, 0)
     for k, held in sorted(spans.items()):
-        if skip is not None and skip[k]:
+        if skip is not None and skip[k] and k not in (within or {}):
             continue
         for on, off in held:
+            if skip is not None and skip[k] and not any(
+                    a <= on.time <= b for a, b in within[k]):
+                continue
             why = "rising" if on.direction != -1 else "unended" if off is None else ""
             if why:
                 left[why] += 1
@@ -399,6 +405,60 @@ def force_contacts(times: np.ndarray, force: np.ndarray) -> list[tuple[float, fl
     if on is not None:
         out.append((on, math.inf))
     return out
+
+
+def force_gaps(times: np.ndarray, force: np.ndarray, forced: np.ndarray,
+               ) -> tuple[dict[int, list[tuple[float, float]]], list[str]]:
+    """Find the stretches of the taxels with a force reading that their force cannot date.
+
+    A taxel whose force shows no contact at all (`force_contacts` finds none: a sensor stuck
+    or unplugged) gives its whole recording; the others each stretch longer than
+    `FORCE_CONTACT_HELD` where the force has no reading (NaN: FORCE messages lost, the
+    sensor not read). The touches starting there are left to the onset detector.
+
+    Returns
+    -------
+    within : dict
+        Per taxel (column), its stretches, (start, end) s each.
+    notes : list of str
+        What happened, per taxel, to report.
+    """
+    t = np.asarray(times, dtype=float)
+    within: dict[int, list[tuple[float, float]]] = {}
+    notes, silent = [], []
+    for k in np.flatnonzero(forced):
+        f = force[:, k]
+        if not force_contacts(t, f):
+            within[int(k)] = [(-math.inf, math.inf)]
+            silent.append(int(k))
+            continue
+        gone = np.r_[False, ~np.isfinite(f), False].astype(np.int8)
+        edges = np.flatnonzero(np.diff(gone))
+        spans = []
+        for a, b in zip(edges[::2], edges[1::2], strict=True):  # samples a..b-1 have none
+            start = float(t[a - 1]) if a > 0 else -math.inf
+            end = float(t[b]) if b < t.size else math.inf
+            if min(end, float(t[-1])) - max(start, float(t[0])) > FORCE_CONTACT_HELD:
+                spans.append((start, end))
+        if spans:
+            within[int(k)] = spans
+            lost = sum(min(b, float(t[-1])) - max(a, float(t[0])) for a, b in spans)
+            notes.append(f"taxel {k}: its force had no reading for {lost:.3g} s; its touches "
+                         "there dated by the reading")
+    if silent:
+        notes.insert(0, f"taxel{'s' if len(silent) > 1 else ''} {_runs_said(silent)}: the force "
+                        "showed no contact; any touches dated by the reading")
+    return within, notes
+
+
+def _runs_said(columns: list[int]) -> str:
+    """Columns as runs: ``[0, 1, 2, 5]`` -> ``"0-2, 5"``."""
+    out, start = [], columns[0]
+    for a, b in zip(columns, [*columns[1:], None], strict=True):
+        if b != a + 1:
+            out.append(f"{start}" if start == a else f"{start}-{a}")
+            start = b
+    return ", ".join(out)
 
 
 def _force_onset(t: np.ndarray, f: np.ndarray, k: int, level: float) -> float:
@@ -880,7 +940,9 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
     labelled, not detected. With ``force`` (the recording's force channel, N, (n, taxels),
     NaN where a taxel has no reading: `skin.frame.Frame.force`), the touches of each taxel
     with a reading are found and dated by it (`force_touches`), the others' by the onset
-    detector as without it.
+    detector as without it; so are those starting where a taxel's force has no reading for
+    longer than `FORCE_CONTACT_HELD`, and all of a taxel whose force shows no contact
+    (`force_gaps`: ``counts["force_notes"]`` says, by taxel).
 
     The detector's onsets (refined with the taxels' current constants) only start the fit:
     it dates each touch's onset again, within `ONSET_SEARCH`, with the constants it fits.
@@ -902,11 +964,17 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
         counts["wanted"] = touches_wanted(fits, touches, layout, materials)
         return fits, counts
     forced = np.zeros(len(layout), dtype=bool)
+    within: dict[int, list[tuple[float, float]]] = {}
+    notes: list[str] = []
     if force is not None:
-        forced = np.isfinite(np.asarray(force, dtype=float)).any(axis=0)
-    touches, left = ([], dict.fromkeys(LEFT_OUT, 0)) if forced.all() else find_touches(
-        times, temperature, layout, sensors, noise, skip=forced)
+        force = np.asarray(force, dtype=float)
+        forced = np.isfinite(force).any(axis=0)
+        within, notes = force_gaps(times, force, forced)
     n_forced = 0
+    touches, left = [], dict.fromkeys(LEFT_OUT, 0)
+    if not forced.all() or within:
+        touches, left = find_touches(times, temperature, layout, sensors, noise,
+                                     skip=forced, within=within)
     if forced.any():
         by_force, left_force = force_touches(times, temperature, force, sensors,
                                              np.flatnonzero(forced))
@@ -924,6 +992,8 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
     short = sum(left.values())
     counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": len(ambiguous),
               "force_dated": n_forced, "force_taxels": int(forced.sum())}
+    if notes:
+        counts["force_notes"] = notes
     fits = fit_responses(assigned, layout, materials, sensors, room,
                          {**left, "ambiguous": len(ambiguous)})
     counts["wanted"] = touches_wanted(fits, assigned, layout, materials)

@@ -306,3 +306,26 @@ def test_skin_commission_dates_reference_touches_by_a_recorded_force_channel(tmp
     assert f["eff_error"] < 0.02 and d["eff_error"] < 0.02
     assert "force channel" in json.loads((tmp_path / "force.json").read_text())[
         "references"]["thermal"]
+
+
+def test_touches_where_the_force_has_no_reading_or_no_contact_go_to_the_detector():
+    """Force lost after mid-recording on every taxel (FORCE messages lost), or present but
+    stuck at 0: the touches there are found by the onset detector, and the counts say so."""
+    from skin.bench.commission import REFERENCES, commission_unit
+    from skin.models import load_materials
+    from skin.models.commission import commission_response
+
+    u = commission_unit("paper", 7, force="force")
+    t, y, force = u["times"], u["readings"], u["force"]
+    table = load_materials()
+    mats = {m: table[m] for m in REFERENCES}
+    run = lambda f: commission_response(t, y, u["layout"], mats, u["nominal"],  # noqa: E731
+                                        u["scene"].ambient, force=f)[1]
+    lost = force.copy()
+    lost[t > t[0] + 0.5 * (t[-1] - t[0]), :] = np.nan
+    c = run(lost)
+    assert c["detected"] == 48 and c["force_dated"] == 24
+    assert any(n.startswith("taxel 3: its force had no reading for 28") for n in c["force_notes"])
+    c = run(np.zeros_like(force))
+    assert c["detected"] == 48 and c["force_dated"] == 0
+    assert c["force_notes"][0].startswith(f"taxels 0-{force.shape[1] - 1}: the force showed no")

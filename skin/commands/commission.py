@@ -321,6 +321,8 @@ def _write_response(args: argparse.Namespace, layout: object, cal_file: object, 
     if counts.get("force_taxels"):
         print(f"{counts['force_dated']} touches dated by the recording's force channel "
               f"({counts['force_taxels']} taxels read it; the others' by the onset detector)")
+        for note in counts.get("force_notes", []):
+            print(note)
     if kept:
         print(f"kept the own fits already in {out} of {len(kept)} taxels this recording "
               "gave only their board's pooled fit")
