@@ -364,15 +364,8 @@ def force_contacts(times: np.ndarray, force: np.ndarray) -> list[tuple[float, fl
     ok = np.isfinite(f)
     if ok.sum() < 3:
         return []
-    lo, hi = float(np.min(f[ok])), float(np.max(f[ok]))
-    free = f[ok & (f <= 0.5 * (lo + hi))]
-    level = float(np.median(free))
-    steps = np.diff(np.unique(free))
-    # the spread above the level too: a force sensor's noise clipped at 0 has a MAD of 0
-    noise = max(1.4826 * float(np.median(np.abs(free - level))),
-                float(np.percentile(free, 84.13)) - level,
-                float(steps.min()) if steps.size else 0.0)
-    rise = hi - level
+    level, noise = force_noise(f)
+    rise = float(np.max(f[ok])) - level
     if not rise > FORCE_CONTACT_SNR * noise or not rise > 0:
         return []
     threshold = level + max(FORCE_CONTACT_SNR * noise, FORCE_CONTACT_SHARE * rise)
@@ -459,6 +452,23 @@ def _runs_said(columns: list[int]) -> str:
             out.append(f"{start}" if start == a else f"{start}-{a}")
             start = b
     return ", ".join(out)
+
+
+def force_noise(force: np.ndarray) -> tuple[float, float]:
+    """Return one taxel's free force level and noise, N (`force_contacts`; NaN: no reading)."""
+    f = np.asarray(force, dtype=float)
+    ok = np.isfinite(f)
+    if not ok.any():
+        return math.nan, math.nan
+    lo, hi = float(np.min(f[ok])), float(np.max(f[ok]))
+    free = f[ok & (f <= 0.5 * (lo + hi))]
+    level = float(np.median(free))
+    steps = np.diff(np.unique(free))
+    # the spread above the level too: a force sensor's noise clipped at 0 has a MAD of 0
+    noise = max(1.4826 * float(np.median(np.abs(free - level))),
+                float(np.percentile(free, 84.13)) - level,
+                float(steps.min()) if steps.size else 0.0)
+    return level, noise
 
 
 def _force_onset(t: np.ndarray, f: np.ndarray, k: int, level: float) -> float:
@@ -983,9 +993,16 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
         left = {k: left[k] + left_force[k] for k in left}
     if not touches and not any(left.values()):
         hold, rest = hold_and_rest(sensors)
+        found = "the onset detector found no touch in it"
+        if forced.any():
+            noises = [force_noise(force[:, k])[1] for k in np.flatnonzero(forced)]
+            found = (f"its force channel showed no contact on the {int(forced.sum())} taxels "
+                     f"it read (none above {FORCE_CONTACT_SNR:g} times its noise, "
+                     f"{np.nanmedian(noises):.3g} N median) and the onset detector found no "
+                     f"touch either; check the force sensor and its cable")
         raise CommissioningError(
-            f"the recording cannot pin the sensor response: the onset detector found no "
-            f"touch in it; record at least {MIN_TOUCHES} touches of at least {MIN_MATERIALS} "
+            f"the recording cannot pin the sensor response: {found}; record at least "
+            f"{MIN_TOUCHES} touches of at least {MIN_MATERIALS} "
             f"of {', '.join(materials)} at room temperature, each held {hold:g} s or more "
             f"with {rest:g} s or more between them, or give their times with --labels")
     assigned, ambiguous = assign_materials(touches, materials, sensors, room, noise=noise)

@@ -329,3 +329,24 @@ def test_touches_where_the_force_has_no_reading_or_no_contact_go_to_the_detector
     c = run(np.zeros_like(force))
     assert c["detected"] == 48 and c["force_dated"] == 0
     assert c["force_notes"][0].startswith(f"taxels 0-{force.shape[1] - 1}: the force showed no")
+
+
+def test_no_touch_with_a_force_channel_says_what_the_force_showed():
+    """A recording without touches whose force channel reads only noise: the error says what
+    the force channel showed and what to check, not only that the detector found nothing."""
+    from skin.bench.commission import REFERENCES, commission_unit
+    from skin.models import load_materials
+    from skin.models.commission import CommissioningError, commission_response
+
+    u = commission_unit("paper", 7, force="force")
+    t = u["times"]
+    rng = np.random.default_rng(3)
+    y = u["readings"][:1] + rng.normal(0, 0.002, u["readings"].shape)
+    force = np.round(np.maximum(rng.normal(0, 0.005, u["force"].shape), 0), 3)
+    table = load_materials()
+    with pytest.raises(CommissioningError) as err:
+        commission_response(t, y, u["layout"], {m: table[m] for m in REFERENCES},
+                            u["nominal"], u["scene"].ambient, force=force)
+    said = str(err.value)
+    assert f"force channel showed no contact on the {force.shape[1]} taxels" in said
+    assert "check the force sensor" in said and "--labels" in said
