@@ -770,9 +770,17 @@ class StreamDecoder:
         self._late: tuple[int, np.ndarray] | None = None  # a FORCE no held sample matched
         self.has_force = force
 
-    def flush(self) -> list[Frame]:
-        """Hand on the sample held for its FORCE (all-NaN force: none came); [] if none."""
+    def flush(self, older_than: float | None = None, now: float | None = None) -> list[Frame]:
+        """Hand on the sample held for its FORCE (all-NaN force: none came); [] if none.
+
+        ``older_than``: only a sample held longer than this, s, since its SAMPLE arrived
+        (its ``host_time``, against ``now``, ``time.monotonic()`` by default): a FORCE a few
+        ms behind its SAMPLE (another USB frame) still finds it.
+        """
         if self._held is None:
+            return []
+        if older_than is not None and (
+                (time.monotonic() if now is None else now) - self._held.host_time < older_than):
             return []
         frame, self._held = self._held, None
         self.stats.force_missing += 1

@@ -350,3 +350,35 @@ def test_no_touch_with_a_force_channel_says_what_the_force_showed():
     said = str(err.value)
     assert f"force channel showed no contact on the {force.shape[1]} taxels" in said
     assert "check the force sensor" in said and "--labels" in said
+
+
+def test_zero_timeout_polls_between_a_sample_and_its_force_keep_the_force():
+    """A FORCE written 2 ms after its SAMPLE over a real pty, recv(timeout=0) polls between
+    the two: every frame comes with its force (the quiet poll does not hand it on early)."""
+    import os
+    import time
+    import tty
+
+    main, sub = os.openpty()
+    tty.setraw(sub)
+    got = []
+    try:
+        with skin.drivers.open(f"serial://{os.ttyname(sub)}") as d:
+            os.write(main, sample(0, 8) + encode_force(0, [0.5] * 8))
+            got.append(d.recv(timeout=0.5))
+            for k in range(1, 6):
+                os.write(main, sample(k, 8))
+                time.sleep(0.002)
+                got += [d.recv(timeout=0.0), d.recv(timeout=0.0)]
+                os.write(main, encode_force(k, [0.5] * 8))
+                time.sleep(0.002)
+                got.append(d.recv(timeout=0.0))
+            got.append(d.recv(timeout=0.2))
+            stats = d.stats
+    finally:
+        os.close(main)
+        os.close(sub)
+    frames = [f for f in got if f is not None]
+    assert [f.seq for f in frames] == list(range(6))
+    assert all(f.force[0] == 0.5 for f in frames)
+    assert stats.force_orphans == 0 and stats.force_missing == 0
