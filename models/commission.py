@@ -341,8 +341,8 @@ def force_contacts(times: np.ndarray, force: np.ndarray) -> list[tuple[float, fl
     where the force first exceeds the level by `FORCE_CONTACT_SNR` noise levels and
     `FORCE_CONTACT_SHARE` of the strongest rise, staying over it `FORCE_CONTACT_HELD`, and
     ends where it stays under it as long. The onset is taken back to where the rise left
-    the free level, along the line through the first two samples over the threshold, but not
-    before the last sample under it (a linear ramp is dated where it starts); a rise done
+    the free level, along the line through the rise's samples between 10 noise levels and
+    half the contact's peak (`_force_onset`: a linear ramp is dated where it starts); a rise done
     within one sample (a switch) is dated midway between its last open and first closed
     sample (within half a sample). A NaN sample (no reading) counts as under the threshold.
 
@@ -380,7 +380,8 @@ def force_contacts(times: np.ndarray, force: np.ndarray) -> list[tuple[float, fl
             if k >= n:
                 break
             if over[k:k + held].all():
-                on = _force_onset(t, f, k, level)
+                stop = k + int(np.argmax(~over[k:])) if (~over[k:]).any() else n
+                on = _force_onset(t, f, k, level, noise, float(np.nanmax(f[k:stop])))
                 k += held
             else:
                 k += 1
@@ -471,18 +472,41 @@ def force_noise(force: np.ndarray) -> tuple[float, float]:
     return level, noise
 
 
-def _force_onset(t: np.ndarray, f: np.ndarray, k: int, level: float) -> float:
+def _force_onset(t: np.ndarray, f: np.ndarray, k: int, level: float, noise: float,
+                 top: float) -> float:
     """Where the rise through sample ``k`` (the first over the threshold) left ``level``.
 
-    A rise the samples resolve (the next one higher still) is taken back along its line; a
+    A rise the samples resolve is taken back along the line fitted through its samples
+    between 10 noise levels over ``level`` and half way to ``top`` (the contact's peak), not
+    after sample ``k`` nor before a sample within 3 noise levels of the level where the line
+    is 6 over it: a linear ramp is dated where it starts, however many samples it lasts. A
     rise completed within one sample (a switch, a press faster than the sampling) began
-    somewhere after the sample before: the middle of that interval (half a sample either way).
+    somewhere after the sample before: the middle of that interval (half a sample either
+    way).
     """
     if k == 0:
         return float(t[0])
-    if k + 1 < f.size and np.isfinite(f[k + 1]) and f[k + 1] > f[k]:
-        slope = (f[k + 1] - f[k]) / (t[k + 1] - t[k])
-        return float(min(max(t[k] - (f[k] - level) / slope, t[k - 1]), t[k]))
+    base = k - 1  # the last sample still at the free level
+    while base > 0 and not (np.isfinite(f[base]) and f[base] <= level + 3 * noise):
+        base -= 1
+    half = level + 0.5 * (top - level)
+    end = k
+    while end < f.size and np.isfinite(f[end]) and f[end] <= half:
+        end += 1
+    if end < f.size and np.isfinite(f[end]) and end == k:
+        end += 1  # the first sample is already past half way: the two around it
+    seg = np.arange(base + 1, min(end + (end == k + 1), f.size))
+    seg = seg[np.isfinite(f[seg]) & (f[seg] >= level + 10 * noise)]
+    if seg.size >= 2 and (seg.size > 2 or f[seg[-1]] < top - 3 * noise):  # not a switch
+        slope, icpt = np.polynomial.polynomial.polyfit(t[seg] - t[k], f[seg], 1)[::-1]
+        if slope > 0:
+            onset = float(min(t[k] + (level - icpt) / slope, t[k]))
+            # not before a sample the line puts 6 noise levels over the level found at it
+            back = np.arange(np.searchsorted(t, onset), k)
+            back = back[np.isfinite(f[back])]
+            line = icpt + slope * (t[back] - t[k])
+            wrong = back[(f[back] <= level + 3 * noise) & (line > f[back] + 6 * noise)]
+            return float(max(onset, t[wrong[-1]])) if wrong.size else onset
     return float(0.5 * (t[k - 1] + t[k]))
 
 

@@ -382,3 +382,23 @@ def test_zero_timeout_polls_between_a_sample_and_its_force_keep_the_force():
     assert [f.seq for f in frames] == list(range(6))
     assert all(f.force[0] == 0.5 for f in frames)
     assert stats.force_orphans == 0 and stats.force_missing == 0
+
+
+@pytest.mark.parametrize("rise, noise, within", [(0.1, 0.005, 1e-3), (0.3, 0.005, 1e-3),
+                                                 (0.3, 0.03, 4e-3), (0.6, 0.005, 1e-3)])
+def test_force_contacts_date_slow_ramps_where_they_start(rise, noise, within):
+    """A press ramping up over many samples (100-600 ms at 200 Hz, 2 N, noise clipped at 0 and
+    rounded to 1 mN): its onset is dated where the ramp starts, not one sample before the
+    threshold (the old clamp dated a 300 ms ramp 14 ms late at 5 mN, 39 ms at 30 mN)."""
+    from skin.models.commission import force_contacts
+
+    t = np.arange(4000) / 200.0
+    errors = []
+    for seed in range(12):
+        rng = np.random.default_rng(100 + seed)
+        start = 5.0 + rng.uniform(0, 0.005)
+        f = np.clip((t - start) / rise, 0, 1) * 2.0 * ((t >= start) & (t < 12.0))
+        f = np.round(np.maximum(f + rng.normal(0, noise, t.size), 0), 3)
+        (onset, _), = force_contacts(t, f)
+        errors.append(onset - start)
+    assert abs(np.median(errors)) < within
