@@ -331,10 +331,12 @@ FORCE_CONTACT_SHARE = 0.05
 FORCE_CONTACT_HELD = 0.05
 
 
-def force_contacts(times: np.ndarray, force: np.ndarray) -> list[tuple[float, float]]:
+def force_contacts(times: np.ndarray, force: np.ndarray,
+                   weak: list[tuple[float, float]] | None = None) -> list[tuple[float, float]]:
     """Date one taxel's contacts from its force channel: (onset, release) of each, s.
 
-    The free level is the median of the samples below halfway to the strongest one, the
+    The free level is the median of the samples below halfway to the strongest one held
+    `FORCE_CONTACT_HELD` (a one-sample glitch is not the strongest touch), the
     noise their scaled median absolute deviation, or their 84th percentile's distance above
     the level, or the smallest step between two of them, whichever is largest (a force
     reading clipped at 0, or a quantised or switched one, has a MAD of 0). A contact begins
@@ -352,6 +354,9 @@ def force_contacts(times: np.ndarray, force: np.ndarray) -> list[tuple[float, fl
         Sample times, s, (n,).
     force : numpy.ndarray
         The taxel's force channel, N (or 0/1 for a contact switch), (n,).
+    weak : list, optional
+        Given, gets (onset, release) of each contact over the noise that stays under the
+        `FORCE_CONTACT_SHARE` of the strongest one (left out: counted by `force_touches`).
 
     Returns
     -------
@@ -364,24 +369,41 @@ def force_contacts(times: np.ndarray, force: np.ndarray) -> list[tuple[float, fl
     ok = np.isfinite(f)
     if ok.sum() < 3:
         return []
-    level, noise = force_noise(f)
-    rise = float(np.max(f[ok])) - level
+    step = float(np.median(np.diff(t)))
+    held = max(2, round(FORCE_CONTACT_HELD / step))
+    level, noise = force_noise(f, held)
+    rise = _held_peak(f, held) - level
     if not rise > FORCE_CONTACT_SNR * noise or not rise > 0:
         return []
     threshold = level + max(FORCE_CONTACT_SNR * noise, FORCE_CONTACT_SHARE * rise)
-    step = float(np.median(np.diff(t)))
-    held = max(2, round(FORCE_CONTACT_HELD / step))
     over = ok & (f > threshold)
-    # runs of `held` samples agreeing: each change of state that holds
-    out, on, k, n = [], None, 0, f.size
+    out = []
+    for k, end in _held_runs(over, held):
+        stop = end if end is not None else f.size
+        on = _force_onset(t, f, k, level, noise, float(np.nanmax(f[k:stop])))
+        out.append((on, float(t[end]) if end is not None else math.inf))
+    if weak is not None and threshold > level + FORCE_CONTACT_SNR * noise:
+        # the contacts over the noise alone that the share of the strongest one left out
+        spans = [(k, end if end is not None else f.size)
+                 for k, end in _held_runs(ok & (f > level + FORCE_CONTACT_SNR * noise), held)]
+        weak += [(float(t[k]), float(t[e]) if e < f.size else math.inf) for k, e in spans
+                 if not over[k:e].any()]
+    return out
+
+
+def _held_runs(over: np.ndarray, held: int) -> list[tuple[int, int | None]]:
+    """Return the (first, end) samples of each run of ``over`` (end None: on at the end).
+
+    A change of state counts when it holds ``held`` samples.
+    """
+    out, on, k, n = [], None, 0, over.size
     while k < n:
         if on is None:
             k = k + int(np.argmax(over[k:])) if over[k:].any() else n
             if k >= n:
                 break
             if over[k:k + held].all():
-                stop = k + int(np.argmax(~over[k:])) if (~over[k:]).any() else n
-                on = _force_onset(t, f, k, level, noise, float(np.nanmax(f[k:stop])))
+                on = k
                 k += held
             else:
                 k += 1
@@ -391,14 +413,23 @@ def force_contacts(times: np.ndarray, force: np.ndarray) -> list[tuple[float, fl
             if k >= n:
                 break
             if (~over[k:k + held]).all():
-                out.append((on, float(t[k])))
+                out.append((on, k))
                 on = None
                 k += held
             else:
                 k += 1
     if on is not None:
-        out.append((on, math.inf))
+        out.append((on, None))
     return out
+
+
+def _held_peak(f: np.ndarray, held: int) -> float:
+    """Return the strongest force held ``held`` samples (a one-sample glitch is not a touch)."""
+    g = np.where(np.isfinite(f), f, -np.inf)
+    if g.size < held:
+        return float(np.nanmax(f))
+    peak = float(np.lib.stride_tricks.sliding_window_view(g, held).min(axis=1).max())
+    return peak if math.isfinite(peak) else float(np.nanmax(f))
 
 
 def force_gaps(times: np.ndarray, force: np.ndarray, forced: np.ndarray,
@@ -455,13 +486,18 @@ def _runs_said(columns: list[int]) -> str:
     return ", ".join(out)
 
 
-def force_noise(force: np.ndarray) -> tuple[float, float]:
-    """Return one taxel's free force level and noise, N (`force_contacts`; NaN: no reading)."""
+def force_noise(force: np.ndarray, held: int = 1) -> tuple[float, float]:
+    """Return one taxel's free force level and noise, N (`force_contacts`; NaN: no reading).
+
+    The free samples are those below half way to the ``held``-th strongest sample (a glitch
+    shorter than ``held`` samples does not count).
+    """
     f = np.asarray(force, dtype=float)
     ok = np.isfinite(f)
     if not ok.any():
         return math.nan, math.nan
-    lo, hi = float(np.min(f[ok])), float(np.max(f[ok]))
+    lo = float(np.min(f[ok]))
+    hi = float(np.partition(f[ok], -min(held, int(ok.sum())))[-min(held, int(ok.sum()))])
     free = f[ok & (f <= 0.5 * (lo + hi))]
     level = float(np.median(free))
     steps = np.diff(np.unique(free))
@@ -511,7 +547,7 @@ def _force_onset(t: np.ndarray, f: np.ndarray, k: int, level: float, noise: floa
 
 
 def force_touches(times: np.ndarray, temperature: np.ndarray, force: np.ndarray,
-                  sensors: list, columns: np.ndarray,
+                  sensors: list, columns: np.ndarray, weak: dict[int, int] | None = None,
                   ) -> tuple[list[tuple[int, float, float, np.ndarray, np.ndarray]],
                              dict[str, int]]:
     """Touches of the taxels ``columns`` dated by their force channel (as `find_touches`).
@@ -521,7 +557,8 @@ def force_touches(times: np.ndarray, temperature: np.ndarray, force: np.ndarray,
     through the `TOUCH_BEFORE` s before the onset, evaluated at it. Left out as
     `find_touches` does: ``unended`` (still on at the end), ``short`` (released before
     `touch_seconds`), ``rising`` (the reading rose: a warm object), ``incomplete`` (the
-    window runs past the recording or misses a sample).
+    window runs past the recording or misses a sample). ``weak``, given, gets per taxel the
+    contacts `force_contacts` left out as under `FORCE_CONTACT_SHARE` of its strongest one.
 
     Returns
     -------
@@ -537,7 +574,11 @@ def force_touches(times: np.ndarray, temperature: np.ndarray, force: np.ndarray,
     n_before, n_after = round(TOUCH_BEFORE / step), round(seconds / step)
     out, left = [], dict.fromkeys(LEFT_OUT, 0)
     for k in columns:
-        for onset, off in force_contacts(t, force[:, k]):
+        faint: list[tuple[float, float]] = []
+        contacts = force_contacts(t, force[:, k], faint)
+        if faint and weak is not None:
+            weak[int(k)] = len(faint)
+        for onset, off in contacts:
             if not math.isfinite(off):
                 left["unended"] += 1
                 continue
@@ -1004,14 +1045,18 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
         force = np.asarray(force, dtype=float)
         forced = np.isfinite(force).any(axis=0)
         within, notes = force_gaps(times, force, forced)
-    n_forced = 0
+    n_forced = n_weak = 0
     touches, left = [], dict.fromkeys(LEFT_OUT, 0)
     if not forced.all() or within:
         touches, left = find_touches(times, temperature, layout, sensors, noise,
                                      skip=forced, within=within)
     if forced.any():
+        weak: dict[int, int] = {}
         by_force, left_force = force_touches(times, temperature, force, sensors,
-                                             np.flatnonzero(forced))
+                                             np.flatnonzero(forced), weak)
+        notes += [f"taxel {k}: its force left out {n} contact{'s' if n > 1 else ''} under "
+                  f"{FORCE_CONTACT_SHARE:.0%} of its strongest" for k, n in weak.items()]
+        n_weak = sum(weak.values())
         n_forced = len(by_force)
         touches += by_force
         left = {k: left[k] + left_force[k] for k in left}
@@ -1033,6 +1078,8 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
     short = sum(left.values())
     counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": len(ambiguous),
               "force_dated": n_forced, "force_taxels": int(forced.sum())}
+    if n_weak:
+        counts["force_weak"] = n_weak
     if notes:
         counts["force_notes"] = notes
     fits = fit_responses(assigned, layout, materials, sensors, room,

@@ -402,3 +402,28 @@ def test_force_contacts_date_slow_ramps_where_they_start(rise, noise, within):
         (onset, _), = force_contacts(t, f)
         errors.append(onset - start)
     assert abs(np.median(errors)) < within
+
+
+def test_force_contacts_ignore_a_glitch_and_count_a_faint_touch():
+    """One 40 N glitch sample beside 2 N touches does not raise the threshold over them; a
+    0.3 N touch beside an 8 N one (under 5 % of it) is left out but counted, not silently.
+    (The faint touch lasts 1.5 s of 20: one lasting over 16 % of the free samples raises the
+    84th-percentile noise term over it and is not a contact at all.)"""
+    from skin.models.commission import force_contacts
+
+    t = np.arange(4000) / 200.0
+    rng = np.random.default_rng(5)
+
+    def press(start: float, end: float, peak: float) -> np.ndarray:
+        return np.clip((t - start) / 0.02, 0, 1) * peak * ((t >= start) & (t < end))
+
+    noise = rng.normal(0, 0.005, t.size)
+    f = np.round(np.maximum(press(5.0, 12.0, 2.0) + noise, 0), 3)
+    f[3500] = 40.0
+    (onset, end), = force_contacts(t, f)
+    assert abs(onset - 5.0) < 0.003 and end == pytest.approx(12.0, abs=0.006)
+    f = np.round(np.maximum(press(2.0, 3.5, 0.3) + press(10.0, 15.0, 8.0) + noise, 0), 3)
+    weak = []
+    (onset, _), = force_contacts(t, f, weak)
+    assert abs(onset - 10.0) < 0.003
+    assert len(weak) == 1 and abs(weak[0][0] - 2.0) < 0.01
