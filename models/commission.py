@@ -332,7 +332,9 @@ FORCE_CONTACT_HELD = 0.05
 
 
 def force_contacts(times: np.ndarray, force: np.ndarray,
-                   weak: list[tuple[float, float]] | None = None) -> list[tuple[float, float]]:
+                   weak: list[tuple[float, float]] | None = None,
+                   bridged: list[tuple[float, float]] | None = None,
+                   ) -> list[tuple[float, float]]:
     """Date one taxel's contacts from its force channel: (onset, release) of each, s.
 
     The free level is the median of the samples below halfway to the strongest one held
@@ -346,7 +348,8 @@ def force_contacts(times: np.ndarray, force: np.ndarray,
     the free level, along the line through the rise's samples between 10 noise levels and
     half the contact's peak (`_force_onset`: a linear ramp is dated where it starts); a rise done
     within one sample (a switch) is dated midway between its last open and first closed
-    sample (within half a sample). A NaN sample (no reading) counts as under the threshold.
+    sample (within half a sample). A NaN sample (no reading) counts as under the threshold,
+    but for a run shorter than `FORCE_CONTACT_HELD` inside a contact (it goes on across it).
 
     Parameters
     ----------
@@ -357,6 +360,9 @@ def force_contacts(times: np.ndarray, force: np.ndarray,
     weak : list, optional
         Given, gets (onset, release) of each contact over the noise that stays under the
         `FORCE_CONTACT_SHARE` of the strongest one (left out: counted by `force_touches`).
+    bridged : list, optional
+        Given, gets (start, end) of each stretch without a reading shorter than
+        `FORCE_CONTACT_HELD` inside a contact: the contact goes on across it.
 
     Returns
     -------
@@ -377,6 +383,12 @@ def force_contacts(times: np.ndarray, force: np.ndarray,
         return []
     threshold = level + max(FORCE_CONTACT_SNR * noise, FORCE_CONTACT_SHARE * rise)
     over = ok & (f > threshold)
+    gone = np.flatnonzero(np.diff(np.r_[0, (~ok).astype(np.int8), 0]))
+    for a, b in zip(gone[::2], gone[1::2], strict=True):  # no reading in samples a..b-1
+        if 0 < a and b < f.size and b - a < held and over[a - 1]:
+            over[a:b] = True  # shorter than a release can be: the contact goes on
+            if bridged is not None:
+                bridged.append((float(t[a]), float(t[b])))
     out = []
     for k, end in _held_runs(over, held):
         stop = end if end is not None else f.size
@@ -548,6 +560,7 @@ def _force_onset(t: np.ndarray, f: np.ndarray, k: int, level: float, noise: floa
 
 def force_touches(times: np.ndarray, temperature: np.ndarray, force: np.ndarray,
                   sensors: list, columns: np.ndarray, weak: dict[int, int] | None = None,
+                  bridged: dict[int, int] | None = None,
                   ) -> tuple[list[tuple[int, float, float, np.ndarray, np.ndarray]],
                              dict[str, int]]:
     """Touches of the taxels ``columns`` dated by their force channel (as `find_touches`).
@@ -558,7 +571,8 @@ def force_touches(times: np.ndarray, temperature: np.ndarray, force: np.ndarray,
     `find_touches` does: ``unended`` (still on at the end), ``short`` (released before
     `touch_seconds`), ``rising`` (the reading rose: a warm object), ``incomplete`` (the
     window runs past the recording or misses a sample). ``weak``, given, gets per taxel the
-    contacts `force_contacts` left out as under `FORCE_CONTACT_SHARE` of its strongest one.
+    contacts `force_contacts` left out as under `FORCE_CONTACT_SHARE` of its strongest one,
+    ``bridged`` the short stretches without a reading inside its contacts.
 
     Returns
     -------
@@ -575,9 +589,12 @@ def force_touches(times: np.ndarray, temperature: np.ndarray, force: np.ndarray,
     out, left = [], dict.fromkeys(LEFT_OUT, 0)
     for k in columns:
         faint: list[tuple[float, float]] = []
-        contacts = force_contacts(t, force[:, k], faint)
+        gaps: list[tuple[float, float]] = []
+        contacts = force_contacts(t, force[:, k], faint, gaps)
         if faint and weak is not None:
             weak[int(k)] = len(faint)
+        if gaps and bridged is not None:
+            bridged[int(k)] = len(gaps)
         for onset, off in contacts:
             if not math.isfinite(off):
                 left["unended"] += 1
@@ -1052,8 +1069,12 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
                                      skip=forced, within=within)
     if forced.any():
         weak: dict[int, int] = {}
+        bridged: dict[int, int] = {}
         by_force, left_force = force_touches(times, temperature, force, sensors,
-                                             np.flatnonzero(forced), weak)
+                                             np.flatnonzero(forced), weak, bridged)
+        notes += [f"taxel {k}: its force had no reading {n} time{'s' if n > 1 else ''} "
+                  f"within a contact, each under {FORCE_CONTACT_HELD:g} s: bridged"
+                  for k, n in bridged.items()]
         notes += [f"taxel {k}: its force left out {n} contact{'s' if n > 1 else ''} under "
                   f"{FORCE_CONTACT_SHARE:.0%} of its strongest" for k, n in weak.items()]
         n_weak = sum(weak.values())

@@ -427,3 +427,18 @@ def test_force_contacts_ignore_a_glitch_and_count_a_faint_touch():
     (onset, _), = force_contacts(t, f, weak)
     assert abs(onset - 10.0) < 0.003
     assert len(weak) == 1 and abs(weak[0][0] - 2.0) < 0.01
+
+
+def test_a_short_stretch_without_a_reading_inside_a_contact_does_not_split_it():
+    """A contact switch losing its reading for 20 ms (4 samples, under FORCE_CONTACT_HELD)
+    inside a contact: one contact, the stretch counted; a 200 ms one still ends it."""
+    from skin.models.commission import force_contacts
+
+    t = np.arange(4000) / 200.0
+    s = (((t >= 3) & (t < 8)) | ((t >= 12) & (t < 16))).astype(float)
+    s[1300:1304] = np.nan
+    bridged = []
+    assert np.allclose(force_contacts(t, s, bridged=bridged), [(2.9975, 8.0), (11.9975, 16.0)])
+    assert np.allclose(bridged, [(6.5, 6.52)])
+    s[1300:1340] = np.nan
+    assert len(force_contacts(t, s)) == 3
