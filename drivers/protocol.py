@@ -641,7 +641,8 @@ class LinkStats:
         CAN: DATA, STATUS or REPLY frames that arrived with nothing open to add them to.
     lost_samples : int
         Samples lost whole: gaps in seq between the frames decoded (CAN: between complete
-        samples, beyond those counted in ``missing``).
+        samples, beyond those counted in ``missing``); serial: also a sample held for its
+        FORCE when the driver is closed.
     lost_replies : int
         CAN: replies dropped because a segment was skipped.
     duplicates : int
@@ -785,6 +786,17 @@ class StreamDecoder:
         frame, self._held = self._held, None
         self.stats.force_missing += 1
         return [dataclasses.replace(frame, force=np.full(frame.counts.size, np.nan))]
+
+    def discard(self) -> int:
+        """Drop the sample held for its FORCE (the link is closed); return 0 or 1.
+
+        A dropped sample is counted in ``stats.lost_samples``.
+        """
+        if self._held is None:
+            return 0
+        self._held = None
+        self.stats.lost_samples += 1
+        return 1
 
     def reset(self) -> None:
         """Drop a partly received packet (the link was cut); counted as a resync."""

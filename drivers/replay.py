@@ -201,6 +201,9 @@ class ReplayDriver(Driver):
                     frames.append(frame)
         self._frames.extend(frames if isinstance(decoder, StreamDecoder) else (
             dataclasses.replace(f, host_time=recorded) for f in frames))
+        self._sum_stats()
+
+    def _sum_stats(self) -> None:
         if len(self._decoders) > 1:
             self.stats = LinkStats(**{
                 f.name: sum(getattr(d.stats, f.name) for _, d in self._decoders.values())
@@ -213,9 +216,9 @@ class ReplayDriver(Driver):
                 try:
                     self._next = next(self._messages)
                 except StopIteration:
-                    self._finish()
-                    if self._flush():
+                    if self._flush():  # finished only once these are handed on
                         continue
+                    self._finish()
                     return None
                 except RecordingError as exc:
                     raise DeviceError(str(exc)) from None
@@ -236,6 +239,7 @@ class ReplayDriver(Driver):
         for _, decoder in self._decoders.values():
             if isinstance(decoder, StreamDecoder):
                 self._frames.extend(decoder.flush())
+        self._sum_stats()
         return bool(self._frames)
 
     def _finish(self) -> None:

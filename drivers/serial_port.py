@@ -183,4 +183,5 @@ class SerialDriver(Driver):
             self._read(min(remaining, 0.05))
 
     def _close_internal(self) -> None:
+        self._decoder.discard()  # a sample held for its FORCE: counted as lost
         self._port.close()

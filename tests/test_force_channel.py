@@ -442,3 +442,49 @@ def test_a_short_stretch_without_a_reading_inside_a_contact_does_not_split_it():
     assert np.allclose(bridged, [(6.5, 6.52)])
     s[1300:1340] = np.nan
     assert len(force_contacts(t, s)) == 3
+
+
+def test_a_replay_hands_on_the_samples_held_at_its_end_before_it_is_finished(force_sim,
+                                                                              tmp_path):
+    """A recording of two boards ending on a SAMPLE each whose FORCE never came: a reader that
+    stops once the replay is ``finished`` (as the stream's board workers do) still gets both."""
+    from skin.drivers.recording import Recorder
+    from skin.drivers.sim import SimDriver
+
+    n = len(force_sim.layout)
+    path = tmp_path / "cut.mcap"
+    with (Recorder(path, force_sim.layout) as recorder, SimDriver(force_sim, speed=0) as a,
+          SimDriver(force_sim, speed=0) as b):
+        channels = recorder.add_driver(a) + recorder.add_driver(b)
+        for k in range(5):
+            for channel in channels:
+                recorder.wire(channel, 1.0 + 0.005 * k, sample(k, n)
+                              + (encode_force(k, [0.25] * n) if k < 4 else b""))
+    got = []
+    with skin.drivers.open(f"replay://{path}?speed=0") as replay:
+        while not replay.finished:
+            frame = replay.recv(timeout=0.05)
+            if frame is not None:
+                got.append(frame)
+        stats = replay.stats
+    assert sorted(f.seq for f in got) == sorted(2 * list(range(5)))
+    assert sum(np.all(np.isnan(f.force)) for f in got) == 2 and stats.force_missing == 2
+
+
+def test_closing_a_serial_driver_counts_the_sample_it_held():
+    """A sample held for its FORCE when the driver is closed is counted lost, not dropped
+    silently."""
+    import os
+    import tty
+
+    main, sub = os.openpty()
+    tty.setraw(sub)
+    try:
+        d = skin.drivers.open(f"serial://{os.ttyname(sub)}")
+        os.write(main, sample(0, 8) + encode_force(0, [0.5] * 8) + sample(1, 8))
+        assert d.recv(timeout=0.5).seq == 0  # sample 1, in the same read, held for its FORCE
+        d.close()
+    finally:
+        os.close(main)
+        os.close(sub)
+    assert d.stats.lost_samples == 1 and d.stats.frames == 2
