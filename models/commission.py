@@ -481,10 +481,11 @@ def force_gaps(times: np.ndarray, force: np.ndarray, forced: np.ndarray,
             within[int(k)] = spans
             lost = sum(min(b, float(t[-1])) - max(a, float(t[0])) for a, b in spans)
             notes.append(f"taxel {k}: its force had no reading for {lost:.3g} s; its touches "
-                         "there dated by the reading")
+                         "there dated by the onset detector")
     if silent:
-        notes.insert(0, f"taxel{'s' if len(silent) > 1 else ''} {_runs_said(silent)}: the force "
-                        "showed no contact; any touches dated by the reading")
+        notes.insert(0, f"taxel{'s' if len(silent) > 1 else ''} {_runs_said(silent)}: the "
+                        "force showed no contact (untouched, or its sensor not working): the "
+                        "onset detector looked for touches there")
     return within, notes
 
 
