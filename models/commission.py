@@ -329,6 +329,8 @@ FORCE_CONTACT_SNR = 10.0
 FORCE_CONTACT_SHARE = 0.05
 #: A contact (or a release) counts when it holds this long, s: a noise sample does not.
 FORCE_CONTACT_HELD = 0.05
+#: The force's noise is taken per stretch of this many samples (their median: `force_noise`).
+FORCE_NOISE_SPAN = 100
 
 
 def force_contacts(times: np.ndarray, force: np.ndarray,
@@ -511,12 +513,21 @@ def force_noise(force: np.ndarray, held: int = 1) -> tuple[float, float]:
         return math.nan, math.nan
     lo = float(np.min(f[ok]))
     hi = float(np.partition(f[ok], -min(held, int(ok.sum())))[-min(held, int(ok.sum()))])
-    free = f[ok & (f <= 0.5 * (lo + hi))]
+    is_free = ok & (f <= 0.5 * (lo + hi))
+    free = f[is_free]
     level = float(np.median(free))
     steps = np.diff(np.unique(free))
-    # the spread above the level too: a force sensor's noise clipped at 0 has a MAD of 0
-    noise = max(1.4826 * float(np.median(np.abs(free - level))),
-                float(np.percentile(free, 84.13)) - level,
+    # the spread above the level too: a force sensor's noise clipped at 0 has a MAD of 0;
+    # per stretch of `FORCE_NOISE_SPAN` samples, their median: a faint touch (under half the
+    # strongest) lasting a few stretches does not count as noise
+    span = FORCE_NOISE_SPAN
+    upper = float(np.percentile(free, 84.13))
+    if f.size >= 3 * span:
+        cut = np.where(is_free, f, np.nan)[:f.size // span * span].reshape(-1, span)
+        cut = cut[np.isfinite(cut).sum(axis=1) >= span // 2]
+        if cut.shape[0] >= 3:
+            upper = float(np.median(np.nanpercentile(cut, 84.13, axis=1)))
+    noise = max(1.4826 * float(np.median(np.abs(free - level))), upper - level,
                 float(steps.min()) if steps.size else 0.0)
     return level, noise
 
