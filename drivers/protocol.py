@@ -18,6 +18,7 @@ status (``skin.frame.FLAG_ADC_SATURATED`` .. ``FLAG_OVER_TEMPERATURE``) in bits 
 from __future__ import annotations
 
 import binascii
+import dataclasses
 import math
 import struct
 import time
@@ -47,6 +48,14 @@ ALL_TAXELS = 0xFFFF
 MIN_RATE_HZ = 4
 #: Largest count (12 bits).
 MAX_COUNT = 0x0FFF
+#: IDENTITY ``options`` bit: the board sends a FORCE after each SAMPLE.
+OPTION_FORCE = 1 << 2
+#: A FORCE value meaning "this taxel has no reading".
+FORCE_NONE = 0xFFFF
+#: FORCE values are in this many newtons per unit (1 mN).
+FORCE_UNIT = 1e-3
+#: Largest force a FORCE message carries, N (0xFFFE mN).
+MAX_FORCE = (FORCE_NONE - 1) * FORCE_UNIT
 
 
 class MsgType(IntEnum):
@@ -57,6 +66,7 @@ class MsgType(IntEnum):
     ACK = 0x03
     ERROR = 0x04
     SELFTEST_RESULT = 0x05
+    FORCE = 0x06
     START = 0x10
     STOP = 0x11
     SET_RATE = 0x12
@@ -103,6 +113,7 @@ _ERROR = struct.Struct("<BBBBBH")
 _IDENTITY = struct.Struct("<BBBBBBBBBBHBBHHIH")
 _SELFTEST = struct.Struct("<BBBH")
 _PER_TAXEL = np.dtype([("response", "<i2"), ("strongest", "<u2")])  # of a SELFTEST_RESULT
+_FORCE_HEAD = struct.Struct("<BBIH")  # version, type, seq, n
 _SYNC = struct.Struct("<II")
 _STATUS = struct.Struct("<BHhB")  # seq & 0xFF, flags, ambient, groups
 
@@ -287,6 +298,58 @@ def encode_sample(
         The packet as sent on the wire.
     """
     return frame_packet(sample_body(seq, device_time_us, counts, ambient, duty, flags, status))
+
+
+def force_body(seq: int, force: Sequence[float] | np.ndarray) -> bytes:
+    """Body of a FORCE message (8 + 2n bytes, without CRC); see `encode_force`."""
+    values = np.asarray(force, dtype=float).ravel()
+    n = values.size
+    if n > MAX_TAXELS:
+        raise ValueError(f"{n} taxels; a v1 FORCE carries at most {MAX_TAXELS}")
+    known = ~np.isnan(values)
+    if np.any(values[known] < 0) or np.any(values[known] > MAX_FORCE) or np.any(
+            np.isinf(values)):
+        bad = int(np.flatnonzero(known & ((values < 0) | (values > MAX_FORCE)))[0])
+        raise ValueError(f"force of channel {bad} is {values[bad]!r} N; the wire carries "
+                         f"0 - {MAX_FORCE:g} N (or NaN: no reading)")
+    raw = np.full(n, FORCE_NONE, dtype="<u2")
+    raw[known] = np.rint(values[known] / FORCE_UNIT).astype(np.uint16)
+    return _FORCE_HEAD.pack(VERSION, MsgType.FORCE, seq % (1 << 32), n) + raw.tobytes()
+
+
+def encode_force(seq: int, force: Sequence[float] | np.ndarray) -> bytes:
+    """Encode one FORCE packet, COBS-framed and 0x00-terminated.
+
+    A board with a force or contact sensor sends it right after the SAMPLE of the same
+    ``seq``; `StreamDecoder` attaches it to that sample's frame (``Frame.force``).
+
+    Parameters
+    ----------
+    seq : int
+        Sequence number of the SAMPLE it belongs to (taken modulo 2**32).
+    force : array_like of float
+        Normal force per channel, N, 0 - `MAX_FORCE`, rounded to 1 mN; NaN: that channel
+        has no reading. A contact switch sends 0 or 1.
+
+    Returns
+    -------
+    bytes
+        The packet as sent on the wire.
+    """
+    return frame_packet(force_body(seq, force))
+
+
+def _force_of(body: bytes) -> tuple[int, np.ndarray] | None:
+    """Return (seq, force per channel, N) of a FORCE body; None when its length is wrong."""
+    if len(body) < _FORCE_HEAD.size:
+        return None
+    _, _, seq, n = _FORCE_HEAD.unpack_from(body)
+    if len(body) != _FORCE_HEAD.size + 2 * n:
+        return None
+    raw = np.frombuffer(body, dtype="<u2", count=n, offset=_FORCE_HEAD.size)
+    force = raw / 1000.0  # FORCE_UNIT: k / 1000.0 is the float the encoder rounded to k
+    force[raw == FORCE_NONE] = np.nan
+    return seq, force
 
 
 # ---- commands ----
@@ -578,13 +641,24 @@ class LinkStats:
         CAN: DATA, STATUS or REPLY frames that arrived with nothing open to add them to.
     lost_samples : int
         Samples lost whole: gaps in seq between the frames decoded (CAN: between complete
-        samples, beyond those counted in ``missing``).
+        samples, beyond those counted in ``missing``); serial: also a sample held for its
+        FORCE when the driver is closed.
     lost_replies : int
         CAN: replies dropped because a segment was skipped.
     duplicates : int
         Frames whose seq equals the newest one of their board or is at most
         `DUPLICATE_WINDOW` behind it (they are still returned); a jump further back is taken
         as the board restarting.
+    forces : int
+        Serial: FORCE messages attached to their sample's frame.
+    force_orphans : int
+        Serial: valid FORCE messages that matched no waiting sample (their SAMPLE was lost,
+        or already handed on: the first FORCE of a link is, unless it came in the same read
+        as its SAMPLE or an IDENTITY announced it), or whose taxel count differs from it;
+        skipped.
+    force_missing : int
+        Serial: frames of a board that sends FORCE handed on without one (its FORCE was
+        lost): their ``force`` is all NaN.
     """
 
     bytes: int = 0
@@ -599,6 +673,9 @@ class LinkStats:
     lost_samples: int = 0
     lost_replies: int = 0
     duplicates: int = 0
+    forces: int = 0
+    force_orphans: int = 0
+    force_missing: int = 0
 
 
 #: A frame at most this many samples behind the newest of its board is a duplicate; further
@@ -631,7 +708,7 @@ def _continues(last: int | None, seq: int) -> bool:
 MAX_PACKET = MAX_BODY + 2 + -(-(MAX_BODY + 2) // 254) + 1
 
 
-def _sample_frame(body: bytes, board: int) -> Frame | None:
+def _sample_frame(body: bytes, board: int, host_time: float | None = None) -> Frame | None:
     if len(body) < _HEADER.size + _TAIL.size:
         return None
     _, _, seq, t_us, n = _HEADER.unpack_from(body)
@@ -640,9 +717,19 @@ def _sample_frame(body: bytes, board: int) -> Frame | None:
     words = np.frombuffer(body, dtype="<u2", count=n, offset=_HEADER.size)
     duty = np.frombuffer(body, dtype=np.uint8, count=n, offset=_HEADER.size + 2 * n).copy()
     ambient, flags = _TAIL.unpack_from(body, _HEADER.size + 3 * n)
-    return Frame(seq, t_us * 1e-6, time.monotonic(), (words & MAX_COUNT).astype(np.uint16),
+    return Frame(seq, t_us * 1e-6, time.monotonic() if host_time is None else host_time,
+                 (words & MAX_COUNT).astype(np.uint16),
                  math.nan if ambient == AMBIENT_UNKNOWN else ambient / 100.0, duty, flags,
                  board, (words >> 12).astype(np.uint8))
+
+
+def _attach(frame: Frame, force: np.ndarray) -> None:
+    """Set the force of a frame this decoder made and has not handed on yet.
+
+    In place (the frame is frozen for its users; none has seen it yet): a copy by
+    ``dataclasses.replace`` cost as much as decoding the sample.
+    """
+    object.__setattr__(frame, "force", force)
 
 
 class StreamDecoder:
@@ -653,19 +740,63 @@ class StreamDecoder:
     Sample frames are returned by `feed`; replies (`Ack`, `ErrorReply`, `Identity`,
     `SelftestResult`) are appended to ``replies``.
 
+    Force channel: once a FORCE message has arrived (``has_force``), each SAMPLE is held until
+    the next SAMPLE, and the FORCE of the same seq that follows it becomes its
+    ``Frame.force``; a sample whose FORCE does not come is handed on with an all-NaN force
+    (``stats.force_missing``), a FORCE that matches no held sample is counted
+    (``stats.force_orphans``) and skipped; before the first, a FORCE is attached to the
+    frame of the same read it follows. A held sample waits at most until the next
+    SAMPLE or `flush` (a driver flushes when its link goes quiet, a replay at its end). A
+    board that never sends FORCE costs nothing: its frames are handed on at once, with
+    ``force`` None.
+
     Parameters
     ----------
     board : int
         Board id given to the decoded frames.
+    force : bool
+        Hold samples for their FORCE from the first one (the board is known to send FORCE);
+        else from the first FORCE, or from an IDENTITY with `OPTION_FORCE` set.
     """
 
-    def __init__(self, board: int = 0) -> None:
+    def __init__(self, board: int = 0, force: bool = False) -> None:
         self.board = board
         self.stats = LinkStats()
         self.replies: deque[Reply] = deque()
         self._buffer = b""
         self._cobs = _cobs()
         self._last_seq: int | None = None
+        self._held: Frame | None = None  # a sample waiting for its FORCE
+        self._forced: Frame | None = None  # the held sample, its FORCE just attached
+        self._late: tuple[int, np.ndarray] | None = None  # a FORCE no held sample matched
+        self.has_force = force
+
+    def flush(self, older_than: float | None = None, now: float | None = None) -> list[Frame]:
+        """Hand on the sample held for its FORCE (all-NaN force: none came); [] if none.
+
+        ``older_than``: only a sample held longer than this, s, since its SAMPLE arrived
+        (its ``host_time``, against ``now``, ``time.monotonic()`` by default): a FORCE a few
+        ms behind its SAMPLE (another USB frame) still finds it.
+        """
+        if self._held is None:
+            return []
+        if older_than is not None and (
+                (time.monotonic() if now is None else now) - self._held.host_time < older_than):
+            return []
+        frame, self._held = self._held, None
+        self.stats.force_missing += 1
+        return [dataclasses.replace(frame, force=np.full(frame.counts.size, np.nan))]
+
+    def discard(self) -> int:
+        """Drop the sample held for its FORCE (the link is closed); return 0 or 1.
+
+        A dropped sample is counted in ``stats.lost_samples``.
+        """
+        if self._held is None:
+            return 0
+        self._held = None
+        self.stats.lost_samples += 1
+        return 1
 
     def reset(self) -> None:
         """Drop a partly received packet (the link was cut); counted as a resync."""
@@ -673,22 +804,60 @@ class StreamDecoder:
             self._buffer = b""
             self.stats.resyncs += 1
 
-    def feed(self, data: bytes) -> list[Frame]:
-        """Add received bytes; return the sample frames completed by them."""
+    def feed(self, data: bytes, host_time: float | None = None) -> list[Frame]:
+        """Add received bytes; return the sample frames completed by them.
+
+        ``host_time``: the arrival time the frames of these bytes get (a replay's recorded
+        time); now (``time.monotonic``) by default.
+        """
         self.stats.bytes += len(data)
         *packets, self._buffer = (self._buffer + bytes(data)).split(b"\x00")
         if len(self._buffer) > 2 * MAX_PACKET:  # no delimiter for too long: drop
             self._buffer = b""
             self.stats.resyncs += 1
-        frames = []
+        frames: list[Frame] = []
         for packet in packets:
             if packet:  # empty: two delimiters in a row
-                frame = self._decode(packet)
-                if frame is not None:
-                    frames.append(frame)
+                frame = self._decode(packet, host_time)
+                if self._forced is not None:  # the held sample, its FORCE attached
+                    frames.append(self._forced)
+                    self._forced = None
+                elif frame is not None:
+                    if self._held is not None:  # a sample still held: its FORCE did not come
+                        frames += self.flush()
+                    if self.has_force:
+                        self._held = frame
+                    else:
+                        frames.append(frame)
+                elif self._late is not None:  # a FORCE that no held sample waited for
+                    seq, force = self._late
+                    self._late = None
+                    last = frames[-1] if frames else None
+                    if (last is not None and last.force is None and last.seq == seq
+                            and last.counts.size == force.size):  # the first, in the same read
+                        _attach(last, force)
+                        self.stats.forces += 1
+                    else:
+                        self.stats.force_orphans += 1
         return frames
 
-    def _decode(self, packet: bytes) -> Frame | None:
+    def _force(self, body: bytes) -> None:
+        parsed = _force_of(body)
+        if parsed is None:
+            return self._bad("malformed")
+        self.has_force = True
+        seq, force = parsed
+        held = self._held
+        if held is None or held.seq != seq or held.counts.size != force.size:
+            self._late = (seq, force)
+            return None
+        self._held = None
+        _attach(held, force)
+        self._forced = held
+        self.stats.forces += 1
+        return None
+
+    def _decode(self, packet: bytes, host_time: float | None = None) -> Frame | None:
         try:
             raw = self._cobs.decode(packet)
         except self._cobs.DecodeError:
@@ -701,17 +870,22 @@ class StreamDecoder:
         if body[0] != VERSION:
             return self._bad("malformed")
         if body[1] == MsgType.SAMPLE:
-            frame = _sample_frame(body, self.board)
+            frame = _sample_frame(body, self.board, host_time)
             if frame is None:
                 return self._bad("malformed")
             self.stats.frames += 1
             if _follow(self.stats, self._last_seq, frame.seq):
                 self._last_seq = frame.seq
             return frame
+        if body[1] == MsgType.FORCE:
+            return self._force(body)
         try:
-            self.replies.append(parse_reply(body))
+            reply = parse_reply(body)
         except ValueError:
             return self._bad("malformed")
+        if isinstance(reply, Identity) and reply.options & OPTION_FORCE:
+            self.has_force = True
+        self.replies.append(reply)
         self.stats.replies += 1
         return None
 

@@ -1,6 +1,8 @@
 """Test vectors of wire protocol v1, shared by the firmware's tests and the driver's.
 
-``python -m skin.drivers.protocol_vectors [DIR]`` writes ``serial.txt`` and ``can.txt``
+``python -m skin.drivers.protocol_vectors [DIR]`` writes ``serial.txt``, ``can.txt`` and
+``serial_force.txt`` (the optional FORCE message, which the firmware does not send, so its C
+tests do not read it)
 (``firmware/test_vectors`` of the source tree by default) from the values below; the format is
 described in ``firmware/test_vectors/README.md``. `read_vectors` parses them back.
 
@@ -31,7 +33,9 @@ from skin.drivers.protocol import (
     can_sample_frames,
     cobs_encode,
     crc16,
+    encode_force,
     encode_sample,
+    force_body,
     frame_packet,
     layout_hash,
     parse_command_packet,
@@ -58,7 +62,8 @@ BYTES_KEYS = frozenset({"body", "wire", "raw", "encoded", "data", "reply_wire"})
 LIST_KEYS = {"fnv": frozenset({"ids"}),
              "sample": frozenset({"counts", "status", "duty"}),
              "can_sample": frozenset({"counts", "status", "duty"}),
-             "selftest_result": frozenset({"response", "strongest"})}
+             "selftest_result": frozenset({"response", "strongest"}),
+             "force": frozenset({"force_mn"})}
 _HEX_DIGITS = {"crc": 4, "hash": 8, "type": 2, "command": 2, "flags": 4, "layout_hash": 8}
 
 Block = dict[str, object]
@@ -264,6 +269,16 @@ CAN_REPLIES = [
      SelftestResult(12, tuple(80 - i for i in range(72)), tuple(range(72)))),
 ]
 
+FORCES: list[Block] = [  # force in mN as on the wire; 65535 (FORCE_NONE): no reading
+    {"name": "no taxels", "seq": 0, "force_mn": []},
+    {"name": "3 taxels, the middle one without a sensor", "seq": 7,
+     "force_mn": [0, 65535, 1500]},
+    {"name": "contact switch of 4 taxels (0 / 1 N), seq wraps", "seq": 0xFFFFFFFF,
+     "force_mn": [1000, 0, 0, 1000]},
+    {"name": "largest force, and a value with a zero byte", "seq": 256,
+     "force_mn": [65534, 256, 1]},
+]
+
 # ---- blocks ----
 
 
@@ -314,6 +329,19 @@ def serial_blocks() -> Iterator[Block]:
         yield {"kind": "bad_command", "name": name, "wire": wire, **BAD_BOARD, "token": token,
                "command": int(command), "code": int(code), "detail": detail,
                "reply_wire": expected.encode()}
+
+
+def _newtons(force_mn: list[int]) -> list[float]:
+    return [float("nan") if v == 0xFFFF else v / 1000 for v in force_mn]
+
+
+def force_blocks() -> Iterator[Block]:
+    """Yield the blocks of ``serial_force.txt``: FORCE messages (PROTOCOL.md)."""
+    for v in FORCES:
+        force = _newtons(v["force_mn"])  # type: ignore[arg-type]
+        body = force_body(v["seq"], force)  # type: ignore[arg-type]
+        yield {"kind": "force", **v, "body": body, "crc": crc16(body),
+               "wire": encode_force(v["seq"], force)}  # type: ignore[arg-type]
 
 
 def can_blocks() -> Iterator[Block]:
@@ -406,11 +434,12 @@ def read_vectors(path: str | Path) -> list[dict]:
 
 
 def write(directory: str | Path = DEFAULT_DIR) -> list[Path]:
-    """Write ``serial.txt`` and ``can.txt`` into ``directory``; return their paths."""
+    """Write ``serial.txt``, ``can.txt`` and ``serial_force.txt``; return their paths."""
     directory = Path(directory)
     paths = []
     for file, blocks, what in (("serial.txt", serial_blocks(), "serial"),
-                               ("can.txt", can_blocks(), "CAN")):
+                               ("can.txt", can_blocks(), "CAN"),
+                               ("serial_force.txt", force_blocks(), "serial FORCE")):
         path = directory / file
         path.write_text(render(blocks, what))
         paths.append(path)

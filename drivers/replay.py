@@ -181,8 +181,9 @@ class ReplayDriver(Driver):
             self.source_tap(source.index, host_time, msg.data)
         elif self.tap is not None:
             self.tap(host_time, msg.data)
-        if isinstance(decoder, StreamDecoder):
-            frames = decoder.feed(msg.data)
+        recorded = msg.log_time * 1e-9 - WALL_OFFSET
+        if isinstance(decoder, StreamDecoder):  # a frame held for its FORCE keeps its time
+            frames = decoder.feed(msg.data, recorded)
         else:
             frames = []
             try:
@@ -198,8 +199,11 @@ class ReplayDriver(Driver):
                 frame = decoder.push(ident, data)
                 if frame is not None:
                     frames.append(frame)
-        recorded = msg.log_time * 1e-9 - WALL_OFFSET
-        self._frames.extend(dataclasses.replace(f, host_time=recorded) for f in frames)
+        self._frames.extend(frames if isinstance(decoder, StreamDecoder) else (
+            dataclasses.replace(f, host_time=recorded) for f in frames))
+        self._sum_stats()
+
+    def _sum_stats(self) -> None:
         if len(self._decoders) > 1:
             self.stats = LinkStats(**{
                 f.name: sum(getattr(d.stats, f.name) for _, d in self._decoders.values())
@@ -212,6 +216,8 @@ class ReplayDriver(Driver):
                 try:
                     self._next = next(self._messages)
                 except StopIteration:
+                    if self._flush():  # finished only once these are handed on
+                        continue
                     self._finish()
                     return None
                 except RecordingError as exc:
@@ -227,6 +233,14 @@ class ReplayDriver(Driver):
             msg, self._next = self._next, None
             self._decode(msg, host_time)
         return self._frames.popleft()
+
+    def _flush(self) -> bool:
+        """Queue the samples serial decoders hold for a FORCE the recording ends before."""
+        for _, decoder in self._decoders.values():
+            if isinstance(decoder, StreamDecoder):
+                self._frames.extend(decoder.flush())
+        self._sum_stats()
+        return bool(self._frames)
 
     def _finish(self) -> None:
         if not self.finished:

@@ -17,6 +17,11 @@ from skin.drivers.protocol import Command, ErrorReply, MsgType, Reply, StreamDec
 from skin.errors import DeviceError, ProtocolError
 from skin.frame import Frame
 
+#: A sample held for its FORCE is handed on without it when the link is quiet and it has
+#: waited this long, s, since its SAMPLE arrived (a FORCE comes right after its SAMPLE, a
+#: USB frame or two later at most: 1-2 ms; a quiet read alone says nothing, recv(timeout=0)
+#: polls between the two).
+FORCE_WAIT = 0.02
 
 def _type_name(kind: int) -> str:
     try:
@@ -84,6 +89,8 @@ class SerialDriver(Driver):
         if data and self.tap is not None:
             self.tap(time.monotonic(), data)
         self._pending.extend(self._decoder.feed(data))
+        if not data:  # the link is quiet: a sample held for its FORCE this long gets none
+            self._pending.extend(self._decoder.flush(older_than=FORCE_WAIT))
 
     def _recv_internal(self, timeout: float | None) -> Frame | None:
         if not self._pending:
@@ -176,4 +183,5 @@ class SerialDriver(Driver):
             self._read(min(remaining, 0.05))
 
     def _close_internal(self) -> None:
+        self._decoder.discard()  # a sample held for its FORCE: counted as lost
         self._port.close()

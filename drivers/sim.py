@@ -20,6 +20,9 @@ smaller after a longer hold (the stream simulator, `skin.bench.streams`: +0.22 K
 -0.93 K aluminium release). Readings get Gaussian noise and pass through the thermistor
 divider and the 10-bit ADC.
 
+A scene with ``force = "force"`` or ``"contact"`` also gives every frame its taxels' force
+channel (`SkinSimulator.forces`, ``Frame.force``), which the wire carries as FORCE messages.
+
 `SimDriver` hands those frames over directly (``sim://``); `PtySerialDevice` writes them, as
 wire-protocol bytes, into a real pseudo-terminal, so that the serial driver reads them exactly
 as it reads a board, and answers the commands the driver sends.
@@ -40,12 +43,14 @@ import numpy as np
 from skin.drivers.base import Driver
 from skin.drivers.protocol import (
     ALL_TAXELS,
+    OPTION_FORCE,
     Ack,
     Command,
     ErrorReply,
     Identity,
     MsgType,
     SelftestResult,
+    encode_force,
     encode_sample,
     layout_hash,
     parse_command_packet,
@@ -58,6 +63,11 @@ from skin.stream.calibration import Calibration
 
 #: Samples `SkinSimulator` computes at a time (5 s at 200 Hz).
 CHUNK = 1000
+#: A simulated force sensor: white noise, N, and the rise time of a touch's force, s (linear).
+FORCE_NOISE = 0.005
+FORCE_RISE = 0.02
+#: Key of the scene seed's stream the force noise is drawn from (``[seed + 1, FORCE_STREAM]``).
+FORCE_STREAM = 3
 
 
 #: Key of the scene seed's stream each taxel's spread is drawn from (``[seed, SPREAD_STREAM]``):
@@ -127,6 +137,8 @@ class SkinSimulator:
             k1 = round(touch.end * self.sample_rate)
             self._touches.append((k0, k1, idx, t_obj, mat.effusivity,
                                   np.log10(mat.conductance_range)))
+        self._force_touches = [(touch.start, touch.end, t[2], touch.force)
+                               for touch, t in zip(scene.touches, self._touches, strict=True)]
         self._idx, self._addr = self.layout.channel_map(self.board.id)
         self._channels = int(self._addr.max()) + 1
 
@@ -293,6 +305,7 @@ class SkinSimulator:
         rng = np.random.default_rng(self.scene.seed + 1)
         adc_rng = np.random.default_rng([self.scene.seed + 1, 1])
         amb_rng = np.random.default_rng([self.scene.seed + 1, 2])
+        force_rng = np.random.default_rng([self.scene.seed + 1, FORCE_STREAM])
         smoother = StreamingSmoother(self.sensor, self.sample_rate)  # the firmware's smoothing
         adc_noise = self.scene.noise is None and self.sensor.adc_noise > 0  # the sensor's
         k = 0
@@ -302,14 +315,36 @@ class SkinSimulator:
             if adc_noise:
                 raw = raw + adc_rng.normal(0.0, self.sensor.adc_noise, raw.shape)
             raw = smoother.push(raw)
-            yield from self._frames_of(raw, k, amb_rng)
+            yield from self._frames_of(raw, k, amb_rng, force_rng)
             k += raw.shape[0]
         rest = smoother.finish()
         if rest is not None:
-            yield from self._frames_of(rest, k, amb_rng)
+            yield from self._frames_of(rest, k, amb_rng, force_rng)
 
-    def _frames_of(self, raw: np.ndarray, k0: int,
-                   amb_rng: np.random.Generator) -> Iterator[Frame]:
+    def forces(self, k0: int, m: int, rng: np.random.Generator | None = None) -> np.ndarray:
+        """Return the force channel of samples ``k0`` .. ``k0 + m - 1``, N, (m, n_taxels).
+
+        A force sensor (scene ``force = "force"``) reads each touch's force, reached linearly
+        over `FORCE_RISE` from the touch's start and gone at its end, plus white noise of
+        `FORCE_NOISE` from ``rng`` (none without), never below 0; a contact switch
+        (``"contact"``) reads 1 while touched, else 0. Rounded to the wire's 1 mN, so that
+        the frames equal what a serial link or a recording gives back.
+        """
+        t = (k0 + np.arange(m))[:, None] / self.sample_rate
+        out = np.zeros((m, len(self.layout)))
+        switch = self.scene.force == "contact"
+        for start, end, idx, newtons in self._force_touches:
+            if end * self.sample_rate < k0 or start * self.sample_rate > k0 + m:
+                continue
+            on = (t >= start) & (t < end)
+            level = 1.0 if switch else newtons * np.clip((t - start) / FORCE_RISE, 0.0, 1.0)
+            out[:, idx] = np.where(on, level, out[:, idx])
+        if not switch and rng is not None:
+            out = np.maximum(out + rng.normal(0.0, FORCE_NOISE, out.shape), 0.0)
+        return np.rint(out * 1000.0) / 1000.0
+
+    def _frames_of(self, raw: np.ndarray, k0: int, amb_rng: np.random.Generator,
+                   force_rng: np.random.Generator | None = None) -> Iterator[Frame]:
         """Frames of consecutive raw readings (n, n_taxels) from sample ``k0``."""
         m = raw.shape[0]
         counts = np.clip(np.rint(raw), 0, self.board.adc_max)
@@ -321,10 +356,15 @@ class SkinSimulator:
         rails = (counts <= 0) | (counts >= self.board.adc_max)
         status[:, self._addr] = np.where(rails[:, self._idx], FLAG_ADC_SATURATED, 0)
         flags = np.where(status.any(axis=1), FLAG_ADC_SATURATED, 0)
+        force = None
+        if self.scene.force:  # channels with no taxel have no reading
+            force = np.full((m, self._channels), np.nan)
+            force[:, self._addr] = self.forces(k0, m, force_rng)[:, self._idx]
         for i in range(m):
             k = k0 + i
             yield Frame(k, k / self.sample_rate, time.monotonic(), channel_counts[i],
-                        float(ambient[i]), duty, int(flags[i]), self.board.id, status[i])
+                        float(ambient[i]), duty, int(flags[i]), self.board.id, status[i],
+                        None if force is None else force[i])
 
     def identity(self, token: int = 0) -> Identity:
         """Return the IDENTITY a board with this simulator's layout would reply.
@@ -336,7 +376,9 @@ class SkinSimulator:
         ids = self.layout.ids[self._idx[order]].tolist()
         rate = round(self.sample_rate)
         return Identity(token, fw_major=0, fw_minor=0, fw_patch=0, board_id=self.board.id & 0xFF,
-                        mcu=0, transport=0, options=0, taxels=self._channels,
+                        mcu=0, transport=0,
+                        options=OPTION_FORCE if self.scene.force else 0,
+                        taxels=self._channels,
                         adc_bits=self.board.adc_bits, oversampling=1, rate_hz=rate,
                         max_rate_hz=rate, layout_hash=layout_hash(ids), baud_div=10000)
 
@@ -377,9 +419,11 @@ class SimDriver(Driver):
         self._pacer.wait(frame.device_time)
         self.stats.frames += 1
         if self.tap is not None:  # the bytes a board would have sent (ambient to 0.01 K)
-            self.tap(time.monotonic(), encode_sample(
-                frame.seq, round(frame.device_time * 1e6), frame.counts, frame.ambient,
-                frame.duty, frame.flags, frame.status))
+            data = encode_sample(frame.seq, round(frame.device_time * 1e6), frame.counts,
+                                 frame.ambient, frame.duty, frame.flags, frame.status)
+            if frame.force is not None:  # the FORCE a board with a force sensor sends
+                data += encode_force(frame.seq, frame.force)
+            self.tap(time.monotonic(), data)
         return frame
 
 
@@ -493,6 +537,7 @@ class PtySerialDevice:
 
     def _serve(self) -> None:
         chunk: list[bytes] = []
+        per = 2 if self.simulator.scene.force else 1  # packets per frame: SAMPLE (+ FORCE)
         try:
             frames = self.simulator.frames()
             first = next(frames, None)  # the first chunk is computed before the pacing starts
@@ -506,14 +551,16 @@ class PtySerialDevice:
                 chunk.append(encode_sample(frame.seq, round(frame.device_time * 1e6),
                                            frame.counts, frame.ambient, duty,
                                            frame.flags | FLAG_STREAMING, frame.status))
-                if len(chunk) >= 10:  # 50 ms of frames per write
+                if frame.force is not None:
+                    chunk.append(encode_force(frame.seq, frame.force))
+                if len(chunk) >= 10 * per:  # 50 ms of frames per write
                     pacer.wait(frame.device_time, self._stop)
                     if not self._write(b"".join(chunk)) or not self._flush_replies():
                         return
-                    self.frames_sent += len(chunk)
+                    self.frames_sent += len(chunk) // per
                     chunk = []
             if chunk and self._write(b"".join(chunk)):
-                self.frames_sent += len(chunk)
+                self.frames_sent += len(chunk) // per
         finally:
             self.done.set()
         while not self._stop.is_set():  # the last frame is out: answer commands until closed

@@ -24,6 +24,7 @@ more than a contact-free taxel can in that time) or too short is refused with wh
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -238,6 +239,8 @@ def _response_time(sensor: object) -> float:
 
 def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
                  sensors: list, noise: np.ndarray | None = None,
+                 skip: np.ndarray | None = None,
+                 within: dict[int, list[tuple[float, float]]] | None = None,
                  ) -> tuple[list[tuple[int, float, float, np.ndarray, np.ndarray]],
                             dict[str, int]]:
     """Detect touches with the pipeline's onset detector and date them with `refine_onset`.
@@ -246,6 +249,9 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
     loop, lag and smoothing, `skin.stream.onset_refine.refine_onset`'s ``sensor``).
 
     A release followed within `MERGE_GAP` by a new onset of the same taxel is one touch.
+    ``skip``: columns (bool, per taxel) whose touches are left alone (dated elsewhere), but
+    for the stretches ``within`` gives a skipped taxel ((start, end) s each): its touches the
+    detector finds starting in one of them are taken (a force channel's gaps, `force_gaps`).
 
     Returns
     -------
@@ -284,7 +290,12 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
             held[-1][1] = ev.time
     out, left = [], dict.fromkeys(LEFT_OUT, 0)
     for k, held in sorted(spans.items()):
+        if skip is not None and skip[k] and k not in (within or {}):
+            continue
         for on, off in held:
+            if skip is not None and skip[k] and not any(
+                    a <= on.time <= b for a, b in within[k]):
+                continue
             why = "rising" if on.direction != -1 else "unended" if off is None else ""
             if why:
                 left[why] += 1
@@ -309,6 +320,314 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
                 continue
             out.append((k, float(onset), float(initial), t[window] - onset,
                         y[window, k].copy()))
+    return out, left
+
+
+#: A force channel's contact: the force exceeds the free level by this many noise levels...
+FORCE_CONTACT_SNR = 10.0
+#: ... and by this share of the taxel's strongest touch (`force_touches`).
+FORCE_CONTACT_SHARE = 0.05
+#: A contact (or a release) counts when it holds this long, s: a noise sample does not.
+FORCE_CONTACT_HELD = 0.05
+#: The force's noise is taken per stretch of this many samples (their median: `force_noise`).
+FORCE_NOISE_SPAN = 100
+
+
+def force_contacts(times: np.ndarray, force: np.ndarray,
+                   weak: list[tuple[float, float]] | None = None,
+                   bridged: list[tuple[float, float]] | None = None,
+                   ) -> list[tuple[float, float]]:
+    """Date one taxel's contacts from its force channel: (onset, release) of each, s.
+
+    The free level is the median of the samples below halfway to the strongest one held
+    `FORCE_CONTACT_HELD` (a one-sample glitch is not the strongest touch), the
+    noise their scaled median absolute deviation, or their 84th percentile's distance above
+    the level, or the smallest step between two of them, whichever is largest (a force
+    reading clipped at 0, or a quantised or switched one, has a MAD of 0). A contact begins
+    where the force first exceeds the level by `FORCE_CONTACT_SNR` noise levels and
+    `FORCE_CONTACT_SHARE` of the strongest rise, staying over it `FORCE_CONTACT_HELD`, and
+    ends where it stays under it as long. The onset is taken back to where the rise left
+    the free level, along the line through the rise's samples between 10 noise levels and
+    half the contact's peak (`_force_onset`: a linear ramp is dated where it starts); a rise done
+    within one sample (a switch) is dated midway between its last open and first closed
+    sample (within half a sample). A NaN sample (no reading) counts as under the threshold,
+    but for a run shorter than `FORCE_CONTACT_HELD` inside a contact (it goes on across it).
+
+    Parameters
+    ----------
+    times : numpy.ndarray
+        Sample times, s, (n,).
+    force : numpy.ndarray
+        The taxel's force channel, N (or 0/1 for a contact switch), (n,).
+    weak : list, optional
+        Given, gets (onset, release) of each contact over the noise that stays under the
+        `FORCE_CONTACT_SHARE` of the strongest one (left out: counted by `force_touches`).
+    bridged : list, optional
+        Given, gets (start, end) of each stretch without a reading shorter than
+        `FORCE_CONTACT_HELD` inside a contact: the contact goes on across it.
+
+    Returns
+    -------
+    list of tuple
+        (onset, release) of each contact, in time order; a contact still on at the end has
+        release ``inf``. Empty when the channel has no reading or no contact stands out.
+    """
+    t = np.asarray(times, dtype=float)
+    f = np.asarray(force, dtype=float)
+    ok = np.isfinite(f)
+    if ok.sum() < 3:
+        return []
+    step = float(np.median(np.diff(t)))
+    held = max(2, round(FORCE_CONTACT_HELD / step))
+    level, noise = force_noise(f, held)
+    rise = _held_peak(f, held) - level
+    if not rise > FORCE_CONTACT_SNR * noise or not rise > 0:
+        return []
+    threshold = level + max(FORCE_CONTACT_SNR * noise, FORCE_CONTACT_SHARE * rise)
+    over = ok & (f > threshold)
+    gone = np.flatnonzero(np.diff(np.r_[0, (~ok).astype(np.int8), 0]))
+    for a, b in zip(gone[::2], gone[1::2], strict=True):  # no reading in samples a..b-1
+        if 0 < a and b < f.size and b - a < held and over[a - 1]:
+            over[a:b] = True  # shorter than a release can be: the contact goes on
+            if bridged is not None:
+                bridged.append((float(t[a]), float(t[b])))
+    out = []
+    for k, end in _held_runs(over, held):
+        stop = end if end is not None else f.size
+        on = _force_onset(t, f, k, level, noise, float(np.nanmax(f[k:stop])))
+        out.append((on, float(t[end]) if end is not None else math.inf))
+    if weak is not None and threshold > level + FORCE_CONTACT_SNR * noise:
+        # the contacts over the noise alone that the share of the strongest one left out
+        spans = [(k, end if end is not None else f.size)
+                 for k, end in _held_runs(ok & (f > level + FORCE_CONTACT_SNR * noise), held)]
+        weak += [(float(t[k]), float(t[e]) if e < f.size else math.inf) for k, e in spans
+                 if not over[k:e].any()]
+    return out
+
+
+def _held_runs(over: np.ndarray, held: int) -> list[tuple[int, int | None]]:
+    """Return the (first, end) samples of each run of ``over`` (end None: on at the end).
+
+    A change of state counts when it holds ``held`` samples.
+    """
+    out, on, k, n = [], None, 0, over.size
+    while k < n:
+        if on is None:
+            k = k + int(np.argmax(over[k:])) if over[k:].any() else n
+            if k >= n:
+                break
+            if over[k:k + held].all():
+                on = k
+                k += held
+            else:
+                k += 1
+        else:
+            rest = ~over[k:]
+            k = k + int(np.argmax(rest)) if rest.any() else n
+            if k >= n:
+                break
+            if (~over[k:k + held]).all():
+                out.append((on, k))
+                on = None
+                k += held
+            else:
+                k += 1
+    if on is not None:
+        out.append((on, None))
+    return out
+
+
+def _held_peak(f: np.ndarray, held: int) -> float:
+    """Return the strongest force held ``held`` samples (a one-sample glitch is not a touch)."""
+    g = np.where(np.isfinite(f), f, -np.inf)
+    if g.size < held:
+        return float(np.nanmax(f))
+    peak = float(np.lib.stride_tricks.sliding_window_view(g, held).min(axis=1).max())
+    return peak if math.isfinite(peak) else float(np.nanmax(f))
+
+
+def force_gaps(times: np.ndarray, force: np.ndarray, forced: np.ndarray,
+               ) -> tuple[dict[int, list[tuple[float, float]]], list[str]]:
+    """Find the stretches of the taxels with a force reading that their force cannot date.
+
+    A taxel whose force shows no contact at all (`force_contacts` finds none: a sensor stuck
+    or unplugged) gives its whole recording; the others each stretch longer than
+    `FORCE_CONTACT_HELD` where the force has no reading (NaN: FORCE messages lost, the
+    sensor not read). The touches starting there are left to the onset detector.
+
+    Returns
+    -------
+    within : dict
+        Per taxel (column), its stretches, (start, end) s each.
+    notes : list of str
+        What happened, per taxel, to report.
+    """
+    t = np.asarray(times, dtype=float)
+    within: dict[int, list[tuple[float, float]]] = {}
+    notes, silent = [], []
+    for k in np.flatnonzero(forced):
+        f = force[:, k]
+        if not force_contacts(t, f):
+            within[int(k)] = [(-math.inf, math.inf)]
+            silent.append(int(k))
+            continue
+        gone = np.r_[False, ~np.isfinite(f), False].astype(np.int8)
+        edges = np.flatnonzero(np.diff(gone))
+        spans = []
+        for a, b in zip(edges[::2], edges[1::2], strict=True):  # samples a..b-1 have none
+            start = float(t[a - 1]) if a > 0 else -math.inf
+            end = float(t[b]) if b < t.size else math.inf
+            if min(end, float(t[-1])) - max(start, float(t[0])) > FORCE_CONTACT_HELD:
+                spans.append((start, end))
+        if spans:
+            within[int(k)] = spans
+            lost = sum(min(b, float(t[-1])) - max(a, float(t[0])) for a, b in spans)
+            notes.append(f"taxel {k}: its force had no reading for {lost:.3g} s; its touches "
+                         "there dated by the onset detector")
+    if silent:
+        notes.insert(0, f"taxel{'s' if len(silent) > 1 else ''} {_runs_said(silent)}: the "
+                        "force showed no contact (untouched, or its sensor not working): the "
+                        "onset detector looked for touches there")
+    return within, notes
+
+
+def _runs_said(columns: list[int]) -> str:
+    """Columns as runs: ``[0, 1, 2, 5]`` -> ``"0-2, 5"``."""
+    out, start = [], columns[0]
+    for a, b in zip(columns, [*columns[1:], None], strict=True):
+        if b != a + 1:
+            out.append(f"{start}" if start == a else f"{start}-{a}")
+            start = b
+    return ", ".join(out)
+
+
+def force_noise(force: np.ndarray, held: int = 1) -> tuple[float, float]:
+    """Return one taxel's free force level and noise, N (`force_contacts`; NaN: no reading).
+
+    The free samples are those below half way to the ``held``-th strongest sample (a glitch
+    shorter than ``held`` samples does not count).
+    """
+    f = np.asarray(force, dtype=float)
+    ok = np.isfinite(f)
+    if not ok.any():
+        return math.nan, math.nan
+    lo = float(np.min(f[ok]))
+    hi = float(np.partition(f[ok], -min(held, int(ok.sum())))[-min(held, int(ok.sum()))])
+    is_free = ok & (f <= 0.5 * (lo + hi))
+    free = f[is_free]
+    level = float(np.median(free))
+    steps = np.diff(np.unique(free))
+    # the spread above the level too: a force sensor's noise clipped at 0 has a MAD of 0;
+    # per stretch of `FORCE_NOISE_SPAN` samples, their median: a faint touch (under half the
+    # strongest) lasting a few stretches does not count as noise
+    span = FORCE_NOISE_SPAN
+    upper = float(np.percentile(free, 84.13))
+    if f.size >= 3 * span:
+        cut = np.where(is_free, f, np.nan)[:f.size // span * span].reshape(-1, span)
+        cut = cut[np.isfinite(cut).sum(axis=1) >= span // 2]
+        if cut.shape[0] >= 3:
+            upper = float(np.median(np.nanpercentile(cut, 84.13, axis=1)))
+    noise = max(1.4826 * float(np.median(np.abs(free - level))), upper - level,
+                float(steps.min()) if steps.size else 0.0)
+    return level, noise
+
+
+def _force_onset(t: np.ndarray, f: np.ndarray, k: int, level: float, noise: float,
+                 top: float) -> float:
+    """Where the rise through sample ``k`` (the first over the threshold) left ``level``.
+
+    A rise the samples resolve is taken back along the line fitted through its samples
+    between 10 noise levels over ``level`` and half way to ``top`` (the contact's peak), not
+    after sample ``k`` nor before a sample within 3 noise levels of the level where the line
+    is 6 over it: a linear ramp is dated where it starts, however many samples it lasts. A
+    rise completed within one sample (a switch, a press faster than the sampling) began
+    somewhere after the sample before: the middle of that interval (half a sample either
+    way).
+    """
+    if k == 0:
+        return float(t[0])
+    base = k - 1  # the last sample still at the free level
+    while base > 0 and not (np.isfinite(f[base]) and f[base] <= level + 3 * noise):
+        base -= 1
+    half = level + 0.5 * (top - level)
+    end = k
+    while end < f.size and np.isfinite(f[end]) and f[end] <= half:
+        end += 1
+    if end < f.size and np.isfinite(f[end]) and end == k:
+        end += 1  # the first sample is already past half way: the two around it
+    seg = np.arange(base + 1, min(end + (end == k + 1), f.size))
+    seg = seg[np.isfinite(f[seg]) & (f[seg] >= level + 10 * noise)]
+    if seg.size >= 2 and (seg.size > 2 or f[seg[-1]] < top - 3 * noise):  # not a switch
+        slope, icpt = np.polynomial.polynomial.polyfit(t[seg] - t[k], f[seg], 1)[::-1]
+        if slope > 0:
+            onset = float(min(t[k] + (level - icpt) / slope, t[k]))
+            # not before a sample the line puts 6 noise levels over the level found at it
+            back = np.arange(np.searchsorted(t, onset), k)
+            back = back[np.isfinite(f[back])]
+            line = icpt + slope * (t[back] - t[k])
+            wrong = back[(f[back] <= level + 3 * noise) & (line > f[back] + 6 * noise)]
+            return float(max(onset, t[wrong[-1]])) if wrong.size else onset
+    return float(0.5 * (t[k - 1] + t[k]))
+
+
+def force_touches(times: np.ndarray, temperature: np.ndarray, force: np.ndarray,
+                  sensors: list, columns: np.ndarray, weak: dict[int, int] | None = None,
+                  bridged: dict[int, int] | None = None,
+                  ) -> tuple[list[tuple[int, float, float, np.ndarray, np.ndarray]],
+                             dict[str, int]]:
+    """Touches of the taxels ``columns`` dated by their force channel (as `find_touches`).
+
+    Each contact of `force_contacts` gives a touch: its onset the force's, its end the
+    force's release (a PID-held taxel's lift-off too), its initial temperature the line
+    through the `TOUCH_BEFORE` s before the onset, evaluated at it. Left out as
+    `find_touches` does: ``unended`` (still on at the end), ``short`` (released before
+    `touch_seconds`), ``rising`` (the reading rose: a warm object), ``incomplete`` (the
+    window runs past the recording or misses a sample). ``weak``, given, gets per taxel the
+    contacts `force_contacts` left out as under `FORCE_CONTACT_SHARE` of its strongest one,
+    ``bridged`` the short stretches without a reading inside its contacts.
+
+    Returns
+    -------
+    touches : list of tuple
+        (column, onset, initial temperature, time since onset, readings) of each touch.
+    left_out : dict
+        Touches left out, by reason (`LEFT_OUT`).
+    """
+    t = np.asarray(times, dtype=float)
+    y = np.asarray(temperature, dtype=float)
+    step = float(np.median(np.diff(t)))
+    seconds = touch_seconds(sensors)
+    n_before, n_after = round(TOUCH_BEFORE / step), round(seconds / step)
+    out, left = [], dict.fromkeys(LEFT_OUT, 0)
+    for k in columns:
+        faint: list[tuple[float, float]] = []
+        gaps: list[tuple[float, float]] = []
+        contacts = force_contacts(t, force[:, k], faint, gaps)
+        if faint and weak is not None:
+            weak[int(k)] = len(faint)
+        if gaps and bridged is not None:
+            bridged[int(k)] = len(gaps)
+        for onset, off in contacts:
+            if not math.isfinite(off):
+                left["unended"] += 1
+                continue
+            if off - onset < seconds:
+                left["short"] += 1
+                continue
+            first = int(np.searchsorted(t, onset, side="right")) - n_before
+            window = slice(first, first + n_before + n_after)
+            if (first < 0 or first + n_before + n_after > t.size
+                    or t[first + n_before + n_after - 1] > off
+                    or not np.all(np.isfinite(y[window, k]))):
+                left["incomplete"] += 1
+                continue
+            tt, yy = t[window] - onset, y[window, k].copy()
+            line = np.polynomial.polynomial.polyfit(tt[:n_before], yy[:n_before], 1)
+            initial = float(line[0])  # the line before the onset, at the onset
+            if np.median(yy[n_before:]) > initial:
+                left["rising"] += 1
+                continue
+            out.append((int(k), float(onset), initial, tt, yy))
     return out, left
 
 
@@ -717,11 +1036,17 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
                         materials: dict, sensors: list, room: float,
                         noise: np.ndarray | None = None,
                         labels: list[Any] | None = None,
+                        force: np.ndarray | None = None,
                         ) -> tuple[list[ResponseFit], dict]:
     """Detect, date, name and fit reference touches (see `fit_responses`).
 
     With ``labels`` (`skin.formats.touch_labels.read_touch_labels`) the touches are those
-    labelled, not detected.
+    labelled, not detected. With ``force`` (the recording's force channel, N, (n, taxels),
+    NaN where a taxel has no reading: `skin.frame.Frame.force`), the touches of each taxel
+    with a reading are found and dated by it (`force_touches`), the others' by the onset
+    detector as without it; so are those starting where a taxel's force has no reading for
+    longer than `FORCE_CONTACT_HELD`, and all of a taxel whose force shows no contact
+    (`force_gaps`: ``counts["force_notes"]`` says, by taxel).
 
     The detector's onsets (refined with the taxels' current constants) only start the fit:
     it dates each touch's onset again, within `ONSET_SEARCH`, with the constants it fits.
@@ -742,17 +1067,54 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
         fits = fit_responses(touches, layout, materials, sensors, room)
         counts["wanted"] = touches_wanted(fits, touches, layout, materials)
         return fits, counts
-    touches, left = find_touches(times, temperature, layout, sensors, noise)
+    forced = np.zeros(len(layout), dtype=bool)
+    within: dict[int, list[tuple[float, float]]] = {}
+    notes: list[str] = []
+    if force is not None:
+        force = np.asarray(force, dtype=float)
+        forced = np.isfinite(force).any(axis=0)
+        within, notes = force_gaps(times, force, forced)
+    n_forced = n_weak = 0
+    touches, left = [], dict.fromkeys(LEFT_OUT, 0)
+    if not forced.all() or within:
+        touches, left = find_touches(times, temperature, layout, sensors, noise,
+                                     skip=forced, within=within)
+    if forced.any():
+        weak: dict[int, int] = {}
+        bridged: dict[int, int] = {}
+        by_force, left_force = force_touches(times, temperature, force, sensors,
+                                             np.flatnonzero(forced), weak, bridged)
+        notes += [f"taxel {k}: its force had no reading {n} time{'s' if n > 1 else ''} "
+                  f"within a contact, each under {FORCE_CONTACT_HELD:g} s: bridged"
+                  for k, n in bridged.items()]
+        notes += [f"taxel {k}: its force left out {n} contact{'s' if n > 1 else ''} under "
+                  f"{FORCE_CONTACT_SHARE:.0%} of its strongest" for k, n in weak.items()]
+        n_weak = sum(weak.values())
+        n_forced = len(by_force)
+        touches += by_force
+        left = {k: left[k] + left_force[k] for k in left}
     if not touches and not any(left.values()):
         hold, rest = hold_and_rest(sensors)
+        found = "the onset detector found no touch in it"
+        if forced.any():
+            noises = [force_noise(force[:, k])[1] for k in np.flatnonzero(forced)]
+            found = (f"its force channel showed no contact on the {int(forced.sum())} taxels "
+                     f"it read (none above {FORCE_CONTACT_SNR:g} times its noise, "
+                     f"{np.nanmedian(noises):.3g} N median) and the onset detector found no "
+                     f"touch either; check the force sensor and its cable")
         raise CommissioningError(
-            f"the recording cannot pin the sensor response: the onset detector found no "
-            f"touch in it; record at least {MIN_TOUCHES} touches of at least {MIN_MATERIALS} "
+            f"the recording cannot pin the sensor response: {found}; record at least "
+            f"{MIN_TOUCHES} touches of at least {MIN_MATERIALS} "
             f"of {', '.join(materials)} at room temperature, each held {hold:g} s or more "
             f"with {rest:g} s or more between them, or give their times with --labels")
     assigned, ambiguous = assign_materials(touches, materials, sensors, room, noise=noise)
     short = sum(left.values())
-    counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": len(ambiguous)}
+    counts = {"detected": len(touches) + short, "left_out": short, "ambiguous": len(ambiguous),
+              "force_dated": n_forced, "force_taxels": int(forced.sum())}
+    if n_weak:
+        counts["force_weak"] = n_weak
+    if notes:
+        counts["force_notes"] = notes
     fits = fit_responses(assigned, layout, materials, sensors, room,
                          {**left, "ambiguous": len(ambiguous)})
     counts["wanted"] = touches_wanted(fits, assigned, layout, materials)

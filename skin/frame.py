@@ -51,6 +51,14 @@ class Frame:
     status : numpy.ndarray or None
         The 4 status bits of each channel (uint8, the ``FLAG_*`` bits 0-3), when the source
         reports them.
+    force : numpy.ndarray or None
+        Normal force on each channel, N (float64, one per channel like ``counts``), when the
+        board has a force or contact sensor (wire: a FORCE message after the SAMPLE,
+        firmware/PROTOCOL.md): NaN where that channel has no reading (no sensor under the
+        taxel, or the board's FORCE message for this sample was lost). A contact switch
+        reports 0 (free) or 1 (touched) in the same field. None: the source has no force
+        channel at all (most boards; every frame before this field existed). Per channel, not
+        per board, because touches are dated per taxel (`skin.models.commission`).
     """
 
     seq: int
@@ -62,3 +70,4 @@ class Frame:
     flags: int = 0
     board: int = 0
     status: np.ndarray | None = None
+    force: np.ndarray | None = None

@@ -594,7 +594,7 @@ def test_bench_commission_fits_a_fast_film_unit_from_detected_touches(capsys):
     doc = json.loads(capsys.readouterr().out)
     assert doc["sensor"] == "fast-film" and doc["hold"] == 3.0
     assert doc["counts"] == {"detected": 6, "left_out": 0, "ambiguous": 0, "wanted": {},
-                             "taxels_fitted": 1}
+                             "taxels_fitted": 1, "force_dated": 0, "force_taxels": 0}
     for key in ("response_time", "effusivity"):
         assert doc[key]["fitted"]["median"] < doc[key]["nominal"]["median"] / 3
     assert doc["fit_cpu_seconds"] > 0

@@ -39,14 +39,18 @@ CONTACT = "finite"
 
 
 def scene_text(sensor: str, seed: int, taxels: int, touches: int, hold: float, rest: float,
-               spread: float, references: tuple[str, ...] = REFERENCES) -> str:
-    """Return the reference-touch scene (TOML) for one sensor preset."""
+               spread: float, references: tuple[str, ...] = REFERENCES,
+               force: str = "") -> str:
+    """Return the reference-touch scene (TOML) for one sensor preset.
+
+    ``force``: the taxels' force channel (the scene's ``force``: "", "force" or "contact").
+    """
     ids = list(range(taxels))
     period = hold + rest
     lines = [f'name = "commission-{sensor}"', 'layout = "arm"',
              f"duration = {3.0 + touches * period + 2.0}", "ambient = 25.0", f"seed = {seed}",
              f"taxel_spread = {spread}", "initial_temperature = [34.0, 38.9]",
-             f'sensor = "{sensor}"']
+             f'sensor = "{sensor}"', f'force = "{force}"']
     for name in references:
         lines += ["[[objects]]", f'name = "{name}"', f'material = "{name}"']
     for k in range(touches):
@@ -67,8 +71,11 @@ def commission_unit(sensor: str = "paper", seed: int = 7, taxels: int = 8, touch
                     hold: float | None = None, rest: float | None = None,
                     spread: float = 0.10, labelled: bool = False,
                     contact: str = CONTACT, references: tuple[str, ...] = REFERENCES,
-                    ) -> dict[str, Any]:
+                    force: str = "") -> dict[str, Any]:
     """Simulate one unit's reference touches and commission them (`run`'s work).
+
+    ``force``: the taxels' force channel ("" none, "force" or "contact": the scene's), which
+    then dates the touches (`skin.models.commission.force_touches`) unless ``labelled``.
 
     ``contact``: the touches' contact, ``"perfect"`` or ``"finite"`` (each touch a
     conductance from its material's range, as issue 4's benchmark draws them:
@@ -97,11 +104,12 @@ def commission_unit(sensor: str = "paper", seed: int = 7, taxels: int = 8, touch
     hold = advised[0] if hold is None else hold
     rest = advised[1] if rest is None else rest
     scene = parse_scene(scene_text(preset.name, seed, taxels, touches, hold, rest, spread,
-                                   tuple(references)), f"commission-{preset.name}.toml")
+                                   tuple(references), force), f"commission-{preset.name}.toml")
     sim = SkinSimulator(scene, contact=contact)
     frames = list(sim.frames())
     y, _ = sim.calibration.temperature(np.array([f.counts for f in frames])[:, sim._addr])
     t = np.array([f.device_time for f in frames])
+    channel = np.array([f.force for f in frames])[:, sim._addr] if force else None
     _, nominal = CalibrationFile().apply(scene.layout)
     table = load_materials()
     labels = None
@@ -110,13 +118,13 @@ def commission_unit(sensor: str = "paper", seed: int = 7, taxels: int = 8, touch
                   for tc in scene.touches]
     started, cpu = time.perf_counter(), time.process_time()
     fits, counts = commission_response(t, y, scene.layout, {m: table[m] for m in references},
-                                       nominal, scene.ambient, labels=labels)
+                                       nominal, scene.ambient, labels=labels, force=channel)
     quiet = t < scene.touches[0].start - 0.5  # before the first touch: the quiet stretch
     x = t[quiet] - t[quiet].mean()
     line = np.polynomial.polynomial.polyfit(x, y[quiet][:, :taxels], 1)
     resid = y[quiet][:, :taxels] - (line[0] + np.outer(x, line[1]))
     return {"sim": sim, "layout": scene.layout, "fits": fits, "counts": counts,
-            "times": t, "readings": y, "scene": scene,
+            "times": t, "readings": y, "scene": scene, "force": channel,
             "quiet_noise": float(np.median(resid.std(axis=0, ddof=2))),
             "nominal": nominal, "hold": hold, "rest": rest,
             "recording_seconds": round(float(t[-1] - t[0]), 1),
@@ -127,10 +135,11 @@ def commission_unit(sensor: str = "paper", seed: int = 7, taxels: int = 8, touch
 def run(sensor: str = "paper", seed: int = 7, taxels: int = 8, touches: int = 6,
         hold: float | None = None, rest: float | None = None, spread: float = 0.10,
         labelled: bool = False, contact: str = CONTACT,
-        references: tuple[str, ...] = REFERENCES) -> dict[str, Any]:
+        references: tuple[str, ...] = REFERENCES, force: str = "") -> dict[str, Any]:
     """Simulate the reference touches, commission them, compare with the truth.
 
-    ``contact`` and ``references``: the touches' contact and materials (`commission_unit`).
+    ``contact``, ``references`` and ``force``: the touches' contact and materials, the
+    taxels' force channel (`commission_unit`).
 
     Returns
     -------
@@ -142,13 +151,15 @@ def run(sensor: str = "paper", seed: int = 7, taxels: int = 8, touches: int = 6,
         ``recording_seconds``; with detected touches, ``assignment``: each touch's reference
         named (`assign_materials`) over `ASSIGN_RESPONSE_SCALES` (``swept``) and at the
         nominal response time alone (``nominal``), each with its touches ``ambiguous``,
-        ``wrong`` (named another reference than the scene touched) and ``cpu_seconds``.
+        ``wrong`` (named another reference than the scene touched) and ``cpu_seconds``, and
+        ``onset_error_ms``: the touches' onsets (before the fit dates them again) against
+        the scene's touch starts, median and p90 of the absolute error and signed median.
     """
     from skin.models.commission import described
     from skin.models.sensors import load_sensor
 
     unit = commission_unit(sensor, seed, taxels, touches, hold, rest, spread, labelled,
-                           contact, references)
+                           contact, references, force)
     layout, fits, truth = unit["layout"], unit["fits"], unit["sim"].taxel_sensor
     columns = np.array(sorted(int(k) for f in fits if f.scope == "taxel" for k in f.columns))
     got_tau = np.full(len(layout), np.nan)
@@ -161,7 +172,7 @@ def run(sensor: str = "paper", seed: int = 7, taxels: int = 8, touches: int = 6,
         "sensor": load_sensor(sensor).name, "seed": seed, "spread": spread,
         "hold": unit["hold"], "rest": unit["rest"],
         "touches": touches, "taxels_touched": taxels, "labelled": labelled,
-        "contact": contact, "references": list(references),
+        "contact": contact, "references": list(references), "force": force,
         "counts": {**unit["counts"], "taxels_fitted": int(columns.size)},
         **{k: unit[k] for k in ("recording_seconds", "fit_seconds", "fit_cpu_seconds")}}
     if not labelled:
@@ -187,11 +198,17 @@ def _assignment(unit: dict, references: tuple[str, ...]) -> dict[str, Any]:
         assign_materials,
         described,
         find_touches,
+        force_touches,
     )
 
     scene, layout = unit["scene"], unit["layout"]
     sensors = described(layout, unit["nominal"])
-    touches, _ = find_touches(unit["times"], unit["readings"], layout, sensors)
+    if unit["force"] is not None:  # as commission_response: every touched taxel has one
+        columns = np.flatnonzero(np.isfinite(unit["force"]).any(axis=0))
+        touches, _ = force_touches(unit["times"], unit["readings"], unit["force"], sensors,
+                                   columns)
+    else:
+        touches, _ = find_touches(unit["times"], unit["readings"], layout, sensors)
     table = load_materials()
     mats = {m: table[m] for m in references}
     out = {}
@@ -202,10 +219,26 @@ def _assignment(unit: dict, references: tuple[str, ...]) -> dict[str, Any]:
         wrong = 0
         for a in assigned:  # the scene's touch of that taxel that began nearest the onset
             of = [tc for tc in scene.touches if layout.ids[a.column] in tc.taxels]
+            if not of:  # named, on a taxel the scene never touched
+                wrong += 1
+                continue
             near = min(of, key=lambda tc, a=a: abs(tc.start - a.onset))
             wrong += scene.material_of(near) != a.material
         out[key] = {"ambiguous": len(ambiguous), "wrong": int(wrong),
                     "cpu_seconds": round(cpu, 3)}
+    errors, false = [], 0
+    for k, onset, *_ in touches:
+        of = [tc for tc in scene.touches if layout.ids[k] in tc.taxels]
+        if not of:  # a touch found on a taxel the scene never touched
+            false += 1
+            continue
+        errors.append(onset - min(of, key=lambda tc: abs(tc.start - onset)).start)
+    if errors:
+        ms = 1e3 * np.array(errors)
+        out["onset_error_ms"] = {"median": round(float(np.median(np.abs(ms))), 2),
+                                 "p90": round(float(np.percentile(np.abs(ms), 90)), 2),
+                                 "signed_median": round(float(np.median(ms)), 2),
+                                 "touches": len(errors), "on_untouched_taxels": false}
     return out
 
 
@@ -333,7 +366,8 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
              labelled: bool = False, object_std: float = 10.0, noise: str = "described",
              contact: str = CONTACT, references: tuple[str, ...] = REFERENCES,
              hold: float | None = None, rest: float | None = None,
-             noiseless: bool = False, progress: Any = None) -> dict[str, Any]:
+             noiseless: bool = False, progress: Any = None,
+             force: str = "") -> dict[str, Any]:
     """Issue 16's classification target: the same classifier, true against commissioned constants.
 
     The unit ``seed`` (its first ``taxels`` taxels, spread +-``spread`` as `SkinSimulator`
@@ -353,8 +387,9 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
       it knows nothing of this unit's own taxels);
     - ``nominal``: the preset's constants.
 
-    ``contact`` and ``references``: the reference touches' contact and materials
-    (`commission_unit`; the benchmark's contacts are finite either way), ``hold`` and
+    ``contact``, ``references`` and ``force``: the reference touches' contact and materials
+    and the taxels' force channel, which dates them (`commission_unit`; the benchmark's
+    contacts are finite either way and dated by their recorded onset), ``hold`` and
     ``rest`` their timing (default: what `skin commission` asks for). ``noise``: the
     classifier's reading noise, ``"described"`` (default): `noise_grid` from the sensor
     description's white noise at its heated temperature
@@ -411,11 +446,12 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
     say = progress or (lambda _: None)
     say(f"commissioning unit {seed}")
     own = commission_unit(preset.name, seed, taxels, touches, hold, rest, spread=spread,
-                          labelled=labelled, contact=contact, references=references)
+                          labelled=labelled, contact=contact, references=references,
+                          force=force)
     say(f"commissioning unit {other_seed}")
     other = commission_unit(preset.name, other_seed, taxels, touches, hold, rest,
                             spread=spread, labelled=labelled, contact=contact,
-                            references=references)
+                            references=references, force=force)
     layout = own["layout"]
     fitted = _constants_of(own["fits"], layout)
     theirs = _constants_of(other["fits"], layout, own_only=True) or _constants_of(
@@ -424,7 +460,7 @@ def classify(sensor: str = "paper", seed: int = 7, other_seed: int | None = None
         "sensor": preset.name, "seed": seed, "other_seed": other_seed, "trials": trials,
         "taxels": taxels, "touches": touches, "labelled": labelled, "spread": spread,
         "object_std": object_std, "noiseless": noiseless, "contact": contact,
-        "references": list(references),
+        "references": list(references), "force": force,
         "hold": own["hold"], "rest": own["rest"], "commissioning": {}}
     for key, unit in (("own", own), ("other", other)):
         truth = unit["sim"].taxel_sensor

@@ -447,6 +447,7 @@ def check_serial(case: SerialCase, damaged: bytes, origin: list[int],
         for size in chunks:
             frames += dec.feed(damaged[pos : pos + size])
             pos += size
+        frames += dec.flush()  # a sample held for a FORCE (an IDENTITY may announce one)
     except Exception as exc:  # the finding, not an error of the campaign
         v.crash = f"{type(exc).__name__}: {exc}"
         return v
@@ -484,7 +485,7 @@ def check_serial(case: SerialCase, damaged: bytes, origin: list[int],
         bad.append(f"bytes {s.bytes} != {len(damaged)}")
     segments = damaged.split(b"\x00")
     packets = sum(1 for p in segments[:-1] if p)
-    handled = s.frames + s.replies + s.crc_errors + s.malformed
+    handled = s.frames + s.replies + s.crc_errors + s.malformed + s.forces + s.force_orphans
     long = any(len(p) > 2 * MAX_PACKET for p in segments)  # may be dropped unterminated
     if handled > packets or (not long and handled != packets):
         bad.append(f"{handled} packets counted, {packets} delimited")
@@ -1069,7 +1070,8 @@ def run(frames: int = 4_000_000, seed: int = 0,
         damaged, _ = damage_bytes(raw, [_draw_byte_damage(rng, len(raw))])
         reply = random_reply(rng, int(rng.integers(0, 256))).body()
         body, _ = damage_bytes(reply, [_draw_byte_damage(rng, len(reply))])
-        cmd = Command(int(rng.choice(list(MsgType)[5:])), int(rng.integers(0, 256)),
+        kinds = [t for t in MsgType if t >= MsgType.START]  # the commands
+        cmd = Command(int(rng.choice(kinds)), int(rng.integers(0, 256)),
                       int(rng.integers(0, 1 << 16)), int(rng.integers(0, 256)),
                       int(rng.integers(0, 1 << 16)), int(rng.integers(0, 1 << 16)),
                       int(rng.integers(0, 1 << 16))).encode()[:-1]

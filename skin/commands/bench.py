@@ -231,6 +231,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                           "so their contact is near perfect); aluminium,pine were the default "
                           "before, and through their air gaps leave the response time 8.5-25 "
                           "%% off")
+    com.add_argument("--force", choices=("", "force", "contact"), default="",
+                     help="the taxels' force channel: none (default), a force sensor (2 N "
+                          "touches, 5 mN noise) or a contact switch; it then dates the touches")
     com.add_argument("--classify", action="store_true",
                      help="issue 16's target instead: issue 4's benchmark recorded by this "
                           "unit's taxels, classified by the joint classifier told the true, "
@@ -551,14 +554,16 @@ def main_commission(args: argparse.Namespace) -> int:
     print("simulating and commissioning...", file=sys.stderr, flush=True)
     doc = {"machine": bench.machine(),
            **run(args.sensor, args.seed, args.taxels, args.touches, args.hold, args.rest,
-                 args.spread, args.labelled, args.contact, args.reference_list)}
+                 args.spread, args.labelled, args.contact, args.reference_list,
+                 args.force)}
     if args.json:
         print(json.dumps(doc))
         return 0
     c = doc["counts"]
     print(f"{doc['sensor']}, unit (seed) {doc['seed']}: {doc['touches']} touches held "
           f"{doc['hold']:g} s, {doc['rest']:g} s apart, on {doc['taxels_touched']} taxels "
-          f"({'labelled' if doc['labelled'] else 'detected'}); {c['detected']} taxel-touches, "
+          f"({'labelled' if doc['labelled'] else 'force-dated' if doc['force'] else 'detected'}"
+          f"); {c['detected']} taxel-touches, "
           f"{c['left_out']} left out, {c['ambiguous']} ambiguous; {c['taxels_fitted']} taxels "
           f"fitted in {doc['fit_cpu_seconds']:g} CPU s ({doc['recording_seconds']:g} s "
           f"recorded; {doc['machine']['cpus']} cores)")
@@ -568,6 +573,14 @@ def main_commission(args: argparse.Namespace) -> int:
               "wrong, {cpu_seconds:g} CPU s".format(**a["swept"])
               + "; at the nominal response time alone: {ambiguous} ambiguous, {wrong} wrong, "
               "{cpu_seconds:g} CPU s".format(**a["nominal"]))
+        if "onset_error_ms" in a:
+            print("touch onsets ({}) against the scene's: error median {median:g} ms, p90 "
+                  "{p90:g} ms, signed median {signed_median:g} ms".format(
+                      f"dated by the {doc['force']} channel" if doc["force"] else "detected",
+                      **a["onset_error_ms"]))
+    if doc.get("force") and not doc["labelled"]:
+        print(f"{c.get('force_dated', 0)} touches dated by the force channel of "
+              f"{c.get('force_taxels', 0)} taxels")
     if "response_time" not in doc:
         print("no taxel fitted")
         return 0
@@ -600,7 +613,7 @@ def _commission_classify(args: argparse.Namespace) -> int:
                       args.taxels, args.touches, args.spread, args.labelled,
                       args.object_std, args.noise, args.contact, args.reference_list,
                       args.hold, args.rest, noiseless=args.noiseless,
-                      progress=progress.message)}
+                      progress=progress.message, force=args.force)}
     doc["wall_time"] = round(time.monotonic() - started, 1)
     progress.done()
     if args.json:

@@ -90,15 +90,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def read_stretch(url: str, layout: object, seconds: float, calibration: object = None,
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Read ``seconds`` of a source as (times, temperatures in layout order, ambient)."""
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """Read ``seconds`` of a source as (times, temperatures, ambient, force).
+
+    Temperatures and force (N, `skin.frame.Frame.force`) in layout order; force is None when
+    no frame carried a force channel, NaN where a sample or taxel had no reading.
+    """
     from skin import drivers
     from skin.stream.assembly import FrameAssembler
     from skin.stream.calibration import Calibration
 
     cal = calibration or Calibration.from_layout(layout)
     assembler = FrameAssembler(layout)
-    times, temps, ambient = [], [], []
+    times, temps, ambient, force = [], [], [], []
     first = None
     with drivers.open(url) as driver:
         while True:
@@ -111,6 +115,7 @@ def read_stretch(url: str, layout: object, seconds: float, calibration: object =
                 times.append(block.times)
                 temps.append(cal.temperature(block.counts)[0])
                 ambient.append(block.ambient)
+                force.append(block.force)
             if frame.device_time - first >= seconds:
                 break
     block = assembler.flush()
@@ -118,9 +123,14 @@ def read_stretch(url: str, layout: object, seconds: float, calibration: object =
         times.append(block.times)
         temps.append(cal.temperature(block.counts)[0])
         ambient.append(block.ambient)
+        force.append(block.force)
     if not times:
         raise SkinError(f"{url}: no frame arrived: check the port, then record again")
-    return np.concatenate(times), np.concatenate(temps), np.concatenate(ambient)
+    channel = None
+    if any(f is not None for f in force):  # blocks without one: no reading
+        channel = np.concatenate([np.full((len(t), len(layout)), np.nan) if f is None else f
+                                  for t, f in zip(times, force, strict=True)])
+    return np.concatenate(times), np.concatenate(temps), np.concatenate(ambient), channel
 
 
 def main(args: argparse.Namespace) -> int:
@@ -156,9 +166,10 @@ def main(args: argparse.Namespace) -> int:
     started = time.monotonic()
     progress.message(f"reading {args.seconds:g} s of {args.port}")
     calibration, _ = cal_file.apply(layout)
-    times, temps, ambient = read_stretch(args.port, layout, args.seconds, calibration)
+    times, temps, ambient, force = read_stretch(args.port, layout, args.seconds, calibration)
     if args.touches:
-        return _touches(args, layout, cal_file, out, times, temps, ambient, started, progress)
+        return _touches(args, layout, cal_file, out, times, temps, ambient, started, progress,
+                        force)
     q = quiet_figures(times, temps, layout.ids)
     for i, t in enumerate(layout.ids):
         entry = cal_file.taxels.setdefault(int(t), {})
@@ -189,8 +200,11 @@ def main(args: argparse.Namespace) -> int:
 
 def _touches(args: argparse.Namespace, layout: object, cal_file: object, out: object,
              times: np.ndarray, temps: np.ndarray, ambient: np.ndarray, started: float,
-             progress: Progress) -> int:
-    """Fit the sensor response from reference touches (`skin.models.commission`)."""
+             progress: Progress, force: np.ndarray | None = None) -> int:
+    """Fit the sensor response from reference touches (`skin.models.commission`).
+
+    A recording with a force channel dates the touches of the taxels it reads by it.
+    """
     from skin.formats.calibration_file import noise_sigma
     from skin.models import load_materials
     from skin.models.commission import commission_response, described
@@ -205,11 +219,17 @@ def _touches(args: argparse.Namespace, layout: object, cal_file: object, out: ob
     if note:
         progress.message(note)
     progress.message(f"fitting the response from touches of {', '.join(names)}")
+    labels = getattr(args, "label_list", None)
+    if force is not None and labels is None:
+        progress.message(f"dating the touches of {int(np.isfinite(force).any(axis=0).sum())} "
+                         f"taxels by the recording's force channel")
     fits, counts = commission_response(times, temps, layout, {m: table[m] for m in names},
                                        sensors, room, noise=noise_sigma(cal_file, layout),
-                                       labels=getattr(args, "label_list", None))
+                                       labels=labels, force=force)
     return _write_response(args, layout, cal_file, out, fits, counts,
-                           f"touches of {', '.join(names)} at {room:.2f} C in {args.port}",
+                           f"touches of {', '.join(names)} at {room:.2f} C in {args.port}"
+                           + (" (dated by its force channel)" if counts.get("force_dated")
+                              else ""),
                            room, started, progress, note)
 
 
@@ -298,6 +318,11 @@ def _write_response(args: argparse.Namespace, layout: object, cal_file: object, 
           f"{counts['detected']} touches at {room:.2f} C ({counts['left_out']} too short or "
           f"warm, {counts['ambiguous']} ambiguous); fit rms median "
           f"{doc['thermal_rms_k']['median']:.3g} K")
+    if counts.get("force_taxels"):
+        print(f"{counts['force_dated']} touches dated by the recording's force channel "
+              f"({counts['force_taxels']} taxels read it; the others' by the onset detector)")
+        for note in counts.get("force_notes", []):
+            print(note)
     if kept:
         print(f"kept the own fits already in {out} of {len(kept)} taxels this recording "
               "gave only their board's pooled fit")

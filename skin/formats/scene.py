@@ -54,6 +54,9 @@ class Touch:
         When the touch begins and how long it lasts, s.
     line : int
         Line of the ``[[touches]]`` table in the scene file.
+    force : float
+        Normal force on each of its taxels, N (field ``force``, 2 N by default): what a scene
+        whose taxels have a force sensor (`Scene.force`) reads during the touch.
     """
 
     object: str
@@ -61,6 +64,7 @@ class Touch:
     start: float
     duration: float
     line: int = 0
+    force: float = 2.0
 
     @property
     def end(self) -> float:
@@ -83,6 +87,9 @@ class Scene:
     material's air gap, a conductance drawn from its range, as real contacts are).
     ``initial_temperature`` is the range each free taxel starts in; a PID-held sensor
     (``heater = "pid"``) ignores it and starts at its setpoint (ambient + heated rise).
+    ``force`` says whether the taxels carry a force channel (``Frame.force``, the wire's
+    FORCE message): ``""`` none (default), ``"force"`` a force sensor (each touch's
+    ``force``, N, with noise), ``"contact"`` a contact switch (1 while touched, else 0).
     """
 
     name: str
@@ -98,6 +105,7 @@ class Scene:
     sensor: str = ""
     taxel_spread: float = 0.0
     contact: str = "perfect"
+    force: str = ""
 
     def material_of(self, touch: Touch) -> str:
         """Material of the object of a touch."""
@@ -176,6 +184,10 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
     if contact not in ("perfect", "finite"):
         raise SceneError(f"{source}: field 'contact' must be \"perfect\" or \"finite\", got "
                          f"{contact!r}")
+    force = data.get("force", "")
+    if force not in ("", "force", "contact"):
+        raise SceneError(f"{source}: field 'force' must be \"force\", \"contact\" or \"\" "
+                         f"(no force channel), got {force!r}")
     init = data.get("initial_temperature", [ambient + 6.0, ambient + 14.0])
     if not (
         isinstance(init, list)
@@ -220,7 +232,10 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
         if not 0 <= start <= duration - length:
             raise SceneError(f"{where}: the touch ({start} s + {length} s) does not fit in the "
                              f"scene's {duration} s")
-        touches.append(Touch(obj, tuple(taxels), start, length, line))
+        newtons = _number(raw, "force", where, 2.0)
+        if not 0 < newtons <= 65.0:
+            raise SceneError(f"{where}: field 'force' must be within (0, 65] N, got {newtons!r}")
+        touches.append(Touch(obj, tuple(taxels), start, length, line, newtons))
     touches.sort(key=lambda t: t.start)
     for i, a in enumerate(touches):
         for b in touches[i + 1 :]:
@@ -244,6 +259,7 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
         sensor=sensor,
         taxel_spread=spread,
         contact=contact,
+        force=force,
     )
 
 

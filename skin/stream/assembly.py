@@ -48,6 +48,9 @@ class Samples:
     host_times : numpy.ndarray
         Host time of each sample, s (``time.monotonic`` clock): the ``Frame.host_time`` of the
         frame whose device time it keeps, (n,).
+    force : numpy.ndarray or None
+        Force channel, N, in layout order, NaN where a taxel has no reading or its board sent
+        none (`skin.frame.Frame.force`), (n, taxels); None when no frame of the block has one.
     """
 
     times: np.ndarray
@@ -55,6 +58,7 @@ class Samples:
     ambient: np.ndarray
     duty: np.ndarray
     host_times: np.ndarray
+    force: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.times)
@@ -197,6 +201,7 @@ class FrameAssembler:
         times = np.empty(n)
         host = np.empty(n)
         ambient = np.empty(n)
+        force = None
         for i, got in enumerate(ready):
             for board, (idx, addr) in self._maps.items():
                 f = got.get(board)
@@ -205,10 +210,14 @@ class FrameAssembler:
                     continue
                 counts[i, idx] = f.counts[addr]
                 duty[i, idx] = f.duty[addr]
+                if f.force is not None:
+                    if force is None:
+                        force = np.full((n, self._n), np.nan)
+                    force[i, idx] = f.force[addr]
             first = got[min(got)]  # the lowest board id present keeps the time
             times[i] = first.device_time
             host[i] = first.host_time
             # in board order, whatever order the frames came in (the same sum every time)
             ambient[i] = float(np.mean([got[b].ambient for b in sorted(got)]))
         self.stats.samples += n
-        return Samples(times, counts, ambient, duty, host)
+        return Samples(times, counts, ambient, duty, host, force)
