@@ -311,15 +311,11 @@ def find_touches(times: np.ndarray, temperature: np.ndarray, layout: object,
             if off - onset < seconds:  # from the refined onset: the detector's comes late
                 left["short"] += 1
                 continue
-            first = int(np.searchsorted(t, onset, side="right")) - n_before
-            window = slice(first, first + n_before + n_after)
-            if (first < 0 or first + n_before + n_after > t.size
-                    or t[first + n_before + n_after - 1] > off
-                    or not np.all(np.isfinite(y[window, k]))):
+            window = _touch_window(t, y[:, k], onset, off, n_before, n_after)
+            if window is None:
                 left["incomplete"] += 1
                 continue
-            out.append((k, float(onset), float(initial), t[window] - onset,
-                        y[window, k].copy()))
+            out.append((k, float(onset), float(initial), window[0] - onset, window[1]))
     return out, left
 
 
@@ -614,14 +610,11 @@ def force_touches(times: np.ndarray, temperature: np.ndarray, force: np.ndarray,
             if off - onset < seconds:
                 left["short"] += 1
                 continue
-            first = int(np.searchsorted(t, onset, side="right")) - n_before
-            window = slice(first, first + n_before + n_after)
-            if (first < 0 or first + n_before + n_after > t.size
-                    or t[first + n_before + n_after - 1] > off
-                    or not np.all(np.isfinite(y[window, k]))):
+            window = _touch_window(t, y[:, k], onset, off, n_before, n_after)
+            if window is None:
                 left["incomplete"] += 1
                 continue
-            tt, yy = t[window] - onset, y[window, k].copy()
+            tt, yy = window[0] - onset, window[1]
             line = np.polynomial.polynomial.polyfit(tt[:n_before], yy[:n_before], 1)
             initial = float(line[0])  # the line before the onset, at the onset
             if np.median(yy[n_before:]) > initial:
@@ -629,6 +622,32 @@ def force_touches(times: np.ndarray, temperature: np.ndarray, force: np.ndarray,
                 continue
             out.append((int(k), float(onset), initial, tt, yy))
     return out, left
+
+
+def _touch_window(t: np.ndarray, y: np.ndarray, onset: float, off: float, n_before: int,
+                  n_after: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """Cut a touch's fitting window out of one taxel's recording.
+
+    Parameters
+    ----------
+    t, y : numpy.ndarray
+        The recording's times, s, and this taxel's readings, deg C.
+    onset, off : float
+        The touch's onset and its end, s.
+    n_before, n_after : int
+        Samples kept before the onset and from it on.
+
+    Returns
+    -------
+    tuple of numpy.ndarray or None
+        The window's times and a copy of its readings; None where it runs past the
+        recording or past the touch's end, or misses a sample (NaN).
+    """
+    first = int(np.searchsorted(t, onset, side="right")) - n_before
+    last = first + n_before + n_after
+    if first < 0 or last > t.size or t[last - 1] > off or not np.all(np.isfinite(y[first:last])):
+        return None
+    return t[first:last], y[first:last].copy()
 
 
 def _pid_span(held: list, ev: object) -> None:
