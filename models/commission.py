@@ -443,6 +443,7 @@ def _held_peak(f: np.ndarray, held: int) -> float:
 
 
 def force_gaps(times: np.ndarray, force: np.ndarray, forced: np.ndarray,
+               ids: np.ndarray | None = None,
                ) -> tuple[dict[int, list[tuple[float, float]]], list[str]]:
     """Find the stretches of the taxels with a force reading that their force cannot date.
 
@@ -451,21 +452,33 @@ def force_gaps(times: np.ndarray, force: np.ndarray, forced: np.ndarray,
     `FORCE_CONTACT_HELD` where the force has no reading (NaN: FORCE messages lost, the
     sensor not read). The touches starting there are left to the onset detector.
 
+    Parameters
+    ----------
+    times : numpy.ndarray
+        Sample times, s.
+    force : numpy.ndarray
+        Force, N, (samples, taxels); NaN where a taxel has no reading.
+    forced : numpy.ndarray
+        bool (taxels,): the taxels with a force reading.
+    ids : numpy.ndarray, optional
+        The taxels' ids, to name them in the notes (default their columns).
+
     Returns
     -------
     within : dict
         Per taxel (column), its stretches, (start, end) s each.
     notes : list of str
-        What happened, per taxel, to report.
+        What happened, per taxel (named by its id), to report.
     """
     t = np.asarray(times, dtype=float)
+    ids = np.arange(force.shape[1]) if ids is None else np.asarray(ids)
     within: dict[int, list[tuple[float, float]]] = {}
     notes, silent = [], []
     for k in np.flatnonzero(forced):
         f = force[:, k]
         if not force_contacts(t, f):
             within[int(k)] = [(-math.inf, math.inf)]
-            silent.append(int(k))
+            silent.append(int(ids[k]))
             continue
         gone = np.r_[False, ~np.isfinite(f), False].astype(np.int8)
         edges = np.flatnonzero(np.diff(gone))
@@ -478,7 +491,7 @@ def force_gaps(times: np.ndarray, force: np.ndarray, forced: np.ndarray,
         if spans:
             within[int(k)] = spans
             lost = sum(min(b, float(t[-1])) - max(a, float(t[0])) for a, b in spans)
-            notes.append(f"taxel {k}: its force had no reading for {lost:.3g} s; its touches "
+            notes.append(f"taxel {ids[k]}: its force had no reading for {lost:.3g} s; its touches "
                          "there dated by the onset detector")
     if silent:
         notes.insert(0, f"taxel{'s' if len(silent) > 1 else ''} {_runs_said(silent)}: the "
@@ -487,10 +500,10 @@ def force_gaps(times: np.ndarray, force: np.ndarray, forced: np.ndarray,
     return within, notes
 
 
-def _runs_said(columns: list[int]) -> str:
-    """Columns as runs: ``[0, 1, 2, 5]`` -> ``"0-2, 5"``."""
-    out, start = [], columns[0]
-    for a, b in zip(columns, [*columns[1:], None], strict=True):
+def _runs_said(taxels: list[int]) -> str:
+    """Taxel ids as runs: ``[0, 1, 2, 5]`` -> ``"0-2, 5"``."""
+    out, start = [], taxels[0]
+    for a, b in zip(taxels, [*taxels[1:], None], strict=True):
         if b != a + 1:
             out.append(f"{start}" if start == a else f"{start}-{a}")
             start = b
@@ -1092,7 +1105,7 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
     if force is not None:
         force = np.asarray(force, dtype=float)
         forced = np.isfinite(force).any(axis=0)
-        within, notes = force_gaps(times, force, forced)
+        within, notes = force_gaps(times, force, forced, layout.ids)
     n_forced = n_weak = 0
     touches, left = [], dict.fromkeys(LEFT_OUT, 0)
     if not forced.all() or within:
@@ -1103,10 +1116,11 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
         bridged: dict[int, int] = {}
         by_force, left_force = force_touches(times, temperature, force, sensors,
                                              np.flatnonzero(forced), weak, bridged)
-        notes += [f"taxel {k}: its force had no reading {n} time{'s' if n > 1 else ''} "
+        ids = layout.ids
+        notes += [f"taxel {ids[k]}: its force had no reading {n} time{'s' if n > 1 else ''} "
                   f"within a contact, each under {FORCE_CONTACT_HELD:g} s: bridged"
                   for k, n in bridged.items()]
-        notes += [f"taxel {k}: its force left out {n} contact{'s' if n > 1 else ''} under "
+        notes += [f"taxel {ids[k]}: its force left out {n} contact{'s' if n > 1 else ''} under "
                   f"{FORCE_CONTACT_SHARE:.0%} of its strongest" for k, n in weak.items()]
         n_weak = sum(weak.values())
         n_forced = len(by_force)

@@ -488,3 +488,27 @@ def test_closing_a_serial_driver_counts_the_sample_it_held():
         os.close(main)
         os.close(sub)
     assert d.stats.lost_samples == 1 and d.stats.frames == 2
+
+
+def test_the_force_notes_name_taxels_by_their_layout_ids():
+    """A layout whose ids are not its columns (ids 100-107): the notes name the ids."""
+    from skin.bench.commission import REFERENCES, commission_unit
+    from skin.formats.layout import Layout
+    from skin.models import load_materials
+    from skin.models.commission import commission_response
+
+    u = commission_unit("paper", 7, force="force")
+    t, y, force = u["times"], u["readings"], u["force"]
+    old = u["layout"]
+    layout = Layout([replace(tx, id=tx.id + 100) for tx in old.taxels],
+                    list(old.boards.values()))
+    table = load_materials()
+    mats = {m: table[m] for m in REFERENCES}
+    lost = force.copy()
+    lost[t > t[0] + 0.5 * (t[-1] - t[0]), 3] = np.nan
+    lost[:, 5] = 0.0
+    notes = commission_response(t, y, layout, mats, u["nominal"], u["scene"].ambient,
+                                force=lost)[1]["force_notes"]
+    assert notes[0].startswith("taxels 105, 108-") and "the force showed no contact" in notes[0]
+    assert any(n.startswith("taxel 103: its force had no reading for 28") for n in notes)
+    assert not any(n.startswith(("taxel 3:", "taxel 5:")) for n in notes)
