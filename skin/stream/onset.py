@@ -70,7 +70,8 @@ follows from the taxel's noise and the sensor description (`skin.models.sensors`
   allowance is in units of the smoothed, not the summed, noise). Computed at the CUSUM's own
   3.3 it would rise 23 % where it binds (low-cost; the paper sensor at 20-50 Hz) and date a
   20 Hz paper set's onsets 10 ms later (median 31.5 -> 41.5 ms), with no false alarm
-  fewer on low-cost seeds 0 and 2 (0.75 and 0 per taxel-hour either way).
+  fewer on low-cost seeds 0 and 2 (0.75 and 0 per taxel-hour either way, measured before the
+  slow average followed the medium one until armed).
 - Levels (the slow channel's; the gust-envelope test's flat margin, which caps its noise
   table's and stands alone before the filters settle) stay 8 sigmas of the averaged
   reading they look at clear of noise, that sigma computed through the sensor's own
