@@ -74,6 +74,15 @@ def test_each_miss_and_false_alarm_gets_its_cause():
     assert fa["free"] == 1  # the one at 25 s
 
 
+def test_the_warm_up_lasts_as_long_as_the_detectors_slow_average_takes_to_settle():
+    # low-cost's slow window is 10.3 s: an alarm at 8 s is the warm-up's, not the air's
+    events = [_onset(0, 8.0, 8.2), _release(0, 8.5, 8.6)]
+    short = explain_outcomes(events, [], [], warmup=0.5)
+    long = explain_outcomes(events, [], [], warmup=0.5, settle=10.3)
+    assert short["false_alarms"]["free"] == 1 and short["false_alarms"]["warm_up"] == 0
+    assert long["false_alarms"]["warm_up"] == 1 and long["false_alarms"]["free"] == 0
+
+
 def test_a_pid_logger_contact_is_not_made_visible_by_the_air():
     # the floor is the contact's own step through the loop and the lag: with gusts and
     # flutter it is that of a quiet stream (before: 165 ms against 670 ms, the flutter's)

@@ -828,7 +828,8 @@ def _detector_misses(stream: object, sensor: object, run: tuple[dict, object],
     scale = sensor.heated_rise / load_sensor("paper").heated_rise
     why = explain_outcomes(res["events"], contacts, counted, stream.gusts, stream.switches,
                            warmup=det.warmup, gust_size=GUST_DEPTH[1] * scale,
-                           after=release_window(sensor))
+                           after=release_window(sensor),
+                           settle=det.slow_tau)
     index = {(c.taxel, round(c.onset, 3)): k for k, c in enumerate(contacts)}
     missed = [index[(row["taxel"], row["onset"])] for row in why["missed_contacts"]]
     near = miss_margins(stream, sensor, missed, release_window(sensor))

@@ -35,7 +35,8 @@ False alarms:
   early to belong to it);
 - ``gust``: during a gust on the taxel (from its start to its end plus two rise times);
 - ``heater_switch``: within `SWITCH_WINDOW` s after a heater duty switch on the taxel;
-- ``warm_up``: in the stream's first 5 s;
+- ``warm_up``: in the stream's first `WARM_UP` s, or longer when the detector's slow average
+  takes longer to settle (``settle``: its ``slow_tau``; low-cost's is 10.3 s);
 - ``free``: none of those (the readout noise and the air's flutter).
 """
 
@@ -53,6 +54,8 @@ SWITCH_WINDOW = 10.0
 RECOVERY_WINDOW = 10.0
 #: A contact that reaches 5 sigma only this close to its release (s) is too late to alarm on.
 LATE = 0.3
+#: An alarm this early in a stream (s) is put down to the detector's warm-up, at least.
+WARM_UP = 5.0
 
 MISS_CAUSES = ("in_contact", "warming_up", "alarm_after_release", "gust", "heater_switch",
                "late_5sigma", "gust_sized", "unflagged")
@@ -63,7 +66,7 @@ ALARM_CAUSES = ("split", "after_release", "before_onset", "gust", "heater_switch
 def explain_outcomes(events: Sequence, contacts: Sequence, counted: Sequence[bool],
                      gusts: Sequence[tuple] = (), switches: Sequence[tuple] = (),
                      warmup: float = 0.5, gust_size: float = np.inf,
-                     after: float = EARLY) -> dict:
+                     after: float = EARLY, settle: float = WARM_UP) -> dict:
     """Give each missed counted contact and each false alarm its cause (module docstring).
 
     Parameters
@@ -83,6 +86,9 @@ def explain_outcomes(events: Sequence, contacts: Sequence, counted: Sequence[boo
     after : float
         How long after a release an alarm is still the contact's
         (`skin.bench.onset_eval.release_window`), s.
+    settle : float
+        How long the detector's averages take to settle from the stream's start (its
+        ``slow_tau``), s: alarms before ``max(WARM_UP, settle)`` are ``warm_up``.
 
     Returns
     -------
@@ -119,7 +125,8 @@ def explain_outcomes(events: Sequence, contacts: Sequence, counted: Sequence[boo
             found.add(index[(ev.taxel, hit)])
             continue
         alarms[_alarm_cause(ev, rows, hit, gusts_of.get(ev.taxel, []),
-                            switches_of.get(ev.taxel, []), after)] += 1
+                            switches_of.get(ev.taxel, []), after,
+                            max(WARM_UP, settle))] += 1
     misses = dict.fromkeys(MISS_CAUSES, 0)
     rows_out = []
     for k, c in enumerate(contacts):
@@ -137,7 +144,8 @@ def explain_outcomes(events: Sequence, contacts: Sequence, counted: Sequence[boo
 
 
 def _alarm_cause(ev: object, rows: list[tuple[float, float]], hit: int | None,
-                 gusts: list[tuple[float, float]], switches: list[float], after: float) -> str:
+                 gusts: list[tuple[float, float]], switches: list[float], after: float,
+                 warm_up: float) -> str:
     t = ev.time
     if hit is not None:
         return "split"
@@ -149,7 +157,7 @@ def _alarm_cause(ev: object, rows: list[tuple[float, float]], hit: int | None,
         return "gust"
     if any(0.0 <= t - w <= SWITCH_WINDOW for w in switches):
         return "heater_switch"
-    if t < 5.0:
+    if t < warm_up:
         return "warm_up"
     return "free"
 

@@ -214,7 +214,8 @@ def _why(events: list, contacts: list, stream: object, detector: object, sensor:
         which = f"contacts >= {min_duration:g} s"
     out = explain_outcomes(events, contacts, counted, stream.gusts, stream.switches,
                            warmup=detector.warmup, gust_size=GUST_DEPTH[1] * scale,
-                           after=release_window(sensor))
+                           after=release_window(sensor),
+                           settle=detector.slow_tau)
     return {"counted": which, "contacts": int(sum(counted)), **out}
 
 
