@@ -10,9 +10,17 @@
 #include "skin_board.h"
 #include "skin_proto.h"
 
+#if SKIN_TIMING_MARKS
+#define MARK_ON(b) (GPIOR0 |= (1 << (b)))
+#define MARK_OFF(b) (GPIOR0 &= ~(1 << (b)))
+#else
+#define MARK_ON(b) ((void)0)
+#define MARK_OFF(b) ((void)0)
+#endif
+
 #define RX_MAX 32 /* the longest command body is 8 bytes; COBS and CRC add 3 */
 #define WIRE_MAX(len) ((len) + 2 + ((len) + 2) / 254 + 2)
-#define BODY_MAX (5 + 4 * SKIN_TAXELS)
+#define BODY_MAX (5 + 4 * SKIN_TAXELS) /* also holds a FORCE body (8 + 2n) */
 
 #if defined(USART0_UDRE_vect)
 #define UDRE_VECT USART0_UDRE_vect
@@ -64,9 +72,11 @@ static void uart_begin(void)
 
 static void send_body(size_t len)
 {
+    MARK_ON(2); /* timing mark (skin_board.cpp, SKIN_TIMING_MARKS): waiting for the link */
     while (UCSR0B & (1 << UDRIE0)) {
         /* the previous packet is still leaving */
     }
+    MARK_OFF(2);
     size_t n = skin_frame(body, len, wire);
     tx_pos = 0;
     tx_len = (uint16_t)n;
@@ -77,6 +87,15 @@ void skin_transport_send_sample(const skin_sample_t *s)
 {
     send_body(skin_pack_sample(s, body));
 }
+
+#if SKIN_FORCE_INPUTS > 0
+void skin_transport_send_sample_force(const skin_sample_t *s, const uint16_t *force)
+{
+    send_body(skin_pack_sample(s, body));
+    /* FORCE right after its SAMPLE (PROTOCOL.md); packed while the SAMPLE leaves */
+    send_body(skin_pack_force(s->seq, s->n, force, body));
+}
+#endif
 
 void skin_transport_send_reply(const uint8_t *reply, size_t len)
 {
@@ -110,7 +129,10 @@ void setup()
     skin_transport_kind = 0;
     skin_transport_div = (uint16_t)(SKIN_BAUD / 100UL);
     /* the link's limit: a sample's bytes at 10 bit times each, with 5 % left for replies */
-    const uint32_t sample_bytes = 18UL + 3UL * SKIN_TAXELS + (18UL + 3UL * SKIN_TAXELS) / 254UL + 2UL;
+    uint32_t sample_bytes = 18UL + 3UL * SKIN_TAXELS + (18UL + 3UL * SKIN_TAXELS) / 254UL + 2UL;
+#if SKIN_FORCE_INPUTS > 0
+    sample_bytes += 10UL + 2UL * SKIN_TAXELS + (10UL + 2UL * SKIN_TAXELS) / 254UL + 2UL; /* FORCE */
+#endif
     skin_transport_max_rate = (uint16_t)(SKIN_BAUD / 10UL * 95UL / 100UL / sample_bytes);
     skin_board_begin();
 }

@@ -474,6 +474,17 @@ void check_sample(const Vector &v)
     r.end("sample");
 }
 
+void check_force(const Vector &v)
+{
+    std::vector<long long> mn = get_list(v, "force_mn");
+    std::vector<uint16_t> words(mn.begin(), mn.end());
+    Bytes body(8 + 2 * words.size());
+    size_t len = skin_pack_force((uint32_t)get_int(v, "seq"), (uint16_t)words.size(),
+                                 words.data(), body.data());
+    same_int("skin_pack_force length", (long long)len, (long long)body.size());
+    check_body_and_wire(v, body);
+}
+
 skin_command_t command_of(const Vector &v)
 {
     skin_command_t c{};
@@ -852,6 +863,7 @@ const std::map<std::string, Check> &checks()
         {"cobs", check_cobs},
         {"fnv", check_fnv},
         {"sample", check_sample},
+        {"force", check_force},
         {"command", check_command},
         {"ack", check_ack},
         {"error", check_error},
@@ -1178,6 +1190,7 @@ int main(int argc, char **argv)
         {"serial.txt", {"crc", "cobs", "fnv", "sample", "command", "ack", "error", "identity",
                         "selftest_result", "bad_command"}},
         {"can.txt", {"can_sample", "can_command", "can_reply"}},
+        {"serial_force.txt", {"force"}},
     };
     for (const auto &file : files) {
         std::vector<Vector> vectors;

@@ -38,6 +38,18 @@
 #ifndef SKIN_KI               /* duty per count-sample, << 16 */
 #define SKIN_KI 44
 #endif
+#ifndef SKIN_FORCE_INPUTS     /* taxels 0 .. F-1 have a force sensor (FSR stage); 0 = no force channel */
+#define SKIN_FORCE_INPUTS 0
+#endif
+#ifndef SKIN_FORCE_FULL_MN    /* force at the ADC's full scale (1.1 V), mN; linear from 0 at 0 V */
+#define SKIN_FORCE_FULL_MN 20000UL
+#endif
+#ifndef SKIN_FORCE_PRESCALER  /* ADC clock divider of a force conversion: 16 = 1 MHz, 13 us */
+#define SKIN_FORCE_PRESCALER 16
+#endif
+#ifndef SKIN_TIMING_MARKS     /* 1: mark work in GPIOR0 for the emulator's timing (make timing) */
+#define SKIN_TIMING_MARKS 0
+#endif
 #ifndef SKIN_STREAM_AT_BOOT
 #define SKIN_STREAM_AT_BOOT 1
 #endif
@@ -55,6 +67,25 @@
 #define SKIN_AMBIENT_CHANNEL SKIN_TAXELS
 #endif
 
+#if SKIN_FORCE_INPUTS > SKIN_TAXELS
+#error "SKIN_FORCE_INPUTS exceeds SKIN_TAXELS"
+#endif
+#if SKIN_TAXELS + SKIN_FORCE_INPUTS > 254
+#error "SKIN_TAXELS + SKIN_FORCE_INPUTS exceeds the 255 scan slots"
+#endif
+#if SKIN_FORCE_FULL_MN > 65534UL
+#error "SKIN_FORCE_FULL_MN above 65534 mN does not fit a FORCE word"
+#endif
+/* Force inputs: with multiplexers, force multiplexer k (inputs 16k .. 16k+15, on the same select
+ * lines) on ADC channel SKIN_AMBIENT_CHANNEL + 1 + k; without, input f on ADC channel
+ * SKIN_AMBIENT_CHANNEL + 1 + f. */
+#if SKIN_MUXES > 0
+#define SKIN_FORCE_MUXES ((SKIN_FORCE_INPUTS + 15) / 16)
+#define SKIN_FORCE_CHANNELS SKIN_FORCE_MUXES
+#else
+#define SKIN_FORCE_CHANNELS SKIN_FORCE_INPUTS
+#endif
+
 #if SKIN_TAXELS > 128
 #error "one board carries at most 128 taxels (CAN groups); use several boards"
 #endif
@@ -63,7 +94,10 @@
  * takes 13 ADC clocks and, with its interrupt, about 16 (64 us at 250 kHz, measured in simavr:
  * a 72-taxel scan takes 4.65 ms). */
 #define SKIN_CONVERSIONS ((SKIN_TAXELS + 1UL) * SKIN_OVERSAMPLING)
+/* a force input: one conversion at the force prescaler, counted in thermistor conversions */
+#define SKIN_FORCE_CONVERSIONS \
+    ((SKIN_FORCE_INPUTS * (unsigned long)SKIN_FORCE_PRESCALER + SKIN_ADC_PRESCALER - 1) / SKIN_ADC_PRESCALER)
 #define SKIN_ADC_HZ (F_CPU / SKIN_ADC_PRESCALER)
-#define SKIN_MAX_RATE_ADC (SKIN_ADC_HZ * 95UL / (100UL * 16UL * SKIN_CONVERSIONS))
+#define SKIN_MAX_RATE_ADC (SKIN_ADC_HZ * 95UL / (100UL * 16UL * (SKIN_CONVERSIONS + SKIN_FORCE_CONVERSIONS)))
 
 #endif
