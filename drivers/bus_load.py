@@ -23,11 +23,20 @@ def serial_sample_bytes(n: int) -> int:
     return packet + math.ceil(packet / 254) + 1
 
 
-def can_sample_dlcs(n: int) -> list[int]:
-    """Return the data lengths of one sample's CAN frames: SYNC, DATA groups, DUTY, STATUS."""
+def serial_force_bytes(n: int) -> int:
+    """Bytes of one FORCE of ``n`` taxels on the wire (a board with a force channel)."""
+    packet = 8 + 2 * n + 2
+    return packet + math.ceil(packet / 254) + 1
+
+
+def can_sample_dlcs(n: int, force: bool = False) -> list[int]:
+    """Return the data lengths of one sample's CAN frames: SYNC, DATA groups, DUTY, STATUS.
+
+    With ``force``, the FORCE groups (as many and as long as the DATA groups) before STATUS.
+    """
     data = [8] * (n // 4) + ([2 * (n % 4)] if n % 4 else [])
     duty = 8 if n >= 8 else n
-    return [8, *data, duty, 6]
+    return [8, *data, duty, *(data if force else []), 6]
 
 
 def can_frame_bits(dlc: int, worst: bool = True) -> int:
@@ -52,7 +61,7 @@ class BusLoad:
     frame_bytes : int
         Serial: bytes per sample on the wire. CAN: data bytes of the sample's frames.
     frames : int
-        Frames per sample (1 on serial).
+        Frames per sample (serial: packets, 1, or 2 with the force channel).
     bits_per_sample : int
         Bus bits per sample (serial: 10 per byte; CAN: worst-case stuffing).
     bytes_per_s : float
@@ -83,14 +92,16 @@ class BusLoad:
         return asdict(self)
 
 
-def _fits(bus: str, n: int, bit_rate: int, rate_hz: float) -> bool:
+def _fits(bus: str, n: int, bit_rate: int, rate_hz: float, force: bool = False) -> bool:
     if bus == "serial":
-        return serial_sample_bytes(n) * 10 * rate_hz <= 0.95 * bit_rate
-    bits = sum(can_frame_bits(d) for d in can_sample_dlcs(n))
+        size = serial_sample_bytes(n) + (serial_force_bytes(n) if force else 0)
+        return size * 10 * rate_hz <= 0.95 * bit_rate
+    bits = sum(can_frame_bits(d) for d in can_sample_dlcs(n, force))
     return n <= CAN_MAX_TAXELS and bits * rate_hz <= 0.95 * bit_rate
 
 
-def bus_load(bus: str, bit_rate: int, taxels: int, rate_hz: float = 200.0) -> BusLoad:
+def bus_load(bus: str, bit_rate: int, taxels: int, rate_hz: float = 200.0,
+             force: bool = False) -> BusLoad:
     """Load of one board's sample stream on a bus.
 
     Parameters
@@ -103,21 +114,24 @@ def bus_load(bus: str, bit_rate: int, taxels: int, rate_hz: float = 200.0) -> Bu
         Taxels on the board.
     rate_hz : float
         Sample rate.
+    force : bool
+        The board also sends its force channel (serial FORCE, CAN FORCE frames).
     """
     if bus not in ("serial", "can"):
         raise ValueError(f"bus must be 'serial' or 'can', got {bus!r}")
     if taxels < 0 or bit_rate <= 0 or rate_hz <= 0:
         raise ValueError("taxels must be >= 0, bit_rate and rate_hz > 0")
     if bus == "serial":
-        size = serial_sample_bytes(taxels)
-        frames, bits, best = 1, 10 * size, 10 * size
+        size = serial_sample_bytes(taxels) + (serial_force_bytes(taxels) if force else 0)
+        frames = 2 if force else 1
+        bits, best = 10 * size, 10 * size
     else:
-        dlcs = can_sample_dlcs(taxels)
+        dlcs = can_sample_dlcs(taxels, force)
         size, frames = sum(dlcs), len(dlcs)
         bits = sum(can_frame_bits(d) for d in dlcs)
         best = sum(can_frame_bits(d, worst=False) for d in dlcs)
     limit = 0
-    while _fits(bus, limit + 1, bit_rate, rate_hz) and limit < 100_000:
+    while _fits(bus, limit + 1, bit_rate, rate_hz, force) and limit < 100_000:
         limit += 1
     return BusLoad(bus, bit_rate, taxels, rate_hz, size, frames, bits, size * rate_hz,
                    bits * rate_hz / bit_rate, best * rate_hz / bit_rate, limit)
@@ -127,9 +141,11 @@ def bus_load(bus: str, bit_rate: int, taxels: int, rate_hz: float = 200.0) -> Bu
 STANDARD_BUSES = (("serial", 115_200), ("serial", 1_000_000), ("can", 500_000), ("can", 1_000_000))
 
 
-def bus_table(taxels: tuple[int, ...] = (16, 64), rate_hz: float = 200.0) -> list[BusLoad]:
-    """`bus_load` for every standard bus and board size."""
-    return [bus_load(bus, rate, n, rate_hz) for bus, rate in STANDARD_BUSES for n in taxels]
+def bus_table(taxels: tuple[int, ...] = (16, 64), rate_hz: float = 200.0,
+              force: bool = False) -> list[BusLoad]:
+    """`bus_load` for every standard bus and board size (with the force channel: ``force``)."""
+    return [bus_load(bus, rate, n, rate_hz, force) for bus, rate in STANDARD_BUSES
+            for n in taxels]
 
 
 def adc_max_taxels(rate_hz: float = 200.0, oversampling: int = 1,

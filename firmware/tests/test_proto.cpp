@@ -1159,6 +1159,20 @@ void builtin_checks()
         same_int("frames of " + std::to_string(ns[i]) + " taxels", (long long)skin_can_sample_frames(ns[i]),
                  (long long)counts[i]);
 
+    builtin("CAN force frames");
+    {
+        const uint16_t force[10] = {0, 250, 500, 750, 1000, SKIN_FORCE_NONE, 1500, 1750, 2000, 2250};
+        skin_can_frame_t f;
+        skin_can_force_frame(force, 10, 2, 1, &f);
+        same_int("FORCE node 2 group 1", f.id, 0x641);
+        same_int("dlc", f.dlc, 8);
+        same_bytes("data", Bytes(f.data, f.data + f.dlc),
+                   Bytes({0xE8, 0x03, 0xFF, 0xFF, 0xDC, 0x05, 0xD6, 0x06}));
+        skin_can_force_frame(force, 10, 2, 2, &f);  // the last group: 2 taxels
+        same_int("dlc of the last group", f.dlc, 4);
+        same_bytes("last data", Bytes(f.data, f.data + f.dlc), Bytes({0xD0, 0x07, 0xCA, 0x08}));
+    }
+
     builtin("CAN reply segments");
     {
         Bytes body(300);

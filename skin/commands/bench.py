@@ -164,6 +164,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     bus = kinds.add_parser("bus", help="protocol cost and taxel limits per bus")
     bus.add_argument("--taxels", default="16,64", help="board sizes (default 16,64)")
     bus.add_argument("--rate", type=float, default=200.0, help="sample rate, Hz (default 200)")
+    bus.add_argument("--force", action="store_true",
+                     help="boards that also send their force channel (FORCE)")
     bus.add_argument("--json", action="store_true", help="print one JSON document")
     bus.set_defaults(func=main_bus)
     cal = kinds.add_parser("calibration", help="recovering each taxel's thermal constants")
@@ -934,14 +936,16 @@ def main_bus(args: argparse.Namespace) -> int:
     from skin.drivers.bus_load import adc_max_taxels, bus_table
 
     sizes = tuple(int(v) for v in args.taxels.split(","))
-    rows = bus_table(sizes, args.rate)
+    rows = bus_table(sizes, args.rate, args.force)
     adc = {os_: adc_max_taxels(args.rate, os_) for os_ in (1, 2, 4)}
     if args.json:
-        print(json.dumps({"rate_hz": args.rate, "buses": [r.as_dict() for r in rows],
+        print(json.dumps({"rate_hz": args.rate, "force": args.force,
+                          "buses": [r.as_dict() for r in rows],
                           "adc_max_taxels_by_oversampling": adc}))
         return 0
     print(f"protocol v1 at {args.rate:g} Hz (serial 8N1; CAN classic, 11-bit ids, worst-case "
-          "stuffing; best case in brackets)")
+          "stuffing; best case in brackets)"
+          + ("; with the force channel (FORCE)" if args.force else ""))
     print(f"{'bus':>6} {'bit/s':>9} {'taxels':>6} {'bytes':>6} {'frames':>6} {'bytes/s':>8} "
           f"{'load':>14} {'max taxels':>10}")
     for r in rows:

@@ -1,0 +1,126 @@
+"""The firmware's force inputs (SKIN_FORCE_INPUTS), run in simavr: FORCE after each SAMPLE.
+
+The ``uno_force`` build (``make -C firmware``) reads a force-sensing stage per taxel through a
+second multiplexer; the harness feeds it the scene's force (scene version 2) as ADC voltages.
+Nothing is mocked: the force comes from the firmware's own conversions, packing and UART.
+"""
+
+import numpy as np
+import pytest
+
+from skin import drivers
+from skin.drivers.avr_sim import EmulatedBoard, firmware_elf, parse_timing, write_scene
+from skin.drivers.protocol import OPTION_FORCE, Command, Identity, MsgType, cobs_decode
+
+pytestmark = pytest.mark.slow
+RATE, TAXELS, FULL_N = 200.0, 16, 20.0
+STEP_N = FULL_N / 1023  # one 10-bit ADC step
+
+
+def scene(tmp_path, seconds: float, force: np.ndarray | None):
+    n = int(seconds * RATE)
+    temps = np.full((n, TAXELS), 35.0)
+    return write_scene(tmp_path / "scene.bin", temps, np.full(n, 24.0), RATE, 0.0, 30.0, 5.0,
+                       force=None if force is None else force[:n])
+
+
+def test_the_force_build_sends_the_injected_force_after_each_sample(firmware_built, tmp_path):
+    seconds = 4.0
+    n = int(seconds * RATE)
+    force = np.tile(np.linspace(0.0, 18.0, TAXELS), (n, 1))
+    force[n // 2:, 3] = 7.5  # taxel 3 pressed harder at 2 s
+    force[n // 2:, 11] = 0.0  # taxel 11 released
+    board = EmulatedBoard(firmware_elf("uno_force"), scene(tmp_path, seconds, force),
+                          taxels=TAXELS, muxes=1, force_inputs=TAXELS, force_full_n=FULL_N,
+                          wait_host=True)
+    with board:
+        driver = drivers.open(f"serial://{board.port}")
+        try:
+            ident = driver.request(Command(MsgType.IDENTIFY), timeout=10.0)
+            assert isinstance(ident, Identity) and ident.options & OPTION_FORCE
+            assert ident.rate_hz == 200 and ident.max_rate_hz >= 200
+            frames = []
+            while len(frames) < 600:
+                frame = driver.recv(timeout=10.0)
+                assert frame is not None, f"only {len(frames)} frames"
+                frames.append(frame)
+            stats = driver.stats
+        finally:
+            driver.close()
+    assert np.all(np.diff([f.seq for f in frames]) == 1)
+    assert stats.crc_errors == 0 and stats.malformed == 0 and stats.force_missing == 0
+    assert stats.force_orphans <= 1  # the first FORCE, if it came in a read of its own
+    with_force = [f for f in frames if f.force is not None]
+    assert len(with_force) >= len(frames) - 1
+    for f in with_force:
+        k = int(f.device_time * RATE)
+        # a scan may straddle a scene sample: the nearer of the two, within one ADC step
+        err = min(np.max(np.abs(f.force - force[min(j, n - 1)])) for j in (k, k + 1))
+        assert err <= STEP_N + 0.002, (f.seq, f.force, force[k])
+    late = with_force[-1]
+    assert late.device_time > 2.1
+    assert late.force[3] == pytest.approx(7.5, abs=STEP_N) and late.force[11] == 0.0
+    assert with_force[0].force[3] == pytest.approx(force[0, 3], abs=STEP_N)
+    assert np.all(np.abs(late.counts - late.counts[0]) <= 8)  # the thermistors as before
+
+
+def packet_types(raw: bytes) -> set[int]:
+    types = set()
+    for packet in raw.split(b"\x00")[1:-1]:  # the first may be cut
+        body = cobs_decode(packet)[:-2]
+        types.add(body[1])
+    return types
+
+
+def test_a_build_without_force_sends_no_force(firmware_built, tmp_path):
+    from skin.bench.firmware import stream_bytes
+
+    raw = stream_bytes(str(firmware_elf("uno")), "uno", 1.0, folder=str(tmp_path))
+    assert len(raw) > 150 * 60
+    types = packet_types(raw)  # (the first packet, the ACK, is skipped as maybe cut)
+    assert MsgType.SAMPLE in types and types <= {MsgType.SAMPLE, MsgType.ACK}
+    board = EmulatedBoard(firmware_elf("uno"), scene(tmp_path, 2.0, None), taxels=TAXELS,
+                          muxes=1, wait_host=True)
+    with board:
+        driver = drivers.open(f"serial://{board.port}")
+        try:
+            ident = driver.request(Command(MsgType.IDENTIFY), timeout=10.0)
+            assert not ident.options & OPTION_FORCE
+            frames = [driver.recv(timeout=10.0) for _ in range(50)]
+        finally:
+            driver.close()
+    assert all(f is not None and f.force is None for f in frames)
+    # the shipped builds carry no timing marks (only `make -C firmware timing`'s do)
+    assert parse_timing(board.log)["poll_n"] == 0
+
+
+def test_the_force_build_streams_force_packets_of_the_right_size(firmware_built, tmp_path):
+    from skin.bench.firmware import BUILDS
+
+    assert BUILDS["uno_force"][3] == TAXELS
+    n = int(2.0 * RATE)
+    board = EmulatedBoard(firmware_elf("uno_force"),
+                          scene(tmp_path, 2.0, np.full((n, TAXELS), 1.0)), taxels=TAXELS,
+                          muxes=1, force_inputs=TAXELS, force_full_n=FULL_N, wait_host=True,
+                          duration=1.0)
+    import serial
+
+    with board:
+        port = serial.Serial(board.port, timeout=0.5)
+        port.write(b"\x00")  # power the board up
+        raw = b""
+        while len(raw) < 100 * 120:
+            chunk = port.read(4096)
+            if not chunk:
+                break
+            raw += chunk
+        port.close()
+    packets = [cobs_decode(p)[:-2] for p in raw.split(b"\x00")[1:-1]]
+    kinds = [p[1] for p in packets]
+    # SAMPLE, FORCE, SAMPLE, FORCE ...: each FORCE right after its SAMPLE, the same seq
+    start = kinds.index(MsgType.SAMPLE)
+    pairs = list(zip(packets[start::2], packets[start + 1::2], strict=False))
+    assert len(pairs) > 50
+    for sample, force in pairs:
+        assert (sample[1], force[1]) == (MsgType.SAMPLE, MsgType.FORCE)
+        assert sample[2:6] == force[2:6] and len(force) == 8 + 2 * TAXELS
