@@ -11,6 +11,7 @@ import pytest
 from skin import drivers
 from skin.drivers.avr_sim import EmulatedBoard, firmware_elf, parse_timing, write_scene
 from skin.drivers.protocol import OPTION_FORCE, Command, Identity, MsgType, cobs_decode
+from skin.frame import FLAG_SAMPLE_OVERRUN, FLAG_TX_OVERRUN
 
 pytestmark = pytest.mark.slow
 RATE, TAXELS, FULL_N = 200.0, 16, 20.0
@@ -48,6 +49,9 @@ def test_the_force_build_sends_the_injected_force_after_each_sample(firmware_bui
         finally:
             driver.close()
     assert np.all(np.diff([f.seq for f in frames]) == 1)
+    # the 200 Hz budget holds: every period 5 ms, no sample or link overrun
+    assert np.allclose(np.diff([f.device_time for f in frames]), 0.005, rtol=0.01)
+    assert not any(f.flags & (FLAG_TX_OVERRUN | FLAG_SAMPLE_OVERRUN) for f in frames)
     assert stats.crc_errors == 0 and stats.malformed == 0 and stats.force_missing == 0
     assert stats.force_orphans <= 1  # the first FORCE, if it came in a read of its own
     with_force = [f for f in frames if f.force is not None]

@@ -209,3 +209,25 @@ def stream_bytes(elf: str, build: str, seconds: float = 2.0, folder: str | None 
         finally:
             port.close()
     return bytes(out)
+
+
+def same_packets(a: bytes, b: bytes, expect: int) -> dict:
+    """Compare two streams packet by packet over the packets both hold whole.
+
+    Parameters
+    ----------
+    a, b : bytes
+        Streams (`stream_bytes`).
+    expect : int
+        Packets each should hold at least (fewer: not ``identical``).
+
+    Returns
+    -------
+    dict
+        ``packets`` compared, ``identical`` (all equal and at least `expect`),
+        ``first_difference`` (packet index, or None).
+    """
+    pa, pb = a.split(b"\x00")[:-1], b.split(b"\x00")[:-1]
+    n = min(len(pa), len(pb))
+    first = next((i for i in range(n) if pa[i] != pb[i]), None)
+    return {"packets": n, "identical": first is None and n >= expect, "first_difference": first}
