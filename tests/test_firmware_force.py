@@ -128,3 +128,54 @@ def test_the_force_build_streams_force_packets_of_the_right_size(firmware_built,
     for sample, force in pairs:
         assert (sample[1], force[1]) == (MsgType.SAMPLE, MsgType.FORCE)
         assert sample[2:6] == force[2:6] and len(force) == 8 + 2 * TAXELS
+
+
+def test_skin_commission_on_a_recording_of_the_emulated_force_board(firmware_built, tmp_path,
+                                                                    capsys):
+    """Reference touches played to the uno_force firmware in simavr, recorded (MCAP) from its
+    serial stream and commissioned: the touches are dated by the force the firmware read."""
+    import json
+    from dataclasses import replace
+
+    from skin.cli import main as skin_main
+    from skin.drivers.firmware_board import emulated_board, firmware_scene
+    from skin.drivers.protocol import ALL_TAXELS
+    from skin.drivers.recording import Recorder
+    from skin.drivers.sim import SkinSimulator
+    from skin.errors import DeviceError
+    from skin.formats.calibration_file import load_calibration
+    from skin.formats.scene import load_scene
+
+    n = 4
+    scene = load_scene("reference-touches")
+    scene = replace(scene, force="force", touches=tuple(
+        replace(tc, taxels=tuple(range(n))) for tc in scene.touches))
+    cut = firmware_scene(scene, taxels=TAXELS)
+    sim = SkinSimulator(cut)
+    board = emulated_board(sim, folder=tmp_path, build="uno_force")
+    path = tmp_path / "touches.mcap"
+    with board, Recorder(path, cut.layout) as recorder:
+        driver = drivers.open(f"serial://{board.port}")
+        recorder.add_driver(driver)
+        try:
+            # the scene was simulated with every heater on; the firmware boots with them off
+            driver.request(Command(MsgType.SET_DUTY, taxel=ALL_TAXELS, duty=255), timeout=5.0)
+            try:
+                while driver.recv(timeout=2.0) is not None or board.running:
+                    pass
+            except DeviceError:  # the harness ended with the scene and closed its pty
+                pass
+            stats = driver.stats
+        finally:
+            driver.close()
+    assert stats.frames >= 52 * 200 and stats.force_missing == 0 and stats.crc_errors == 0
+    cal = tmp_path / "cal.json"
+    assert skin_main(["commission", "--port", f"replay://{path}?speed=0", "--touches",
+                      "water,neoprene", "-o", str(cal), "--json"]) == 0
+    out = capsys.readouterr()
+    doc = json.loads(out.out)
+    assert "force channel" in out.err
+    assert doc["force_dated"] == 6 * n and doc["fitted"] == n and doc["ambiguous"] == 0
+    _, fitted = load_calibration(cal).apply(cut.layout)
+    eff = np.array([s.effusivity for s in fitted[:n]])
+    assert np.all(np.abs(eff / sim.taxel_sensor.effusivity[:n] - 1) < 0.03)
