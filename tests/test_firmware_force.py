@@ -179,3 +179,24 @@ def test_skin_commission_on_a_recording_of_the_emulated_force_board(firmware_bui
     _, fitted = load_calibration(cal).apply(cut.layout)
     eff = np.array([s.effusivity for s in fitted[:n]])
     assert np.all(np.abs(eff / sim.taxel_sensor.effusivity[:n] - 1) < 0.03)
+
+
+def test_bench_firmware_measures_the_cycle_budget_with_and_without_force(firmware_make,
+                                                                         firmware_built):
+    """`skin bench firmware`'s measurement on the timing builds: the force build keeps the
+    200 Hz budget (its scan under 95 % of the period, the main loop's time well inside it),
+    its work per sample costs more than the plain build's, and its force is right."""
+    from skin.bench.firmware import measure
+    from skin.drivers.avr_sim import FIRMWARE_DIR
+
+    elves = [str(firmware_elf(f"timing/{b}")) for b in ("uno", "uno_force")]
+    proc = firmware_make(["-C", str(FIRMWARE_DIR), *elves])
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
+    plain, force = measure("uno", 1.0), measure("uno_force", 1.0)
+    for r in (plain, force):
+        assert r.frames >= 190 and r.scan_max < 0.95 * r.period_cycles
+        assert r.poll_max < 0.5 * r.period_cycles
+    assert force.frames_with_force >= force.frames - 1 and plain.frames_with_force == 0
+    assert force.max_force_error_n <= FULL_N / 1023 + 0.002
+    assert force.work_per_sample > plain.work_per_sample and force.scan_mean > plain.scan_mean
+    assert force.bytes_per_sample == pytest.approx(112, abs=1)  # SAMPLE 68 + FORCE 44
