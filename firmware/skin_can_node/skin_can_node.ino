@@ -205,11 +205,11 @@ void setup()
     skin_transport_div = SKIN_CAN_KBPS;
     /* the bus's limit: worst-case bits of one sample's frames (stuffing included), 5 % spare */
     uint32_t bits = 0;
-    uint16_t frames = (uint16_t)skin_can_sample_frames(SKIN_TAXELS);
-#if SKIN_FORCE_INPUTS > 0
-    frames += (SKIN_TAXELS + 3) / 4; /* the FORCE frames */
+#if SKIN_FORCE_INPUTS > 0 /* with the FORCE frames */
+    for (uint16_t k = 0; k < skin_can_sample_frames(SKIN_TAXELS) + (SKIN_TAXELS + 3) / 4; k++)
+#else
+    for (uint16_t k = 0; k < skin_can_sample_frames(SKIN_TAXELS); k++)
 #endif
-    for (uint16_t k = 0; k < frames; k++)
         bits += 47UL + 64UL + (34UL + 64UL - 1UL) / 4UL;
     skin_transport_max_rate = (uint16_t)(SKIN_CAN_KBPS * 1000UL * 95UL / 100UL / bits);
     skin_board_begin(); /* sets up SPI, shared with the heaters' shift registers */
