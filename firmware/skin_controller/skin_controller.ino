@@ -43,6 +43,30 @@ static volatile uint16_t tx_pos, tx_len;
 static volatile uint8_t rx_ring[64];
 static volatile uint8_t rx_head, rx_tail;
 
+#if SKIN_FORCE_INPUTS > 0
+/* A FORCE is framed into wire2 while its SAMPLE leaves from wire, and queued behind it (tx_next),
+ * so the main loop does not wait for the SAMPLE's bytes. */
+static uint8_t wire2[WIRE_MAX(8 + 2 * SKIN_TAXELS)];
+static const uint8_t *volatile tx_buf = wire;
+static volatile uint16_t tx_next;
+
+ISR(UDRE_VECT)
+{
+    uint16_t pos = tx_pos;
+    UDR0 = tx_buf[pos++];
+    if (pos >= tx_len) {
+        if (tx_next) { /* the FORCE queued behind it */
+            tx_buf = wire2;
+            tx_len = tx_next;
+            tx_next = 0;
+            pos = 0;
+        } else {
+            UCSR0B &= ~(1 << UDRIE0);
+        }
+    }
+    tx_pos = pos;
+}
+#else
 ISR(UDRE_VECT)
 {
     uint16_t pos = tx_pos;
@@ -51,6 +75,7 @@ ISR(UDRE_VECT)
     if (pos >= tx_len)
         UCSR0B &= ~(1 << UDRIE0);
 }
+#endif
 
 ISR(RX_VECT)
 {
@@ -78,6 +103,9 @@ static void send_body(size_t len)
     }
     MARK_OFF(2);
     size_t n = skin_frame(body, len, wire);
+#if SKIN_FORCE_INPUTS > 0
+    tx_buf = wire;
+#endif
     tx_pos = 0;
     tx_len = (uint16_t)n;
     UCSR0B |= (1 << UDRIE0);
@@ -92,8 +120,20 @@ void skin_transport_send_sample(const skin_sample_t *s)
 void skin_transport_send_sample_force(const skin_sample_t *s, const uint16_t *force)
 {
     send_body(skin_pack_sample(s, body));
-    /* FORCE right after its SAMPLE (PROTOCOL.md); packed while the SAMPLE leaves */
-    send_body(skin_pack_force(s->seq, s->n, force, body));
+    /* FORCE right after its SAMPLE (PROTOCOL.md): packed and framed while the SAMPLE leaves (the
+     * last FORCE has left: send_body waited for the link), then queued behind it */
+    size_t n = skin_frame(body, skin_pack_force(s->seq, s->n, force, body), wire2);
+    uint8_t sreg = SREG;
+    cli();
+    if (UCSR0B & (1 << UDRIE0)) {
+        tx_next = (uint16_t)n;
+    } else {
+        tx_buf = wire2;
+        tx_pos = 0;
+        tx_len = (uint16_t)n;
+        UCSR0B |= (1 << UDRIE0);
+    }
+    SREG = sreg;
 }
 #endif
 
