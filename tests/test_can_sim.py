@@ -196,6 +196,6 @@ def test_a_simulated_node_with_force_sends_force_frames(channel):
     touched = 0
     for f in got:
         want = expected[f.seq].force
-        assert np.allclose(f.force, want, equal_nan=True, atol=5e-7)
+        assert np.array_equal(f.force, want, equal_nan=True)
         touched += int(np.nanmax(f.force) > 1.0)
     assert touched > 100  # the first touch pressed
