@@ -20,7 +20,11 @@
 
 #define RX_MAX 32 /* the longest command body is 8 bytes; COBS and CRC add 3 */
 #define WIRE_MAX(len) ((len) + 2 + ((len) + 2) / 254 + 2)
-#define BODY_MAX (5 + 4 * SKIN_TAXELS) /* also holds a FORCE body (8 + 2n) */
+/* the longest body: a SELFTEST_RESULT (5 + 4n) or, below 11 taxels, a SAMPLE (16 + 3n); it was
+ * 5 + 4n alone, which a SAMPLE of fewer than 9 taxels overran (with the CRC's 2 bytes) */
+#define BODY_MAX SKIN_BODY_MAX(SKIN_TAXELS)
+static_assert(BODY_MAX >= SKIN_SAMPLE_BODY_LEN(SKIN_TAXELS), "body holds a SAMPLE");
+static_assert(BODY_MAX >= SKIN_FORCE_BODY_LEN(SKIN_TAXELS), "body holds a FORCE");
 
 #if defined(USART0_UDRE_vect)
 #define UDRE_VECT USART0_UDRE_vect

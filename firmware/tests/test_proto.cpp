@@ -901,6 +901,34 @@ Bytes cat(Bytes a, const Bytes &b)
 
 void builtin_checks()
 {
+    builtin("SKIN_BODY_MAX(n) holds every body a board of n taxels sends");
+    for (uint16_t n = 1; n <= 128; ++n) {
+        std::vector<uint16_t> words(n, 0x0FFF);
+        std::vector<uint8_t> duty(n, 255);
+        std::vector<int16_t> response(n, -1);
+        std::vector<uint8_t> body(2 * SKIN_BODY_MAX(n) + 64);
+        skin_sample_t s{};
+        s.n = n;
+        s.words = words.data();
+        s.duty = duty.data();
+        skin_identity_t id{};
+        id.taxels = n;
+        skin_error_t err{};
+        const size_t len[] = {skin_pack_sample(&s, body.data()),
+                              skin_pack_force(1, n, words.data(), body.data()),
+                              skin_pack_selftest_result(1, n, response.data(), words.data(),
+                                                        body.data()),
+                              skin_pack_identity(&id, body.data()),
+                              skin_pack_ack(1, 2, body.data()),
+                              skin_pack_error(&err, body.data())};
+        for (size_t l : len)
+            if (l > (size_t)SKIN_BODY_MAX(n)) {
+                fail("a body of " + std::to_string(l) + " bytes for " + std::to_string(n) +
+                     " taxels exceeds SKIN_BODY_MAX " + std::to_string(SKIN_BODY_MAX(n)));
+                n = 128;
+                break;
+            }
+    }
     builtin("crc16 check value");
     const char *check = "123456789";
     same_int("crc", skin_crc16((const uint8_t *)check, 9), 0x29B1);

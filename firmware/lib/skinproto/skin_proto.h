@@ -94,6 +94,16 @@ typedef struct {
     uint16_t flags;
 } skin_sample_t;
 
+/* Body lengths (without CRC) of a SAMPLE and a FORCE of n taxels. */
+#define SKIN_SAMPLE_BODY_LEN(n) (16 + 3 * (n))
+#define SKIN_FORCE_BODY_LEN(n) (8 + 2 * (n))
+#define SKIN_SELFTEST_BODY_LEN(n) (5 + 4 * (n))
+/* The longest body a board of n taxels sends: a SELFTEST_RESULT from 11 taxels up, a SAMPLE
+ * below, an IDENTITY (24) below 3 (ACK and ERROR are shorter). Size a body buffer with it. */
+#define SKIN_IDENTITY_BODY_LEN 24
+#define SKIN_BODY_MAX2(a, b) ((a) > (b) ? (a) : (b))
+#define SKIN_BODY_MAX(n) \
+    SKIN_BODY_MAX2(SKIN_IDENTITY_BODY_LEN, SKIN_BODY_MAX2(SKIN_SELFTEST_BODY_LEN(n), SKIN_SAMPLE_BODY_LEN(n)))
 /* Body of a SAMPLE (16 + 3n bytes, without CRC). Returns its length. */
 size_t skin_pack_sample(const skin_sample_t *s, uint8_t *body);
 
