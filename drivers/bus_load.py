@@ -148,13 +148,55 @@ def bus_table(taxels: tuple[int, ...] = (16, 64), rate_hz: float = 200.0,
             for n in taxels]
 
 
-def adc_max_taxels(rate_hz: float = 200.0, oversampling: int = 1,
-                   adc_hz: float = 250_000.0) -> int:
-    """Return the most taxels one AVR board converts per sample, in 95 % of the period.
+#: The firmware's cycle costs per sample (firmware/lib/skinboard/skin_config.h, fitted to
+#: `skin bench firmware`'s emulated measurements): a conversion's interrupt, a channel switch,
+#: a force conversion's extra, and the main loop (fixed, per taxel, per force input).
+CONV_CYCLES, SWITCH_CYCLES, FORCE_EXTRA_CYCLES = 88, 112, 240
+LOOP_CYCLES, LOOP_TAXEL_CYCLES, LOOP_FORCE_CYCLES = 7000, 850, 1100
+F_CPU = 16_000_000
 
-    The board also converts its ambient sensor.
 
-    A conversion takes 13 ADC clocks and, with its interrupt, about 16 (measured in simavr);
-    the firmware's default clock is 16 MHz / 64 = 250 kHz.
+def sample_cycles(taxels: int, oversampling: int = 1, force_inputs: int = 0,
+                  prescaler: int = 64, force_prescaler: int = 16) -> int:
+    """Return the CPU cycles one AVR board needs per sample (the firmware's max-rate formula).
+
+    The larger of the scan (each of the ``taxels + 1`` channels, the ambient sensor included:
+    ``oversampling`` conversions of 13 ADC clocks plus `CONV_CYCLES`, and `SWITCH_CYCLES`; each
+    force input one conversion at ``force_prescaler`` plus `FORCE_EXTRA_CYCLES`) and the main
+    loop's work (`LOOP_CYCLES` + per taxel + per force input).
+
+    Parameters
+    ----------
+    taxels, oversampling, force_inputs : int
+        The build's SKIN_TAXELS, SKIN_OVERSAMPLING and SKIN_FORCE_INPUTS.
+    prescaler, force_prescaler : int
+        SKIN_ADC_PRESCALER and SKIN_FORCE_PRESCALER.
+
+    Returns
+    -------
+    int
+        Cycles of the 16 MHz MCU.
     """
-    return max(0, math.floor(0.95 * adc_hz / (16 * rate_hz * oversampling)) - 1)
+    scan = ((taxels + 1) * oversampling * (13 * prescaler + CONV_CYCLES)
+            + (taxels + 1) * SWITCH_CYCLES + force_inputs * (13 * force_prescaler
+                                                             + FORCE_EXTRA_CYCLES))
+    loop = LOOP_CYCLES + taxels * LOOP_TAXEL_CYCLES + force_inputs * LOOP_FORCE_CYCLES
+    return max(scan, loop)
+
+
+def adc_max_rate(taxels: int, oversampling: int = 1, force_inputs: int = 0) -> int:
+    """Return the board's highest rate, Hz (IDENTITY's ``max_rate_hz`` before the link's limit):
+    95 % of the period holds `sample_cycles`."""
+    return F_CPU // 100 * 95 // sample_cycles(taxels, oversampling, force_inputs)
+
+
+def adc_max_taxels(rate_hz: float = 200.0, oversampling: int = 1, force: bool = False) -> int:
+    """Return the most taxels one AVR board converts and handles per sample at ``rate_hz``.
+
+    With ``force`` every taxel has a force input (one more conversion each). Counts as the
+    firmware's max-rate formula does (`sample_cycles`: 95 % of the period).
+    """
+    n = 0
+    while n < 255 and adc_max_rate(n + 1, oversampling, n + 1 if force else 0) >= rate_hz:
+        n += 1
+    return n

@@ -11,6 +11,7 @@ import pytest
 from skin import drivers
 from skin.drivers.avr_sim import EmulatedBoard, firmware_elf, parse_timing, write_scene
 from skin.drivers.protocol import OPTION_FORCE, Command, Identity, MsgType, cobs_decode
+from skin.errors import DeviceError
 from skin.frame import FLAG_SAMPLE_OVERRUN, FLAG_TX_OVERRUN
 
 pytestmark = pytest.mark.slow
@@ -200,3 +201,50 @@ def test_bench_firmware_measures_the_cycle_budget_with_and_without_force(firmwar
     assert force.max_force_error_n <= FULL_N / 1023 + 0.002
     assert force.work_per_sample > plain.work_per_sample and force.scan_mean > plain.scan_mean
     assert force.bytes_per_sample == pytest.approx(112, abs=1)  # SAMPLE 68 + FORCE 44
+
+
+def test_an_oversampling_1_force_board_keeps_its_advertised_max_rate(firmware_built,
+                                                                     firmware_make, tmp_path):
+    """IDENTITY's max_rate_hz holds: an oversampling-1 force build (16 taxels, 16 force inputs;
+    the scan is short, so a force conversion's real cost, ~400 cycles not 256, and the main loop
+    decide its rate) run at its advertised maximum loses no sample (no SAMPLE_OVERRUN, no
+    TX_OVERRUN, no seq gap). Before the cycle formula it advertised 706 Hz and lost 421 of 773."""
+    from skin.drivers.avr_sim import FIRMWARE_DIR
+    from skin.drivers.bus_load import adc_max_rate
+
+    proc = firmware_make(["-C", str(FIRMWARE_DIR), "build/uno_os1_force/skin_controller.elf"])
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
+    seconds = 1.2
+    n = int(seconds * RATE) + 1
+    board = EmulatedBoard(firmware_elf("uno_os1_force"),
+                          scene(tmp_path, seconds, np.full((n, TAXELS), 5.0)),
+                          taxels=TAXELS, muxes=1, force_inputs=TAXELS, force_full_n=FULL_N,
+                          wait_host=True, duration=seconds)
+    frames = []
+    with board:
+        driver = drivers.open(f"serial://{board.port}")
+        try:
+            ident = driver.request(Command(MsgType.IDENTIFY), timeout=10.0)
+            rate = ident.max_rate_hz
+            assert rate == adc_max_rate(TAXELS, 1, TAXELS)  # the same formula on the host
+            assert rate < 706  # the old formula's, which the board could not keep
+            driver.request(Command(MsgType.SET_RATE, rate_hz=rate), timeout=10.0)
+            driver.request(Command(MsgType.SET_DUTY, taxel=0xFFFF, duty=128), timeout=10.0)
+            while True:
+                try:
+                    frame = driver.recv(timeout=2.0)
+                except DeviceError:  # the harness ends at --duration: its pty closes
+                    break
+                if frame is None:
+                    if not board.running:
+                        break
+                    continue
+                frames.append(frame)
+        finally:
+            driver.close()
+    late = [f for f in frames if f.device_time > 0.3]  # after SET_RATE took effect
+    assert len(late) > 0.8 * rate * (seconds - 0.4)
+    assert not any(f.flags & FLAG_SAMPLE_OVERRUN for f in late)
+    assert not any(f.flags & FLAG_TX_OVERRUN for f in late)
+    seqs = np.array([f.seq for f in late])
+    assert np.all(np.diff(seqs) == 1)

@@ -937,7 +937,7 @@ def main_bus(args: argparse.Namespace) -> int:
 
     sizes = tuple(int(v) for v in args.taxels.split(","))
     rows = bus_table(sizes, args.rate, args.force)
-    adc = {os_: adc_max_taxels(args.rate, os_) for os_ in (1, 2, 4)}
+    adc = {os_: adc_max_taxels(args.rate, os_, args.force) for os_ in (1, 2, 4)}
     if args.json:
         print(json.dumps({"rate_hz": args.rate, "force": args.force,
                           "buses": [r.as_dict() for r in rows],
@@ -952,7 +952,8 @@ def main_bus(args: argparse.Namespace) -> int:
         load = f"{100 * r.load:.1f} %" + (f" ({100 * r.load_best:.1f})" if r.bus == "can" else "")
         print(f"{r.bus:>6} {r.bit_rate:>9} {r.taxels:>6} {r.frame_bytes:>6} {r.frames:>6} "
               f"{r.bytes_per_s:>8.0f} {load:>14} {r.max_taxels:>10}")
-    print("AVR ADC at 250 kHz (16 MHz / 64, 16 clocks per conversion with its interrupt), "
-          "95 % of the period: at most "
-          + ", ".join(f"{n} taxels with {k}x oversampling" for k, n in adc.items()))
+    print("AVR board at 16 MHz (ADC 16 MHz / 64; scan and main loop in cycles as the firmware's "
+          "max-rate formula, 95 % of the period)"
+          + (", a force input (1 MHz conversion) on every taxel" if args.force else "")
+          + ": at most " + ", ".join(f"{n} taxels with {k}x oversampling" for k, n in adc.items()))
     return 0
