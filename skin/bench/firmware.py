@@ -212,22 +212,24 @@ def stream_bytes(elf: str, build: str, seconds: float = 2.0, folder: str | None 
 
 
 def same_packets(a: bytes, b: bytes, expect: int) -> dict:
-    """Compare two streams packet by packet over the packets both hold whole.
+    """Compare the first `expect` packets of two streams, packet by packet.
+
+    A fixed count, so that the figure does not depend on how many bytes a pty read returned.
 
     Parameters
     ----------
     a, b : bytes
         Streams (`stream_bytes`).
     expect : int
-        Packets each should hold at least (fewer: not ``identical``).
+        Packets to compare (a stream with fewer whole packets: not ``identical``).
 
     Returns
     -------
     dict
-        ``packets`` compared, ``identical`` (all equal and at least `expect`),
+        ``packets`` compared (at most `expect`), ``identical`` (`expect` packets, all equal),
         ``first_difference`` (packet index, or None).
     """
     pa, pb = a.split(b"\x00")[:-1], b.split(b"\x00")[:-1]
-    n = min(len(pa), len(pb))
+    n = min(len(pa), len(pb), expect)
     first = next((i for i in range(n) if pa[i] != pb[i]), None)
     return {"packets": n, "identical": first is None and n >= expect, "first_difference": first}

@@ -84,7 +84,7 @@ def main_firmware(args: argparse.Namespace) -> int:
         ours = stream_bytes(str(firmware_elf(base.build)), base.build, args.seconds)
         theirs = stream_bytes(args.same_stream, base.build, args.seconds)
         same = {"elf": args.same_stream, "build": str(firmware_elf(base.build)),
-                **same_packets(ours, theirs, int(0.9 * 200 * args.seconds))}
+                **same_packets(ours, theirs, int(200 * args.seconds))}
     if args.json:
         print(json.dumps({"machine": machine(), "seconds": args.seconds, "baseline": base.build,
                           "builds": out, "same_stream": same}, indent=2))
