@@ -185,8 +185,10 @@ def sample_cycles(taxels: int, oversampling: int = 1, force_inputs: int = 0,
 
 
 def adc_max_rate(taxels: int, oversampling: int = 1, force_inputs: int = 0) -> int:
-    """Return the board's highest rate, Hz (IDENTITY's ``max_rate_hz`` before the link's limit):
-    95 % of the period holds `sample_cycles`."""
+    """Return the board's highest rate, Hz: IDENTITY's ``max_rate_hz`` before the link's limit.
+
+    95 % of the period holds `sample_cycles` (the firmware's SKIN_MAX_RATE_ADC).
+    """
     return F_CPU // 100 * 95 // sample_cycles(taxels, oversampling, force_inputs)
 
 

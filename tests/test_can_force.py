@@ -148,5 +148,5 @@ def test_every_force_code_decodes_to_the_same_float_over_can_and_serial():
                                     None, force)
     got = CanReassembler().feed(frames)
     assert len(got) == len(serial)
-    for frame, want in zip(got, serial):
+    for frame, want in zip(got, serial, strict=True):
         assert np.array_equal(frame.force, want)
