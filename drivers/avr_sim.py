@@ -22,7 +22,8 @@ from numpy.typing import ArrayLike
 
 from skin.errors import DeviceError
 
-__all__ = ["DEFAULT_HARNESS", "FIRMWARE_DIR", "EmulatedBoard", "firmware_elf", "write_scene"]
+__all__ = ["DEFAULT_HARNESS", "FIRMWARE_DIR", "EmulatedBoard", "firmware_elf", "parse_timing",
+           "write_scene"]
 
 FIRMWARE_DIR = Path(__file__).resolve().parents[1] / "firmware"
 """The ``firmware/`` folder of a source checkout (the builds live in its ``build/``)."""
@@ -32,22 +33,26 @@ DEFAULT_HARNESS = FIRMWARE_DIR / "build" / "host" / "skin_avr"
 
 SCENE_MAGIC = b"SKSC"
 SCENE_VERSION = 1
+SCENE_VERSION_FORCE = 2  # version 1 followed by the force of every taxel at every sample
 
 
-def firmware_elf(board: str = "uno") -> Path:
+def firmware_elf(board: str = "uno", sketch: str = "skin_controller") -> Path:
     """Return the path of the skin_controller ELF that ``make -C firmware`` builds for a board.
 
     Parameters
     ----------
     board : str
-        ``"uno"`` (ATmega328P) or ``"mega"`` (ATmega2560).
+        ``"uno"`` (ATmega328P), ``"mega"`` (ATmega2560), ``"uno_force"`` (the Uno with a force
+        input per taxel), or another build of ``firmware/Makefile``.
+    sketch : str
+        ``"skin_controller"`` (serial) or ``"skin_can_node"``.
 
     Returns
     -------
     Path
-        ``firmware/build/<board>/skin_controller.elf`` (which may not exist yet).
+        ``firmware/build/<board>/<sketch>.elf`` (which may not exist yet).
     """
-    return FIRMWARE_DIR / "build" / board / "skin_controller.elf"
+    return FIRMWARE_DIR / "build" / board / f"{sketch}.elf"
 
 
 def write_scene(
@@ -58,8 +63,9 @@ def write_scene(
     nominal_duty: float,
     heater_rise: float,
     heater_tau: float,
+    force: ArrayLike | None = None,
 ) -> Path:
-    """Write a harness scene file (format version 1, little-endian).
+    """Write a harness scene file (format version 1, or 2 with `force`; little-endian).
 
     Parameters
     ----------
@@ -79,6 +85,9 @@ def write_scene(
         Rise of a taxel's temperature, K, with its heater always on rather than off.
     heater_tau : float
         Time constant of the heater's effect, s.
+    force : array_like, shape (n_samples, n_taxels), optional
+        Normal force on every taxel at every sample, N, for the force inputs of a board built
+        with ``SKIN_FORCE_INPUTS`` (`EmulatedBoard` ``force_inputs``); written as version 2.
 
     Returns
     -------
@@ -103,11 +112,53 @@ def write_scene(
     if heater_tau < 0:
         raise ValueError(f"heater_tau must not be negative, got {heater_tau}")
     n_samples, n_taxels = temps.shape
-    header = np.array([SCENE_VERSION, n_taxels, n_samples], dtype="<u4").tobytes()
+    tail = b""
+    version = SCENE_VERSION
+    if force is not None:
+        forces = np.asarray(force, dtype="<f4")
+        if forces.shape != temps.shape:
+            raise ValueError(f"force must have the temperatures' shape {temps.shape}, "
+                             f"got {forces.shape}")
+        tail, version = forces.tobytes(), SCENE_VERSION_FORCE
+    header = np.array([version, n_taxels, n_samples], dtype="<u4").tobytes()
     header += np.array([rate_hz, nominal_duty, heater_rise, heater_tau], dtype="<f4").tobytes()
     out = Path(path)
-    out.write_bytes(SCENE_MAGIC + header + temps.tobytes() + amb.tobytes())
+    out.write_bytes(SCENE_MAGIC + header + temps.tobytes() + amb.tobytes() + tail)
     return out
+
+
+def parse_timing(log: str) -> dict[str, float]:
+    """Read the harness's timing line: the firmware's GPIOR0 marks, in CPU cycles.
+
+    Parameters
+    ----------
+    log : str
+        The harness's stderr (`EmulatedBoard.log`).
+
+    Returns
+    -------
+    dict
+        ``poll_n``, ``poll_mean``, ``poll_max`` (the main loop's work on a sample: heater
+        control, packing, framing, queueing the packets) and ``scan_n``, ``scan_mean``,
+        ``scan_max`` (a scan's conversions, timer interrupt to the last ADC interrupt),
+        ``wait_n``, ``wait_mean``, ``wait_max`` (the serial sketch waiting for its previous
+        packet to leave: inside the main loop's time, but not work). Counts include replies.
+
+    Raises
+    ------
+    ValueError
+        If the log has no timing line.
+    """
+    import re
+
+    m = re.search(r"timing: poll (\d+) marks, mean ([\d.]+) max (\d+) cycles; "
+                  r"scan (\d+) marks, mean ([\d.]+) max (\d+) cycles; "
+                  r"wait (\d+) marks, mean ([\d.]+) max (\d+) cycles", log)
+    if m is None:
+        raise ValueError("the harness log has no timing line (an older harness?)")
+    keys = ("poll_n", "poll_mean", "poll_max", "scan_n", "scan_mean", "scan_max",
+            "wait_n", "wait_mean", "wait_max")
+    return {k: float(v) for k, v in zip(keys, m.groups(), strict=True)}
 
 
 class EmulatedBoard:
@@ -129,6 +180,11 @@ class EmulatedBoard:
         Clock frequency, Hz.
     swap : tuple of int, optional
         ``(i, j)``: heaters i and j warm each other's thermistor (a wiring error).
+    force_inputs : int
+        Taxels 0 .. force_inputs-1 have a force input (the build's ``SKIN_FORCE_INPUTS``), fed
+        from the scene's force (version 2).
+    force_full_n : float
+        Force at the ADC's full scale, N (the build's ``SKIN_FORCE_FULL_MN`` / 1000).
     realtime : float, optional
         Pace emulated time to this multiple of real time (None: as fast as possible).
     duration : float, optional
@@ -163,6 +219,8 @@ class EmulatedBoard:
         mcu: str = "atmega328p",
         freq: int = 16_000_000,
         swap: tuple[int, int] | None = None,
+        force_inputs: int = 0,
+        force_full_n: float = 20.0,
         realtime: float | None = None,
         duration: float | None = None,
         wait_host: bool = False,
@@ -178,6 +236,9 @@ class EmulatedBoard:
                      "--muxes", str(int(muxes))]
         if swap is not None:
             self.args += ["--swap", f"{int(swap[0])},{int(swap[1])}"]
+        if force_inputs:
+            self.args += ["--force-inputs", str(int(force_inputs)),
+                          "--force-full-n", repr(float(force_full_n))]
         if realtime:
             self.args += ["--realtime", repr(float(realtime))]
         if duration:

@@ -249,8 +249,9 @@ class CanSimNode:
             sl = slice(node.lo, node.hi)
             own = int(np.bitwise_or.reduce(status[sl])) & TAXEL_STATUS_BITS
             flags = (frame.flags & ~TAXEL_STATUS_BITS) | own | FLAG_STREAMING
+            force = None if frame.force is None else frame.force[sl]
             out += can_sample_frames(node.number, frame.seq, t_us, frame.counts[sl],
-                                     frame.ambient, duty[sl], flags, status[sl])
+                                     frame.ambient, duty[sl], flags, status[sl], force)
         return self._send(out)
 
     # ---- commands ----

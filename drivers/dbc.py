@@ -3,7 +3,9 @@
 `dbc_text` writes one message per identifier the nodes 0-6 send (firmware/PROTOCOL.md, section
 2): ``SYNC_N<node>`` (seq, device time in us), ``DATA_N<node>_G<g>`` (the 12-bit ADC count and
 4 status bits of taxels 4g .. 4g+3), ``DUTY_N<node>_G<d>`` (heater duty of taxels 8d .. 8d+7),
-``STATUS_N<node>`` (seq mod 256, flags, ambient in deg C, groups) and the host's
+``STATUS_N<node>`` (seq mod 256, flags, ambient in deg C, groups), ``FORCE_N<node>_G<g>`` (the
+force of taxels 4g .. 4g+3, N; 65.535 = no reading; sent only by a board with a force channel,
+between DUTY and STATUS) and the host's
 ``COMMAND_N<node>`` (version, type, token; node 7 is every node). REPLY segments carry a byte
 stream and are not described. The shipped file is ``firmware/thermoskin.dbc``
 (``python -m skin.drivers.dbc > firmware/thermoskin.dbc`` writes it again); a test decodes
@@ -50,6 +52,10 @@ def dbc_text() -> str:
         for d in range(CAN_MAX_TAXELS // 8):
             sig = [_signal(f"duty_{8 * d + i}", 8 * i, 8) for i in range(8)]
             out.append(_message(can_id(CanType.DUTY, n, d), f"DUTY_N{n}_G{d}", 8, sig, sender))
+        for g in range(CAN_MAX_TAXELS // 4):
+            sig = [_signal(f"force_{4 * g + i}", 16 * i, 16, scale=0.001, unit="N")
+                   for i in range(4)]
+            out.append(_message(can_id(CanType.FORCE, n, g), f"FORCE_N{n}_G{g}", 8, sig, sender))
         out.append(_message(can_id(CanType.STATUS, n, 0), f"STATUS_N{n}", 6, [
             _signal("seq8", 0, 8), _signal("flags", 8, 16),
             _signal("ambient", 24, 16, signed=True, scale=0.01, unit="degC"),
@@ -58,7 +64,8 @@ def dbc_text() -> str:
         out.append(_message(can_id(CanType.COMMAND, n, 0), f"COMMAND_N{n}", 3, [
             _signal("version", 0, 8), _signal("type", 8, 8), _signal("token", 16, 8)], "HOST"))
     out.append('CM_ "thermoskin protocol v1 (firmware/PROTOCOL.md): identifier = type << 8 | '
-               'node << 5 | index; ambient 0x7FFF (327.67) = unknown";\n')
+               'node << 5 | index; ambient 0x7FFF (327.67) = unknown; '
+               'force 0xFFFF (65.535) = no reading";\n')
     return "".join(out)
 
 

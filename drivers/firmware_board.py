@@ -22,6 +22,11 @@ from skin.formats.scene import Scene
 
 #: The emulated board: ``make -C firmware`` builds it as ``build/mega``.
 BOARD, MCU, TAXELS, MUXES = "mega", "atmega2560", 72, 5
+#: Builds `emulated_board` can play a scene to: MCU, taxels, multiplexers, force inputs.
+BUILDS = {"mega": (MCU, TAXELS, MUXES, 0), "uno": ("atmega328p", 16, 1, 0),
+          "uno_force": ("atmega328p", 16, 1, 16)}
+#: The force at the ADC's full scale of the force builds (``SKIN_FORCE_FULL_MN``'s default), N.
+FORCE_FULL_N = 20.0
 
 
 def firmware_scene(scene: Scene, taxels: int = TAXELS) -> Scene:
@@ -58,8 +63,12 @@ def firmware_scene(scene: Scene, taxels: int = TAXELS) -> Scene:
 
 
 def emulated_board(simulator, folder: str | Path | None = None,
-                   realtime: float | None = None) -> EmulatedBoard:
+                   realtime: float | None = None, build: str = BOARD) -> EmulatedBoard:
     """Write a simulator's thermistor temperatures as a harness scene and make its board.
+
+    With a build that has force inputs and a scene with a force channel (``force = "force"``
+    or ``"contact"``), the scene's force goes to the board's force inputs too (capped at the
+    full scale, `FORCE_FULL_N`), and the firmware sends it as FORCE.
 
     Parameters
     ----------
@@ -69,24 +78,43 @@ def emulated_board(simulator, folder: str | Path | None = None,
         Where to write the scene file (a temporary folder by default).
     realtime : float, optional
         Pace of the emulation relative to real time (None: as fast as it goes).
+    build : str
+        A key of `BUILDS`: the firmware build (``make -C firmware``) and its board; the
+        simulator's scene must be cut to its taxels (`firmware_scene`).
 
     Returns
     -------
     EmulatedBoard
         Not started yet; once started, it powers up on the host's first command.
     """
+    if build not in BUILDS:
+        raise SceneError(f"no firmware build {build!r} to emulate; choose from "
+                         f"{', '.join(BUILDS)}")
+    mcu, taxels, muxes, n_force = BUILDS[build]
     scene = simulator.scene
     rng = np.random.default_rng(scene.seed + 1)
     temps = simulator.temperatures()
     temps = temps + rng.normal(0.0, simulator.noise, temps.shape)
     idx, addr = scene.layout.channel_map(simulator.board.id)
-    channels = np.full((temps.shape[0], TAXELS), simulator.heated)
+    if np.any(addr >= taxels):
+        raise SceneError(f"{scene.source}: taxels at addresses up to {int(addr.max())}; the "
+                         f"{build} build serves {taxels} (cut the scene with firmware_scene)")
+    channels = np.full((temps.shape[0], taxels), simulator.heated)
     channels[:, addr] = temps[:, idx]
+    force = None
+    if n_force and scene.force:
+        from skin.drivers.sim import FORCE_STREAM
+
+        newtons = simulator.forces(0, temps.shape[0],
+                                   np.random.default_rng([scene.seed + 1, FORCE_STREAM]))
+        force = np.zeros((temps.shape[0], taxels))
+        force[:, addr] = np.minimum(newtons[:, idx], FORCE_FULL_N)
     folder = Path(folder or tempfile.mkdtemp(prefix="skin-firmware-sim-"))
     folder.mkdir(parents=True, exist_ok=True)
     path = write_scene(folder / "scene.bin", channels.astype(np.float32),
                        np.full(temps.shape[0], scene.ambient), simulator.sample_rate,
                        nominal_duty=1.0, heater_rise=simulator.heated - scene.ambient,
-                       heater_tau=simulator.sensor.reheat_time_constant)
-    return EmulatedBoard(firmware_elf(BOARD), path, taxels=TAXELS, muxes=MUXES, mcu=MCU,
-                         realtime=realtime, duration=simulator.duration + 1.0, wait_host=True)
+                       heater_tau=simulator.sensor.reheat_time_constant, force=force)
+    return EmulatedBoard(firmware_elf(build), path, taxels=taxels, muxes=muxes, mcu=mcu,
+                         force_inputs=n_force, force_full_n=FORCE_FULL_N, realtime=realtime,
+                         duration=simulator.duration + 1.0, wait_host=True)

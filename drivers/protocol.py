@@ -99,6 +99,7 @@ class CanType(IntEnum):
     DATA = 3
     DUTY = 4
     STATUS = 5
+    FORCE = 6
 
 
 #: CAN node address of a command for every node.
@@ -339,6 +340,29 @@ def encode_force(seq: int, force: Sequence[float] | np.ndarray) -> bytes:
     return frame_packet(force_body(seq, force))
 
 
+def force_newtons(raw: np.ndarray) -> np.ndarray:
+    """Return the force, N, of FORCE words (mN; `FORCE_NONE` -> NaN).
+
+    The one decoding of a force word, shared by the serial FORCE message and the CAN FORCE
+    frame, so that a code gives the same float on both links: ``k / 1000.0`` is the float
+    `force_body` rounded to ``k`` (``k * 1e-3`` differs from it by one ulp for about 14 % of
+    the codes).
+
+    Parameters
+    ----------
+    raw : numpy.ndarray
+        Unsigned 16-bit words.
+
+    Returns
+    -------
+    numpy.ndarray
+        Float64 force, N, NaN where a word is `FORCE_NONE`.
+    """
+    force = raw / 1000.0  # 1 / FORCE_UNIT
+    force[raw == FORCE_NONE] = np.nan
+    return force
+
+
 def _force_of(body: bytes) -> tuple[int, np.ndarray] | None:
     """Return (seq, force per channel, N) of a FORCE body; None when its length is wrong."""
     if len(body) < _FORCE_HEAD.size:
@@ -347,9 +371,7 @@ def _force_of(body: bytes) -> tuple[int, np.ndarray] | None:
     if len(body) != _FORCE_HEAD.size + 2 * n:
         return None
     raw = np.frombuffer(body, dtype="<u2", count=n, offset=_FORCE_HEAD.size)
-    force = raw / 1000.0  # FORCE_UNIT: k / 1000.0 is the float the encoder rounded to k
-    force[raw == FORCE_NONE] = np.nan
-    return seq, force
+    return seq, force_newtons(raw)
 
 
 # ---- commands ----
@@ -650,15 +672,19 @@ class LinkStats:
         `DUPLICATE_WINDOW` behind it (they are still returned); a jump further back is taken
         as the board restarting.
     forces : int
-        Serial: FORCE messages attached to their sample's frame.
+        Serial: FORCE messages attached to their sample's frame. CAN: samples whose every
+        FORCE group arrived.
     force_orphans : int
         Serial: valid FORCE messages that matched no waiting sample (their SAMPLE was lost,
         or already handed on: the first FORCE of a link is, unless it came in the same read
         as its SAMPLE or an IDENTITY announced it), or whose taxel count differs from it;
-        skipped.
+        skipped. CAN: FORCE frames with no sample open (a lost SYNC), repeated, beyond the
+        sample's groups, or of a sample dropped incomplete.
     force_missing : int
         Serial: frames of a board that sends FORCE handed on without one (its FORCE was
-        lost): their ``force`` is all NaN.
+        lost): their ``force`` is all NaN. CAN: frames of a node that sends FORCE frames
+        with at least one FORCE group lost (its taxels NaN) or of the wrong size (also
+        counted ``malformed``).
     """
 
     bytes: int = 0
@@ -913,11 +939,14 @@ def can_sample_frames(
     duty: Sequence[int] | np.ndarray,
     flags: int = 0,
     status: Sequence[int] | np.ndarray | None = None,
+    force: Sequence[float] | np.ndarray | None = None,
 ) -> list[CanFrame]:
     """Cut one sample into CAN frames: SYNC, DATA 0 .. G-1, DUTY group seq mod ceil(n/8), STATUS.
 
     Parameters are those of `encode_sample`, after the ``node`` (0-6); a node carries
-    1 - `CAN_MAX_TAXELS` taxels.
+    1 - `CAN_MAX_TAXELS` taxels. With ``force`` (N per taxel, NaN: no reading; as
+    `encode_force`) the frames FORCE 0 .. G-1 (u16 mN of taxels 4g .. 4g+3) come between the
+    DUTY frame and STATUS, as a board with a force channel sends them.
 
     Returns
     -------
@@ -935,10 +964,18 @@ def can_sample_frames(
     data = words.tobytes()
     groups = -(-n // 4)
     d = seq % -(-n // 8)
+    forces: list[CanFrame] = []
+    if force is not None:
+        raw = force_body(seq, force)[_FORCE_HEAD.size:]
+        if len(raw) != 2 * n:
+            raise ValueError(f"force has {len(raw) // 2} channels, the sample {n}")
+        forces = [(can_id(CanType.FORCE, node, g), raw[8 * g : 8 * g + 8])
+                  for g in range(groups)]
     return [
         (can_id(CanType.SYNC, node, 0), _SYNC.pack(seq, device_time_us % (1 << 32))),
         *((can_id(CanType.DATA, node, g), data[8 * g : 8 * g + 8]) for g in range(groups)),
         (can_id(CanType.DUTY, node, d), duty[8 * d : 8 * d + 8]),
+        *forces,
         (can_id(CanType.STATUS, node, 0),
          _STATUS.pack(seq & 0xFF, _u(flags, 16, "flags"), _ambient_raw(ambient), groups)),
     ]
@@ -1007,6 +1044,8 @@ class _Node:
     time_us: int = 0
     sync_host: float | None = None  # host arrival time of the open sample's SYNC
     groups: dict[int, bytes] = field(default_factory=dict)
+    forces: dict[int, bytes] = field(default_factory=dict)  # the open sample's FORCE groups
+    has_force: bool = False  # the node has sent a FORCE frame: its samples carry force
     n_groups: int = 0  # G of the last STATUS seen, to count the groups of a dropped sample
     duty: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.uint8))
     last_seq: int | None = None  # seq of the last complete sample
@@ -1027,7 +1066,11 @@ class CanReassembler:
     open is ignored (``stats.orphans``), seq gaps count the samples lost whole
     (``stats.lost_samples``; a gap longer than `DUPLICATE_WINDOW` once the next sample
     confirms it, and a sample whose successor continues from before it had a damaged seq) and
-    repeats ``stats.duplicates``. Duties are the last received per taxel. REPLY segments are
+    repeats ``stats.duplicates``. Duties are the last received per taxel. FORCE frames
+    (between DUTY and STATUS) fill the open sample's force groups: once a node has sent one,
+    its frames carry ``force`` (N, NaN for a lost group or 0xFFFF; ``stats.forces``,
+    ``force_missing``, ``force_orphans``); a node that never sent one gives ``force`` None.
+    REPLY segments are
     concatenated per node into ``replies``, as (node, reply). COMMAND frames (the host's own)
     are ignored.
 
@@ -1073,6 +1116,7 @@ class CanReassembler:
             node.seq, node.time_us = _SYNC.unpack(data)
             node.sync_host = host_time
             node.groups = {}
+            node.forces = {}
         elif kind == CanType.DATA and data and len(data) % 2 == 0:
             if node.seq is None:
                 self.stats.orphans += 1
@@ -1088,6 +1132,12 @@ class CanReassembler:
                 self.stats.orphans += 1
                 return None
             return self._close(node_id, node, *_STATUS.unpack(data))
+        elif kind == CanType.FORCE and data and len(data) % 2 == 0:
+            node.has_force = True
+            if node.seq is None or index in node.forces:
+                self.stats.force_orphans += 1  # its SYNC was lost, or a repeat
+            else:
+                node.forces[index] = data
         elif kind == CanType.REPLY:
             self._segment(node_id, node, index, data)
         elif kind != CanType.COMMAND:
@@ -1095,6 +1145,8 @@ class CanReassembler:
         return None
 
     def _drop(self, node: _Node, n_groups: int) -> None:
+        self.stats.force_orphans += len(node.forces)  # their sample is lost
+        node.forces = {}
         self.stats.missing += 1
         self.stats.lost_groups += max(0, n_groups - sum(g < n_groups for g in node.groups))
         node.dropped += 1
@@ -1146,10 +1198,35 @@ class CanReassembler:
         duty[:known] = node.duty[:known]
         self.stats.frames += 1
         host = time.monotonic() if node.sync_host is None else node.sync_host
-        return Frame(seq, node.time_us * 1e-6, host,
-                     (words & MAX_COUNT).astype(np.uint16),
-                     math.nan if ambient == AMBIENT_UNKNOWN else ambient / 100.0, duty, flags,
-                     self.boards.get(node_id, node_id), (words >> 12).astype(np.uint8))
+        frame = Frame(seq, node.time_us * 1e-6, host,
+                      (words & MAX_COUNT).astype(np.uint16),
+                      math.nan if ambient == AMBIENT_UNKNOWN else ambient / 100.0, duty, flags,
+                      self.boards.get(node_id, node_id), (words >> 12).astype(np.uint8))
+        if node.has_force:
+            _attach(frame, self._force(node, n))
+        return frame
+
+    def _force(self, node: _Node, n: int) -> np.ndarray:
+        """Return the open sample's force, N (NaN where its FORCE group did not arrive)."""
+        force = np.full(n, math.nan)
+        complete = True
+        for g in range((n + 3) // 4):
+            data = node.forces.pop(g, None)
+            width = min(4, n - 4 * g)
+            if data is None or len(data) != 2 * width:
+                complete = False
+                if data is not None:
+                    self.stats.malformed += 1  # a group of the wrong size
+                continue
+            raw = np.frombuffer(data, dtype="<u2")
+            force[4 * g : 4 * g + width] = force_newtons(raw)
+        self.stats.force_orphans += len(node.forces)  # groups beyond the sample's taxels
+        node.forces = {}
+        if complete:
+            self.stats.forces += 1
+        else:
+            self.stats.force_missing += 1
+        return force
 
     def _segment(self, node_id: int, node: _Node, index: int, data: bytes) -> None:
         if node.reply is not None and index == node.reply_next % 32:

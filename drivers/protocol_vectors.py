@@ -1,8 +1,8 @@
 """Test vectors of wire protocol v1, shared by the firmware's tests and the driver's.
 
 ``python -m skin.drivers.protocol_vectors [DIR]`` writes ``serial.txt``, ``can.txt`` and
-``serial_force.txt`` (the optional FORCE message, which the firmware does not send, so its C
-tests do not read it)
+``serial_force.txt`` (the optional FORCE message, which firmware built with force inputs sends;
+the C host test checks ``skin_pack_force`` against it)
 (``firmware/test_vectors`` of the source tree by default) from the values below; the format is
 described in ``firmware/test_vectors/README.md``. `read_vectors` parses them back.
 

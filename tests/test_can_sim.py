@@ -3,6 +3,7 @@
 import dataclasses
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -171,3 +172,30 @@ def test_no_sample_follows_the_acknowledgement_of_a_stop(channel):
             seqs.append(frame.seq)
     # each sample held back went out after the START: nothing lost, nothing twice
     assert seqs == list(range(len(seqs))) and len(seqs) >= 5
+
+
+def test_a_simulated_node_with_force_sends_force_frames(channel):
+    """A scene with a force channel: the simulated CAN node sends FORCE frames and the driver's
+    frames carry the simulator's force exactly (1 mN on the wire as in the simulator)."""
+    from skin.formats.scene import parse_scene
+
+    text = (Path(__file__).resolve().parents[1] / "skin" / "data" / "scenes"
+            / "reference-touches.toml").read_text()
+    scene = dataclasses.replace(parse_scene(text, "reference-touches.toml"), force="force")
+    sim = SkinSimulator(scene, duration=6.0)
+    expected = {f.seq: f for f in sim.frames()}
+    with drivers.open(f"can://virtual/{channel}") as driver, CanSimNode(
+            sim, ("virtual", channel), node=1, speed=0) as node:
+        node.start()
+        got = []
+        while (frame := driver.recv(timeout=0.3)) is not None:
+            got.append(frame)
+        stats = driver.stats
+    assert len(got) == len(expected) and stats.forces == len(got)
+    assert stats.force_missing == stats.force_orphans == 0
+    touched = 0
+    for f in got:
+        want = expected[f.seq].force
+        assert np.array_equal(f.force, want, equal_nan=True)
+        touched += int(np.nanmax(f.force) > 1.0)
+    assert touched > 100  # the first touch pressed

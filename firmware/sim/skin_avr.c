@@ -7,6 +7,9 @@
  *   - each thermistor in the paper's divider (thermistor from V+ to the input, R_REF to ground),
  *     its temperature from the scene file plus its heater's first-order response;
  *   - the LM35 ambient sensor (10 mV per deg C) on ADC channel M (or N with M = 0);
+ *   - with --force-inputs F, a force-sensing stage per taxel 0 .. F-1 (linear, --force-full-n
+ *     at 1.1 V) on ceil(F / 16) more multiplexers on ADC channels M+1 .. (without multiplexers:
+ *     input f on ADC channel N+1+f), its force from the scene (scene version 2);
  *   - the 74HC595 heater chain on SPI with the latch on PB0;
  *   - UART0 on a pseudo-terminal, with back-pressure both ways.
  *
@@ -19,7 +22,11 @@
  * Usage: skin_avr --mcu atmega328p|atmega2560 --freq 16000000 --elf FILE --scene FILE
  *                 --taxels N --muxes M [--swap I,J] [--realtime X] [--duration SECONDS]
  *                 [--wait-host 1]  (start on the first byte the host writes)
- * The first line on stdout is "PTY <path>"; a one-line summary goes to stderr at exit.
+ *                 [--force-inputs F] [--force-full-n NEWTON]
+ * The first line on stdout is "PTY <path>"; a one-line summary goes to stderr at exit, after
+ * a "timing" line: the cycles of the firmware's GPIOR0 marks (bit 0: the main loop's work on a
+ * sample; bit 1: a scan's conversions; bit 2: the serial sketch waiting for the previous packet
+ * to leave), count, mean and max per mark.
  */
 #define _GNU_SOURCE
 #include <errno.h>
@@ -55,6 +62,7 @@
 #define ADCH_ADDR 0x79
 #define UBRR0L_ADDR 0xC4   /* also the same on both */
 #define SPDR_ADDR 0x4E     /* SPI data register, the same on both */
+#define GPIOR0_ADDR 0x3E   /* the firmware's timing marks, the same on both */
 #define OUT_HIGH_WATER 4096      /* pending UART output before the emulation waits */
 #define IN_CAPACITY (64 * 1024)  /* host bytes buffered before the pty is no longer read */
 #define EXIT_LINGER_S 0.25       /* at the end, wait while the host reads the rest */
@@ -66,6 +74,8 @@ typedef struct {
 	int n_taxels, n_muxes, swap_i, swap_j;
 	double realtime, duration;
 	int wait_host; /* start emulating on the first byte from the host */
+	int n_force;   /* taxels 0 .. n_force-1 have a force input */
+	double force_full_n; /* force at 1.1 V */
 	double c0, c1, r_ref, v_plus;
 	int verbose;
 
@@ -74,11 +84,12 @@ typedef struct {
 	float rate_hz, nominal, rise, tau;
 	float *temp; /* [n_samples][n_taxels] */
 	float *ambient;
+	float *force; /* [n_samples][n_taxels], N; NULL: version-1 scene (no force) */
 
 	/* simulator */
 	avr_t *avr;
 	avr_irq_t *adc_irq; /* ADC_IRQ_ADC0 .. */
-	int ambient_ch, n_channels;
+	int ambient_ch, n_channels, force_ch0, n_force_ch;
 	uint8_t sel;                   /* multiplexer select lines S0-S3 */
 	uint32_t live_mv[SIM_ADC_CHANNELS];
 	int hold_ch;                   /* sample-and-hold: channel of the last conversion, -1 none */
@@ -96,6 +107,11 @@ typedef struct {
 	double h0[MAX_TAXELS], t0[MAX_TAXELS]; /* heater rise h0 at time t0 */
 	int heater_of[MAX_TAXELS];             /* thermistor t is warmed by heater heater_of[t] */
 	uint64_t latches, spi_bytes;
+
+	/* timing marks (GPIOR0 bits 0, 1) */
+	uint8_t gpior;
+	avr_cycle_count_t mark_t0[3], mark_max[3];
+	uint64_t mark_sum[3], mark_n[3];
 
 	/* serial */
 	int master, slave;
@@ -160,8 +176,9 @@ static void load_scene(const char *path)
 		die("%s: shorter than the 32-byte header", path);
 	if (memcmp(h, "SKSC", 4))
 		die("%s: not a scene file (magic is not SKSC)", path);
-	if (rd_u32(h + 4) != 1)
-		die("%s: scene version %u, this harness reads version 1", path, rd_u32(h + 4));
+	uint32_t version = rd_u32(h + 4);
+	if (version != 1 && version != 2)
+		die("%s: scene version %u, this harness reads versions 1 and 2", path, version);
 	uint32_t n = rd_u32(h + 8);
 	S.n_samples = rd_u32(h + 12);
 	S.rate_hz = rd_f32(h + 16);
@@ -185,6 +202,17 @@ static void load_scene(const char *path)
 	for (size_t i = 0; i < S.n_samples; i++)
 		S.ambient[i] = rd_f32(raw + 4 * (count + i));
 	free(raw);
+	if (version == 2) { /* then the force of every taxel at every sample, N */
+		S.force = malloc(count * sizeof(float));
+		raw = malloc(count * 4);
+		if (!S.force || !raw)
+			die("out of memory for the scene's force");
+		if (fread(raw, 4, count, f) != count)
+			die("%s: truncated: %u samples x %u taxels of force expected", path, S.n_samples, n);
+		for (size_t i = 0; i < count; i++)
+			S.force[i] = rd_f32(raw + 4 * i);
+		free(raw);
+	}
 	fclose(f);
 }
 
@@ -220,8 +248,21 @@ static uint32_t divider_mv(double temp_c)
 	return (uint32_t)lround(v * 1000.0);
 }
 
+static uint32_t force_mv(int taxel, double t)
+{
+	if (!S.force || taxel >= S.n_force || taxel >= S.n_taxels)
+		return 0;
+	double f = S.force[(size_t)sample_at(t) * S.n_taxels + taxel];
+	double mv = f / S.force_full_n * 1100.0;
+	if (!(mv > 0))
+		return 0;
+	return mv > 5000.0 ? 5000 : (uint32_t)lround(mv);
+}
+
 static uint32_t channel_mv(int ch, double t)
 {
+	if (S.n_force_ch && ch >= S.force_ch0)
+		return force_mv(S.n_muxes ? 16 * (ch - S.force_ch0) + S.sel : ch - S.force_ch0, t);
 	if (ch == S.ambient_ch) {
 		double mv = S.ambient[sample_at(t)] * 10.0;
 		return mv > 0 ? (uint32_t)lround(mv) : 0;
@@ -259,6 +300,28 @@ static void on_select(avr_irq_t *irq, uint32_t value, void *param)
 	double t = emu_now();
 	for (int ch = 0; ch < S.n_muxes; ch++)
 		refresh_channel(ch, t);
+	if (S.n_muxes)
+		for (int ch = S.force_ch0; ch < S.force_ch0 + S.n_force_ch; ch++)
+			refresh_channel(ch, t);
+}
+
+/* GPIOR0: the firmware's timing marks; time each bit from its rise to its fall */
+static void gpior_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
+{
+	avr->data[addr] = v;
+	for (int b = 0; b < 3; b++) {
+		int was = (S.gpior >> b) & 1, now = (v >> b) & 1;
+		if (now && !was)
+			S.mark_t0[b] = avr->cycle;
+		else if (!now && was) {
+			avr_cycle_count_t d = avr->cycle - S.mark_t0[b];
+			S.mark_sum[b] += d;
+			S.mark_n[b]++;
+			if (d > S.mark_max[b])
+				S.mark_max[b] = d;
+		}
+	}
+	S.gpior = v;
 }
 
 static void on_adc_trigger(avr_irq_t *irq, uint32_t value, void *param)
@@ -466,7 +529,8 @@ static void usage(void)
 	fprintf(stderr,
 		"usage: skin_avr --mcu atmega328p|atmega2560 --freq 16000000 --elf FILE --scene FILE\n"
 		"                --taxels N --muxes M [--swap I,J] [--realtime X] [--duration SECONDS]\n"
-		"                [--r-ref OHM] [--v-plus VOLT] [--c0 C0] [--c1 C1] [--wait-host 1] [--verbose]\n");
+		"                [--r-ref OHM] [--v-plus VOLT] [--c0 C0] [--c1 C1] [--wait-host 1] [--verbose]\n"
+		"                [--force-inputs F] [--force-full-n NEWTON]\n");
 	exit(2);
 }
 
@@ -481,6 +545,7 @@ static void parse_args(int argc, char **argv)
 	S.c1 = 2.6181e-4;
 	S.r_ref = 668.0;
 	S.v_plus = 5.06;
+	S.force_full_n = 20.0;
 	for (int i = 1; i < argc; i++) {
 		const char *a = argv[i];
 		if (!strcmp(a, "--verbose")) {
@@ -521,6 +586,10 @@ static void parse_args(int argc, char **argv)
 			S.c0 = atof(v);
 		else if (!strcmp(a, "--c1"))
 			S.c1 = atof(v);
+		else if (!strcmp(a, "--force-inputs"))
+			S.n_force = atoi(v);
+		else if (!strcmp(a, "--force-full-n"))
+			S.force_full_n = atof(v);
 		else
 			die("unknown option %s (--help lists them)", a);
 	}
@@ -540,7 +609,16 @@ static void parse_args(int argc, char **argv)
 	if (S.ambient_ch >= SIM_ADC_CHANNELS)
 		die("the ambient sensor would be on ADC%d; simavr models ADC0-ADC%d only",
 		    S.ambient_ch, SIM_ADC_CHANNELS - 1);
-	S.n_channels = S.ambient_ch + 1;
+	if (S.n_force < 0 || S.n_force > S.n_taxels)
+		die("--force-inputs must be 0..%d (the taxels)", S.n_taxels);
+	if (!(S.force_full_n > 0))
+		die("--force-full-n must be positive");
+	S.force_ch0 = S.ambient_ch + 1;
+	S.n_force_ch = S.n_muxes ? (S.n_force + 15) / 16 : S.n_force;
+	S.n_channels = S.ambient_ch + 1 + S.n_force_ch;
+	if (S.n_channels > SIM_ADC_CHANNELS)
+		die("the force inputs would need ADC%d; simavr models ADC0-ADC%d only",
+		    S.n_channels - 1, SIM_ADC_CHANNELS - 1);
 }
 
 static void on_signal(int sig)
@@ -619,6 +697,7 @@ int main(int argc, char **argv)
 	if (!S.avr->io[spdr_io].w.c)
 		die("simavr's SPI does not hook SPDR at 0x%02x on %s", SPDR_ADDR, S.mcu);
 	S.avr->io[spdr_io].w.c = spdr_write_timed;
+	avr_register_io_write(S.avr, GPIOR0_ADDR, gpior_write, NULL);
 
 	/* UART0 */
 	int ubrr_io = AVR_DATA_TO_IO(UBRR0L_ADDR);
@@ -716,6 +795,16 @@ int main(int argc, char **argv)
 		last_pending = pending;
 		usleep(2000);
 	}
+	fprintf(stderr,
+		"skin_avr: timing: poll %llu marks, mean %.1f max %llu cycles; "
+		"scan %llu marks, mean %.1f max %llu cycles; "
+		"wait %llu marks, mean %.1f max %llu cycles\n",
+		(unsigned long long)S.mark_n[0], S.mark_n[0] ? (double)S.mark_sum[0] / S.mark_n[0] : 0.0,
+		(unsigned long long)S.mark_max[0], (unsigned long long)S.mark_n[1],
+		S.mark_n[1] ? (double)S.mark_sum[1] / S.mark_n[1] : 0.0,
+		(unsigned long long)S.mark_max[1], (unsigned long long)S.mark_n[2],
+		S.mark_n[2] ? (double)S.mark_sum[2] / S.mark_n[2] : 0.0,
+		(unsigned long long)S.mark_max[2]);
 	fprintf(stderr,
 		"skin_avr: %s: emulated %.3f s, %llu cycles, %llu bytes out, %llu bytes in, "
 		"real %.3f s (%.2fx real time), waited %.3f s for the host, %llu latches\n",

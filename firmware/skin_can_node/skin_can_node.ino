@@ -139,6 +139,25 @@ void skin_transport_send_sample(const skin_sample_t *s)
     }
 }
 
+#if SKIN_FORCE_INPUTS > 0
+/* The sample's frames with FORCE 0 .. G-1 between its DUTY frame and its STATUS (the last). */
+void skin_transport_send_sample_force(const skin_sample_t *s, const uint16_t *force)
+{
+    skin_can_frame_t f;
+    size_t n = skin_can_sample_frames(s->n);
+    for (size_t k = 0; k + 1 < n; k++) {
+        skin_can_sample_frame(s, SKIN_CAN_NODE, k, &f);
+        can_send(&f);
+    }
+    for (uint16_t g = 0; g < (s->n + 3) / 4; g++) {
+        skin_can_force_frame(force, s->n, SKIN_CAN_NODE, g, &f);
+        can_send(&f);
+    }
+    skin_can_sample_frame(s, SKIN_CAN_NODE, n - 1, &f);
+    can_send(&f);
+}
+#endif
+
 void skin_transport_send_reply(const uint8_t *body, size_t len)
 {
     skin_can_frame_t f;
@@ -186,7 +205,11 @@ void setup()
     skin_transport_div = SKIN_CAN_KBPS;
     /* the bus's limit: worst-case bits of one sample's frames (stuffing included), 5 % spare */
     uint32_t bits = 0;
+#if SKIN_FORCE_INPUTS > 0 /* with the FORCE frames */
+    for (uint16_t k = 0; k < skin_can_sample_frames(SKIN_TAXELS) + (SKIN_TAXELS + 3) / 4; k++)
+#else
     for (uint16_t k = 0; k < skin_can_sample_frames(SKIN_TAXELS); k++)
+#endif
         bits += 47UL + 64UL + (34UL + 64UL - 1UL) / 4UL;
     skin_transport_max_rate = (uint16_t)(SKIN_CAN_KBPS * 1000UL * 95UL / 100UL / bits);
     skin_board_begin(); /* sets up SPI, shared with the heaters' shift registers */

@@ -10,9 +10,21 @@
 #include "skin_board.h"
 #include "skin_proto.h"
 
+#if SKIN_TIMING_MARKS
+#define MARK_ON(b) (GPIOR0 |= (1 << (b)))
+#define MARK_OFF(b) (GPIOR0 &= ~(1 << (b)))
+#else
+#define MARK_ON(b) ((void)0)
+#define MARK_OFF(b) ((void)0)
+#endif
+
 #define RX_MAX 32 /* the longest command body is 8 bytes; COBS and CRC add 3 */
 #define WIRE_MAX(len) ((len) + 2 + ((len) + 2) / 254 + 2)
-#define BODY_MAX (5 + 4 * SKIN_TAXELS)
+/* the longest body: a SELFTEST_RESULT (5 + 4n) or, below 11 taxels, a SAMPLE (16 + 3n); it was
+ * 5 + 4n alone, which a SAMPLE of fewer than 9 taxels overran (with the CRC's 2 bytes) */
+#define BODY_MAX SKIN_BODY_MAX(SKIN_TAXELS)
+static_assert(BODY_MAX >= SKIN_SAMPLE_BODY_LEN(SKIN_TAXELS), "body holds a SAMPLE");
+static_assert(BODY_MAX >= SKIN_FORCE_BODY_LEN(SKIN_TAXELS), "body holds a FORCE");
 
 #if defined(USART0_UDRE_vect)
 #define UDRE_VECT USART0_UDRE_vect
@@ -35,6 +47,30 @@ static volatile uint16_t tx_pos, tx_len;
 static volatile uint8_t rx_ring[64];
 static volatile uint8_t rx_head, rx_tail;
 
+#if SKIN_FORCE_INPUTS > 0
+/* A FORCE is framed into wire2 while its SAMPLE leaves from wire, and queued behind it (tx_next),
+ * so the main loop does not wait for the SAMPLE's bytes. */
+static uint8_t wire2[WIRE_MAX(8 + 2 * SKIN_TAXELS)];
+static const uint8_t *volatile tx_buf = wire;
+static volatile uint16_t tx_next;
+
+ISR(UDRE_VECT)
+{
+    uint16_t pos = tx_pos;
+    UDR0 = tx_buf[pos++];
+    if (pos >= tx_len) {
+        if (tx_next) { /* the FORCE queued behind it */
+            tx_buf = wire2;
+            tx_len = tx_next;
+            tx_next = 0;
+            pos = 0;
+        } else {
+            UCSR0B &= ~(1 << UDRIE0);
+        }
+    }
+    tx_pos = pos;
+}
+#else
 ISR(UDRE_VECT)
 {
     uint16_t pos = tx_pos;
@@ -43,6 +79,7 @@ ISR(UDRE_VECT)
     if (pos >= tx_len)
         UCSR0B &= ~(1 << UDRIE0);
 }
+#endif
 
 ISR(RX_VECT)
 {
@@ -64,10 +101,15 @@ static void uart_begin(void)
 
 static void send_body(size_t len)
 {
+    MARK_ON(2); /* timing mark (skin_board.cpp, SKIN_TIMING_MARKS): waiting for the link */
     while (UCSR0B & (1 << UDRIE0)) {
         /* the previous packet is still leaving */
     }
+    MARK_OFF(2);
     size_t n = skin_frame(body, len, wire);
+#if SKIN_FORCE_INPUTS > 0
+    tx_buf = wire;
+#endif
     tx_pos = 0;
     tx_len = (uint16_t)n;
     UCSR0B |= (1 << UDRIE0);
@@ -77,6 +119,27 @@ void skin_transport_send_sample(const skin_sample_t *s)
 {
     send_body(skin_pack_sample(s, body));
 }
+
+#if SKIN_FORCE_INPUTS > 0
+void skin_transport_send_sample_force(const skin_sample_t *s, const uint16_t *force)
+{
+    send_body(skin_pack_sample(s, body));
+    /* FORCE right after its SAMPLE (PROTOCOL.md): packed and framed while the SAMPLE leaves (the
+     * last FORCE has left: send_body waited for the link), then queued behind it */
+    size_t n = skin_frame(body, skin_pack_force(s->seq, s->n, force, body), wire2);
+    uint8_t sreg = SREG;
+    cli();
+    if (UCSR0B & (1 << UDRIE0)) {
+        tx_next = (uint16_t)n;
+    } else {
+        tx_buf = wire2;
+        tx_pos = 0;
+        tx_len = (uint16_t)n;
+        UCSR0B |= (1 << UDRIE0);
+    }
+    SREG = sreg;
+}
+#endif
 
 void skin_transport_send_reply(const uint8_t *reply, size_t len)
 {
@@ -110,7 +173,10 @@ void setup()
     skin_transport_kind = 0;
     skin_transport_div = (uint16_t)(SKIN_BAUD / 100UL);
     /* the link's limit: a sample's bytes at 10 bit times each, with 5 % left for replies */
-    const uint32_t sample_bytes = 18UL + 3UL * SKIN_TAXELS + (18UL + 3UL * SKIN_TAXELS) / 254UL + 2UL;
+    uint32_t sample_bytes = 18UL + 3UL * SKIN_TAXELS + (18UL + 3UL * SKIN_TAXELS) / 254UL + 2UL;
+#if SKIN_FORCE_INPUTS > 0
+    sample_bytes += 10UL + 2UL * SKIN_TAXELS + (10UL + 2UL * SKIN_TAXELS) / 254UL + 2UL; /* FORCE */
+#endif
     skin_transport_max_rate = (uint16_t)(SKIN_BAUD / 10UL * 95UL / 100UL / sample_bytes);
     skin_board_begin();
 }

@@ -474,6 +474,17 @@ void check_sample(const Vector &v)
     r.end("sample");
 }
 
+void check_force(const Vector &v)
+{
+    std::vector<long long> mn = get_list(v, "force_mn");
+    std::vector<uint16_t> words(mn.begin(), mn.end());
+    Bytes body(8 + 2 * words.size());
+    size_t len = skin_pack_force((uint32_t)get_int(v, "seq"), (uint16_t)words.size(),
+                                 words.data(), body.data());
+    same_int("skin_pack_force length", (long long)len, (long long)body.size());
+    check_body_and_wire(v, body);
+}
+
 skin_command_t command_of(const Vector &v)
 {
     skin_command_t c{};
@@ -852,6 +863,7 @@ const std::map<std::string, Check> &checks()
         {"cobs", check_cobs},
         {"fnv", check_fnv},
         {"sample", check_sample},
+        {"force", check_force},
         {"command", check_command},
         {"ack", check_ack},
         {"error", check_error},
@@ -889,6 +901,34 @@ Bytes cat(Bytes a, const Bytes &b)
 
 void builtin_checks()
 {
+    builtin("SKIN_BODY_MAX(n) holds every body a board of n taxels sends");
+    for (uint16_t n = 1; n <= 128; ++n) {
+        std::vector<uint16_t> words(n, 0x0FFF);
+        std::vector<uint8_t> duty(n, 255);
+        std::vector<int16_t> response(n, -1);
+        std::vector<uint8_t> body(2 * SKIN_BODY_MAX(n) + 64);
+        skin_sample_t s{};
+        s.n = n;
+        s.words = words.data();
+        s.duty = duty.data();
+        skin_identity_t id{};
+        id.taxels = n;
+        skin_error_t err{};
+        const size_t len[] = {skin_pack_sample(&s, body.data()),
+                              skin_pack_force(1, n, words.data(), body.data()),
+                              skin_pack_selftest_result(1, n, response.data(), words.data(),
+                                                        body.data()),
+                              skin_pack_identity(&id, body.data()),
+                              skin_pack_ack(1, 2, body.data()),
+                              skin_pack_error(&err, body.data())};
+        for (size_t l : len)
+            if (l > (size_t)SKIN_BODY_MAX(n)) {
+                fail("a body of " + std::to_string(l) + " bytes for " + std::to_string(n) +
+                     " taxels exceeds SKIN_BODY_MAX " + std::to_string(SKIN_BODY_MAX(n)));
+                n = 128;
+                break;
+            }
+    }
     builtin("crc16 check value");
     const char *check = "123456789";
     same_int("crc", skin_crc16((const uint8_t *)check, 9), 0x29B1);
@@ -1147,6 +1187,20 @@ void builtin_checks()
         same_int("frames of " + std::to_string(ns[i]) + " taxels", (long long)skin_can_sample_frames(ns[i]),
                  (long long)counts[i]);
 
+    builtin("CAN force frames");
+    {
+        const uint16_t force[10] = {0, 250, 500, 750, 1000, SKIN_FORCE_NONE, 1500, 1750, 2000, 2250};
+        skin_can_frame_t f;
+        skin_can_force_frame(force, 10, 2, 1, &f);
+        same_int("FORCE node 2 group 1", f.id, 0x641);
+        same_int("dlc", f.dlc, 8);
+        same_bytes("data", Bytes(f.data, f.data + f.dlc),
+                   Bytes({0xE8, 0x03, 0xFF, 0xFF, 0xDC, 0x05, 0xD6, 0x06}));
+        skin_can_force_frame(force, 10, 2, 2, &f);  // the last group: 2 taxels
+        same_int("dlc of the last group", f.dlc, 4);
+        same_bytes("last data", Bytes(f.data, f.data + f.dlc), Bytes({0xD0, 0x07, 0xCA, 0x08}));
+    }
+
     builtin("CAN reply segments");
     {
         Bytes body(300);
@@ -1178,6 +1232,7 @@ int main(int argc, char **argv)
         {"serial.txt", {"crc", "cobs", "fnv", "sample", "command", "ack", "error", "identity",
                         "selftest_result", "bad_command"}},
         {"can.txt", {"can_sample", "can_command", "can_reply"}},
+        {"serial_force.txt", {"force"}},
     };
     for (const auto &file : files) {
         std::vector<Vector> vectors;

@@ -164,6 +164,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     bus = kinds.add_parser("bus", help="protocol cost and taxel limits per bus")
     bus.add_argument("--taxels", default="16,64", help="board sizes (default 16,64)")
     bus.add_argument("--rate", type=float, default=200.0, help="sample rate, Hz (default 200)")
+    bus.add_argument("--force", action="store_true",
+                     help="boards that also send their force channel (FORCE)")
     bus.add_argument("--json", action="store_true", help="print one JSON document")
     bus.set_defaults(func=main_bus)
     cal = kinds.add_parser("calibration", help="recovering each taxel's thermal constants")
@@ -934,21 +936,24 @@ def main_bus(args: argparse.Namespace) -> int:
     from skin.drivers.bus_load import adc_max_taxels, bus_table
 
     sizes = tuple(int(v) for v in args.taxels.split(","))
-    rows = bus_table(sizes, args.rate)
-    adc = {os_: adc_max_taxels(args.rate, os_) for os_ in (1, 2, 4)}
+    rows = bus_table(sizes, args.rate, args.force)
+    adc = {os_: adc_max_taxels(args.rate, os_, args.force) for os_ in (1, 2, 4)}
     if args.json:
-        print(json.dumps({"rate_hz": args.rate, "buses": [r.as_dict() for r in rows],
+        print(json.dumps({"rate_hz": args.rate, "force": args.force,
+                          "buses": [r.as_dict() for r in rows],
                           "adc_max_taxels_by_oversampling": adc}))
         return 0
     print(f"protocol v1 at {args.rate:g} Hz (serial 8N1; CAN classic, 11-bit ids, worst-case "
-          "stuffing; best case in brackets)")
+          "stuffing; best case in brackets)"
+          + ("; with the force channel (FORCE)" if args.force else ""))
     print(f"{'bus':>6} {'bit/s':>9} {'taxels':>6} {'bytes':>6} {'frames':>6} {'bytes/s':>8} "
           f"{'load':>14} {'max taxels':>10}")
     for r in rows:
         load = f"{100 * r.load:.1f} %" + (f" ({100 * r.load_best:.1f})" if r.bus == "can" else "")
         print(f"{r.bus:>6} {r.bit_rate:>9} {r.taxels:>6} {r.frame_bytes:>6} {r.frames:>6} "
               f"{r.bytes_per_s:>8.0f} {load:>14} {r.max_taxels:>10}")
-    print("AVR ADC at 250 kHz (16 MHz / 64, 16 clocks per conversion with its interrupt), "
-          "95 % of the period: at most "
-          + ", ".join(f"{n} taxels with {k}x oversampling" for k, n in adc.items()))
+    print("AVR board at 16 MHz (ADC 16 MHz / 64; scan and main loop in cycles as the firmware's "
+          "max-rate formula, 95 % of the period)"
+          + (", a force input (1 MHz conversion) on every taxel" if args.force else "")
+          + ": at most " + ", ".join(f"{n} taxels with {k}x oversampling" for k, n in adc.items()))
     return 0

@@ -33,6 +33,19 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
     clock.add_argument("--seed", type=int, default=0, help="seed (default 0)")
     clock.add_argument("--json", action="store_true", help="print one JSON document")
     clock.set_defaults(func=main_clock)
+    fw = kinds.add_parser("firmware", help="the AVR firmware's cycles per sample in simavr, "
+                                           "with and without its force inputs")
+    fw.add_argument("--builds", default="uno,uno_force",
+                    help="firmware/Makefile builds, the first the baseline "
+                         "(default uno,uno_force; also mega)")
+    fw.add_argument("--seconds", type=float, default=3.0,
+                    help="emulated seconds per build (default 3)")
+    fw.add_argument("--same-stream", metavar="ELF",
+                    help="also check that the first build (without timing marks) sends byte "
+                         "for byte what this ELF (the same board built from another commit) "
+                         "sends")
+    fw.add_argument("--json", action="store_true", help="print one JSON document")
+    fw.set_defaults(func=main_firmware)
 
 
 def _si(value: float) -> str:
@@ -45,6 +58,54 @@ def _si(value: float) -> str:
 def _link(bus: str, bit_rate: int) -> str:
     rate = f"{bit_rate / 1e6:g}M" if bit_rate >= 1_000_000 else f"{bit_rate // 1000}k"
     return f"{bus} {rate}"
+
+
+def main_firmware(args: argparse.Namespace) -> int:
+    """Run ``skin bench firmware``."""
+    from skin.bench import machine
+    from skin.bench.firmware import measure, same_packets, stream_bytes
+    from skin.drivers.avr_sim import firmware_elf
+
+    builds = [b.strip() for b in args.builds.split(",") if b.strip()]
+    if not builds:
+        raise SkinError("--builds names no build")
+    if not args.seconds > 0:
+        raise SkinError("--seconds must be positive")
+    rows = [measure(b, args.seconds) for b in builds]
+    base = rows[0]
+    out = []
+    for r in rows:
+        d = r.as_dict()
+        d["work_ratio"] = round(r.work_per_sample / base.work_per_sample, 3)
+        d["scan_ratio"] = round(r.scan_mean / base.scan_mean, 3)
+        out.append(d)
+    same = None
+    if args.same_stream:
+        ours = stream_bytes(str(firmware_elf(base.build)), base.build, args.seconds)
+        theirs = stream_bytes(args.same_stream, base.build, args.seconds)
+        same = {"elf": args.same_stream, "build": str(firmware_elf(base.build)),
+                **same_packets(ours, theirs, int(200 * args.seconds))}
+    if args.json:
+        print(json.dumps({"machine": machine(), "seconds": args.seconds, "baseline": base.build,
+                          "builds": out, "same_stream": same}, indent=2))
+        return 0
+    print(f"AVR firmware in simavr, {args.seconds:g} emulated s per build, cycles of the 16 MHz "
+          f"MCU per sample (period {base.period_cycles:.0f}); ratios against {base.build}")
+    print(f"{'build':>10} {'taxels':>6} {'force':>5} {'frames':>6} {'w/force':>7} "
+          f"{'scan':>8} {'(max)':>7} {'%per':>5} {'work':>7} {'ratio':>6} {'wait':>6} "
+          f"{'poll max':>8} {'B/sample':>8}")
+    for d in out:
+        print(f"{d['build']:>10} {d['taxels']:>6} {d['force_inputs']:>5} {d['frames']:>6} "
+              f"{d['frames_with_force']:>7} {d['scan_mean']:>8.0f} {d['scan_max']:>7.0f} "
+              f"{100 * d['scan_max'] / d['period_cycles']:>5.1f} {d['work_per_sample']:>7.0f} "
+              f"{d['work_ratio']:>6.2f} {d['wait_per_sample']:>6.0f} {d['poll_max']:>8.0f} "
+              f"{d['bytes_per_sample']:>8.1f}")
+    if same is not None:
+        verdict = ("identical" if same["identical"]
+                   else f"DIFFERENT (first at packet {same['first_difference']})")
+        print(f"stream of {same['build']} vs {same['elf']}: {same['packets']} packets, "
+              f"{verdict}")
+    return 0
 
 
 def main_drivers(args: argparse.Namespace) -> int:

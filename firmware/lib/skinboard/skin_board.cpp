@@ -13,6 +13,21 @@
 #include "skin_control.h"
 
 #define N SKIN_TAXELS
+#define F SKIN_FORCE_INPUTS
+#define SLOTS (N + 1 + F) /* taxels, the ambient sensor, the force inputs */
+/* GPIOR0 marks, for the emulator's timing (firmware/sim/skin_avr.c, `skin bench firmware`), in
+ * builds with SKIN_TIMING_MARKS only (`make -C firmware timing`): bit 0 while the main loop works
+ * on a sample, bit 1 while a scan converts. Two cycles each; other builds have none, so a
+ * change here cannot move their conversions by a cycle. */
+#define MARK_POLL 0
+#define MARK_SCAN 1
+#if SKIN_TIMING_MARKS
+#define MARK_ON(b) (GPIOR0 |= (1 << (b)))
+#define MARK_OFF(b) (GPIOR0 &= ~(1 << (b)))
+#else
+#define MARK_ON(b) ((void)0)
+#define MARK_OFF(b) ((void)0)
+#endif
 #define GROUPS ((N + 7) / 8)
 #define TIMER_HZ (F_CPU / 64UL) /* timer 1 runs at F_CPU / 64 */
 
@@ -21,9 +36,9 @@ uint16_t skin_transport_div = 0;
 uint16_t skin_transport_max_rate = 0xFFFF;
 
 /* ---- shared with the interrupts ---- */
-static volatile uint16_t acc[N + 1];      /* sums of the scan under way; [N] = ambient */
+static volatile uint16_t acc[SLOTS];      /* sums of the scan under way; [N] = ambient, then force */
 static volatile uint8_t sat[N + 1];
-static volatile uint16_t done_acc[N + 1]; /* the last finished scan */
+static volatile uint16_t done_acc[SLOTS]; /* the last finished scan */
 static volatile uint8_t done_sat[N + 1];
 static volatile uint32_t done_seq, done_time;
 static volatile uint8_t done_ready, lost, overrun;
@@ -31,7 +46,7 @@ static volatile uint8_t scan_busy, slot_os, slot;
 /* The scan order, computed once: per slot, the ADC channel, the multiplexer select lines and
  * the input (taxel, or N for the ambient sensor). Multiplexer channel c of every multiplexer
  * is converted before the select lines move on, so they move 16 times per scan. */
-static uint8_t slot_adc[N + 1], slot_sel[N + 1], slot_input[N + 1];
+static uint8_t slot_adc[SLOTS], slot_sel[SLOTS], slot_input[SLOTS];
 static volatile uint32_t seq, now_us, scan_seq, scan_time;
 static volatile uint32_t period_us;
 
@@ -41,6 +56,11 @@ static uint16_t st_base[N], st_strongest[N];
 static int16_t st_response[N];
 static skin_control_t control;
 static uint16_t counts[N], words[N];
+#if F > 0
+static uint16_t force_mn[N];
+/* mN per 10-bit count, << 16: the force stage's output is linear, SKIN_FORCE_FULL_MN at 1.1 V */
+#define FORCE_SCALE ((uint32_t)((SKIN_FORCE_FULL_MN * 65536UL + 511UL) / 1023UL))
+#endif
 static uint8_t saturated[N], duty[N], bits[GROUPS];
 static uint8_t streaming = SKIN_STREAM_AT_BOOT;
 static uint16_t rate_hz = SKIN_RATE_HZ;
@@ -87,7 +107,30 @@ static void build_scan(void)
 #endif
     slot_adc[k] = SKIN_AMBIENT_CHANNEL;
     slot_sel[k] = 15;
-    slot_input[k] = N;
+    slot_input[k++] = N;
+#if F > 0
+    /* the force inputs after the ambient sensor, one conversion each at the force prescaler */
+#if SKIN_MUXES > 0
+    for (uint8_t c = 0; c < 16; c++)
+        for (uint8_t m = 0; m < SKIN_FORCE_MUXES; m++)
+            if (m * 16 + c < F) {
+                slot_adc[k] = (uint8_t)(SKIN_AMBIENT_CHANNEL + 1 + m);
+                slot_sel[k] = c;
+                slot_input[k++] = (uint8_t)(N + 1 + m * 16 + c);
+            }
+#else
+    for (uint8_t f = 0; f < F; f++) {
+        slot_adc[k] = (uint8_t)(SKIN_AMBIENT_CHANNEL + 1 + f);
+        slot_sel[k] = 0;
+        slot_input[k++] = (uint8_t)(N + 1 + f);
+    }
+#endif
+#endif
+}
+
+static uint8_t adc_prescaler_bits(uint16_t div)
+{
+    return div == 128 ? 7 : div == 64 ? 6 : div == 32 ? 5 : div == 16 ? 4 : div == 8 ? 3 : 2;
 }
 
 ISR(TIMER1_COMPA_vect)
@@ -101,10 +144,16 @@ ISR(TIMER1_COMPA_vect)
     }
     scan_seq = s;
     scan_time = t;
+    MARK_ON(MARK_SCAN);
     for (uint8_t i = 0; i <= N; i++) {
         acc[i] = 0;
         sat[i] = 0;
     }
+#if F > 0
+    for (uint8_t i = N + 1; i < SLOTS; i++)
+        acc[i] = 0;
+    ADCSRA = (1 << ADEN) | (1 << ADIE) | adc_prescaler_bits(SKIN_ADC_PRESCALER);
+#endif
     scan_busy = 1;
     slot_os = 0;
     slot = 0;
@@ -121,6 +170,21 @@ ISR(ADC_vect)
     uint8_t k = slot;
     uint8_t i = slot_input[k];
     acc[i] += v;
+#if F > 0
+    if (k > N) { /* a force input: one conversion */
+        if (++k < SLOTS) {
+            slot = k;
+#if SKIN_MUXES > 0
+            if (slot_sel[k] != slot_sel[k - 1])
+                mux_select(slot_sel[k]);
+#endif
+            adc_select(slot_adc[k]);
+            ADCSRA |= (1 << ADSC);
+            return;
+        }
+        goto scan_done;
+    }
+#endif
     if (v == 0 || v >= 1023)
         sat[i] = 1;
     if (++slot_os < SKIN_OVERSAMPLING) {
@@ -128,26 +192,41 @@ ISR(ADC_vect)
         return;
     }
     slot_os = 0;
-    if (++k <= N) {
+    if (++k < SLOTS) {
         slot = k;
 #if SKIN_MUXES > 0
         if (slot_sel[k] != slot_sel[k - 1])
             mux_select(slot_sel[k]);
 #endif
         adc_select(slot_adc[k]);
+#if F > 0
+        if (k > N) { /* the first force input: the faster ADC clock */
+            ADCSRA = (1 << ADEN) | (1 << ADIE) | (1 << ADSC)
+                     | adc_prescaler_bits(SKIN_FORCE_PRESCALER);
+            return;
+        }
+#endif
         ADCSRA |= (1 << ADSC);
         return;
     }
+#if F > 0
+scan_done:
+#endif
     if (done_ready)
         lost = 1; /* the main loop did not take the previous scan in time */
     for (uint8_t k = 0; k <= N; k++) {
         done_acc[k] = acc[k];
         done_sat[k] = sat[k];
     }
+#if F > 0
+    for (uint8_t k = N + 1; k < SLOTS; k++)
+        done_acc[k] = acc[k];
+#endif
     done_seq = scan_seq;
     done_time = scan_time;
     done_ready = 1;
     scan_busy = 0;
+    MARK_OFF(MARK_SCAN);
 }
 
 static void set_rate(uint16_t rate)
@@ -209,10 +288,8 @@ void skin_board_begin(void)
     memset(bits, 0, sizeof bits);
     heaters_out();
 
-    uint8_t ps = SKIN_ADC_PRESCALER == 128 ? 7 : SKIN_ADC_PRESCALER == 64 ? 6
-                 : SKIN_ADC_PRESCALER == 32 ? 5 : 4;
     adc_select(0);
-    ADCSRA = (1 << ADEN) | (1 << ADIE) | ps;
+    ADCSRA = (1 << ADEN) | (1 << ADIE) | adc_prescaler_bits(SKIN_ADC_PRESCALER);
 
     TCCR1A = 0;
     TCCR1B = (1 << WGM12) | (1 << CS11) | (1 << CS10); /* CTC, F_CPU / 64 */
@@ -237,6 +314,7 @@ void skin_board_poll(void)
     static uint8_t body[5 + 4 * N];
     if (!done_ready)
         return;
+    MARK_ON(MARK_POLL);
     uint32_t s, t;
     uint16_t amb;
     uint8_t was_lost, was_overrun;
@@ -246,6 +324,10 @@ void skin_board_poll(void)
         saturated[i] = done_sat[i];
     }
     amb = (uint16_t)(((uint32_t)done_acc[N] * 4UL) / SKIN_OVERSAMPLING);
+#if F > 0
+    for (uint8_t f = 0; f < F; f++) /* the raw 10-bit counts, converted outside cli */
+        force_mn[f] = done_acc[N + 1 + f];
+#endif
     s = done_seq;
     t = done_time;
     was_lost = lost;
@@ -265,9 +347,19 @@ void skin_board_poll(void)
     if (was_overrun)
         flags |= SKIN_FLAG_SAMPLE_OVERRUN;
     if (streaming) {
+#if F > 0
+        for (uint8_t f = 0; f < F; f++)
+            force_mn[f] = (uint16_t)(((uint32_t)force_mn[f] * FORCE_SCALE + 32768UL) >> 16);
+        for (uint8_t f = F; f < N; f++)
+            force_mn[f] = SKIN_FORCE_NONE;
+#endif
         skin_sample_t sample = {s, t, N, words, duty, ambient,
                                 (uint16_t)(flags | SKIN_FLAG_STREAMING)};
+#if F > 0
+        skin_transport_send_sample_force(&sample, force_mn);
+#else /* (a build without force keeps its code, and its cycles, as they were) */
         skin_transport_send_sample(&sample);
+#endif
     }
     if (control.st_done) {
         control.st_done = 0;
@@ -275,6 +367,7 @@ void skin_board_poll(void)
                                                body);
         skin_transport_send_reply(body, len);
     }
+    MARK_OFF(MARK_POLL);
 }
 
 void skin_board_error(const skin_error_t *err)
@@ -346,7 +439,7 @@ void skin_board_command(const skin_command_t *cmd)
         id.mcu = 0;
 #endif
         id.transport = skin_transport_kind;
-        id.options = (SKIN_MUXES > 0 ? 1 : 0) | 2;
+        id.options = (SKIN_MUXES > 0 ? 1 : 0) | 2 | (F > 0 ? SKIN_OPTION_FORCE : 0);
         id.taxels = N;
         id.adc_bits = 12;
         id.oversampling = SKIN_OVERSAMPLING;

@@ -19,6 +19,9 @@ extern "C" {
 /* Implemented by the sketch: send one sample, or one reply body (without CRC). */
 void skin_transport_send_sample(const skin_sample_t *s);
 void skin_transport_send_reply(const uint8_t *body, size_t len);
+/* Builds with SKIN_FORCE_INPUTS > 0 call this instead of skin_transport_send_sample: the sample
+ * and its force, n words of 1 mN (SKIN_FORCE_NONE: no reading). */
+void skin_transport_send_sample_force(const skin_sample_t *s, const uint16_t *force);
 
 /* Filled in by the sketch before skin_board_begin. */
 extern uint8_t skin_transport_kind;   /* 0 serial, 1 CAN */

@@ -38,6 +38,18 @@
 #ifndef SKIN_KI               /* duty per count-sample, << 16 */
 #define SKIN_KI 44
 #endif
+#ifndef SKIN_FORCE_INPUTS     /* taxels 0 .. F-1 have a force sensor (FSR stage); 0 = no force channel */
+#define SKIN_FORCE_INPUTS 0
+#endif
+#ifndef SKIN_FORCE_FULL_MN    /* force at the ADC's full scale (1.1 V), mN; linear from 0 at 0 V */
+#define SKIN_FORCE_FULL_MN 20000UL
+#endif
+#ifndef SKIN_FORCE_PRESCALER  /* ADC clock divider of a force conversion: 16 = 1 MHz, 13 us */
+#define SKIN_FORCE_PRESCALER 16
+#endif
+#ifndef SKIN_TIMING_MARKS     /* 1: mark work in GPIOR0 for the emulator's timing (make timing) */
+#define SKIN_TIMING_MARKS 0
+#endif
 #ifndef SKIN_STREAM_AT_BOOT
 #define SKIN_STREAM_AT_BOOT 1
 #endif
@@ -55,15 +67,74 @@
 #define SKIN_AMBIENT_CHANNEL SKIN_TAXELS
 #endif
 
+#if SKIN_FORCE_INPUTS > SKIN_TAXELS
+#error "SKIN_FORCE_INPUTS exceeds SKIN_TAXELS"
+#endif
+#if SKIN_TAXELS + SKIN_FORCE_INPUTS > 254
+#error "SKIN_TAXELS + SKIN_FORCE_INPUTS exceeds the 255 scan slots"
+#endif
+#if SKIN_FORCE_FULL_MN > 65534UL
+#error "SKIN_FORCE_FULL_MN above 65534 mN does not fit a FORCE word"
+#endif
+/* Force inputs: with multiplexers, force multiplexer k (inputs 16k .. 16k+15, on the same select
+ * lines) on ADC channel SKIN_AMBIENT_CHANNEL + 1 + k; without, input f on ADC channel
+ * SKIN_AMBIENT_CHANNEL + 1 + f. */
+#if SKIN_MUXES > 0
+#define SKIN_FORCE_MUXES ((SKIN_FORCE_INPUTS + 15) / 16)
+#define SKIN_FORCE_CHANNELS SKIN_FORCE_MUXES
+#else
+#define SKIN_FORCE_CHANNELS SKIN_FORCE_INPUTS
+#endif
+
+/* every ADC channel the board reads (taxel multiplexers or inputs, ambient, force) must be an
+ * analog input of the MCU: on the 328P channel 8 is the internal temperature sensor */
+#if defined(__AVR_ATmega2560__) || defined(__AVR_ATmega1280__)
+#define SKIN_ADC_INPUTS 16
+#elif defined(__AVR_ATmega328P__) || defined(__AVR_ATmega328__) || defined(__AVR_ATmega168__)
+#define SKIN_ADC_INPUTS 8
+#endif
+#if defined(SKIN_ADC_INPUTS) && SKIN_AMBIENT_CHANNEL + SKIN_FORCE_CHANNELS >= SKIN_ADC_INPUTS
+#error "taxel, ambient and force channels exceed the MCU's analog inputs (SKIN_AMBIENT_CHANNEL + SKIN_FORCE_CHANNELS)"
+#endif
+#if SKIN_ADC_PRESCALER != 2 && SKIN_ADC_PRESCALER != 4 && SKIN_ADC_PRESCALER != 8 && \
+    SKIN_ADC_PRESCALER != 16 && SKIN_ADC_PRESCALER != 32 && SKIN_ADC_PRESCALER != 64 && \
+    SKIN_ADC_PRESCALER != 128
+#error "SKIN_ADC_PRESCALER must be one of the ADC's dividers: 2, 4, 8, 16, 32, 64, 128"
+#endif
+#if SKIN_FORCE_PRESCALER != 2 && SKIN_FORCE_PRESCALER != 4 && SKIN_FORCE_PRESCALER != 8 && \
+    SKIN_FORCE_PRESCALER != 16 && SKIN_FORCE_PRESCALER != 32 && SKIN_FORCE_PRESCALER != 64 && \
+    SKIN_FORCE_PRESCALER != 128
+#error "SKIN_FORCE_PRESCALER must be one of the ADC's dividers: 2, 4, 8, 16, 32, 64, 128"
+#endif
+
 #if SKIN_TAXELS > 128
 #error "one board carries at most 128 taxels (CAN groups); use several boards"
 #endif
 
-/* Conversions per sample and the highest rate they allow (95 % of the period): a conversion
- * takes 13 ADC clocks and, with its interrupt, about 16 (64 us at 250 kHz, measured in simavr:
- * a 72-taxel scan takes 4.65 ms). */
+/* The highest rate (95 % of the period), in CPU cycles per sample, fitted to `skin bench firmware`'s
+ * measured costs (simavr; uno OS 4, mega OS 1, uno_force, OS-1 builds with and without force):
+ * - the scan: a conversion takes 13 ADC clocks plus SKIN_CONV_CYCLES (its interrupt; measured
+ *   ~80), each channel SKIN_SWITCH_CYCLES more (multiplexer select and settling; ~107), a force
+ *   input 13 clocks at its prescaler plus SKIN_FORCE_EXTRA_CYCLES (measured 364 - 440 in all);
+ * - the main loop: heater control, framing and the interrupts that land in it (ADC, UART) per
+ *   sample, SKIN_LOOP_CYCLES + per taxel and per force input (16-taxel OS-1 build at 873 Hz:
+ *   19840 measured; mega: 66454; a faster rate than this loses samples to TX_OVERRUN).
+ * The link's own limit (bytes per sample at the baud rate) is the transport's. */
+#define SKIN_CONV_CYCLES 88UL
+#define SKIN_SWITCH_CYCLES 112UL
+#define SKIN_FORCE_EXTRA_CYCLES 240UL
+#define SKIN_LOOP_CYCLES 7000UL
+#define SKIN_LOOP_TAXEL_CYCLES 850UL
+#define SKIN_LOOP_FORCE_CYCLES 1100UL
 #define SKIN_CONVERSIONS ((SKIN_TAXELS + 1UL) * SKIN_OVERSAMPLING)
-#define SKIN_ADC_HZ (F_CPU / SKIN_ADC_PRESCALER)
-#define SKIN_MAX_RATE_ADC (SKIN_ADC_HZ * 95UL / (100UL * 16UL * SKIN_CONVERSIONS))
+#define SKIN_SCAN_CYCLES                                                                         \
+    (SKIN_CONVERSIONS * (13UL * SKIN_ADC_PRESCALER + SKIN_CONV_CYCLES) +                          \
+     (SKIN_TAXELS + 1UL) * SKIN_SWITCH_CYCLES +                                                   \
+     SKIN_FORCE_INPUTS * (13UL * SKIN_FORCE_PRESCALER + SKIN_FORCE_EXTRA_CYCLES))
+#define SKIN_LOOP_BUDGET_CYCLES                                                                  \
+    (SKIN_LOOP_CYCLES + SKIN_TAXELS * SKIN_LOOP_TAXEL_CYCLES + SKIN_FORCE_INPUTS * SKIN_LOOP_FORCE_CYCLES)
+#define SKIN_SAMPLE_CYCLES \
+    (SKIN_SCAN_CYCLES > SKIN_LOOP_BUDGET_CYCLES ? SKIN_SCAN_CYCLES : SKIN_LOOP_BUDGET_CYCLES)
+#define SKIN_MAX_RATE_ADC (F_CPU / 100UL * 95UL / SKIN_SAMPLE_CYCLES)
 
 #endif

@@ -170,6 +170,18 @@ size_t skin_pack_sample(const skin_sample_t *s, uint8_t *body)
     return (size_t)(p - body);
 }
 
+size_t skin_pack_force(uint32_t seq, uint16_t n, const uint16_t *mn, uint8_t *body)
+{
+    uint8_t *p = put_header(body, SKIN_FORCE);
+    uint16_t i;
+
+    p = put32(p, seq);
+    p = put16(p, n);
+    for (i = 0; i < n; ++i)
+        p = put16(p, mn[i]);
+    return (size_t)(p - body);
+}
+
 size_t skin_pack_identity(const skin_identity_t *id, uint8_t *body)
 {
     uint8_t *p = put_header(body, SKIN_IDENTITY);
@@ -384,6 +396,19 @@ size_t skin_can_sample_frames(uint16_t n)
 {
     /* SYNC, G x DATA, one DUTY (none when n = 0), STATUS. */
     return (size_t)DATA_GROUPS(n) + (n ? 3u : 2u);
+}
+
+void skin_can_force_frame(const uint16_t *force, uint16_t n, uint8_t node, uint16_t g,
+                          skin_can_frame_t *f)
+{
+    uint16_t first = (uint16_t)(g << 2), rest = n - first;
+    uint8_t *d = f->data;
+    uint8_t dlc = rest < 4 ? (uint8_t)rest : 4, i;
+
+    for (i = 0; i < dlc; ++i)
+        d = put16(d, force[first + i]);
+    f->id = skin_can_id(SKIN_CAN_FORCE, node, (uint8_t)g);
+    f->dlc = (uint8_t)(dlc << 1);
 }
 
 void skin_can_sample_frame(const skin_sample_t *s, uint8_t node, size_t k, skin_can_frame_t *f)

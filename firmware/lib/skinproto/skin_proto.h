@@ -23,6 +23,7 @@ enum {
     SKIN_ACK = 0x03,
     SKIN_ERROR = 0x04,
     SKIN_SELFTEST_RESULT = 0x05,
+    SKIN_FORCE = 0x06,
     SKIN_START = 0x10,
     SKIN_STOP = 0x11,
     SKIN_SET_RATE = 0x12,
@@ -58,6 +59,8 @@ enum {
 #define SKIN_FLAG_STREAMING (1u << 9)
 #define SKIN_AMBIENT_UNKNOWN 0x7FFF
 #define SKIN_ALL_TAXELS 0xFFFFu
+#define SKIN_FORCE_NONE 0xFFFFu /* a FORCE word: this taxel has no reading */
+#define SKIN_OPTION_FORCE 0x04u /* IDENTITY options bit 2: sends FORCE after each SAMPLE */
 
 /* A taxel word: a 12-bit count and 4 status bits. */
 #define SKIN_WORD(count, status) ((uint16_t)(((count) & 0x0FFFu) | ((uint16_t)((status) & 0xFu) << 12)))
@@ -91,8 +94,22 @@ typedef struct {
     uint16_t flags;
 } skin_sample_t;
 
+/* Body lengths (without CRC) of a SAMPLE and a FORCE of n taxels. */
+#define SKIN_SAMPLE_BODY_LEN(n) (16 + 3 * (n))
+#define SKIN_FORCE_BODY_LEN(n) (8 + 2 * (n))
+#define SKIN_SELFTEST_BODY_LEN(n) (5 + 4 * (n))
+/* The longest body a board of n taxels sends: a SELFTEST_RESULT from 11 taxels up, a SAMPLE
+ * below, an IDENTITY (24) below 3 (ACK and ERROR are shorter). Size a body buffer with it. */
+#define SKIN_IDENTITY_BODY_LEN 24
+#define SKIN_BODY_MAX2(a, b) ((a) > (b) ? (a) : (b))
+#define SKIN_BODY_MAX(n) \
+    SKIN_BODY_MAX2(SKIN_IDENTITY_BODY_LEN, SKIN_BODY_MAX2(SKIN_SELFTEST_BODY_LEN(n), SKIN_SAMPLE_BODY_LEN(n)))
 /* Body of a SAMPLE (16 + 3n bytes, without CRC). Returns its length. */
 size_t skin_pack_sample(const skin_sample_t *s, uint8_t *body);
+
+/* Body of a FORCE (8 + 2n bytes, without CRC): the force of the SAMPLE `seq`, n words of 1 mN
+ * (SKIN_FORCE_NONE: no reading). Returns its length. */
+size_t skin_pack_force(uint32_t seq, uint16_t n, const uint16_t *mn, uint8_t *body);
 
 typedef struct {
     uint8_t token;
@@ -162,7 +179,8 @@ enum {
     SKIN_CAN_REPLY = 2,
     SKIN_CAN_DATA = 3,
     SKIN_CAN_DUTY = 4,
-    SKIN_CAN_STATUS = 5
+    SKIN_CAN_STATUS = 5,
+    SKIN_CAN_FORCE = 6
 };
 #define SKIN_CAN_BROADCAST 7
 
@@ -177,6 +195,10 @@ uint16_t skin_can_id(uint8_t type, uint8_t node, uint8_t index);
 /* Frames of one sample: SYNC, DATA 0..G-1, one DUTY group (seq mod ceil(n/8)), STATUS; n <= 128
  * (a node's 32 groups). With n = 0 there is no DUTY frame (SYNC and STATUS only). */
 size_t skin_can_sample_frames(uint16_t n);
+/* A board with a force channel sends FORCE g = 0 .. G-1 (the force of taxels 4g .. 4g+3, u16 mN
+ * each, SKIN_FORCE_NONE: no reading) between the sample's DUTY frame and its STATUS. */
+void skin_can_force_frame(const uint16_t *force, uint16_t n, uint8_t node, uint16_t g,
+                          skin_can_frame_t *f);
 void skin_can_sample_frame(const skin_sample_t *s, uint8_t node, size_t k, skin_can_frame_t *f);
 
 /* Frames of a reply body cut into segments (u16 length first). */
