@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -539,6 +540,39 @@ def force_noise(force: np.ndarray, held: int = 1) -> tuple[float, float]:
     noise = max(1.4826 * float(np.median(np.abs(free - level))), upper - level,
                 float(steps.min()) if steps.size else 0.0)
     return level, noise
+
+
+def span_noise(free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Free level and noise of force stretches, column by column (`ForceOnsets`' stretches).
+
+    As `force_noise` for one stretch: the level is the median of the free samples, the noise
+    their scaled median absolute deviation, their 84th percentile's distance above the level
+    (a force clipped at 0 has a MAD of 0) or the smallest step between two of them, whichever
+    is largest.
+
+    Parameters
+    ----------
+    free : numpy.ndarray
+        (samples, columns), NaN where a sample is not free (or has no reading); a column
+        without any free sample gives NaN.
+
+    Returns
+    -------
+    level, noise : numpy.ndarray
+        (columns,) each, N.
+    """
+    f = np.asarray(free, dtype=float)
+    if f.shape[1] == 0:
+        return np.full(0, np.nan), np.full(0, np.nan)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        level = np.nanmedian(f, axis=0)
+        mad = 1.4826 * np.nanmedian(np.abs(f - level), axis=0)
+        upper = np.nanpercentile(f, 84.13, axis=0) - level
+        steps = np.diff(np.sort(f, axis=0), axis=0)  # NaN sorted last
+        step = np.nanmin(np.where(steps > 0, steps, np.nan), axis=0)
+    noise = np.fmax(np.fmax(mad, upper), np.where(np.isfinite(step), step, 0.0))
+    return level, np.where(np.isfinite(level), noise, np.nan)
 
 
 def _force_onset(t: np.ndarray, f: np.ndarray, k: int, level: float, noise: float,
