@@ -562,17 +562,35 @@ def span_noise(free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         (columns,) each, N.
     """
     f = np.asarray(free, dtype=float)
-    if f.shape[1] == 0:
-        return np.full(0, np.nan), np.full(0, np.nan)
+    srt = np.sort(f, axis=0)  # NaN last
+    count = np.isfinite(f).sum(axis=0)
+    level = _sorted_quantile(srt, count, 0.5)
+    dev = np.sort(np.abs(f - level), axis=0)
+    mad = 1.4826 * _sorted_quantile(dev, count, 0.5)
+    upper = _sorted_quantile(srt, count, 0.8413) - level
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        level = np.nanmedian(f, axis=0)
-        mad = 1.4826 * np.nanmedian(np.abs(f - level), axis=0)
-        upper = np.nanpercentile(f, 84.13, axis=0) - level
-        steps = np.diff(np.sort(f, axis=0), axis=0)  # NaN sorted last
-        step = np.nanmin(np.where(steps > 0, steps, np.nan), axis=0)
+        steps = np.diff(srt, axis=0)
+        step = np.nanmin(np.where(steps > 0, steps, np.inf), axis=0) if len(f) > 1 else \
+            np.full(f.shape[1], np.inf)
     noise = np.fmax(np.fmax(mad, upper), np.where(np.isfinite(step), step, 0.0))
     return level, np.where(np.isfinite(level), noise, np.nan)
+
+
+def _sorted_quantile(srt: np.ndarray, count: np.ndarray, q: float) -> np.ndarray:
+    """Each column's ``q`` quantile (linear, as numpy's) of its ``count`` sorted finite values.
+
+    NaN where a column has none. Vectorised over the columns (numpy's nanpercentile loops).
+    """
+    pos = q * np.maximum(count - 1, 0)
+    lo = np.floor(pos).astype(np.int64)
+    hi = np.minimum(lo + 1, np.maximum(count - 1, 0))
+    cols = np.arange(srt.shape[1])
+    if srt.shape[0] == 0:
+        return np.full(srt.shape[1], np.nan)
+    a, b = srt[lo, cols], srt[hi, cols]
+    out = a + (b - a) * (pos - lo)
+    return np.where(count > 0, out, np.nan)
 
 
 def _force_onset(t: np.ndarray, f: np.ndarray, k: int, level: float, noise: float,

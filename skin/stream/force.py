@@ -22,7 +22,6 @@ the threshold: a release inside the gap is dated at the first reading after it).
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 
@@ -31,6 +30,7 @@ from skin.models.commission import (
     FORCE_CONTACT_SNR,
     FORCE_NOISE_SPAN,
     _force_onset,
+    _sorted_quantile,
     span_noise,
 )
 from skin.stream.onset import OnsetEvent
@@ -81,6 +81,8 @@ class ForceOnsets:
         self._head = 0  # samples seen
         self.last_reading = np.full(n, -np.inf)  # each taxel's last force reading, s
         self.known_from = np.full(n, np.inf)  # when each taxel's free level was first known
+        self._threshold = np.full(n, np.nan)  # NaN: its free level not known yet
+        self._unknown = np.ones(n, dtype=bool)
         self.onsets = 0
         self.releases = 0
 
@@ -145,21 +147,22 @@ class ForceOnsets:
         self._t[idx], self._f[idx], self._y[idx] = t, f, y
         self._head += m
         fin = np.isfinite(f)
-        if fin.any():
+        if m == 1:
+            self.last_reading[fin[0]] = t[0]
+        elif fin.any():
             seen = np.flatnonzero(fin.any(axis=0))
             rows = m - 1 - np.argmax(fin[::-1, seen], axis=0)
             self.last_reading[seen] = t[rows]
-        threshold = self.level + np.maximum(FORCE_CONTACT_SNR * self.noise,
-                                            1e-9 * (1.0 + np.abs(self.level)))
-        over = fin & (f > threshold)  # NaN threshold (not known yet): neither
-        under = fin & (f <= threshold)
+        threshold = self._threshold
+        over = f > threshold  # NaN (no reading, or the threshold not known yet): neither
+        under = f <= threshold
         # only the taxels that may change state walk their samples
         walk = np.flatnonzero((self.on & under.any(axis=0)) | (~self.on & over.any(axis=0))
                               | (self._run > 0))
         events = [ev for k in walk for ev in self._walk(int(k), t, f, over[:, k],
                                                         under[:, k], first)]
         # the stretch's free samples: under the threshold, or every reading before it is known
-        free = np.where(np.isnan(threshold), fin, under)
+        free = np.where(self._unknown, fin, under)
         self._span_f[self._in_span:self._in_span + m] = f
         self._span_free[self._in_span:self._in_span + m] = free
         self._in_span += m
@@ -230,14 +233,16 @@ class ForceOnsets:
         row[:] = np.nan
         row[0, enough], row[1, enough] = level, noise
         self._span_count += 1
-        with warnings.catch_warnings():  # a taxel without a free stretch yet: NaN
-            warnings.simplefilter("ignore", RuntimeWarning)
-            lv = np.nanmedian(self._spans[:, 0], axis=0)
-            nz = np.nanmedian(self._spans[:, 1], axis=0)
+        count = np.isfinite(self._spans[:, 0]).sum(axis=0)  # a taxel without one yet: NaN
+        lv = _sorted_quantile(np.sort(self._spans[:, 0], axis=0), count, 0.5)
+        nz = _sorted_quantile(np.sort(self._spans[:, 1], axis=0), count, 0.5)
         fresh = np.isfinite(lv) & ~np.isfinite(self.known_from)
         self.known_from[fresh] = end
         self.level = np.where(np.isfinite(lv), lv, self.level)
         self.noise = np.where(np.isfinite(nz), nz, self.noise)
+        self._threshold = self.level + np.maximum(FORCE_CONTACT_SNR * self.noise,
+                                                  1e-9 * (1.0 + np.abs(self.level)))
+        self._unknown = np.isnan(self._threshold)
         self._span_f[:] = np.nan
         self._span_free[:] = False
         self._in_span = 0

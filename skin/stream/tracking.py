@@ -378,8 +378,12 @@ def refine_member(member: TaxelSamples, depth: np.ndarray, diffusivity: np.ndarr
     fitted again on the samples up to it. A force-dated member (``member.dated_by``
     ``"force"``) keeps its onset, initial temperature (its ``baseline``) and end as they are.
     """
-    if member.dated_by == "force":
-        return member.coarse, member.baseline, member.end
+    if member.dated_by == "force":  # the force's release is its first sample read free
+        end = member.end
+        if member.release is not None and member.end >= member.release:
+            before = member.time[member.time < member.release]
+            end = float(before[-1]) if before.size else member.release
+        return member.coarse, member.baseline, end
     k = member.index
     upto = member.time <= member.end
     onset, initial = refine_onset(member.time[upto], member.temperature[upto], member.coarse,
