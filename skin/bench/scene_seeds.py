@@ -118,12 +118,18 @@ def play(scene: str, seed: int, duration: float | None = None,
 
 
 def _dating(skin: Any, contacts: list) -> list[dict[str, Any]]:
-    """Return `dating_errors` of a played scene's final contacts against its touches."""
-    from skin.bench.scene_ceiling import touch_truth
+    """Return `dating_errors` of a played scene's final contacts against its touches.
+
+    The touches' instants are the scene's, on the sample grid (as
+    `skin.bench.scene_ceiling.touch_truth` has them, without its simulation: any sensor).
+    """
     from skin.formats.scene import match_touches
 
     fs = next(iter(skin.layout.boards.values())).sample_rate
-    truths = touch_truth(skin.scene, skin.duration, skin.setup.contact)
+    n = round(skin.duration * fs)
+    truths = [{"touch": t, "k0": round(t.start * fs), "k1": min(round(t.end * fs), n),
+               "taxels": [int(k) for k in t.taxels]}
+              for t in skin.scene.touches if round(t.start * fs) < n]
     in_time = tuple(t["touch"] for t in truths)
     matches, _ = match_touches(replace(skin.scene, touches=in_time),
                                [c.taxels for c in contacts], [c.onset for c in contacts])
