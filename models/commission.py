@@ -326,6 +326,8 @@ FORCE_CONTACT_SNR = 10.0
 FORCE_CONTACT_SHARE = 0.05
 #: A contact (or a release) counts when it holds this long, s: a noise sample does not.
 FORCE_CONTACT_HELD = 0.05
+#: A force that reads one value this long at its free level, where it is noisy, is stuck, s.
+FORCE_STUCK = 1.0
 #: The force's noise is taken per stretch of this many samples (their median: `force_noise`).
 FORCE_NOISE_SPAN = 100
 
@@ -348,7 +350,8 @@ def force_contacts(times: np.ndarray, force: np.ndarray,
     half the contact's peak (`_force_onset`: a linear ramp is dated where it starts); a rise done
     within one sample (a switch) is dated midway between its last open and first closed
     sample (within half a sample). A NaN sample (no reading) counts as under the threshold,
-    but for a run shorter than `FORCE_CONTACT_HELD` inside a contact (it goes on across it).
+    but for a run inside a contact that is shorter than `FORCE_CONTACT_HELD` or after which
+    the force is still held over the threshold `FORCE_CONTACT_HELD` (it goes on across it).
 
     Parameters
     ----------
@@ -360,8 +363,8 @@ def force_contacts(times: np.ndarray, force: np.ndarray,
         Given, gets (onset, release) of each contact over the noise that stays under the
         `FORCE_CONTACT_SHARE` of the strongest one (left out: counted by `force_touches`).
     bridged : list, optional
-        Given, gets (start, end) of each stretch without a reading shorter than
-        `FORCE_CONTACT_HELD` inside a contact: the contact goes on across it.
+        Given, gets (start, end) of each stretch without a reading inside a contact that the
+        contact goes on across (shorter than `FORCE_CONTACT_HELD`, or the force held after it).
 
     Returns
     -------
@@ -384,8 +387,10 @@ def force_contacts(times: np.ndarray, force: np.ndarray,
     over = ok & (f > threshold)
     gone = np.flatnonzero(np.diff(np.r_[0, (~ok).astype(np.int8), 0]))
     for a, b in zip(gone[::2], gone[1::2], strict=True):  # no reading in samples a..b-1
-        if 0 < a and b < f.size and b - a < held and over[a - 1]:
-            over[a:b] = True  # shorter than a release can be: the contact goes on
+        if 0 < a and b < f.size and over[a - 1] and (b - a < held or over[b:b + held].all()):
+            # shorter than a release can be, or the force still held after it: the contact
+            # goes on (a longer gap cut a touch into a short one and a false one)
+            over[a:b] = True
             if bridged is not None:
                 bridged.append((float(t[a]), float(t[b])))
     out = []
@@ -499,6 +504,49 @@ def force_gaps(times: np.ndarray, force: np.ndarray, forced: np.ndarray,
                         "force showed no contact (untouched, or its sensor not working): the "
                         "onset detector looked for touches there")
     return within, notes
+
+
+def force_stuck(times: np.ndarray, force: np.ndarray, ids: np.ndarray | None = None,
+                ) -> tuple[np.ndarray, list[str]]:
+    """Take the stretches where a taxel's force is stuck as having no reading (NaN).
+
+    A force whose free readings vary (at least three values within 3 noise levels of its
+    free level, `force_noise`) and that reads one value at that level for `FORCE_STUCK` s
+    and 100 samples or more is stuck there (a sensor or cable failing partway): a free
+    sensor would not be read that long without noise, and a touch there would be lost as
+    "no contact". `force_gaps` then hands those stretches to the onset detector. A channel
+    without noise at rest (a switch, a quantised force under its resolution) is left as it is.
+
+    Returns
+    -------
+    force : numpy.ndarray
+        A copy, NaN where stuck (the array itself when nothing is).
+    notes : list of str
+        Per taxel stuck (named by its id, ``ids``; default its column), how long.
+    """
+    t = np.asarray(times, dtype=float)
+    ids = np.arange(force.shape[1]) if ids is None else np.asarray(ids)
+    least = max(100, math.ceil(FORCE_STUCK / float(np.median(np.diff(t)))))
+    out, notes = force, []
+    for k in np.flatnonzero(np.isfinite(force).any(axis=0)):
+        f = force[:, k]
+        level, noise = force_noise(f)
+        near = f[np.isfinite(f) & (np.abs(f - level) <= 3 * noise)]
+        if np.unique(near).size < 3:
+            continue
+        same = np.r_[False, f[1:] == f[:-1]]  # NaN never equal
+        edges = np.flatnonzero(np.diff(np.r_[0, same.astype(np.int8), 0]))
+        lost = 0.0
+        for a, b in zip(edges[::2], edges[1::2], strict=True):  # f[a-1..b-1] one value
+            if b - a + 1 >= least and abs(f[a - 1] - level) <= 3 * noise:
+                if out is force:
+                    out = force.copy()
+                out[a - 1:b, k] = np.nan
+                lost += float(t[b - 1] - t[a - 1])
+        if lost:
+            notes.append(f"taxel {ids[k]}: its force read one value for {lost:.3g} s (stuck?): "
+                         "taken as no reading")
+    return out, notes
 
 
 def _runs_said(taxels: list[int]) -> str:
@@ -1155,9 +1203,10 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
     within: dict[int, list[tuple[float, float]]] = {}
     notes: list[str] = []
     if force is not None:
-        force = np.asarray(force, dtype=float)
+        force, notes = force_stuck(times, np.asarray(force, dtype=float), layout.ids)
         forced = np.isfinite(force).any(axis=0)
-        within, notes = force_gaps(times, force, forced, layout.ids)
+        within, gap_notes = force_gaps(times, force, forced, layout.ids)
+        notes += gap_notes
     n_forced = n_weak = 0
     touches, left = [], dict.fromkeys(LEFT_OUT, 0)
     if not forced.all() or within:
