@@ -6,11 +6,12 @@ levels and stays over that `FORCE_CONTACT_HELD`, and ends where it stays under i
 the onset is taken back along the rise to where it left the free level (the dating core of
 `skin.models.commission.force_contacts`, `skin.models.commission._force_onset`, shared).
 The free level and noise are each taxel's `skin.models.commission.span_noise` per stretch
-of `FORCE_NOISE_SPAN` samples (counted from the stream's first sample, so any chunking
-gives the same stretches), the median of the last `SPANS` stretches that were at least half
-free. Until a taxel's first stretch is done, or while its force has had no reading for
-`FORCE_CONTACT_HELD`, the onset detector dates it (`ForceOnsets.merge` keeps the thermal
-events there and drops them elsewhere).
+of `FORCE_NOISE_SPAN` samples or `SPAN_SECONDS`, whichever is shorter (but 20 samples;
+counted from the stream's first sample, so any chunking gives the same stretches), the
+median of the last `SPANS` stretches that were at least half free. Until a taxel's first
+stretch is done, or while its force has had no reading for `FORCE_CONTACT_HELD`, the onset
+detector dates it (`ForceOnsets.merge` keeps the thermal events there and drops them
+elsewhere).
 
 Unlike the whole-recording `force_contacts`, the threshold has no share of the strongest
 touch (that needs the recording's end): a force whose free level drifts by more than ten
@@ -37,6 +38,8 @@ from skin.stream.onset import OnsetEvent
 
 #: The free level and noise: the median over this many of the last stretches.
 SPANS = 9
+#: A stretch of the noise lasts at most this long (and `FORCE_NOISE_SPAN` samples), s.
+SPAN_SECONDS = 1.0
 #: How far before a force-dated onset the taxel's temperature is averaged for its
 #: initial temperature, s.
 BASELINE_SECONDS = 0.1
@@ -62,7 +65,8 @@ class ForceOnsets:
         self.rate = float(sample_rate)
         self.held = max(2, round(FORCE_CONTACT_HELD * self.rate))
         self.held_s = self.held / self.rate
-        self.span = FORCE_NOISE_SPAN
+        # a slow board's stretch is 1 s, not 100 samples (5 s at 20 Hz undated at the start)
+        self.span = int(min(FORCE_NOISE_SPAN, max(20, round(SPAN_SECONDS * self.rate))))
         self.keep = self.span + self.held + math.ceil(RISE_SECONDS * self.rate)
         n = self.n
         self.level = np.full(n, np.nan)
