@@ -81,3 +81,38 @@ def test_pipeline_dates_a_simulated_scene_by_its_force() -> None:
     assert np.median(err_on) <= 10.0  # ms: one sample at 100 Hz
     assert np.median(err_on) < np.median(err_off)
     assert on["detected"] >= off["detected"]
+
+
+def test_the_pipeline_on_a_force_scene_is_chunk_invariant_and_force_dated() -> None:
+    """A scene with a force channel through Pipeline in chunks of 1000 and 7 frames: the same
+    contacts, onsets and sources; the onsets within a sample of the touches'; without
+    force_onsets every window is thermal."""
+    import dataclasses
+
+    from skin.drivers.sim import SkinSimulator
+    from skin.formats.scene import load_scene
+    from skin.models import HistogramClassifier
+    from skin.stream.pipeline import Pipeline
+
+    scene = dataclasses.replace(load_scene("default"), force="force")
+    frames = list(SkinSimulator(scene, duration=8.0).frames())
+    assert frames[0].force is not None
+
+    def run(chunk: int, force_onsets: bool = True) -> list:
+        pipe = Pipeline(scene.layout, HistogramClassifier(scene.layout),
+                        force_onsets=force_onsets)
+        out = []
+        for i in range(0, len(frames), chunk):
+            out += pipe.process(frames[i:i + chunk])
+        return [r.contact for r in out + pipe.flush() if r.contact.final]
+
+    def key(contacts: list) -> list:
+        return [(c.taxels, c.onset, c.release, [w.dated_by for w in c.windows])
+                for c in contacts]
+
+    a = run(1000)
+    assert key(a) == key(run(7))
+    assert a and all(w.dated_by == "force" for c in a for w in c.windows)
+    starts = [t.start for t in scene.touches if t.start < 8.0]
+    assert all(min(abs(c.onset - s) for s in starts) < 0.006 for c in a)
+    assert all(w.dated_by == "thermal" for c in run(1000, False) for w in c.windows)
