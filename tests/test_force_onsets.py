@@ -116,3 +116,18 @@ def test_the_pipeline_on_a_force_scene_is_chunk_invariant_and_force_dated() -> N
     starts = [t.start for t in scene.touches if t.start < 8.0]
     assert all(min(abs(c.onset - s) for s in starts) < 0.006 for c in a)
     assert all(w.dated_by == "thermal" for c in run(1000, False) for w in c.windows)
+
+
+def test_a_force_stuck_at_its_free_level_leaves_the_taxel_to_the_detector() -> None:
+    """Taxel 0's force stuck at 0 from 4 s (its readings were noisy before): a thermal onset
+    there at 7.2 s is kept (it was dropped: the touch lost silently); one at 2 s, and one on a
+    contact switch reading 0 throughout (no noise: not stuck), are dropped."""
+    t, f = _stream(n=1000)
+    f[:, 0] = np.where(t >= 4.0, 0.0, np.clip(f[:, 1], 0.001, None))
+    f[:, 2] = 0.0  # a switch, open
+    thermal = [OnsetEvent("onset", 0, 7.0, 7.2, 30.0, 0.0),
+               OnsetEvent("onset", 0, 1.8, 2.0, 30.0, 0.0),
+               OnsetEvent("onset", 2, 7.0, 7.2, 30.0, 0.0)]
+    for chunk in (1, 64):
+        kept = [e for e in _run(t, f, chunk, thermal) if e.dated_by == "thermal"]
+        assert [(e.taxel, e.detected_at) for e in kept] == [(0, 7.2)]

@@ -11,7 +11,10 @@ counted from the stream's first sample, so any chunking gives the same stretches
 median of the last `SPANS` stretches that were at least half free. Until a taxel's first
 stretch is done, or while its force has had no reading for `FORCE_CONTACT_HELD`, the onset
 detector dates it (`ForceOnsets.merge` keeps the thermal events there and drops them
-elsewhere).
+elsewhere); so it does while the force is stuck (one value at its free level for
+`FORCE_STUCK` s and 100 samples on a taxel whose free readings have varied: a sensor or
+cable failing partway, as `skin.models.commission.force_stuck`; a switch or a noise-free
+force is never taken as stuck).
 
 Unlike the whole-recording `force_contacts`, the threshold has no share of the strongest
 touch (that needs the recording's end): a force whose free level drifts by more than ten
@@ -30,6 +33,7 @@ from skin.models.commission import (
     FORCE_CONTACT_HELD,
     FORCE_CONTACT_SNR,
     FORCE_NOISE_SPAN,
+    FORCE_STUCK,
     _force_onset,
     _sorted_quantile,
     span_noise,
@@ -65,6 +69,8 @@ class ForceOnsets:
         self.rate = float(sample_rate)
         self.held = max(2, round(FORCE_CONTACT_HELD * self.rate))
         self.held_s = self.held / self.rate
+        # as force_stuck: 100 samples too (a clipped noise reads 0 half the time)
+        self.stuck_s = max(FORCE_STUCK, 100 / self.rate)
         # a slow board's stretch is 1 s, not 100 samples (5 s at 20 Hz undated at the start)
         self.span = int(min(FORCE_NOISE_SPAN, max(20, round(SPAN_SECONDS * self.rate))))
         self.keep = self.span + self.held + math.ceil(RISE_SECONDS * self.rate)
@@ -86,6 +92,9 @@ class ForceOnsets:
         self.last_reading = np.full(n, -np.inf)  # each taxel's last force reading, s
         self.known_from = np.full(n, np.inf)  # when each taxel's free level was first known
         self._threshold = np.full(n, np.nan)  # NaN: its free level not known yet
+        self._value = np.full(n, np.nan)  # each taxel's last reading
+        self._same_from = np.full(n, -np.inf)  # since when it has read that value, s
+        self._noisy = np.zeros(n, dtype=bool)  # its free readings have varied
         self._unknown = np.ones(n, dtype=bool)
         self.onsets = 0
         self.releases = 0
@@ -113,25 +122,42 @@ class ForceOnsets:
         force = np.asarray(force, dtype=float)
         events: list[OnsetEvent] = []
         start = 0
-        last_before = self.last_reading.copy()
-        known_before = self.known_from.copy()
+        before = (self.last_reading.copy(), self.known_from.copy(), self._value.copy(),
+                  self._same_from.copy())
         while start < len(times):  # pieces end where a stretch of the noise ends
             stop = min(len(times), start + self.span - self._in_span)
             events += self._piece(times[start:stop], force[start:stop],
                                   temperature[start:stop])
             start = stop
+        if len(times):
+            prev = np.vstack([self._value[None], force[:-1]])
+            changed = ~(force == prev)  # NaN: a change
+            rows = len(times) - 1 - np.argmax(changed[::-1], axis=0)
+            self._same_from = np.where(changed.any(axis=0), times[rows], self._same_from)
+            self._value = force[-1].copy()
         if thermal:
-            events += self._kept(times, force, thermal, last_before, known_before)
+            events += self._kept(times, force, thermal, *before)
         return events
 
     def _kept(self, times: np.ndarray, force: np.ndarray, thermal: list[OnsetEvent],
-              last_before: np.ndarray, known_before: np.ndarray) -> list[OnsetEvent]:
-        """Return the thermal events of taxels the force does not date at their detection."""
+              last_before: np.ndarray, known_before: np.ndarray, value_before: np.ndarray,
+              same_before: np.ndarray) -> list[OnsetEvent]:
+        """Return the thermal events of taxels the force does not date at their detection.
+
+        Nor where it is stuck: one value at its free level for `FORCE_STUCK` s on a taxel
+        whose free readings have varied (a sensor or cable failing partway; as
+        `skin.models.commission.force_stuck`).
+        """
         taxels = np.unique([ev.taxel for ev in thermal])
-        fin = np.isfinite(force[:, taxels])
+        f = force[:, taxels]
+        fin = np.isfinite(f)
         # each sample's last reading, per taxel of an event (the block's or before it)
         last = np.maximum.accumulate(np.where(fin, times[:, None], -np.inf), axis=0)
         last = np.maximum(last, last_before[taxels])
+        # since when each has read the value it reads at each sample
+        changed = ~(f == np.vstack([value_before[taxels][None], f[:-1]]))
+        since = np.maximum(np.maximum.accumulate(np.where(changed, times[:, None], -np.inf),
+                                                 axis=0), same_before[taxels])
         col = {int(k): j for j, k in enumerate(taxels)}
         kept = []
         for ev in thermal:
@@ -139,7 +165,12 @@ class ForceOnsets:
             row = int(np.searchsorted(times, ev.detected_at, side="right")) - 1
             seen = last[row, j] if row >= 0 else last_before[ev.taxel]
             known = min(known_before[ev.taxel], self.known_from[ev.taxel])
-            if not (known <= ev.detected_at and ev.detected_at - seen <= self.held_s):
+            value = f[row, j] if row >= 0 else value_before[ev.taxel]
+            stuck = (self._noisy[ev.taxel]
+                     and ev.detected_at - (since[row, j] if row >= 0 else same_before[ev.taxel])
+                     >= self.stuck_s
+                     and abs(value - self.level[ev.taxel]) <= 3 * self.noise[ev.taxel])
+            if stuck or not (known <= ev.detected_at and ev.detected_at - seen <= self.held_s):
                 kept.append(ev)
         return kept
 
@@ -236,6 +267,7 @@ class ForceOnsets:
         row = self._spans[self._span_count % SPANS]
         row[:] = np.nan
         row[0, enough], row[1, enough] = level, noise
+        self._noisy[enough] |= noise > 0
         self._span_count += 1
         count = np.isfinite(self._spans[:, 0]).sum(axis=0)  # a taxel without one yet: NaN
         lv = _sorted_quantile(np.sort(self._spans[:, 0], axis=0), count, 0.5)
