@@ -1,30 +1,42 @@
 """Contact onsets and releases dated by a force (or contact-switch) channel, streaming.
 
-A taxel whose frames carry a force reading (`skin.frame.Frame.force`) is dated by it: its
-contact begins where the force first exceeds its free level by `FORCE_CONTACT_SNR` noise
-levels and stays over that `FORCE_CONTACT_HELD`, and ends where it stays under it as long;
-the onset is taken back along the rise to where it left the free level (the dating core of
-`skin.models.commission.force_contacts`, `skin.models.commission._force_onset`, shared).
-The free level and noise are each taxel's `skin.models.commission.span_noise` per stretch
-of `FORCE_NOISE_SPAN` samples or `SPAN_SECONDS`, whichever is shorter (but 20 samples;
-counted from the stream's first sample, so any chunking gives the same stretches), the
-median of the last `SPANS` stretches that were at least half free. Until a taxel's first
-stretch is done, or while its force has had no reading for `FORCE_CONTACT_HELD`, the onset
-detector dates it (`ForceOnsets.merge` keeps the thermal events there and drops them
-elsewhere); so it does while the force is stuck (one value at its free level for
-`FORCE_STUCK` s and 100 samples on a taxel whose free readings have varied: a sensor or
-cable failing partway, as `skin.models.commission.force_stuck`; a switch or a noise-free
-force is never taken as stuck).
+A taxel whose frames carry a force reading (`skin.frame.Frame.force`) may be dated by it:
+its contact begins where the force first exceeds its free level by `FORCE_CONTACT_SNR` noise
+levels and stays over that `FORCE_CONTACT_HELD`, and ends where it stays under it as long.
+The onset is the dating core of `skin.models.commission.force_contacts`
+(`skin.models.commission._force_onset`, shared): for a fast press, back along the rise to
+where it left the free level; for a slow one (a rise longer than the held time) near where
+it crosses the threshold. It is never put before the ring's start nor the taxel's last release.
+
+The free level and noise are each taxel's `skin.models.commission.span_noise` per stretch of
+`FORCE_NOISE_SPAN` samples or `SPAN_SECONDS`, whichever is shorter (but 20 samples; counted
+from the stream's first sample), the median of the last `SPANS` stretches that were at least
+half free and quiet (their free readings spread over at most twice the threshold): a touch
+begun in the first stretch is not learnt as the free level. A quiet stretch far under the
+level (a taxel pressed since the stream began, released) replaces it; a contact flat near its
+threshold for `LOCK_SECONDS` (a drifting free level) is ended there and the level re-learnt,
+with a note (`ForceOnsets.notes`).
+
+The force overrules the onset detector on a taxel only once it is trusted: one of its onsets
+met a detector onset within `CONFIRM_SECONDS` (that detector onset is replaced by the force's).
+Until then, and where the force's level is not known yet (the first quiet stretch: 0.5 s at
+200 Hz, 1 s at 100 Hz or slower), where it has had no reading for `FORCE_CONTACT_HELD`, where
+it is stuck (one value at its free level for `FORCE_STUCK` s and 100 samples on a taxel whose
+free readings have varied, as `skin.models.commission.force_stuck`) and during a contact it
+did not date (a rise after a gap of more than `FORCE_CONTACT_HELD` or the stream's start:
+force coming back mid-contact; `GRACE_SECONDS` after it), the detector's events are kept. A
+dead, miswired or inverted channel is thus never trusted; detector onsets it did not see are
+counted (`ForceOnsets.unseen`) and noted. A run of readings restarts after a gap: a release
+inside a gap is dated at the first reading after it.
 
 Unlike the whole-recording `force_contacts`, the threshold has no share of the strongest
 touch (that needs the recording's end): a force whose free level drifts by more than ten
-noise levels within `SPANS` stretches would start a contact. A stretch without a reading
-inside a contact carries the contact (a release needs `FORCE_CONTACT_HELD` of readings under
-the threshold: a release inside the gap is dated at the first reading after it).
+noise levels within `SPANS` stretches still starts false contacts (ended by the lock rule).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -51,6 +63,15 @@ BASELINE_SECONDS = 0.1
 RISE_SECONDS = 0.5
 #: The `OnsetEvent.channel` of the force's events.
 FORCE_CHANNEL = 4
+#: A force onset on a taxel whose force has not dated a contact yet stands only if the
+#: detector reports an onset this close to it (and by this long after it), s.
+CONFIRM_SECONDS = 0.5
+#: After a contact the force did not date (it began in a gap or unconfirmed), the taxel's
+#: thermal events are kept this long, s (the detector's release comes late).
+GRACE_SECONDS = 2.0
+#: A contact whose force sits flat within `FORCE_CONTACT_SNR` noise levels of its threshold
+#: this long is a drifting free level: it is ended and the level re-learnt, s.
+LOCK_SECONDS = 5.0
 
 
 class ForceOnsets:
@@ -85,6 +106,20 @@ class ForceOnsets:
         self.on = np.zeros(n, dtype=bool)
         self._run = np.zeros(n, dtype=np.int64)  # consecutive readings against the state
         self._run_start = np.zeros(n, dtype=np.int64)  # their first sample (stream index)
+        self._run_t = np.full(n, np.nan)  # ... and its time, s
+        self._after_gap = np.zeros(n, dtype=bool)  # the rise began after a gap (or the start)
+        self._gap_s = max(self.held_s, 1.5 / self.rate) + 1e-9
+        self.trusted = np.zeros(n, dtype=bool)  # its force has dated a contact the detector saw
+        self._trusted_from = np.full(n, np.inf)
+        self._emitted = np.zeros(n, dtype=bool)  # the current force contact was reported
+        self._on_since = np.full(n, np.nan)  # the current force contact's onset, s
+        self._peak = np.full(n, np.nan)  # ... and its highest reading so far (per stretch)
+        self._released = np.full(n, -np.inf)  # each taxel's last force release, s
+        self._silent = np.full((2, n), np.nan)  # a contact the force did not date: from, until
+        self._pending: dict[int, list[OnsetEvent]] = {}  # unconfirmed force events per taxel
+        self._thermal_onset: dict[int, OnsetEvent] = {}  # each taxel's last detector onset
+        self.unseen = np.zeros(n, dtype=np.int64)  # detector onsets the force did not see
+        self.notes: list[str] = []
         self._t = np.full(self.keep, np.nan)
         self._f = np.full((self.keep, n), np.nan)
         self._y = np.full((self.keep, n), np.nan)
@@ -129,6 +164,9 @@ class ForceOnsets:
             events += self._piece(times[start:stop], force[start:stop],
                                   temperature[start:stop])
             start = stop
+        events, thermal = self._confirm(events, thermal)
+        if len(times):
+            self._expire(float(times[-1]))
         if len(times):
             prev = np.vstack([self._value[None], force[:-1]])
             changed = ~(force == prev)  # NaN: a change
@@ -138,6 +176,81 @@ class ForceOnsets:
         if thermal:
             events += self._kept(times, force, thermal, *before)
         return events
+
+    def _confirm(self, raw: list[OnsetEvent], thermal: list[OnsetEvent]
+                 ) -> tuple[list[OnsetEvent], list[OnsetEvent]]:
+        """Report the force's events of trusted taxels; hold the others for the detector.
+
+        A taxel's force is trusted once one of its onsets meets a detector onset within
+        `CONFIRM_SECONDS` (a dead, miswired or inverted channel never is: its taxel stays
+        the detector's). The confirming detector onset is replaced by the force's.
+        Returns the events to report and the detector's events left to judge.
+        """
+        out: list[OnsetEvent] = []
+        onsets = {}
+        for ev in thermal:
+            if ev.kind == "onset":
+                onsets.setdefault(ev.taxel, []).append(ev)
+        used: set[int] = set()
+        for ev in raw:
+            k = ev.taxel
+            if ev.kind == "silent":
+                continue
+            if self.trusted[k] and k not in self._pending:
+                if ev.kind == "onset" or self._emitted[k]:
+                    out.append(ev)
+                self._emitted[k] = ev.kind == "onset"
+                continue
+            if ev.kind == "release":
+                if k in self._pending:
+                    self._pending[k].append(ev)
+                elif self._emitted[k]:
+                    out.append(ev)
+                self._emitted[k] = False
+                continue
+            match = self._match(ev, [self._thermal_onset.get(k), *onsets.get(k, [])])
+            if match is None:
+                self._pending[k] = [ev]
+                self._emitted[k] = False
+                continue
+            if match in thermal:
+                used.add(id(match))
+            out += self._trust(k, ev, match)
+        for ev in thermal:
+            if ev.kind != "onset":
+                continue
+            k = ev.taxel
+            pend = self._pending.get(k)
+            if pend and id(ev) not in used and self._match(pend[0], [ev]) is ev:
+                used.add(id(ev))
+                del self._pending[k]
+                out += self._trust(k, pend[0], ev, pend[1:])
+            self._thermal_onset[k] = ev
+        return out, [ev for ev in thermal if id(ev) not in used]
+
+    def _match(self, ev: OnsetEvent, candidates: list) -> OnsetEvent | None:
+        for c in candidates:
+            if (c is not None and abs(c.time - ev.time) <= CONFIRM_SECONDS
+                    and c.detected_at <= ev.detected_at + CONFIRM_SECONDS):
+                return c
+        return None
+
+    def _trust(self, k: int, onset: OnsetEvent, match: OnsetEvent,
+               rest: list[OnsetEvent] | None = None) -> list[OnsetEvent]:
+        """Report a force onset the detector met: the force dates taxel k from now on."""
+        when = float(max(onset.detected_at, match.detected_at))
+        self.trusted[k] = True
+        self._trusted_from[k] = min(self._trusted_from[k], when)
+        self._emitted[k] = not rest
+        out = [dataclasses.replace(onset, detected_at=when)]
+        out += [dataclasses.replace(e, detected_at=max(e.detected_at, when)) for e in rest or []]
+        return out
+
+    def _expire(self, now: float) -> None:
+        """Forget force onsets the detector has not met in time (their taxel: thermal)."""
+        for k in [k for k, p in self._pending.items()
+                  if now > p[0].detected_at + CONFIRM_SECONDS]:
+            del self._pending[k]
 
     def _kept(self, times: np.ndarray, force: np.ndarray, thermal: list[OnsetEvent],
               last_before: np.ndarray, known_before: np.ndarray, value_before: np.ndarray,
@@ -170,8 +283,18 @@ class ForceOnsets:
                      and ev.detected_at - (since[row, j] if row >= 0 else same_before[ev.taxel])
                      >= self.stuck_s
                      and abs(value - self.level[ev.taxel]) <= 3 * self.noise[ev.taxel])
-            if stuck or not (known <= ev.detected_at and ev.detected_at - seen <= self.held_s):
+            k = ev.taxel
+            silent = self._silent[0, k] <= ev.detected_at <= self._silent[1, k]
+            untrusted = ev.detected_at < self._trusted_from[k] or k in self._pending
+            if (stuck or silent or untrusted
+                    or not (known <= ev.detected_at and ev.detected_at - seen <= self.held_s)):
                 kept.append(ev)
+                if ev.kind == "onset" and known <= ev.detected_at and not silent:
+                    self.unseen[k] += 1
+                    if self.unseen[k] == 2:
+                        self.notes.append(
+                            f"taxel {k}: the onset detector reports onsets its force channel "
+                            "did not see (a dead or miswired force?): dated by the detector")
         return kept
 
     def _piece(self, t: np.ndarray, f: np.ndarray, y: np.ndarray) -> list[OnsetEvent]:
@@ -182,6 +305,7 @@ class ForceOnsets:
         self._t[idx], self._f[idx], self._y[idx] = t, f, y
         self._head += m
         fin = np.isfinite(f)
+        prev_reading = self.last_reading.copy()
         if m == 1:
             self.last_reading[fin[0]] = t[0]
         elif fin.any():
@@ -195,43 +319,56 @@ class ForceOnsets:
         walk = np.flatnonzero((self.on & under.any(axis=0)) | (~self.on & over.any(axis=0))
                               | (self._run > 0))
         events = [ev for k in walk for ev in self._walk(int(k), t, f, over[:, k],
-                                                        under[:, k], first)]
+                                                        under[:, k], first,
+                                                        float(prev_reading[k]))]
         # the stretch's free samples: under the threshold, or every reading before it is known
         free = np.where(self._unknown, fin, under)
         self._span_f[self._in_span:self._in_span + m] = f
         self._span_free[self._in_span:self._in_span + m] = free
         self._in_span += m
         if self._in_span == self.span:
-            self._close_span(float(t[-1]))
+            events += self._close_span(float(t[-1]))
         return events
 
     def _walk(self, k: int, t: np.ndarray, f: np.ndarray, over: np.ndarray, under: np.ndarray,
-              first: int) -> list[OnsetEvent]:
-        """Step one taxel through a piece: its held crossings, as events."""
+              first: int, prev: float) -> list[OnsetEvent]:
+        """Step one taxel through a piece: its held crossings, as events.
+
+        A run of readings restarts after a gap of more than `FORCE_CONTACT_HELD` (a
+        release inside a gap is dated at the first reading after it); a rise whose last
+        reading before it precedes such a gap (or the stream's start) is force coming back
+        mid-contact: no force onset, the detector dates that contact (kind "silent").
+        """
         out = []
         on, run, run_start = bool(self.on[k]), int(self._run[k]), int(self._run_start[k])
+        run_t, after_gap = float(self._run_t[k]), bool(self._after_gap[k])
         held = self.held
         for i, (o, u) in enumerate(zip(over.tolist(), under.tolist(), strict=True)):
+            gap = False
+            if o or u:
+                gap = float(t[i]) - prev > self._gap_s
+                prev = float(t[i])
             if on:
                 if u:
-                    if run == 0:
-                        run_start = first + i
+                    if run == 0 or gap:
+                        run, run_t = 0, float(t[i])
                     run += 1
                     if run >= held:
-                        out.append(self._release(k, run_start, float(t[i])))
+                        out.append(self._release(k, run_t, float(t[i])))
                         on, run = False, 0
                 elif o:
                     run = 0
             elif o:
                 if run == 0:
-                    run_start = first + i
+                    run_start, run_t, after_gap = first + i, float(t[i]), gap
                 run += 1
                 if run >= held:
-                    out.append(self._onset(k, run_start, first + i))
+                    out.append(self._onset(k, run_start, first + i, silent=after_gap))
                     on, run = True, 0
             else:
                 run = 0  # a reading under it, or none: the rise was not held
         self.on[k], self._run[k], self._run_start[k] = on, run, run_start
+        self._run_t[k], self._after_gap[k] = run_t, after_gap
         return out
 
     def _ring(self, upto: int) -> tuple[np.ndarray, int]:
@@ -239,12 +376,20 @@ class ForceOnsets:
         lo = max(0, self._head - self.keep)
         return np.arange(lo, upto + 1) % self.keep, lo
 
-    def _onset(self, k: int, start: int, now: int) -> OnsetEvent:
+    def _onset(self, k: int, start: int, now: int, silent: bool = False) -> OnsetEvent:
         idx, lo = self._ring(now)
         t, f = self._t[idx], self._f[idx, k]
         j = max(0, start - lo)
         top = float(np.nanmax(f[j:]))
         onset = _force_onset(t, f, j, float(self.level[k]), float(self.noise[k]), top)
+        # never before the ring's start nor the taxel's last release (a drifting level)
+        onset = max(onset, float(t[0]), float(self._released[k]))
+        self._on_since[k] = onset
+        self._peak[k] = float(np.nanmax(f))
+        if silent:
+            self._silent[:, k] = (float(t[j]), np.inf)
+            return OnsetEvent("silent", k, onset, float(t[-1]), float("nan"), 0.0, -1,
+                              channel=FORCE_CHANNEL, dated_by="force")
         before = (t > onset - BASELINE_SECONDS) & (t <= onset)
         y = self._y[idx, k]
         base = y[before & np.isfinite(y)]
@@ -253,21 +398,69 @@ class ForceOnsets:
         return OnsetEvent("onset", k, onset, float(t[-1]), baseline, 0.0, -1,
                           channel=FORCE_CHANNEL, dated_by="force")
 
-    def _release(self, k: int, start: int, now: float) -> OnsetEvent:
+    def _release(self, k: int, when: float, now: float) -> OnsetEvent:
         self.releases += 1
-        when = float(self._t[start % self.keep])
+        self._released[k] = when
+        if self._silent[1, k] == np.inf:  # the contact the force did not date ends
+            self._silent[1, k] = now + GRACE_SECONDS
+            return OnsetEvent("silent", k, when, now, float("nan"), 0.0, -1,
+                              channel=FORCE_CHANNEL, dated_by="force")
         return OnsetEvent("release", k, when, now, float("nan"), 0.0, -1,
                           channel=FORCE_CHANNEL, dated_by="force")
 
-    def _close_span(self, end: float) -> None:
-        """Close a noise stretch: its free level and noise join the last `SPANS`."""
+    def _close_span(self, end: float) -> list[OnsetEvent]:
+        """Close a noise stretch: its free level and noise join the last `SPANS`.
+
+        Only a quiet stretch counts (its free readings spread over at most twice the
+        threshold's `FORCE_CONTACT_SNR` noise levels): a touch begun inside the first
+        stretch does not make its force the free level. A quiet stretch far under the
+        level (a taxel pressed since the stream's start, released) replaces the level's
+        stretches; so does a contact flat near its threshold for `LOCK_SECONDS` (a drifting
+        free level), which is ended there with a note.
+        """
+        events: list[OnsetEvent] = []
         f = np.where(self._span_free, self._span_f, np.nan)
         enough = self._span_free.sum(axis=0) >= self.span // 2
         level, noise = span_noise(f[:, enough])
+        with np.errstate(invalid="ignore"):
+            spread = np.nanmax(f[:, enough], axis=0) - np.nanmin(f[:, enough], axis=0)
+        tiny = 1e-9 * (1.0 + np.abs(level))
+        quiet = spread <= 2 * FORCE_CONTACT_SNR * noise + tiny
+        cols = np.flatnonzero(enough)
+        old_level = self.level[cols]
+        margin = self._threshold[cols] - old_level
+        fresh_level = quiet & (level < old_level - margin)  # released after a start pressed
+        # a contact flat near its threshold for long: the free level drifted
+        if self.on.any():
+            allf = self._span_f
+            fin = np.isfinite(allf).sum(axis=0) >= self.span // 2
+            lock = np.flatnonzero(self.on & fin & (end - self._on_since >= LOCK_SECONDS))
+            if lock.size:
+                a = allf[:, lock]
+                lv, nz = span_noise(a)
+                with np.errstate(invalid="ignore"):
+                    sp = np.nanmax(a, axis=0) - np.nanmin(a, axis=0)
+                thr = self._threshold[lock]
+                base = self.level[lock]
+                self._peak[lock] = np.fmax(self._peak[lock], np.nanmax(a, axis=0))
+                # near its threshold, or a small share of the contact's peak (drifted after it)
+                near = (sp <= 2 * FORCE_CONTACT_SNR * np.maximum(nz, self.noise[lock]) + 1e-9
+                        ) & ((lv <= thr + 2 * FORCE_CONTACT_SNR * self.noise[lock])
+                             | (lv - base <= 0.25 * (self._peak[lock] - base)))
+                for k, lvk, nzk in zip(lock[near].tolist(), lv[near], nz[near], strict=True):
+                    self.on[k], self._run[k] = False, 0
+                    self._spans[:, :, k] = np.nan
+                    self._spans[0, :, k] = (lvk, nzk)
+                    self.notes.append(
+                        f"taxel {k}: force flat near its threshold for {LOCK_SECONDS:g} s "
+                        f"(a drifting free level?) at {end:.3f} s: contact ended, level re-learnt")
+                    events.append(self._release(k, end, end))
+        self._spans[:, :, cols[fresh_level]] = np.nan
         row = self._spans[self._span_count % SPANS]
         row[:] = np.nan
-        row[0, enough], row[1, enough] = level, noise
-        self._noisy[enough] |= noise > 0
+        good = cols[quiet]
+        row[0, good], row[1, good] = level[quiet], noise[quiet]
+        self._noisy[good] |= noise[quiet] > 0
         self._span_count += 1
         count = np.isfinite(self._spans[:, 0]).sum(axis=0)  # a taxel without one yet: NaN
         lv = _sorted_quantile(np.sort(self._spans[:, 0], axis=0), count, 0.5)
@@ -282,3 +475,4 @@ class ForceOnsets:
         self._span_f[:] = np.nan
         self._span_free[:] = False
         self._in_span = 0
+        return events

@@ -251,7 +251,9 @@ class ContactTracker:
     def _on_onset(self, ev: OnsetEvent) -> None:
         member = _Member(ev.time, ev.baseline, ev.slope, dated_by=ev.dated_by)
         joined: list[_OpenContact] = []
-        for k in self.neighbours[ev.taxel]:
+        # a force onset confirming a thermal one of its taxel replaces it (one contact)
+        own = (ev.taxel,) if ev.dated_by == "force" else ()
+        for k in (*own, *self.neighbours[ev.taxel]):
             c = self._owner.get(int(k))
             if c is None or any(c is j for j in joined):
                 continue
