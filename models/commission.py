@@ -328,6 +328,9 @@ FORCE_CONTACT_SHARE = 0.05
 FORCE_CONTACT_HELD = 0.05
 #: A force that reads one value this long at its free level, where it is noisy, is stuck, s.
 FORCE_STUCK = 1.0
+#: A gap without a reading inside a contact is bridged (the contact goes on across it) only
+#: up to this long, s; a longer one ends it there (the onset detector looks inside it).
+FORCE_BRIDGE_MAX = 1.0
 #: The force's noise is taken per stretch of this many samples (their median: `force_noise`).
 FORCE_NOISE_SPAN = 100
 
@@ -351,7 +354,8 @@ def force_contacts(times: np.ndarray, force: np.ndarray,
     within one sample (a switch) is dated midway between its last open and first closed
     sample (within half a sample). A NaN sample (no reading) counts as under the threshold,
     but for a run inside a contact that is shorter than `FORCE_CONTACT_HELD` or after which
-    the force is still held over the threshold `FORCE_CONTACT_HELD` (it goes on across it).
+    the force is still held over the threshold `FORCE_CONTACT_HELD` and it lasts at most
+    `FORCE_BRIDGE_MAX` (it goes on across it; a longer gap ends the contact at its start).
 
     Parameters
     ----------
@@ -387,7 +391,8 @@ def force_contacts(times: np.ndarray, force: np.ndarray,
     over = ok & (f > threshold)
     gone = np.flatnonzero(np.diff(np.r_[0, (~ok).astype(np.int8), 0]))
     for a, b in zip(gone[::2], gone[1::2], strict=True):  # no reading in samples a..b-1
-        if 0 < a and b < f.size and over[a - 1] and (b - a < held or over[b:b + held].all()):
+        if 0 < a and b < f.size and over[a - 1] and (
+                b - a < held or (over[b:b + held].all() and t[b] - t[a] <= FORCE_BRIDGE_MAX)):
             # shorter than a release can be, or the force still held after it: the contact
             # goes on (a longer gap cut a touch into a short one and a false one)
             over[a:b] = True
@@ -512,7 +517,9 @@ def force_stuck(times: np.ndarray, force: np.ndarray, ids: np.ndarray | None = N
 
     A force whose free readings vary (at least three values within 3 noise levels of its
     free level, `force_noise`) and that reads one value at that level for `FORCE_STUCK` s
-    and 100 samples or more is stuck there (a sensor or cable failing partway): a free
+    and 100 samples or more, and ten times the longest run of one value in a typical stretch of
+    `FORCE_NOISE_SPAN` samples (the median over stretches: a quiet quantised sensor repeats
+    its values for long), is stuck there (a sensor or cable failing partway): a free
     sensor would not be read that long without noise, and a touch there would be lost as
     "no contact". `force_gaps` then hands those stretches to the onset detector. A channel
     without noise at rest (a switch, a quantised force under its resolution) is left as it is.
@@ -536,9 +543,15 @@ def force_stuck(times: np.ndarray, force: np.ndarray, ids: np.ndarray | None = N
             continue
         same = np.r_[False, f[1:] == f[:-1]]  # NaN never equal
         edges = np.flatnonzero(np.diff(np.r_[0, same.astype(np.int8), 0]))
+        runs = np.zeros(f.size, dtype=np.int64)  # each run's length at its first sample
+        for a, b in zip(edges[::2], edges[1::2], strict=True):
+            runs[a - 1] = b - a + 1
+        spans = [int(runs[i:i + FORCE_NOISE_SPAN].max(initial=1))
+                 for i in range(0, f.size, FORCE_NOISE_SPAN)]
+        longest = max(least, 10 * int(np.median(spans)))
         lost = 0.0
         for a, b in zip(edges[::2], edges[1::2], strict=True):  # f[a-1..b-1] one value
-            if b - a + 1 >= least and abs(f[a - 1] - level) <= 3 * noise:
+            if b - a + 1 >= longest and abs(f[a - 1] - level) <= 3 * noise:
                 if out is force:
                     out = force.copy()
                 out[a - 1:b, k] = np.nan

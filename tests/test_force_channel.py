@@ -535,3 +535,40 @@ def test_the_force_notes_name_taxels_by_their_layout_ids():
     assert notes[0].startswith("taxels 105, 108-") and "the force showed no contact" in notes[0]
     assert any(n.startswith("taxel 103: its force had no reading for 28") for n in notes)
     assert not any(n.startswith(("taxel 3:", "taxel 5:")) for n in notes)
+
+
+def test_a_long_gap_in_the_force_is_not_bridged_into_one_touch():
+    """Touches 1-2.6 s and 7.9-9 s, no reading 2.5-8.0 s: a bridge of any length made them one
+    contact (1-9 s); a gap over FORCE_BRIDGE_MAX ends the first at the gap's start."""
+    from skin.models.commission import force_contacts
+
+    rng = np.random.default_rng(1)
+    t = np.arange(1500) / 100.0
+    f = np.round(np.clip(rng.normal(0, 0.005, t.size), 0, None), 3)
+    f[(t >= 1) & (t < 2.6)] += 2
+    f[(t >= 7.9) & (t < 9)] += 2
+    f[(t >= 2.5) & (t < 8.0)] = np.nan
+    got = force_contacts(t, f)
+    assert len(got) == 2
+    assert got[0] == pytest.approx((1.0, 2.5), abs=0.011)
+    assert got[1] == pytest.approx((8.0, 9.0), abs=0.011)
+
+
+def test_a_quiet_quantised_force_is_not_taken_as_stuck():
+    """A working sensor with 2-3 mN noise and a 10 mN step repeats 0.00 for long stretches:
+    force_stuck took 41 % of its samples as no reading (100 samples of one value); runs are
+    now compared with the channel's own (ten times the longest in a typical stretch)."""
+    from skin.models.commission import force_stuck
+
+    rng = np.random.default_rng(5)
+    t = np.arange(6000) / 100.0
+    for sigma in (0.002, 0.003):
+        f = np.round(rng.normal(0, sigma, (t.size, 1)), 2)
+        for s in range(5, 60, 10):
+            f[(t >= s) & (t < s + 2), 0] += 2.0
+        out, notes = force_stuck(t, f)
+        assert not np.isnan(out).any() and not notes
+        g = f.copy()
+        g[3000:, 0] = 0.0  # now really stuck at its free level for 30 s
+        out, notes = force_stuck(t, g)
+        assert np.isnan(out[3000:, 0]).mean() > 0.9 and notes
