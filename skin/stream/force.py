@@ -1,12 +1,12 @@
 """Contact onsets and releases dated by a force (or contact-switch) channel, streaming.
 
-A taxel whose frames carry a force reading (`skin.frame.Frame.force`) may be dated by it:
-its contact begins where the force first exceeds its free level by `FORCE_CONTACT_SNR` noise
-levels and stays over that `FORCE_CONTACT_HELD`, and ends where it stays under it as long.
-The onset is the dating core of `skin.models.commission.force_contacts`
+A taxel whose frames carry a force reading (`skin.frame.Frame.force`) may be dated by it: its
+contact begins where the force first exceeds its free level by `FORCE_CONTACT_SNR` noise
+levels and stays over that `FORCE_CONTACT_HELD`, and ends where it stays under it as long. The
+onset is the dating core of `skin.models.commission.force_contacts`
 (`skin.models.commission._force_onset`, shared): for a fast press, back along the rise to
-where it left the free level; for a slow one (a rise longer than the held time) near where
-it crosses the threshold. It is never put before the ring's start nor the taxel's last release.
+where it left the free level; for a slow one (a rise longer than the held time) near where it
+crosses the threshold. It is never put before the ring's start nor the taxel's last release.
 
 The free level and noise are each taxel's `skin.models.commission.span_noise` per stretch of
 `FORCE_NOISE_SPAN` samples or `SPAN_SECONDS`, whichever is shorter (but 20 samples; counted
@@ -17,26 +17,27 @@ level (a taxel pressed since the stream began, released) replaces it; a contact 
 threshold for `LOCK_SECONDS` (a drifting free level) is ended there and the level re-learnt,
 with a note (`ForceOnsets.notes`).
 
-The force overrules the onset detector on a taxel only once it is trusted: one of its onsets
-met a detector onset within `CONFIRM_SECONDS` (that detector onset is replaced by the force's).
-Until then, and where the force's level is not known yet (the first quiet stretch: 0.5 s at
-200 Hz, 1 s at 100 Hz or slower), where it has had no reading for `FORCE_CONTACT_HELD`, where
-it is stuck (one value at its free level for `FORCE_STUCK` s and 100 samples on a taxel whose
-free readings have varied, as `skin.models.commission.force_stuck`) and during a contact it
-did not date (a rise after a gap of more than `FORCE_CONTACT_HELD` or the stream's start:
-force coming back mid-contact; `GRACE_SECONDS` after it), the detector's events are kept. A
-dead, miswired or inverted channel is thus never trusted; detector onsets it did not see are
-counted (`ForceOnsets.unseen`) and noted. A run of readings restarts after a gap: a release
-inside a gap is dated at the first reading after it.
+The force overrules the onset detector on a taxel (drops the detector's events where it shows
+no contact) only once it has dated a contact there (onset and release); until then the
+detector's events are kept but for those within `CONFIRM_SECONDS` of a force contact (the same
+touch). Where the force's level is not known yet (the first quiet stretch: 0.5 s at 200 Hz, 1
+s at 100 Hz or slower), where it has had no reading for `FORCE_CONTACT_HELD`, where it is
+stuck (one value at its free level for `FORCE_STUCK` s and 100 samples on a taxel whose free
+readings have varied, as `skin.models.commission.force_stuck`) and during a contact it did not
+date (a rise after a gap of more than `FORCE_CONTACT_HELD` or the stream's start: force coming
+back mid-contact; `GRACE_SECONDS` after it), the detector's events are kept. A dead channel
+(never a contact) thus never hides the detector's touches; detector onsets the force did not
+see are counted (`ForceOnsets.unseen`) and noted. An inverted channel (reading high at rest)
+still reports contacts at the touches' releases: not told from a real one. A run of readings
+restarts after a gap: a release inside a gap is dated at the first reading after it.
 
-Unlike the whole-recording `force_contacts`, the threshold has no share of the strongest
-touch (that needs the recording's end): a force whose free level drifts by more than ten
-noise levels within `SPANS` stretches still starts false contacts (ended by the lock rule).
+Unlike the whole-recording `force_contacts`, the threshold has no share of the strongest touch
+(that needs the recording's end): a force whose free level drifts by more than ten noise
+levels within `SPANS` stretches still starts false contacts (ended by the lock rule).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -63,8 +64,8 @@ BASELINE_SECONDS = 0.1
 RISE_SECONDS = 0.5
 #: The `OnsetEvent.channel` of the force's events.
 FORCE_CHANNEL = 4
-#: A force onset on a taxel whose force has not dated a contact yet stands only if the
-#: detector reports an onset this close to it (and by this long after it), s.
+#: On a taxel whose force has not dated a contact yet, the detector's events this close to
+#: a force contact are that contact's (dropped: the force dates it), s.
 CONFIRM_SECONDS = 0.5
 #: After a contact the force did not date (it began in a gap or unconfirmed), the taxel's
 #: thermal events are kept this long, s (the detector's release comes late).
@@ -109,15 +110,14 @@ class ForceOnsets:
         self._run_t = np.full(n, np.nan)  # ... and its time, s
         self._after_gap = np.zeros(n, dtype=bool)  # the rise began after a gap (or the start)
         self._gap_s = max(self.held_s, 1.5 / self.rate) + 1e-9
-        self.trusted = np.zeros(n, dtype=bool)  # its force has dated a contact the detector saw
+        self.trusted = np.zeros(n, dtype=bool)  # its force has dated a contact
         self._trusted_from = np.full(n, np.inf)
         self._emitted = np.zeros(n, dtype=bool)  # the current force contact was reported
         self._on_since = np.full(n, np.nan)  # the current force contact's onset, s
         self._peak = np.full(n, np.nan)  # ... and its highest reading so far (per stretch)
         self._released = np.full(n, -np.inf)  # each taxel's last force release, s
         self._silent = np.full((2, n), np.nan)  # a contact the force did not date: from, until
-        self._pending: dict[int, list[OnsetEvent]] = {}  # unconfirmed force events per taxel
-        self._thermal_onset: dict[int, OnsetEvent] = {}  # each taxel's last detector onset
+        self._span = np.full((2, n), np.nan)  # the last reported force contact +- CONFIRM, s
         self.unseen = np.zeros(n, dtype=np.int64)  # detector onsets the force did not see
         self.notes: list[str] = []
         self._t = np.full(self.keep, np.nan)
@@ -166,8 +166,6 @@ class ForceOnsets:
             start = stop
         events, thermal = self._confirm(events, thermal)
         if len(times):
-            self._expire(float(times[-1]))
-        if len(times):
             prev = np.vstack([self._value[None], force[:-1]])
             changed = ~(force == prev)  # NaN: a change
             rows = len(times) - 1 - np.argmax(changed[::-1], axis=0)
@@ -179,78 +177,38 @@ class ForceOnsets:
 
     def _confirm(self, raw: list[OnsetEvent], thermal: list[OnsetEvent]
                  ) -> tuple[list[OnsetEvent], list[OnsetEvent]]:
-        """Report the force's events of trusted taxels; hold the others for the detector.
+        """Report the force's events; say which detector events it leaves to judge.
 
-        A taxel's force is trusted once one of its onsets meets a detector onset within
-        `CONFIRM_SECONDS` (a dead, miswired or inverted channel never is: its taxel stays
-        the detector's). The confirming detector onset is replaced by the force's.
-        Returns the events to report and the detector's events left to judge.
+        A taxel's force overrules the detector only once it has dated a contact (its onset
+        and release: `trusted`); until then the detector's events are kept, but those dated
+        within `CONFIRM_SECONDS` of a force contact the force reports (the same touch: one
+        contact, the force's; a detector onset come before it is replaced in the tracker).
+        A dead channel (never a contact) thus never hides the detector's touches.
         """
         out: list[OnsetEvent] = []
-        onsets = {}
-        for ev in thermal:
-            if ev.kind == "onset":
-                onsets.setdefault(ev.taxel, []).append(ev)
-        used: set[int] = set()
         for ev in raw:
             k = ev.taxel
             if ev.kind == "silent":
                 continue
-            if self.trusted[k] and k not in self._pending:
-                if ev.kind == "onset" or self._emitted[k]:
-                    out.append(ev)
-                self._emitted[k] = ev.kind == "onset"
-                continue
-            if ev.kind == "release":
-                if k in self._pending:
-                    self._pending[k].append(ev)
-                elif self._emitted[k]:
-                    out.append(ev)
+            if ev.kind == "onset":
+                self._emitted[k] = True
+                self._span[:, k] = (ev.time - CONFIRM_SECONDS, np.inf)
+                out.append(ev)
+            elif self._emitted[k]:
                 self._emitted[k] = False
-                continue
-            match = self._match(ev, [self._thermal_onset.get(k), *onsets.get(k, [])])
-            if match is None:
-                self._pending[k] = [ev]
-                self._emitted[k] = False
-                continue
-            if match in thermal:
-                used.add(id(match))
-            out += self._trust(k, ev, match)
+                self._span[1, k] = ev.time + CONFIRM_SECONDS
+                out.append(ev)
+                if not self.trusted[k]:
+                    self.trusted[k] = True
+                    self._trusted_from[k] = ev.detected_at
+        keep = []
         for ev in thermal:
-            if ev.kind != "onset":
-                continue
             k = ev.taxel
-            pend = self._pending.get(k)
-            if pend and id(ev) not in used and self._match(pend[0], [ev]) is ev:
-                used.add(id(ev))
-                del self._pending[k]
-                out += self._trust(k, pend[0], ev, pend[1:])
-            self._thermal_onset[k] = ev
-        return out, [ev for ev in thermal if id(ev) not in used]
-
-    def _match(self, ev: OnsetEvent, candidates: list) -> OnsetEvent | None:
-        for c in candidates:
-            if (c is not None and abs(c.time - ev.time) <= CONFIRM_SECONDS
-                    and c.detected_at <= ev.detected_at + CONFIRM_SECONDS):
-                return c
-        return None
-
-    def _trust(self, k: int, onset: OnsetEvent, match: OnsetEvent,
-               rest: list[OnsetEvent] | None = None) -> list[OnsetEvent]:
-        """Report a force onset the detector met: the force dates taxel k from now on."""
-        when = float(max(onset.detected_at, match.detected_at))
-        self.trusted[k] = True
-        self._trusted_from[k] = min(self._trusted_from[k], when)
-        self._emitted[k] = not rest
-        out = [dataclasses.replace(onset, detected_at=when)]
-        out += [dataclasses.replace(e, detected_at=max(e.detected_at, when)) for e in rest or []]
-        return out
-
-    def _expire(self, now: float) -> None:
-        """Forget force onsets the detector has not met in time (their taxel: thermal)."""
-        for k in [k for k, p in self._pending.items()
-                  if now > p[0].detected_at + CONFIRM_SECONDS]:
-            del self._pending[k]
+            if (ev.detected_at < self._trusted_from[k]
+                    and self._span[0, k] <= ev.time <= self._span[1, k]):
+                continue  # the force's contact, not trusted yet: the force dates it
+            keep.append(ev)
+        return out, keep
 
     def _kept(self, times: np.ndarray, force: np.ndarray, thermal: list[OnsetEvent],
               last_before: np.ndarray, known_before: np.ndarray, value_before: np.ndarray,
@@ -285,7 +243,7 @@ class ForceOnsets:
                      and abs(value - self.level[ev.taxel]) <= 3 * self.noise[ev.taxel])
             k = ev.taxel
             silent = self._silent[0, k] <= ev.detected_at <= self._silent[1, k]
-            untrusted = ev.detected_at < self._trusted_from[k] or k in self._pending
+            untrusted = ev.detected_at < self._trusted_from[k]
             if (stuck or silent or untrusted
                     or not (known <= ev.detected_at and ev.detected_at - seen <= self.held_s)):
                 kept.append(ev)
