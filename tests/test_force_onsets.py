@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -54,22 +56,20 @@ def test_force_dates_onset_and_release_exactly_and_chunk_invariant() -> None:
             [(e.kind, e.taxel, e.time, e.detected_at) for e in events]
 
 
-def test_a_force_onset_the_detector_never_meets_is_not_reported() -> None:
-    """A dead, miswired or inverted channel must not overrule the detector: a taxel's force
-    dates contacts only once one of its onsets met the detector's (s7.py S8/S9: both touches
-    of taxels 0, 1, 10 were lost, or dated at their releases)."""
+def test_a_dead_force_channel_leaves_its_taxel_to_the_detector() -> None:
+    """A dead channel must not overrule the detector: a taxel's force drops the detector's
+    events only once it has dated a contact (s7.py S8: a force reading 0.0 throughout lost
+    both touches of taxels 0, 1, 10). The detector's events of a touch the force dates
+    before it is trusted are that touch's: dropped, the force's reported."""
     t, f = _stream()
-    assert not _run(t, f, 50)  # force alone: not confirmed, nothing reported
-    inverted = f.copy()
-    inverted[:, 0] = 2.0 - f[:, 0]  # an inverted channel: its "onset" at the release (7 s)
-    late = [OnsetEvent("onset", 0, 5.02, 5.2, 30.0, 0.0),
+    seen = [OnsetEvent("onset", 0, 5.02, 5.2, 30.0, 0.0),
             OnsetEvent("release", 0, 7.05, 7.4, float("nan"), 0.0)]
-    out = _run(t, inverted, 50, late)
-    assert [(e.kind, e.dated_by) for e in out] == [("onset", "thermal"), ("release", "thermal")]
     dead = f.copy()
     dead[:, 0] = 0.0
-    out = _run(t, dead, 50, late)
+    out = _run(t, dead, 50, seen)
     assert [(e.kind, e.dated_by) for e in out] == [("onset", "thermal"), ("release", "thermal")]
+    out = sorted(_run(t, f, 50, seen), key=lambda e: e.detected_at)
+    assert [(e.kind, e.dated_by) for e in out] == [("onset", "force"), ("release", "force")]
 
 
 def test_thermal_events_kept_only_where_the_force_has_no_reading() -> None:
@@ -78,8 +78,8 @@ def test_thermal_events_kept_only_where_the_force_has_no_reading() -> None:
     thermal.append(OnsetEvent("onset", 0, 0.3, 0.5, 30.0, 0.0))  # before its noise is known
     kept = [e for e in _run(t, f, 50, thermal + SEEN) if e.dated_by == "thermal"]
     # taxel 0's force has dated a touch and reads no contact at 8.2 s: dropped; taxel 2 has
-    # no reading, taxel 1's force has dated nothing yet, taxel 0's early event came before
-    # its free level was known
+    # no reading, taxel 1's force has dated nothing yet (a dead channel?), taxel 0's early
+    # event came before its free level was known
     assert sorted((e.taxel, e.detected_at) for e in kept) == [(0, 0.5), (1, 8.2), (2, 8.2)]
 
 
@@ -97,8 +97,11 @@ def test_pipeline_dates_a_simulated_scene_by_its_force() -> None:
     from skin.commands.bench_scene import _with_fields
 
     scene = _with_fields("default", {"force": "force", "sensor": None})
-    on = play(scene, 31, duration=8.0, force_onsets=True)
-    off = play(scene, 31, duration=8.0, force_onsets=False)
+    try:
+        on = play(scene, 31, duration=8.0, force_onsets=True)
+        off = play(scene, 31, duration=8.0, force_onsets=False)
+    finally:
+        Path(scene).unlink()
     assert on["dated_by"]["force"] > 0 and off["dated_by"]["force"] == 0
     err_on = np.abs([d["onset"] for d in on["dating"]])
     err_off = np.abs([d["onset"] for d in off["dating"]])
@@ -240,3 +243,15 @@ def test_a_drifting_free_level_does_not_date_onsets_seconds_back() -> None:
         found = sum(any(abs(e.time - s) < 0.05 for e in onsets) for s in starts)
         assert found >= 6, (drift, found)  # (before: 3 of 12 at 1 N/min)
         assert fo.notes
+
+
+def test_bench_scene_leaves_no_temporary_scene(tmp_path, monkeypatch) -> None:
+    """`skin bench scene --force-channel` wrote a copy of the scene it never removed."""
+    import tempfile
+
+    from skin.cli import main
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    assert main(["bench", "scene", "--seeds", "20", "--duration", "1",
+                 "--force-channel", "force", "--json"]) == 0
+    assert not list(tmp_path.glob("bench_scene_*"))

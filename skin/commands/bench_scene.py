@@ -6,6 +6,7 @@ The measurement is `skin.bench.scene_seeds.run` (loaded only when run).
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 _COLUMNS = ("touches", "detected", "material", "family", "unknown", "wrong", "sure_wrong",
             "false_contacts")
@@ -76,7 +77,8 @@ def parse_seeds(text: str) -> list[int]:
 def _with_fields(scene: str, fields: dict[str, str | None]) -> str:
     """Write ``scene`` with top-level ``fields`` added (None: left) to a temporary file; its path.
 
-    The scene's ``layout`` must be a shipped layout name (the copy lives elsewhere).
+    The scene's ``layout`` must be a shipped layout name (the copy lives elsewhere). The
+    caller removes the file (`main` does, when the bench is done).
     """
     import tempfile
     import tomllib
@@ -115,15 +117,22 @@ def main(args: argparse.Namespace) -> int:
     if args.duration is not None and args.duration <= 0:
         raise SkinError(f"--duration must be positive, got {args.duration}")
     scene = args.scene
+    temporary = None
     if args.force_channel or args.sensor:
-        scene = _with_fields(scene, {"force": args.force_channel, "sensor": args.sensor})
-    load_scene(scene)  # a missing or bad scene is named before the work
-    progress = Progress()
-    started = time.monotonic()
-    out = run(scene, seeds, args.duration,
-              progress=lambda d, n: progress.bar(d, n, "runs", started), ceiling=args.ceiling,
-              common_mode=args.common_mode, force_onsets=args.force_onsets)
-    progress.done()
+        scene = temporary = _with_fields(scene, {"force": args.force_channel,
+                                                 "sensor": args.sensor})
+    try:
+        load_scene(scene)  # a missing or bad scene is named before the work
+        progress = Progress()
+        started = time.monotonic()
+        out = run(scene, seeds, args.duration,
+                  progress=lambda d, n: progress.bar(d, n, "runs", started),
+                  ceiling=args.ceiling, common_mode=args.common_mode,
+                  force_onsets=args.force_onsets)
+        progress.done()
+    finally:
+        if temporary is not None:
+            Path(temporary).unlink(missing_ok=True)
     if args.json:
         print(json.dumps({"machine": machine(), **out,
                           "wall_time": round(time.monotonic() - started, 2)}))
