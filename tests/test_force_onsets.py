@@ -255,27 +255,3 @@ def test_bench_scene_leaves_no_temporary_scene(tmp_path, monkeypatch) -> None:
     assert main(["bench", "scene", "--seeds", "20", "--duration", "1",
                  "--force-channel", "force", "--json"]) == 0
     assert not list(tmp_path.glob("bench_scene_*"))
-
-
-def test_a_force_contact_without_thermal_response_is_unknown() -> None:
-    """s5.py: a 2 N force glitch of 0.1-1 s on untouched taxels 50, 51 was named (cardboard,
-    p = 1.00 for 1 s): nothing warmed or cooled, so the answer is "unknown"."""
-    import dataclasses
-
-    from skin.drivers.sim import SkinSimulator
-    from skin.formats.scene import load_scene
-    from skin.models import JointClassifier, load_materials
-    from skin.stream.pipeline import Pipeline
-
-    scene = dataclasses.replace(load_scene("default"), force="force")
-    frames = []
-    for fr in SkinSimulator(scene, duration=8.0).frames():
-        f = fr.force.copy()
-        if 6.0 <= fr.device_time < 7.0:
-            f[[50, 51]] = 2.0
-        frames.append(dataclasses.replace(fr, force=f))
-    pipe = Pipeline(scene.layout, JointClassifier(scene.layout, load_materials()))
-    out = [r for r in pipe.process(frames) + pipe.flush() if r.contact.final]
-    glitch = [r for r in out if {50, 51} & set(r.contact.taxels)]
-    assert glitch and all(r.estimate.label == "unknown" for r in glitch)
-    assert any(r.estimate.label != "unknown" for r in out)  # the real touches are named

@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING, Protocol, TypeVar
 
 import numpy as np
 
-from skin.contact import UNKNOWN, Contact, MaterialEstimate
+from skin.contact import Contact, MaterialEstimate
 from skin.errors import SkinError
 from skin.formats.layout import Layout
 from skin.frame import Frame
@@ -59,9 +59,6 @@ if TYPE_CHECKING:
 
 T = TypeVar("T")
 
-#: A force-dated contact whose windows stay on average within this many noise levels of
-#: their initial temperature is answered "unknown" (`Pipeline._classify`).
-NO_RESPONSE_SIGMAS = 5.0
 STAGES = ("assemble", "calibrate", "onset", "track", "refine", "classify", "sinks")
 
 
@@ -463,27 +460,6 @@ class Pipeline:
         self._queue.extend(_Deciding(d) for d in decided)
         self.stats.contacts += sum(d.final for d in decided)
 
-    def _classify(self, contact: Contact) -> MaterialEstimate:
-        """Classify a contact; "unknown" where the force dated it but no taxel warmed or cooled.
-
-        A force-dated contact whose every window's temperature stays on average within
-        `NO_RESPONSE_SIGMAS` of the taxel's noise of its initial one (a force glitch, a touch
-        of nothing; a neighbour's heat may still reach it) carries nothing to name: the
-        classifier would still give a confident label (a 2 N glitch of 1 s on untouched
-        taxels was "cardboard", p = 1.00).
-        """
-        estimate = self.classifier.classify(contact)
-        if contact.windows and all(w.dated_by == "force" for w in contact.windows):
-            sigma = getattr(self.detector, "sigma", None)
-            flat = sigma is not None and all(
-                w.temperature.size == 0 or float(np.mean(np.abs(w.temperature - w.initial)))
-                <= NO_RESPONSE_SIGMAS * float(sigma[w.taxel]) for w in contact.windows)
-            if flat:
-                return MaterialEstimate(UNKNOWN, {}, 0.0, None,
-                                        f"{estimate.method}: no thermal response to the "
-                                        "force's contact", family=UNKNOWN)
-        return estimate
-
     def _host_times(self, contact: Contact) -> HostTimes | None:
         to_host = self.timeline.to_host
         onset = to_host(contact.onset)
@@ -516,7 +492,7 @@ class Pipeline:
                 self._queue.popleft()
                 contact = finish_contact(head.decided, self.layout, head.refined,
                                          self.tracker.window)
-                result = ContactResult(contact, self._classify(contact), self._now,
+                result = ContactResult(contact, self.classifier.classify(contact), self._now,
                                        self._host_times(contact))
             spent = time.perf_counter() - t0
             seconds[kind] += spent
