@@ -255,3 +255,33 @@ def test_bench_scene_leaves_no_temporary_scene(tmp_path, monkeypatch) -> None:
     assert main(["bench", "scene", "--seeds", "20", "--duration", "1",
                  "--force-channel", "force", "--json"]) == 0
     assert not list(tmp_path.glob("bench_scene_*"))
+
+
+def test_a_force_channel_appearing_mid_stream_is_chunk_invariant() -> None:
+    """s2.py: frames without force until 2.3 s: the noise stretches were counted from the first
+    block with force (its start depends on the chunking: onsets differed by microseconds);
+    now from the stream's first sample."""
+    import dataclasses
+
+    from skin.drivers.sim import SkinSimulator
+    from skin.formats.scene import load_scene
+    from skin.models import HistogramClassifier
+    from skin.stream.pipeline import Pipeline
+
+    scene = dataclasses.replace(load_scene("default"), force="force")
+    frames = [dataclasses.replace(fr, force=None) if fr.device_time < 2.3 else fr
+              for fr in SkinSimulator(scene, duration=8.0).frames()]
+
+    def run(chunk: int) -> list:
+        pipe = Pipeline(scene.layout, HistogramClassifier(scene.layout))
+        out = []
+        for i in range(0, len(frames), chunk):
+            out += pipe.process(frames[i:i + chunk])
+        return [(tuple(r.contact.taxels), r.contact.onset, r.contact.release,
+                 tuple(w.dated_by for w in r.contact.windows))
+                for r in out + pipe.flush() if r.contact.final]
+
+    ref = run(1000)
+    assert any("force" in k[3] for k in ref)
+    for chunk in (1, 97, 333):
+        assert run(chunk) == ref, chunk

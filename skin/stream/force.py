@@ -84,9 +84,13 @@ class ForceOnsets:
         Taxels (layout order).
     sample_rate : float
         Samples per second.
+    start : int
+        The stream's index of the first sample given (stretches are counted from the
+        stream's first sample, so a force channel appearing mid-stream gives the same
+        stretches whatever the chunking).
     """
 
-    def __init__(self, n_taxels: int, sample_rate: float) -> None:
+    def __init__(self, n_taxels: int, sample_rate: float, start: int = 0) -> None:
         self.n = int(n_taxels)
         self.rate = float(sample_rate)
         self.held = max(2, round(FORCE_CONTACT_HELD * self.rate))
@@ -103,7 +107,7 @@ class ForceOnsets:
         self._span_count = 0
         self._span_f = np.full((self.span, n), np.nan)
         self._span_free = np.zeros((self.span, n), dtype=bool)
-        self._in_span = 0
+        self._in_span = int(start) % self.span
         self.on = np.zeros(n, dtype=bool)
         self._run = np.zeros(n, dtype=np.int64)  # consecutive readings against the state
         self._run_start = np.zeros(n, dtype=np.int64)  # their first sample (stream index)
@@ -123,7 +127,7 @@ class ForceOnsets:
         self._t = np.full(self.keep, np.nan)
         self._f = np.full((self.keep, n), np.nan)
         self._y = np.full((self.keep, n), np.nan)
-        self._head = 0  # samples seen
+        self._head = self._start = int(start)  # the stream's index of the next sample
         self.last_reading = np.full(n, -np.inf)  # each taxel's last force reading, s
         self.known_from = np.full(n, np.inf)  # when each taxel's free level was first known
         self._threshold = np.full(n, np.nan)  # NaN: its free level not known yet
@@ -331,7 +335,7 @@ class ForceOnsets:
 
     def _ring(self, upto: int) -> tuple[np.ndarray, int]:
         """Ring indices of the kept samples up to stream index ``upto``, in time order."""
-        lo = max(0, self._head - self.keep)
+        lo = max(self._start, self._head - self.keep)
         return np.arange(lo, upto + 1) % self.keep, lo
 
     def _onset(self, k: int, start: int, now: int, silent: bool = False) -> OnsetEvent:
@@ -341,7 +345,7 @@ class ForceOnsets:
         top = float(np.nanmax(f[j:]))
         onset = _force_onset(t, f, j, float(self.level[k]), float(self.noise[k]), top)
         # never before the ring's start nor the taxel's last release (a drifting level)
-        onset = max(onset, float(t[0]), float(self._released[k]))
+        onset = max(onset, float(np.nanmin(t)), float(self._released[k]))
         self._on_since[k] = onset
         self._peak[k] = float(np.nanmax(f))
         if silent:

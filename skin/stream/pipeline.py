@@ -442,7 +442,8 @@ class Pipeline:
             if self.force is None:
                 from skin.stream.force import ForceOnsets
 
-                self.force = ForceOnsets(len(self.layout), self.sample_rate)
+                self.force = ForceOnsets(len(self.layout), self.sample_rate,
+                                         start=self.stats.samples - len(times))
             events = self._timed("onset", self.force.merge, times, force, temperature, events)
         self.stats.onsets += sum(e.kind == "onset" for e in events)
         self.stats.releases += sum(e.kind == "release" for e in events)
