@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -325,6 +326,11 @@ FORCE_CONTACT_SNR = 10.0
 FORCE_CONTACT_SHARE = 0.05
 #: A contact (or a release) counts when it holds this long, s: a noise sample does not.
 FORCE_CONTACT_HELD = 0.05
+#: A force that reads one value this long at its free level, where it is noisy, is stuck, s.
+FORCE_STUCK = 1.0
+#: A gap without a reading inside a contact is bridged (the contact goes on across it) only
+#: up to this long, s; a longer one ends it there (the onset detector looks inside it).
+FORCE_BRIDGE_MAX = 1.0
 #: The force's noise is taken per stretch of this many samples (their median: `force_noise`).
 FORCE_NOISE_SPAN = 100
 
@@ -347,7 +353,9 @@ def force_contacts(times: np.ndarray, force: np.ndarray,
     half the contact's peak (`_force_onset`: a linear ramp is dated where it starts); a rise done
     within one sample (a switch) is dated midway between its last open and first closed
     sample (within half a sample). A NaN sample (no reading) counts as under the threshold,
-    but for a run shorter than `FORCE_CONTACT_HELD` inside a contact (it goes on across it).
+    but for a run inside a contact that is shorter than `FORCE_CONTACT_HELD` or after which
+    the force is still held over the threshold `FORCE_CONTACT_HELD` and it lasts at most
+    `FORCE_BRIDGE_MAX` (it goes on across it; a longer gap ends the contact at its start).
 
     Parameters
     ----------
@@ -359,8 +367,8 @@ def force_contacts(times: np.ndarray, force: np.ndarray,
         Given, gets (onset, release) of each contact over the noise that stays under the
         `FORCE_CONTACT_SHARE` of the strongest one (left out: counted by `force_touches`).
     bridged : list, optional
-        Given, gets (start, end) of each stretch without a reading shorter than
-        `FORCE_CONTACT_HELD` inside a contact: the contact goes on across it.
+        Given, gets (start, end) of each stretch without a reading inside a contact that the
+        contact goes on across (shorter than `FORCE_CONTACT_HELD`, or the force held after it).
 
     Returns
     -------
@@ -383,8 +391,11 @@ def force_contacts(times: np.ndarray, force: np.ndarray,
     over = ok & (f > threshold)
     gone = np.flatnonzero(np.diff(np.r_[0, (~ok).astype(np.int8), 0]))
     for a, b in zip(gone[::2], gone[1::2], strict=True):  # no reading in samples a..b-1
-        if 0 < a and b < f.size and b - a < held and over[a - 1]:
-            over[a:b] = True  # shorter than a release can be: the contact goes on
+        if 0 < a and b < f.size and over[a - 1] and (
+                b - a < held or (over[b:b + held].all() and t[b] - t[a] <= FORCE_BRIDGE_MAX)):
+            # shorter than a release can be, or the force still held after it: the contact
+            # goes on (a longer gap cut a touch into a short one and a false one)
+            over[a:b] = True
             if bridged is not None:
                 bridged.append((float(t[a]), float(t[b])))
     out = []
@@ -500,6 +511,57 @@ def force_gaps(times: np.ndarray, force: np.ndarray, forced: np.ndarray,
     return within, notes
 
 
+def force_stuck(times: np.ndarray, force: np.ndarray, ids: np.ndarray | None = None,
+                ) -> tuple[np.ndarray, list[str]]:
+    """Take the stretches where a taxel's force is stuck as having no reading (NaN).
+
+    A force whose free readings vary (at least three values within 3 noise levels of its
+    free level, `force_noise`) and that reads one value at that level for `FORCE_STUCK` s
+    and 100 samples or more, and ten times the longest run of one value in a typical stretch of
+    `FORCE_NOISE_SPAN` samples (the median over stretches: a quiet quantised sensor repeats
+    its values for long), is stuck there (a sensor or cable failing partway): a free
+    sensor would not be read that long without noise, and a touch there would be lost as
+    "no contact". `force_gaps` then hands those stretches to the onset detector. A channel
+    without noise at rest (a switch, a quantised force under its resolution) is left as it is.
+
+    Returns
+    -------
+    force : numpy.ndarray
+        A copy, NaN where stuck (the array itself when nothing is).
+    notes : list of str
+        Per taxel stuck (named by its id, ``ids``; default its column), how long.
+    """
+    t = np.asarray(times, dtype=float)
+    ids = np.arange(force.shape[1]) if ids is None else np.asarray(ids)
+    least = max(100, math.ceil(FORCE_STUCK / float(np.median(np.diff(t)))))
+    out, notes = force, []
+    for k in np.flatnonzero(np.isfinite(force).any(axis=0)):
+        f = force[:, k]
+        level, noise = force_noise(f)
+        near = f[np.isfinite(f) & (np.abs(f - level) <= 3 * noise)]
+        if np.unique(near).size < 3:
+            continue
+        same = np.r_[False, f[1:] == f[:-1]]  # NaN never equal
+        edges = np.flatnonzero(np.diff(np.r_[0, same.astype(np.int8), 0]))
+        runs = np.zeros(f.size, dtype=np.int64)  # each run's length at its first sample
+        for a, b in zip(edges[::2], edges[1::2], strict=True):
+            runs[a - 1] = b - a + 1
+        spans = [int(runs[i:i + FORCE_NOISE_SPAN].max(initial=1))
+                 for i in range(0, f.size, FORCE_NOISE_SPAN)]
+        longest = max(least, 10 * int(np.median(spans)))
+        lost = 0.0
+        for a, b in zip(edges[::2], edges[1::2], strict=True):  # f[a-1..b-1] one value
+            if b - a + 1 >= longest and abs(f[a - 1] - level) <= 3 * noise:
+                if out is force:
+                    out = force.copy()
+                out[a - 1:b, k] = np.nan
+                lost += float(t[b - 1] - t[a - 1])
+        if lost:
+            notes.append(f"taxel {ids[k]}: its force read one value for {lost:.3g} s (stuck?): "
+                         "taken as no reading")
+    return out, notes
+
+
 def _runs_said(taxels: list[int]) -> str:
     """Taxel ids as runs: ``[0, 1, 2, 5]`` -> ``"0-2, 5"``."""
     out, start = [], taxels[0]
@@ -539,6 +601,57 @@ def force_noise(force: np.ndarray, held: int = 1) -> tuple[float, float]:
     noise = max(1.4826 * float(np.median(np.abs(free - level))), upper - level,
                 float(steps.min()) if steps.size else 0.0)
     return level, noise
+
+
+def span_noise(free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Free level and noise of force stretches, column by column (`ForceOnsets`' stretches).
+
+    As `force_noise` for one stretch: the level is the median of the free samples, the noise
+    their scaled median absolute deviation, their 84th percentile's distance above the level
+    (a force clipped at 0 has a MAD of 0) or the smallest step between two of them, whichever
+    is largest.
+
+    Parameters
+    ----------
+    free : numpy.ndarray
+        (samples, columns), NaN where a sample is not free (or has no reading); a column
+        without any free sample gives NaN.
+
+    Returns
+    -------
+    level, noise : numpy.ndarray
+        (columns,) each, N.
+    """
+    f = np.asarray(free, dtype=float)
+    srt = np.sort(f, axis=0)  # NaN last
+    count = np.isfinite(f).sum(axis=0)
+    level = _sorted_quantile(srt, count, 0.5)
+    dev = np.sort(np.abs(f - level), axis=0)
+    mad = 1.4826 * _sorted_quantile(dev, count, 0.5)
+    upper = _sorted_quantile(srt, count, 0.8413) - level
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        steps = np.diff(srt, axis=0)
+        step = np.nanmin(np.where(steps > 0, steps, np.inf), axis=0) if len(f) > 1 else \
+            np.full(f.shape[1], np.inf)
+    noise = np.fmax(np.fmax(mad, upper), np.where(np.isfinite(step), step, 0.0))
+    return level, np.where(np.isfinite(level), noise, np.nan)
+
+
+def _sorted_quantile(srt: np.ndarray, count: np.ndarray, q: float) -> np.ndarray:
+    """Each column's ``q`` quantile (linear, as numpy's) of its ``count`` sorted finite values.
+
+    NaN where a column has none. Vectorised over the columns (numpy's nanpercentile loops).
+    """
+    pos = q * np.maximum(count - 1, 0)
+    lo = np.floor(pos).astype(np.int64)
+    hi = np.minimum(lo + 1, np.maximum(count - 1, 0))
+    cols = np.arange(srt.shape[1])
+    if srt.shape[0] == 0:
+        return np.full(srt.shape[1], np.nan)
+    a, b = srt[lo, cols], srt[hi, cols]
+    out = a + (b - a) * (pos - lo)
+    return np.where(count > 0, out, np.nan)
 
 
 def _force_onset(t: np.ndarray, f: np.ndarray, k: int, level: float, noise: float,
@@ -1103,9 +1216,10 @@ def commission_response(times: np.ndarray, temperature: np.ndarray, layout: obje
     within: dict[int, list[tuple[float, float]]] = {}
     notes: list[str] = []
     if force is not None:
-        force = np.asarray(force, dtype=float)
+        force, notes = force_stuck(times, np.asarray(force, dtype=float), layout.ids)
         forced = np.isfinite(force).any(axis=0)
-        within, notes = force_gaps(times, force, forced, layout.ids)
+        within, gap_notes = force_gaps(times, force, forced, layout.ids)
+        notes += gap_notes
     n_forced = n_weak = 0
     touches, left = [], dict.fromkeys(LEFT_OUT, 0)
     if not forced.all() or within:

@@ -27,6 +27,9 @@ class TaxelWindow:
         Readings, deg C.
     released : bool
         Whether the taxel was released within the window (else the window was cut).
+    dated_by : str
+        What dated its onset: ``"thermal"`` (the onset detector, refined) or ``"force"``
+        (the taxel's force channel, `skin.stream.force`).
     """
 
     taxel: int
@@ -35,6 +38,7 @@ class TaxelWindow:
     time: np.ndarray
     temperature: np.ndarray
     released: bool
+    dated_by: str = "thermal"
 
 
 @dataclass

@@ -28,7 +28,7 @@ contact on stderr); any other entry ending in ``.jsonl`` is a JSON-lines file of
 GROUPS: dict[str, tuple[str, ...]] = {
     "source": ("port", "reconnect", "first_frame_timeout", "firmware_sim", "scene", "seed",
                "duration", "speed", "contact"),
-    "skin": ("layout", "calibration", "workers", "common_mode"),
+    "skin": ("layout", "calibration", "workers", "common_mode", "force_onsets"),
     "classifier": ("model", "classifier", "threshold", "expect", "window", "provisional",
                    "object_temperature_range"),
     "output": ("out", "force", "sinks", "publish", "record", "map", "arm", "view", "video",
@@ -138,6 +138,10 @@ class Setup:
         ``common_mode``: the room's change, shared alike by nearly every free taxel of a
         board of 4 or more, taken off first; default off). With it, onset shards keep whole
         boards (fewer worker processes than ``workers`` on a skin of fewer boards).
+    force_onsets : bool
+        Date the contacts of taxels whose frames carry a force or contact reading by it
+        (`skin.stream.force`; the onset detector where it has none); False: the onset
+        detector dates every taxel. Default on.
     origin : dict
         Field name -> where its value came from (``default`` when absent).
     """
@@ -172,6 +176,7 @@ class Setup:
     view_mode: str = "material"
     workers: int = 1
     common_mode: bool = False
+    force_onsets: bool = True
     robot: str = "skin"
     robot_pose: list[float] = field(default_factory=list)
     origin: dict[str, str] = field(default_factory=dict, compare=False)
@@ -368,6 +373,7 @@ _CHECKS: dict[str, Callable[[Any], Any]] = {
     "view_mode": _choice("material", "temperature"),
     "workers": _count,
     "common_mode": _flag,
+    "force_onsets": _flag,
     "robot": _name,
     "robot_pose": _pose,
 }

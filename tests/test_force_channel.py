@@ -331,6 +331,23 @@ def test_touches_where_the_force_has_no_reading_or_no_contact_go_to_the_detector
     assert c["force_notes"][0].startswith(f"taxels 0-{force.shape[1] - 1}: the force showed no")
 
 
+def test_a_force_stuck_at_zero_partway_hands_its_touches_to_the_detector():
+    """Every taxel's force stuck at 0 after mid-recording (a cable failing): its touches were
+    taken as untouched (24 of 48 lost, silently); now found by the detector, with a note."""
+    from skin.bench.commission import REFERENCES, commission_unit
+    from skin.models import load_materials
+    from skin.models.commission import commission_response
+
+    u = commission_unit("paper", 7, force="force")
+    t, y, force = u["times"], u["readings"], u["force"].copy()
+    force[t > t[0] + 0.5 * (t[-1] - t[0]), :] = 0.0
+    table = load_materials()
+    c = commission_response(t, y, u["layout"], {m: table[m] for m in REFERENCES}, u["nominal"],
+                            u["scene"].ambient, force=force)[1]
+    assert c["detected"] == 48 and c["force_dated"] == 24
+    assert any(n.startswith("taxel 3: its force read one value for 2") for n in c["force_notes"])
+
+
 def test_no_touch_with_a_force_channel_says_what_the_force_showed():
     """A recording without touches whose force channel reads only noise: the error says what
     the force channel showed and what to check, not only that the detector found nothing."""
@@ -431,7 +448,9 @@ def test_force_contacts_ignore_a_glitch_and_count_a_faint_touch():
 
 def test_a_short_stretch_without_a_reading_inside_a_contact_does_not_split_it():
     """A contact switch losing its reading for 20 ms (4 samples, under FORCE_CONTACT_HELD)
-    inside a contact: one contact, the stretch counted; a 200 ms one still ends it."""
+    inside a contact: one contact, the stretch counted; a 200 ms one too when the switch is
+    still closed after it (it used to cut the touch into a short one and a false one whose
+    onset was the gap's end); one across which the switch opened ends the contact there."""
     from skin.models.commission import force_contacts
 
     t = np.arange(4000) / 200.0
@@ -441,7 +460,11 @@ def test_a_short_stretch_without_a_reading_inside_a_contact_does_not_split_it():
     assert np.allclose(force_contacts(t, s, bridged=bridged), [(2.9975, 8.0), (11.9975, 16.0)])
     assert np.allclose(bridged, [(6.5, 6.52)])
     s[1300:1340] = np.nan
-    assert len(force_contacts(t, s)) == 3
+    bridged = []
+    assert np.allclose(force_contacts(t, s, bridged=bridged), [(2.9975, 8.0), (11.9975, 16.0)])
+    assert np.allclose(bridged, [(6.5, 6.7)])
+    s[1580:1640] = np.nan  # 7.9-8.2 s: opened within it
+    assert np.allclose(force_contacts(t, s), [(2.9975, 7.9), (11.9975, 16.0)])
 
 
 def test_a_replay_hands_on_the_samples_held_at_its_end_before_it_is_finished(force_sim,
@@ -512,3 +535,40 @@ def test_the_force_notes_name_taxels_by_their_layout_ids():
     assert notes[0].startswith("taxels 105, 108-") and "the force showed no contact" in notes[0]
     assert any(n.startswith("taxel 103: its force had no reading for 28") for n in notes)
     assert not any(n.startswith(("taxel 3:", "taxel 5:")) for n in notes)
+
+
+def test_a_long_gap_in_the_force_is_not_bridged_into_one_touch():
+    """Touches 1-2.6 s and 7.9-9 s, no reading 2.5-8.0 s: a bridge of any length made them one
+    contact (1-9 s); a gap over FORCE_BRIDGE_MAX ends the first at the gap's start."""
+    from skin.models.commission import force_contacts
+
+    rng = np.random.default_rng(1)
+    t = np.arange(1500) / 100.0
+    f = np.round(np.clip(rng.normal(0, 0.005, t.size), 0, None), 3)
+    f[(t >= 1) & (t < 2.6)] += 2
+    f[(t >= 7.9) & (t < 9)] += 2
+    f[(t >= 2.5) & (t < 8.0)] = np.nan
+    got = force_contacts(t, f)
+    assert len(got) == 2
+    assert got[0] == pytest.approx((1.0, 2.5), abs=0.011)
+    assert got[1] == pytest.approx((8.0, 9.0), abs=0.011)
+
+
+def test_a_quiet_quantised_force_is_not_taken_as_stuck():
+    """A working sensor with 2-3 mN noise and a 10 mN step repeats 0.00 for long stretches:
+    force_stuck took 41 % of its samples as no reading (100 samples of one value); runs are
+    now compared with the channel's own (ten times the longest in a typical stretch)."""
+    from skin.models.commission import force_stuck
+
+    rng = np.random.default_rng(5)
+    t = np.arange(6000) / 100.0
+    for sigma in (0.002, 0.003):
+        f = np.round(rng.normal(0, sigma, (t.size, 1)), 2)
+        for s in range(5, 60, 10):
+            f[(t >= s) & (t < s + 2), 0] += 2.0
+        out, notes = force_stuck(t, f)
+        assert not np.isnan(out).any() and not notes
+        g = f.copy()
+        g[3000:, 0] = 0.0  # now really stuck at its free level for 30 s
+        out, notes = force_stuck(t, g)
+        assert np.isnan(out[3000:, 0]).mean() > 0.9 and notes

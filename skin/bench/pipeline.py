@@ -47,7 +47,7 @@ def cylinder_layout(n: int, radius: float = 0.05, pitch: float = 0.02) -> Layout
 def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minute: float = 6.0,
         budget: float | None = 0.001, chunk: int = 200, workers: int = 1,
         keep_results: bool = False, block: int = 1, envelope_noise: bool | None = None,
-        common_mode: bool | None = None) -> dict:
+        common_mode: bool | None = None, force: bool = False) -> dict:
     """Push ``duration`` s of a simulated ``n_taxels`` skin through the chain; see the module.
 
     Parameters
@@ -66,6 +66,9 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
     chunk : int
         Samples simulated and encoded at a time: the memory is that of one chunk, whatever
         ``duration`` (the boards' wire bytes go to a temporary folder, before timing).
+    force : bool
+        Every taxel carries a force channel (a FORCE packet after each SAMPLE: 2 N while
+        touched, else 0), which the pipeline dates its contacts by (`skin.stream.force`).
     workers : int
         1: one process decodes and runs the whole chain. More: the boards are shared out to
         that many worker processes (`skin.stream.board_workers`; as many as boards, ``shards``,
@@ -100,7 +103,7 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
     import tempfile
 
     from skin.bench.streams import stream_chunks
-    from skin.drivers.protocol import encode_sample
+    from skin.drivers.protocol import encode_force, encode_sample
     from skin.models import JointClassifier, load_materials
     from skin.stream.board_workers import WireSource, WireWriter
     from skin.stream.calibration import Calibration
@@ -128,9 +131,15 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
                                   contacts_per_minute=contacts_per_minute, fs=fs, seed=seed,
                                   chunk=chunk):
             counts = np.clip(np.rint(cal.counts(part.temperature)), 1, 1022).astype(np.int64)
+            pressed = np.zeros(part.temperature.shape)
+            if force:  # 2 N while touched, else 0 (a FORCE packet after each SAMPLE)
+                for c in part.contacts:
+                    pressed[(part.times >= c.onset) & (part.times < c.release), c.taxel] = 2.0
             for i, t in enumerate(part.times):
                 writer.add([encode_sample(part.start + i, int(t * 1e6), counts[i, wires[b]],
                                           float(part.ambient[i]), duty[: wires[b].size])
+                            + (encode_force(part.start + i, pressed[i, wires[b]])
+                               if force else b"")
                             for b in boards])
         writer.close()
         detector = (None if envelope_noise is None and common_mode is None

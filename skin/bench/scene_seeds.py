@@ -28,7 +28,8 @@ SURE = 0.9
 
 
 def play(scene: str, seed: int, duration: float | None = None,
-         ceiling: bool = False, common_mode: bool = False) -> dict[str, Any]:
+         ceiling: bool = False, common_mode: bool = False,
+         force_onsets: bool = True) -> dict[str, Any]:
     """Run ``scene`` with ``seed`` through `skin.Skin`; return its figures and its misses.
 
     With ``ceiling``, also ``ceiling`` (touches the known-nuisance ceiling names right, and
@@ -43,7 +44,7 @@ def play(scene: str, seed: int, duration: float | None = None,
     started, cpu = time.monotonic(), time.process_time()
     quiet = Progress(io.StringIO())  # the run's own status lines; the bench shows its bar
     with Skin(scene=scene, seed=seed, speed=0.0, duration=duration, out=None, map=False,
-              common_mode=common_mode,
+              common_mode=common_mode, force_onsets=force_onsets,
               sinks=[], progress=quiet) as skin:
         if ceiling:
             import copy
@@ -100,9 +101,12 @@ def play(scene: str, seed: int, duration: float | None = None,
                                  round(table[best].effusivity / table[truth].effusivity, 3)),
             "taxels": len(rec["taxels"]), "duration": rec["duration"],
             "onset": rec["onset"]})
-    extra: dict[str, Any] = {}
+    extra: dict[str, Any] = {"dating": _dating(skin, contacts),
+                             "dated_by": {src: sum(w.dated_by == src for c in contacts
+                                                   for w in c.windows)
+                                          for src in ("thermal", "force")}}
     if ceiling:
-        extra = _ceiling_figures(skin, fresh, contacts, readings, fs)
+        extra = {**extra, **_ceiling_figures(skin, fresh, contacts, readings, fs)}
     return {**extra, "seed": seed, "touches": summary["touches"], "detected": summary["detected"],
             "material": summary["correct"], "family": summary["family_correct"],
             "unknown": unknown, "wrong": wrong, "sure_wrong": sure_wrong,
@@ -111,6 +115,25 @@ def play(scene: str, seed: int, duration: float | None = None,
             "family_of": {m: table[m].family for m in classes if m in table},
             "n_touches": len(touches), "wall_s": round(time.monotonic() - started, 2),
             "cpu_s": round(time.process_time() - cpu, 2)}
+
+
+def _dating(skin: Any, contacts: list) -> list[dict[str, Any]]:
+    """Return `dating_errors` of a played scene's final contacts against its touches.
+
+    The touches' instants are the scene's, on the sample grid (as
+    `skin.bench.scene_ceiling.touch_truth` has them, without its simulation: any sensor).
+    """
+    from skin.formats.scene import match_touches
+
+    fs = next(iter(skin.layout.boards.values())).sample_rate
+    n = round(skin.duration * fs)
+    truths = [{"touch": t, "k0": round(t.start * fs), "k1": min(round(t.end * fs), n),
+               "taxels": [int(k) for k in t.taxels]}
+              for t in skin.scene.touches if round(t.start * fs) < n]
+    in_time = tuple(t["touch"] for t in truths)
+    matches, _ = match_touches(replace(skin.scene, touches=in_time),
+                               [c.taxels for c in contacts], [c.onset for c in contacts])
+    return dating_errors(matches, contacts, truths, fs)
 
 
 def _ceiling_figures(skin, fresh, contacts: list, readings: np.ndarray,
@@ -210,10 +233,12 @@ def _median(values: list) -> float | None:
 def run(scene: str = "default", seeds: Sequence[int] = tuple(range(10)),
         duration: float | None = None,
         progress: Callable[[int, int], None] | None = None,
-        ceiling: bool = False, common_mode: bool = False) -> dict[str, Any]:
+        ceiling: bool = False, common_mode: bool = False,
+        force_onsets: bool = True) -> dict[str, Any]:
     """Play ``scene`` once per seed; return the runs and the figures over all of them.
 
-    ``common_mode``: the onset detector's board common mode (`skin.setup.Setup`'s).
+    ``common_mode``: the onset detector's board common mode (`skin.setup.Setup`'s);
+    ``force_onsets``: contacts dated by the scene's force channel where it has one (its).
 
     Returns
     -------
@@ -230,7 +255,8 @@ def run(scene: str = "default", seeds: Sequence[int] = tuple(range(10)),
     """
     runs = []
     for i, seed in enumerate(seeds):
-        runs.append(play(scene, int(seed), duration, ceiling, common_mode))
+        runs.append(play(scene, int(seed), duration, ceiling, common_mode,
+                         force_onsets))
         if progress is not None:
             progress(i + 1, len(seeds))
     keys = ("touches", "detected", "material", "family", "unknown", "wrong", "sure_wrong",
@@ -254,7 +280,9 @@ def run(scene: str = "default", seeds: Sequence[int] = tuple(range(10)),
         totals["steps"] = {step: {k: int(sum(r["steps"][step][k] for r in runs))
                                   for k in runs[0]["steps"][step] if k != "misses"}
                            for step in runs[0]["steps"]}
-        totals["dating"] = dating_summary([d for r in runs for d in r["dating"]])
+    totals["dating"] = dating_summary([d for r in runs for d in r["dating"]])
+    totals["dated_by"] = {src: int(sum(r["dated_by"][src] for r in runs))
+                          for src in ("thermal", "force")}
     totals["reliability"] = material_and_family(
         [a[1] for r in runs for a in r["answers"]], [a[0] for r in runs for a in r["answers"]],
         runs[0]["classes"], runs[0]["family_of"])

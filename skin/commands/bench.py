@@ -137,6 +137,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                            "flat one, and give the first's throughput over the second's "
                            "(same run, in the order noise, flat, flat, noise: each margin's "
                            "run with the faster onset stage)")
+    pipe.add_argument("--compare-force", action="store_true",
+                      help="also run each size (one process) with a force channel on every "
+                           "taxel (a FORCE packet after each SAMPLE, 2 N while touched; the "
+                           "pipeline dates contacts by it) and without, and give with's "
+                           "throughput over without's (order with, without, without, with)")
     pipe.add_argument("--compare-common-mode", action="store_true",
                       help="also run each size (one process) with the onset detector's board "
                            "common mode on and off (its default), and give on's throughput "
@@ -768,6 +773,14 @@ def main_pipeline(args: argparse.Namespace) -> int:
                                       progress)
             flat.append({"taxels": n, "noise": best[True], "flat": best[False],
                          "runs_each": 2, "noise_over_flat": ratio})
+    forced = []
+    if getattr(args, "compare_force", False):
+        for n in sizes:
+            best, ratio = _alternated(run, n, args, budget, "force",
+                                      lambda on: f"force channel {'on' if on else 'off'}",
+                                      progress)
+            forced.append({"taxels": n, "on": best[True], "off": best[False], "runs_each": 2,
+                           "on_over_off": ratio})
     common = []
     if args.compare_common_mode:
         for n in sizes:
@@ -783,6 +796,8 @@ def main_pipeline(args: argparse.Namespace) -> int:
         doc["envelope_compare"] = flat
     if common:
         doc["common_mode_compare"] = common
+    if forced:
+        doc["force_compare"] = forced
     if args.json:
         print(json.dumps(doc))
         return 0

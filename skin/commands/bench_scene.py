@@ -6,6 +6,7 @@ The measurement is `skin.bench.scene_seeds.run` (loaded only when run).
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 _COLUMNS = ("touches", "detected", "material", "family", "unknown", "wrong", "sure_wrong",
             "false_contacts")
@@ -27,6 +28,16 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
                             "steps (skin.bench.scene_ceiling)")
     scene.add_argument("--common-mode", action="store_true",
                        help="the onset detector's board common mode on (skin run --common-mode)")
+    scene.add_argument("--force-channel", choices=("force", "contact"), default=None,
+                       help="give the scene's taxels a force sensor or a contact switch (the "
+                            "scene's field force; the scene must not set it)")
+    scene.add_argument("--sensor", default=None,
+                       help="put this sensor preset or file on every board (the scene's field "
+                            "sensor; the scene must not set it)")
+    scene.add_argument("--force-onsets", action=argparse.BooleanOptionalAction, default=True,
+                       help="date contacts by the scene's force channel where it has one "
+                            "(skin run --force-onsets; default on); --no-force-onsets: the "
+                            "onset detector alone")
     scene.add_argument("--json", action="store_true", help="print one JSON document")
     scene.set_defaults(func=main)
     fit = kinds.add_parser("fit-calibration", help="fit the joint classifier's calibration "
@@ -63,6 +74,34 @@ def parse_seeds(text: str) -> list[int]:
     return seeds
 
 
+def _with_fields(scene: str, fields: dict[str, str | None]) -> str:
+    """Write ``scene`` with top-level ``fields`` added (None: left) to a temporary file; its path.
+
+    The scene's ``layout`` must be a shipped layout name (the copy lives elsewhere). The
+    caller removes the file (`main` does, when the bench is done).
+    """
+    import tempfile
+    import tomllib
+
+    from skin.formats.datafiles import read_data_file
+    from skin.formats.scene import SceneError
+
+    text, source, _ = read_data_file(scene, "scenes", "scene", SceneError)
+    data = tomllib.loads(text)
+    head = ""
+    for key, value in fields.items():
+        if value is None:
+            continue
+        if key in data:
+            raise SceneError(f"{source}: sets '{key}' already; drop --{key.replace('_', '-')} "
+                             "or the field")
+        head += f"{key} = {value!r}\n".replace("'", '"')
+    out = tempfile.NamedTemporaryFile("w", suffix=".toml", prefix="bench_scene_", delete=False)
+    with out:
+        out.write(head + text)
+    return out.name
+
+
 def main(args: argparse.Namespace) -> int:
     """Run `skin.bench.scene_seeds.run` and print its figures (or JSON)."""
     import json
@@ -77,13 +116,23 @@ def main(args: argparse.Namespace) -> int:
     seeds = parse_seeds(args.seeds)
     if args.duration is not None and args.duration <= 0:
         raise SkinError(f"--duration must be positive, got {args.duration}")
-    load_scene(args.scene)  # a missing or bad scene is named before the work
-    progress = Progress()
-    started = time.monotonic()
-    out = run(args.scene, seeds, args.duration,
-              progress=lambda d, n: progress.bar(d, n, "runs", started), ceiling=args.ceiling,
-              common_mode=args.common_mode)
-    progress.done()
+    scene = args.scene
+    temporary = None
+    if args.force_channel or args.sensor:
+        scene = temporary = _with_fields(scene, {"force": args.force_channel,
+                                                 "sensor": args.sensor})
+    try:
+        load_scene(scene)  # a missing or bad scene is named before the work
+        progress = Progress()
+        started = time.monotonic()
+        out = run(scene, seeds, args.duration,
+                  progress=lambda d, n: progress.bar(d, n, "runs", started),
+                  ceiling=args.ceiling, common_mode=args.common_mode,
+                  force_onsets=args.force_onsets)
+        progress.done()
+    finally:
+        if temporary is not None:
+            Path(temporary).unlink(missing_ok=True)
     if args.json:
         print(json.dumps({"machine": machine(), **out,
                           "wall_time": round(time.monotonic() - started, 2)}))

@@ -132,6 +132,11 @@ def add_setup_options(run: argparse.ArgumentParser) -> None:
                           "alike by nearly every free taxel of a board of 4 or more, taken "
                           "off first (OnsetDetector common_mode; default off); it keeps "
                           "each board in one process, so --workers shards by whole boards")
+    run.add_argument("--force-onsets", action=argparse.BooleanOptionalAction,
+                     help="date the contacts of taxels whose frames carry a force or contact "
+                          "reading by it (exact onset and release; the onset detector where "
+                          "it has none); --no-force-onsets: the onset detector dates every "
+                          "taxel (skin.stream.force; default on)")
 
 
 def main(args: argparse.Namespace) -> int:

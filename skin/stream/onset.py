@@ -565,6 +565,9 @@ class OnsetEvent:
         Which test raised it (0 fall, 1 rise, 2 slow fall, 3 release): the detector gives the
         events of one sample in (channel, taxel) order, so events of shards of taxels
         (`skin.stream.shards`) merge back into the same order. Not compared.
+    dated_by : str
+        What dated it: ``"thermal"`` (this detector) or ``"force"`` (the taxel's force
+        channel, `skin.stream.force.ForceOnsets`: exact, not refined). Not compared.
     """
 
     kind: str
@@ -575,6 +578,7 @@ class OnsetEvent:
     slope: float
     direction: int = -1
     channel: int = field(default=0, compare=False, repr=False)
+    dated_by: str = field(default="thermal", compare=False, repr=False)
 
 
 @dataclass(frozen=True)

@@ -54,6 +54,7 @@ from skin.stream.tracking import (
 
 if TYPE_CHECKING:
     from skin.stream.board_workers import CalibratedBlock
+    from skin.stream.force import ForceOnsets
     from skin.stream.shards import OnsetShards
 
 T = TypeVar("T")
@@ -259,6 +260,13 @@ class Pipeline:
         ``common_mode``: the room's change, shared alike by nearly every free taxel of a board
         of `skin.stream.onset.COMMON_MIN` taxels or more, taken off first). Ignored when
         ``detector`` is given: that detector's own setting holds.
+    force_onsets : bool
+        Date the contacts of the taxels whose frames carry a force reading by it
+        (`skin.stream.force.ForceOnsets`: exact onsets and releases, the classifier's window
+        starting at the force's onset), the onset detector dating the others and those
+        stretches where the force has no reading. False: the onset detector dates every
+        taxel. A stream without a force channel costs nothing either way. Blocks assembled
+        in board worker processes (`process_calibrated`) carry no force: dated thermally.
 
     Attributes
     ----------
@@ -291,6 +299,7 @@ class Pipeline:
         noise: np.ndarray | None = None,
         workers: int = 1,
         common_mode: bool = False,
+        force_onsets: bool = True,
     ) -> None:
         rates = {b.sample_rate for b in layout.boards.values()}
         if len(rates) != 1:
@@ -333,6 +342,9 @@ class Pipeline:
         self._now = -np.inf
         self.stats = PipelineStats(flagged=np.zeros(len(layout), dtype=np.int64))
         self.last_temperature = np.full(len(layout), np.nan)
+        self.force_onsets = bool(force_onsets)
+        self.sample_rate = float(next(iter(layout.boards.values())).sample_rate)
+        self.force: ForceOnsets | None = None  # made at the first block with a force channel
 
     @property
     def pending(self) -> int:
@@ -393,7 +405,9 @@ class Pipeline:
         temperature, status = self._timed("calibrate", self.calibration.temperature,
                                           samples.counts)
         self.stats.flagged += (status != 0).sum(axis=0)
-        self._track(samples.times, temperature, samples.ambient, samples.host_times, None)
+        force = samples.force if self.force_onsets else None
+        self._track(samples.times, temperature, samples.ambient, samples.host_times, None,
+                    force)
 
     def process_calibrated(self, block: CalibratedBlock) -> list[ContactResult]:
         """Track a block assembled, calibrated and onset-detected elsewhere; return the results.
@@ -410,7 +424,8 @@ class Pipeline:
         return self._drain(started, self.budget)
 
     def _track(self, times: np.ndarray, temperature: np.ndarray, ambient: np.ndarray,
-               host_times: np.ndarray, events: list | None) -> None:
+               host_times: np.ndarray, events: list | None,
+               force: np.ndarray | None = None) -> None:
         """Observe, detect (unless ``events`` are given) and track calibrated samples."""
         self.stats.samples += len(times)
         self.last_temperature = temperature[-1]
@@ -423,6 +438,13 @@ class Pipeline:
             self.stats.seconds["sinks"] += time.perf_counter() - t0
         if events is None:
             events = self._timed("onset", self._onsets, times, temperature)
+        if force is not None:
+            if self.force is None:
+                from skin.stream.force import ForceOnsets
+
+                self.force = ForceOnsets(len(self.layout), self.sample_rate,
+                                         start=self.stats.samples - len(times))
+            events = self._timed("onset", self.force.merge, times, force, temperature, events)
         self.stats.onsets += sum(e.kind == "onset" for e in events)
         self.stats.releases += sum(e.kind == "release" for e in events)
         decided = self._timed("track", self.tracker.update, times, temperature,
@@ -455,6 +477,15 @@ class Pipeline:
         while self._queue:
             head = self._queue[0]
             refining = len(head.refined) < len(head.decided.members)
+            if refining and head.decided.members[len(head.refined)].dated_by == "force":
+                # nothing to fit (the force dated it): no budgeted step (one step per call
+                # for each force-dated member made results wait ~90 ms, p99 ~300 ms)
+                t0 = time.perf_counter()
+                head.refined.append(refine_member(head.decided.members[len(head.refined)],
+                                                  self.depth, self.diffusivity,
+                                                  sensor=self.refine_sensor))
+                seconds["refine"] += time.perf_counter() - t0
+                continue
             kind = "refine" if refining else "classify"
             # after the first step, start one only if its usual cost fits what is left
             if (budget is not None and steps

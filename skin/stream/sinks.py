@@ -45,6 +45,7 @@ def event_record(result: ContactResult) -> dict[str, Any]:
         "effusivity": None if e.effusivity is None else round(e.effusivity, 1),
         "method": e.method,
         "initial_temperature": {str(w.taxel): round(w.initial, 3) for w in c.windows},
+        "dated_by": "+".join(sorted({w.dated_by for w in c.windows})) or None,
         "ambient": round(c.ambient, 3),
         "host_onset": None if h is None else round(wall_time(h.onset), 6),
         "host_release": None if h is None or h.release is None

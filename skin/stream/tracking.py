@@ -59,6 +59,10 @@ class TaxelSamples:
     time, temperature, ambient : numpy.ndarray
         The samples from ``coarse - search`` to ``end`` (copies); past a release, to the
         decision (the free response after it, for `refine_member`).
+    dated_by : str
+        ``"thermal"`` (the onset detector's coarse onset, refined by `refine_member`) or
+        ``"force"`` (the force channel's onset and release, exact: `refine_member` keeps
+        them; ``baseline`` is then the temperature at the onset).
     """
 
     index: int
@@ -70,6 +74,7 @@ class TaxelSamples:
     time: np.ndarray
     temperature: np.ndarray
     ambient: np.ndarray
+    dated_by: str = "thermal"
 
 
 @dataclass(frozen=True)
@@ -101,6 +106,7 @@ class _Member:
     slope: float
     release: float | None = None  # when the temperature stopped falling
     released_at: float | None = None  # when the release was recognised
+    dated_by: str = "thermal"
 
 
 @dataclass
@@ -243,9 +249,11 @@ class ContactTracker:
             self._schedule(owner, ev.detected_at)
 
     def _on_onset(self, ev: OnsetEvent) -> None:
-        member = _Member(ev.time, ev.baseline, ev.slope)
+        member = _Member(ev.time, ev.baseline, ev.slope, dated_by=ev.dated_by)
         joined: list[_OpenContact] = []
-        for k in self.neighbours[ev.taxel]:
+        # a force onset confirming a thermal one of its taxel replaces it (one contact)
+        own = (ev.taxel,) if ev.dated_by == "force" else ()
+        for k in (*own, *self.neighbours[ev.taxel]):
             c = self._owner.get(int(k))
             if c is None or any(c is j for j in joined):
                 continue
@@ -339,7 +347,7 @@ class ContactTracker:
                 stop = max(end, min(stop, other.members[k].coarse))
             idx = h.between(m.coarse - self.search, stop)
             members.append(TaxelSamples(k, m.coarse, m.baseline, m.slope, m.release, end,
-                                        h.t[idx], h.y[idx, k], h.ambient[idx]))
+                                        h.t[idx], h.y[idx, k], h.ambient[idx], m.dated_by))
         return DecidedContact(contact.id, when, members, final)
 
 
@@ -369,8 +377,15 @@ def refine_member(member: TaxelSamples, depth: np.ndarray, diffusivity: np.ndarr
     onset is fitted on the samples up to ``member.end``; a released taxel's release is then
     dated again on its samples past it (`skin.stream.release_refine.refine_release`), the
     window ends there (``member.end`` otherwise), and when that is earlier the onset is
-    fitted again on the samples up to it.
+    fitted again on the samples up to it. A force-dated member (``member.dated_by``
+    ``"force"``) keeps its onset, initial temperature (its ``baseline``) and end as they are.
     """
+    if member.dated_by == "force":  # the force's release is its first sample read free
+        end = member.end
+        if member.release is not None and member.end >= member.release:
+            before = member.time[member.time < member.release]
+            end = float(before[-1]) if before.size else member.release
+        return member.coarse, member.baseline, end
     k = member.index
     upto = member.time <= member.end
     onset, initial = refine_onset(member.time[upto], member.temperature[upto], member.coarse,
@@ -408,7 +423,7 @@ def finish_contact(decided: DecidedContact, layout: Layout,
         windows.append(TaxelWindow(
             taxel=int(layout.ids[m.index]), onset=onset, initial=initial,
             time=m.time[sel] - onset, temperature=m.temperature[sel],
-            released=m.release is not None,
+            released=m.release is not None, dated_by=m.dated_by,
         ))
         onsets.append(onset)
         ambients.append(m.ambient[sel])
