@@ -152,6 +152,7 @@ SKIPPED = {
     "skin bench map": "a map service, three robots and a 1 M-voxel map: minutes",
     '--map "zenoh://': "a map service on another machine (tests/test_map_service.py)",
     "--firmware-sim": "the compiled firmware (tests/test_firmware_emulated.py runs it)",
+    "skin bench firmware": "the timing builds in simavr (tests/test_firmware_force.py runs it)",
     "xarm7": "the robots extra (URDF meshes)",
     "skin devices": "probes the machine's ports (tests/test_devices.py)",
     "skin evaluate --data trials.npz --methods svm-pca,knn-pca,hmm,model,default":
