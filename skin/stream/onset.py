@@ -1057,6 +1057,13 @@ class OnsetDetector:
                                 and self._groups() is not None)
         self._room_var = (_room_variance(sensor, self.medium_tau, self.slow_tau)
                           if self.envelope is not None else 0.0)
+        self._loop_reach = 0.0
+        if self.loop_common:
+            from statistics import NormalDist
+
+            z = NormalDist().inv_cdf(1.0 - false_alarm_rate / (fs * 3600.0))
+            self._loop_reach = z * math.sqrt(_room_variance(
+                sensor, self.medium_tau, COMMON_FORGET * self.slow_tau))
         self._gust_k = (_gust_allowance(sensor, float(self.gust_depth), self.smooth_tau,
                                         self.level_tau, self.slope_tau,
                                         float(np.min(self.threshold)),
@@ -1259,6 +1266,17 @@ class OnsetDetector:
                 up = np.bincount(row, weights=use & (part > margin), minlength=size)
                 moved &= (down >= need) | (up >= need)
         if moved.any():
+            # ... and moved every free taxel: the room moves each heated taxel of a board, so
+            # a change that left a free taxel within its noise of its level is a touch of the
+            # others (15 of 16 taxels under one block: taken for the room until they were
+            # raised, the common mode held 0.18 K deep gave the free one a false rise, paper)
+            flat = use & (np.abs(part) <= margin)
+            if flat.any():
+                if table.shape[0] == 1:
+                    moved[0] = False
+                else:
+                    moved &= np.bincount(row, weights=flat, minlength=table.shape[0]) == 0
+        if moved.any():
             # ... by the same amount (`COMMON_AGREE`): a warm-up's rises, each taxel's own, are
             # no room (the default scene with it on: 373 -> 232 of 450 touches named right
             # without this, seeds 0-29)
@@ -1279,6 +1297,21 @@ class OnsetDetector:
         held[np.abs(held) < COMMON_SNAP * margin] = 0.0
         if moved.any():
             common = self._board_common(part + margin, part - margin, use, table, row, count)
+            # ... and never steps: the room moves a board's readings by far less than their
+            # noise from one sample to the next, so a common mode more than its margin from
+            # the board's last one is no room (the gate passing with the departures already
+            # deep: a board-wide gust whose phases came to agree 0.14 K down, paper; taxels
+            # rejoining the free set together, reheating alike after a touch of the whole
+            # board). Such a board holds, as when its gate is off, until its departures come
+            # back within a margin of what it holds (its levels absorb them within
+            # ``slow_tau``); a common mode that follows the room stays continuous
+            far = live & (np.abs(common - s.common) > margin)
+            if far.any():
+                if table.shape[0] == 1:
+                    moved[0] = False
+                else:
+                    moved &= np.bincount(row, weights=far, minlength=table.shape[0]) == 0
+        if moved.any():
             common = np.where(moved[row], common, held)
         elif held.any():
             common = held
@@ -1323,19 +1356,32 @@ class OnsetDetector:
         back = use & (s.t_last < s.recover_until)
         np.copyto(s.common_level, s.common_smooth - s.common, where=back)
         part = s.common_smooth - s.common_level
+        # a free taxel that left the board's last common mode by more than `COMMON_AGREE`
+        # sigmas of what the common mode leaves of it (``common_var``) moves on its own, not
+        # with the room (a touch not yet raised, its own gust): no part of the median. The
+        # room moves them all alike, by a step within their noise from one sample to the
+        # next; a touch of half the board, taken in, made the median half the touch
+        # (pid-logger, 8 of 16 taxels under a block: false falls on the other 8)
+        use &= np.abs(part - s.common) <= COMMON_AGREE * np.sqrt(s.common_var)
         values = np.append(np.where(use, part, np.nan), np.nan)[table]
         values.sort(axis=1)  # NaN last
         count = np.count_nonzero(np.isfinite(values), axis=1)
         lo = np.clip((count - 1) // 2, 0, values.shape[1] - 1)[:, None]
         hi = np.clip(count // 2, 0, values.shape[1] - 1)[:, None]
         median = 0.5 * (np.take_along_axis(values, lo, 1) + np.take_along_axis(values, hi, 1))
-        few = (count < COMMON_MIN)[row]
+        median = np.nan_to_num(median[:, 0])[row]
+        # ... and within the room's reach: through the loop the room moves a taxel's departure
+        # from its level (which absorbs the common mode within `COMMON_FORGET` ``slow_tau``)
+        # by ``_loop_reach`` at most, the Gaussian quantile of the false-alarm rate per sample
+        # of its sd: a board moved further, every taxel alike, is touched all over and holds
+        # (pid-logger, 16 of 16 taxels under a block: taken for the room, nothing found)
+        few = (count < COMMON_MIN)[row] | (np.abs(median) > self._loop_reach)
         # a board with fewer than `COMMON_MIN` free taxels (a touch covering most of it) has
         # no median to trust: it holds its last common mode, which fades as each taxel's level
         # absorbs it (`COMMON_FORGET` ``slow_tau``, below), rather than dropping to 0 (a step of
         # the room's tens of mK in every reading left: false onsets); the room's change since
         # is back in the readings, and so in full in the allowance
-        common = np.where(few, s.common * (1.0 - gain[7]), np.nan_to_num(median[:, 0])[row])
+        common = np.where(few, s.common * (1.0 - gain[7]), median)
         np.copyto(s.common, common, where=live)
         np.copyto(s.common_var, self._room_var, where=live & few)
         left = part - common
