@@ -825,10 +825,18 @@ class OnsetDetector:
         off the common mode is held, fading as the levels absorb it (`COMMON_FORGET`), and
         is 0 once within `COMMON_SNAP` of the margin: one that went off as the departures
         fell into their noise is near 0 already; one that ends abruptly (a second touch while
-        the room moves) makes no step. A touch that covers k or more of them at once is
-        taken for the room. A board with fewer than `COMMON_MIN` free taxels takes no new
-        common mode: one that had one (its taxels touched) holds it, fading, in either form;
-        a board of fewer than `COMMON_MIN` taxels never has one.
+        the room moves) makes no step. Nor does one begin or change with a step: a new value
+        more than the margin from the board's last one (a board-wide gust whose phases came
+        to agree deep, taxels rejoining together after a touch) is no room, and the board
+        holds; nor is a change that left a free taxel within its noise (a touch of k of n).
+        A touch of every taxel at once is still taken for the room until its onsets are
+        raised (paper, 16 of 16: raised 50 ms later than without the common mode). In the
+        loop form a free taxel more than `COMMON_AGREE` sigmas of ``common_var`` from the
+        last common mode is no part of the median, and a median beyond the room's reach
+        through the loop (the false-alarm quantile of its sd) is held: a touch of 12 of 16
+        still gives the other 4 a false rise. A board with fewer than `COMMON_MIN` free
+        taxels takes no new common mode: one that had one (its taxels touched) holds it,
+        fading, in either form; a board of fewer than `COMMON_MIN` taxels never has one.
 
     Every kelvin threshold left as None follows from ``sigma`` and the sensor; the figures in
     the descriptions above are the paper sensor's.
