@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from skin.models.sensors import apply_dynamics, contact_reading, load_sensor, smooth
-from skin.stream.onset import COMMON_MIN, OnsetDetector
+from skin.stream.onset import AMBIENT_DRIFT, COMMON_MIN, OnsetDetector
 
 FS = 20.0  # the low-cost preset's sample rate
 
@@ -605,7 +605,10 @@ def test_a_touch_covering_a_whole_board_is_found_and_nothing_after(sensor, n):
     "12 of 16: the touch is found, but the median follows the touched majority while its "
     "departures are still within the band around the last common mode, and the 4 others get "
     "a false rise (not solved: the room through the loop moves as fast as a touch's start)"))),
-    16])
+    pytest.param(16, marks=pytest.mark.xfail(strict=True, reason=(
+        "16 of 16: every taxel alike is the room, nothing found (as on main); a cap on the "
+        "median's reach found it but turned real room steps through the loop into 16 false "
+        "onsets (test_a_loop_held_boards_fast_room_is_no_contact)")))])
 def test_a_loop_held_touch_of_half_or_more_of_a_board_is_found_and_nothing_else(n):
     """pid-logger, a block on n of 16 taxels: every touched taxel found, none of the others
     raised (the median of the free taxels' departures: 8 of 16 touched gave the other 8 false
@@ -614,3 +617,37 @@ def test_a_loop_held_touch_of_half_or_more_of_a_board_is_found_and_nothing_else(
     on, _ = _onsets(t, y, s)
     assert {e.taxel for e in on if 70.0 <= e.time <= 76.0} == set(range(n))
     assert [e for e in on if not (70.0 <= e.time <= 76.0) and e.time > 20.0] == []
+
+
+def _room_board(sensor, room, n=16, seconds=200.0, seed=0, stuck=None, hole=None, walk=0.0):
+    """A board of n free taxels, the room ``room(t)`` (plus a random walk at ``walk`` x
+    `AMBIENT_DRIFT`) on every one; taxel ``stuck`` constant, taxel ``hole[0]`` unread from
+    ``hole[1]`` to ``hole[2]`` s."""
+    s = load_sensor(sensor)
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * s.sample_rate)) / s.sample_rate
+    step = np.sqrt(walk * AMBIENT_DRIFT / s.sample_rate)
+    room_t = np.cumsum(rng.normal(0.0, step, t.size)) + room(t)
+    y = np.full((t.size, n), 25.0 + s.heated_rise) + room_t[:, None]
+    y = smooth(apply_dynamics(y, s, axis=0) + rng.normal(0.0, s.noise, y.shape), s, axis=0)
+    if stuck is not None:
+        y[:, stuck] = 25.0 + s.heated_rise
+    if hole is not None:
+        y[(t >= hole[1]) & (t < hole[2]), hole[0]] = np.nan
+    return t, y, s
+
+
+def _ramp(size, at, over, power=1.0):
+    return lambda t: size * np.clip((t - at) / over, 0.0, 1.0) ** power
+
+
+@pytest.mark.parametrize("size, over, walk", [(-0.3, 1.0, 1.0), (-1.0, 2.0, 1.0),
+                                              (0.0, 1.0, 4.0)])
+def test_a_loop_held_boards_fast_room_is_no_contact(size, over, walk):
+    """pid-logger, the room (its random walk, 4 x as fast, or stepping at 150 s) moving
+    through the loop further than `AMBIENT_DRIFT` reaches: no onset (a cap on the common
+    mode's reach held the board: 16, 16 and 8 false onsets)."""
+    t, y, s = _room_board("pid-logger", _ramp(size, 150.0, over), seconds=300.0, walk=walk)
+    on, _ = _onsets(t, y, s)
+    assert [e for e in on if e.time > 30.0] == []
+
