@@ -10,7 +10,7 @@ FS = 20.0  # the low-cost preset's sample rate
 
 
 def _board(n=16, seconds=120.0, fall=0.6, fall_at=60.0, fall_over=13.0, touched=(),
-           touch_at=70.0, touch_for=4.0, seed=0, sensor="low-cost"):
+           touch_at=70.0, touch_for=4.0, seed=0, sensor="low-cost", noisy=False):
     """A low-cost board: heated taxels with the sensor's noise, the room falling ``fall`` K
     over ``fall_over`` s from ``fall_at``, faster and faster (every taxel alike), and an
     aluminium block touching the taxels ``touched`` from ``touch_at`` for ``touch_for`` s."""
@@ -26,7 +26,9 @@ def _board(n=16, seconds=120.0, fall=0.6, fall_at=60.0, fall_over=13.0, touched=
         y[inside, k] = contact_reading(t[inside] - touch_at, heated, 22.0, 2.4e4, s,
                                        ambient=25.0) + room[inside]
         y[t >= touch_at + touch_for, k] = y[inside, k][-1] + room[t >= touch_at + touch_for]
-    y = apply_dynamics(y, s, axis=0) + rng.normal(0.0, s.noise, y.shape)
+    # (``noisy``: a sensor modelled noiseless, paper, gets its ADC's noise)
+    sd = s.noise_kelvin(heated) if noisy and not s.noise else s.noise
+    y = apply_dynamics(y, s, axis=0) + rng.normal(0.0, sd, y.shape)
     return t, smooth(y, s, axis=0), s
 
 
@@ -594,8 +596,9 @@ def test_a_touch_covering_a_whole_board_is_found_and_nothing_after(sensor, n):
     """A block on n of a board's 16 taxels at once (no room change): every touched taxel is
     found, and nothing else (paper, 15 or 16 of 16: a false rise on every taxel 10 s after
     the release, as the taxels, reheating alike, rejoined the free set and the gate took
-    their reheat for the room in one step)."""
-    t, y, s = _board(touched=tuple(range(n)), fall=0.0, sensor=sensor)
+    their reheat for the room in one step). With the sensor's noise: a free taxel whose reading
+    never varies is taken for a stuck one, which vetoes nothing."""
+    t, y, s = _board(touched=tuple(range(n)), fall=0.0, sensor=sensor, noisy=True)
     on, _ = _onsets(t, y, s)
     assert {e.taxel for e in on if 70.0 <= e.time <= 76.0} == set(range(n))
     assert [e for e in on if not (70.0 <= e.time <= 76.0) and e.time > 20.0] == []
@@ -650,4 +653,12 @@ def test_a_loop_held_boards_fast_room_is_no_contact(size, over, walk):
     t, y, s = _room_board("pid-logger", _ramp(size, 150.0, over), seconds=300.0, walk=walk)
     on, _ = _onsets(t, y, s)
     assert [e for e in on if e.time > 30.0] == []
+
+
+def test_a_constant_taxel_does_not_veto_its_boards_common_mode():
+    """low-cost, the room falling 0.6 K over 13 s with taxel 15 constant (stuck): no onset
+    (the constant taxel, within its noise of its level, vetoed the board: 15 false onsets)."""
+    t, y, s = _room_board("low-cost", _ramp(-0.6, 60.0, 13.0, 3.0), stuck=15)
+    on, _ = _onsets(t, y, s)
+    assert [e for e in on if e.time > 20.0] == []
 

@@ -159,6 +159,10 @@ COMMON_FORGET = 10.0
 COMMON_AGREE = 8.0
 #: ... and, held after it ended abruptly, is 0 once below this share of the noise margin.
 COMMON_SNAP = 0.01
+#: A taxel whose readings' rms step from their smoothed value (the gated form's ``common_var``)
+#: is below this share of its noise margin has no noise (stuck, constant): no free taxel the
+#: room could have left flat.
+_STILL = 1e-6
 
 
 def _shared(count: np.ndarray) -> np.ndarray:
@@ -1231,6 +1235,10 @@ class OnsetDetector:
         table, row = groups
         if self.loop_common:
             return self._loop_common(t, y, s, live, gain, table, row)
+        # (the gated form's ``common_var``: the mean square of each reading's step from its
+        # smoothed one, over the level's time constant; 0 for a taxel that never varies)
+        np.copyto(s.common_var, s.common_var + ((y - s.common_smooth)**2 - s.common_var)
+                  * gain[1], where=live)
         np.copyto(s.common_smooth, s.common_smooth + (y - s.common_smooth) * gain[6],
                   where=live)
         part = s.common_smooth - s.common_level
@@ -1271,7 +1279,10 @@ class OnsetDetector:
             # a change that left a free taxel within its noise of its level is a touch of the
             # others (15 of 16 taxels under one block: taken for the room until they were
             # raised, the common mode held 0.18 K deep gave the free one a false rise, paper)
-            flat = use & (np.abs(part) <= margin)
+            # (a taxel whose reading does not vary at all, stuck or constant, is no heated
+            # taxel the room could move: never counted, else it vetoed the board's common mode
+            # for ever; low-cost, a 0.6 K fall with one taxel constant: 15 false onsets)
+            flat = use & (np.abs(part) <= margin) & (s.common_var > (_STILL * margin)**2)
             if flat.any():
                 if table.shape[0] == 1:
                     moved[0] = False
