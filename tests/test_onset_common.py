@@ -662,3 +662,12 @@ def test_a_constant_taxel_does_not_veto_its_boards_common_mode():
     on, _ = _onsets(t, y, s)
     assert [e for e in on if e.time > 20.0] == []
 
+
+def test_a_taxel_back_from_a_short_hole_rejoins_its_boards_common_mode():
+    """low-cost, a 5 s hole on taxel 5 while the room steps -0.3 K, then a 0.6 K fall: no
+    onset (the taxel's stale common mode kept its board holding: 16 false onsets)."""
+    def room(t):
+        return _ramp(-0.3, 60.0, 2.0)(t) + _ramp(-0.6, 100.0, 13.0, 3.0)(t)
+    t, y, s = _room_board("low-cost", room, seconds=220.0, hole=(5, 61.0, 66.0))
+    on, _ = _onsets(t, y, s)
+    assert [e for e in on if e.time > 20.0] == []

@@ -1233,6 +1233,11 @@ class OnsetDetector:
                 gain: np.ndarray, groups: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
         """Return the readings with their board's common mode taken off (``common_mode``)."""
         table, row = groups
+        # a taxel read again after a hole: its ``common`` is what its board held before the
+        # hole; it rejoins at the board's value now, its level re-seated to it (else its stale
+        # 0 against a board holding the room's -0.18 K kept the board's no-step test failing:
+        # the board held for ever, low-cost, a 5 s hole on one taxel, 16 false onsets)
+        self._rejoin(t, y, s, live, gain, table, row)
         if self.loop_common:
             return self._loop_common(t, y, s, live, gain, table, row)
         # (the gated form's ``common_var``: the mean square of each reading's step from its
@@ -1317,7 +1322,9 @@ class OnsetDetector:
             # board). Such a board holds, as when its gate is off, until its departures come
             # back within a margin of what it holds (its levels absorb them within
             # ``slow_tau``); a common mode that follows the room stays continuous
-            far = live & (np.abs(common - s.common) > margin)
+            # (one value per board: each taxel's own may have faded by its own gap)
+            last = self._board_value(s.common, live, table, row)
+            far = live & (np.abs(common - last) > margin)
             if far.any():
                 if table.shape[0] == 1:
                     moved[0] = False
@@ -1332,6 +1339,39 @@ class OnsetDetector:
         np.copyto(s.common, common, where=live)
         self._follow_level(s, live, gain, common)
         return y - common if np.any(common) else y
+
+    @staticmethod
+    def _board_value(values: np.ndarray, keep: np.ndarray, table: np.ndarray,
+                     row: np.ndarray) -> np.ndarray:
+        """Return each taxel's board's median of ``values`` over its ``keep`` taxels.
+
+        NaN where a board has none. One value per board (each taxel's ``common`` may have
+        faded by its own gap since its last sample).
+        """
+        vals = np.append(np.where(keep, values, np.nan), np.nan)[table]
+        vals.sort(axis=1)  # NaN last
+        count = np.count_nonzero(np.isfinite(vals), axis=1)
+        lo = np.clip((count - 1) // 2, 0, vals.shape[1] - 1)[:, None]
+        hi = np.clip(count // 2, 0, vals.shape[1] - 1)[:, None]
+        mid = 0.5 * (np.take_along_axis(vals, lo, 1) + np.take_along_axis(vals, hi, 1))[:, 0]
+        return np.where(count > 0, mid, np.nan)[row]
+
+    def _rejoin(self, t: float, y: np.ndarray, s: DetectorState, live: np.ndarray,
+                gain: np.ndarray, table: np.ndarray, row: np.ndarray) -> None:
+        """Re-seat a taxel read again after a hole at its board's common mode.
+
+        Its ``common`` is its board's (`_board_value` of the taxels read on), its smoothed
+        reading the reading, its level the reading less the board's common mode (as
+        `_loop_common` re-seats a taxel back from a contact).
+        """
+        ret = live & (s.t_seated == t)  # `process`: a hole (or a warm-up's worth) just ended
+        if not ret.any():
+            return
+        board = self._board_value(s.common, live & ~ret, table, row)
+        board = np.where(np.isnan(board), s.common, board)
+        np.copyto(s.common, board, where=ret)
+        np.copyto(s.common_smooth, y, where=ret)
+        np.copyto(s.common_level, y - board, where=ret)
 
     @staticmethod
     def _follow_level(s: DetectorState, live: np.ndarray, gain: np.ndarray,
