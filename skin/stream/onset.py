@@ -601,7 +601,8 @@ class DetectorState:
     ``common_smooth`` and ``common_level`` are each taxel's averaged raw reading and its level
     with the board's common mode taken off (`OnsetDetector`'s ``common_mode``); ``common`` the
     common mode taken off its last reading (its board's), K; ``common_var`` (a loop-held
-    board's) the variance of what the common mode leaves of a free taxel's departure, K^2.
+    board's) the variance of what the common mode leaves of a free taxel's departure, K^2;
+    on a gated board, the mean square of each reading's step from its smoothed one, K^2.
     """
 
     level: np.ndarray
@@ -832,13 +833,15 @@ class OnsetDetector:
         the room moves) makes no step. Nor does one begin or change with a step: a new value
         more than the margin from the board's last one (a board-wide gust whose phases came
         to agree deep, taxels rejoining together after a touch) is no room, and the board
-        holds; nor is a change that left a free taxel within its noise (a touch of k of n).
-        A touch of every taxel at once is still taken for the room until its onsets are
-        raised (paper, 16 of 16: raised 50 ms later than without the common mode). In the
-        loop form a free taxel more than `COMMON_AGREE` sigmas of ``common_var`` from the
-        last common mode is no part of the median, and a median beyond the room's reach
-        through the loop (the false-alarm quantile of its sd) is held: a touch of 12 of 16
-        still gives the other 4 a false rise. A board with fewer than `COMMON_MIN` free
+        holds; nor is a change that left a free taxel within its noise (a touch of k of n;
+        a taxel whose reading never varies, stuck, counts for nothing). A taxel read again
+        after a hole rejoins at its board's common mode. A touch of every taxel at once is
+        still taken for the room until its onsets are raised (paper, 16 of 16: raised 50 ms
+        later than without the common mode). In the loop form a free taxel more than
+        `COMMON_AGREE` sigmas of ``common_var`` from the last common mode is no part of the
+        median; the median has no cap (a real room steps through the loop as far as a
+        touch): a touch of 12 of 16 still gives the other 4 a false rise, one of 16 of 16 is
+        taken for the room. A board with fewer than `COMMON_MIN` free
         taxels takes no new common mode: one that had one (its taxels touched) holds it,
         fading, in either form; a board of fewer than `COMMON_MIN` taxels never has one.
 
