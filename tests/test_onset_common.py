@@ -4,13 +4,13 @@ import numpy as np
 import pytest
 
 from skin.models.sensors import apply_dynamics, contact_reading, load_sensor, smooth
-from skin.stream.onset import COMMON_MIN, OnsetDetector
+from skin.stream.onset import AMBIENT_DRIFT, COMMON_MIN, OnsetDetector
 
 FS = 20.0  # the low-cost preset's sample rate
 
 
 def _board(n=16, seconds=120.0, fall=0.6, fall_at=60.0, fall_over=13.0, touched=(),
-           touch_at=70.0, touch_for=4.0, seed=0, sensor="low-cost"):
+           touch_at=70.0, touch_for=4.0, seed=0, sensor="low-cost", noisy=False):
     """A low-cost board: heated taxels with the sensor's noise, the room falling ``fall`` K
     over ``fall_over`` s from ``fall_at``, faster and faster (every taxel alike), and an
     aluminium block touching the taxels ``touched`` from ``touch_at`` for ``touch_for`` s."""
@@ -26,7 +26,9 @@ def _board(n=16, seconds=120.0, fall=0.6, fall_at=60.0, fall_over=13.0, touched=
         y[inside, k] = contact_reading(t[inside] - touch_at, heated, 22.0, 2.4e4, s,
                                        ambient=25.0) + room[inside]
         y[t >= touch_at + touch_for, k] = y[inside, k][-1] + room[t >= touch_at + touch_for]
-    y = apply_dynamics(y, s, axis=0) + rng.normal(0.0, s.noise, y.shape)
+    # (``noisy``: a sensor modelled noiseless, paper, gets its ADC's noise)
+    sd = s.noise_kelvin(heated) if noisy and not s.noise else s.noise
+    y = apply_dynamics(y, s, axis=0) + rng.normal(0.0, sd, y.shape)
     return t, smooth(y, s, axis=0), s
 
 
@@ -494,7 +496,7 @@ def test_one_boards_fast_paths_give_the_general_paths_answers():
     two = OnsetDetector(32, sensor=s, common_mode=True, boards=np.repeat([0, 1], 16))
     assert one._groups()[0].shape == (1, 16) and two._groups()[0].shape == (2, 16)
     a, b = one.initial_state(), two.initial_state()
-    quiet, engaged, onsets = [], [], set()
+    quiet, engaged, onsets, last = [], [], set(), []
     for k in range(0, t.size, 20):
         got_a, a = one.process(t[k:k + 20], y[k:k + 20], a)
         onsets |= {e.taxel for e in got_a if e.kind == "onset"}
@@ -510,9 +512,16 @@ def test_one_boards_fast_paths_give_the_general_paths_answers():
             quiet.append(t[k])
         if np.any(np.abs(a.common) > 0.1):
             engaged.append(t[k])
+        last.append(a.common[0])
     # every stretch was met: quiet through the warm-up (rising, each taxel its own way), the
-    # common mode engaged in the fall, held, faded and snapped to 0 after it; the touch found
-    assert len(quiet) >= 40 and len(engaged) >= 10 and max(quiet) > max(engaged)
+    # common mode engaged in the fall, and held after it, fading (the touched taxels rejoining
+    # the free set, reheating, moved the gate's value 0.23 K in one sample: refused), each
+    # second by exp(-1 / (COMMON_FORGET slow_tau)); the touch found
+    assert len(quiet) >= 40 and len(engaged) >= 10 and max(quiet) < min(engaged)
+    from skin.stream.onset import COMMON_FORGET
+
+    fade = np.exp(-1.0 / (COMMON_FORGET * one.slow_tau))
+    np.testing.assert_allclose(np.array(last[-20:]) / np.array(last[-21:-1]), fade, rtol=1e-9)
     assert onsets == {2, 3, 4}
 
 
@@ -535,3 +544,130 @@ def test_the_board_table_is_built_once_and_a_shards_is_its_own():
     # a new board array (another wiring) is a new table
     d.board = np.zeros(32, dtype=np.int64)
     assert d._groups()[0].shape == (1, 32)
+
+
+# Board-wide events with the common mode on (issue 16; the cases of wave/cmflip's notes): a
+# gust over a whole board and a touch of most or all of a board are no room. Before the
+# common mode was kept continuous (`COMMON_AGREE`'s step rule; the loop form's departures
+# from its last value) each of these raised false onsets or missed the touch.
+
+
+def _board_gust(sensor, n=16, seed=5, heater=False):
+    """The deepest, fastest gust of the family (and the steepest heater step) over a whole
+    board: `tests/test_onset_envelope.py`'s worst disturbance, every taxel at once (phases
+    spread over 1 s against the samples), in the sensor's noise."""
+    from skin.stream.onset import GUST_DEPTH, GUST_RISE, HEATER_STEP
+
+    fs = sensor.sample_rate
+    t = np.arange(round(40.0 * fs)) / fs
+    rise = sensor.heated_rise
+    mode = 62.5 * sensor.reheat_time_constant / load_sensor("paper").reheat_time_constant
+    s = np.maximum(t[:, None] - (15.0 + np.linspace(0.0, 1.0, n))[None, :], 0.0)
+    gust = GUST_DEPTH * rise * np.where(s < 8.0, -np.expm1(-s / GUST_RISE),
+                                        -np.expm1(-8.0 / GUST_RISE)
+                                        * np.exp(-(s - 8.0) / GUST_RISE))
+    step = HEATER_STEP * rise * -np.expm1(-s / mode) if heater else 0.0
+    noise = smooth(np.random.default_rng(seed).normal(0.0, sensor.noise_kelvin(25.0 + rise),
+                                                      (t.size, n)), sensor, axis=0)
+    return t, 25.0 + rise - gust - step + noise
+
+
+@pytest.mark.parametrize("preset", ["paper", "fast-film", "low-cost"])
+def test_a_gust_over_the_whole_board_is_no_contact_with_the_common_mode(preset):
+    """The worst gust on every taxel of a board at once: no onset with the common mode, as
+    without it (paper: 31 false onsets before, the gate engaging 0.14 K deep in one sample as
+    the gust's phases came to agree, and switching from the held fall to a rise at its end);
+    with the steepest heater step too, no more onsets than without it (fast-film 0 -> 36)."""
+    s = load_sensor(preset)
+    for heater in (False, True):
+        t, y = _board_gust(s, heater=heater)
+        on, _ = _onsets(t, y, s, chunk=t.size)
+        off, _ = _onsets(t, y, s, chunk=t.size, common_mode=False)
+        if not heater:
+            assert off == [] and on == []
+        else:
+            assert len(on) <= len(off)
+            assert [e for e in on if e.channel == 2] == []
+
+
+@pytest.mark.parametrize("sensor, n", [("paper", 15), ("paper", 16), ("fast-film", 16),
+                                       ("low-cost", 16), ("paper", 12)])
+def test_a_touch_covering_a_whole_board_is_found_and_nothing_after(sensor, n):
+    """A block on n of a board's 16 taxels at once (no room change): every touched taxel is
+    found, and nothing else (paper, 15 or 16 of 16: a false rise on every taxel 10 s after
+    the release, as the taxels, reheating alike, rejoined the free set and the gate took
+    their reheat for the room in one step). With the sensor's noise: a free taxel whose reading
+    never varies is taken for a stuck one, which vetoes nothing."""
+    t, y, s = _board(touched=tuple(range(n)), fall=0.0, sensor=sensor, noisy=True)
+    on, _ = _onsets(t, y, s)
+    assert {e.taxel for e in on if 70.0 <= e.time <= 76.0} == set(range(n))
+    assert [e for e in on if not (70.0 <= e.time <= 76.0) and e.time > 20.0] == []
+
+
+@pytest.mark.parametrize("n", [8, pytest.param(12, marks=pytest.mark.xfail(strict=True, reason=(
+    "12 of 16: the touch is found, but the median follows the touched majority while its "
+    "departures are still within the band around the last common mode, and the 4 others get "
+    "a false rise (not solved: the room through the loop moves as fast as a touch's start)"))),
+    pytest.param(16, marks=pytest.mark.xfail(strict=True, reason=(
+        "16 of 16: every taxel alike is the room, nothing found (as on main); a cap on the "
+        "median's reach found it but turned real room steps through the loop into 16 false "
+        "onsets (test_a_loop_held_boards_fast_room_is_no_contact)")))])
+def test_a_loop_held_touch_of_half_or_more_of_a_board_is_found_and_nothing_else(n):
+    """pid-logger, a block on n of 16 taxels: every touched taxel found, none of the others
+    raised (the median of the free taxels' departures: 8 of 16 touched gave the other 8 false
+    falls, 12 of 16 made the touch the room and missed it, 16 of 16 found nothing)."""
+    t, y, s = _board(touched=tuple(range(n)), fall=0.0, sensor="pid-logger")
+    on, _ = _onsets(t, y, s)
+    assert {e.taxel for e in on if 70.0 <= e.time <= 76.0} == set(range(n))
+    assert [e for e in on if not (70.0 <= e.time <= 76.0) and e.time > 20.0] == []
+
+
+def _room_board(sensor, room, n=16, seconds=200.0, seed=0, stuck=None, hole=None, walk=0.0):
+    """A board of n free taxels, the room ``room(t)`` (plus a random walk at ``walk`` x
+    `AMBIENT_DRIFT`) on every one; taxel ``stuck`` constant, taxel ``hole[0]`` unread from
+    ``hole[1]`` to ``hole[2]`` s."""
+    s = load_sensor(sensor)
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * s.sample_rate)) / s.sample_rate
+    step = np.sqrt(walk * AMBIENT_DRIFT / s.sample_rate)
+    room_t = np.cumsum(rng.normal(0.0, step, t.size)) + room(t)
+    y = np.full((t.size, n), 25.0 + s.heated_rise) + room_t[:, None]
+    y = smooth(apply_dynamics(y, s, axis=0) + rng.normal(0.0, s.noise, y.shape), s, axis=0)
+    if stuck is not None:
+        y[:, stuck] = 25.0 + s.heated_rise
+    if hole is not None:
+        y[(t >= hole[1]) & (t < hole[2]), hole[0]] = np.nan
+    return t, y, s
+
+
+def _ramp(size, at, over, power=1.0):
+    return lambda t: size * np.clip((t - at) / over, 0.0, 1.0) ** power
+
+
+@pytest.mark.parametrize("size, over, walk", [(-0.3, 1.0, 1.0), (-1.0, 2.0, 1.0),
+                                              (0.0, 1.0, 4.0)])
+def test_a_loop_held_boards_fast_room_is_no_contact(size, over, walk):
+    """pid-logger, the room (its random walk, 4 x as fast, or stepping at 150 s) moving
+    through the loop further than `AMBIENT_DRIFT` reaches: no onset (a cap on the common
+    mode's reach held the board: 16, 16 and 8 false onsets)."""
+    t, y, s = _room_board("pid-logger", _ramp(size, 150.0, over), seconds=300.0, walk=walk)
+    on, _ = _onsets(t, y, s)
+    assert [e for e in on if e.time > 30.0] == []
+
+
+def test_a_constant_taxel_does_not_veto_its_boards_common_mode():
+    """low-cost, the room falling 0.6 K over 13 s with taxel 15 constant (stuck): no onset
+    (the constant taxel, within its noise of its level, vetoed the board: 15 false onsets)."""
+    t, y, s = _room_board("low-cost", _ramp(-0.6, 60.0, 13.0, 3.0), stuck=15)
+    on, _ = _onsets(t, y, s)
+    assert [e for e in on if e.time > 20.0] == []
+
+
+def test_a_taxel_back_from_a_short_hole_rejoins_its_boards_common_mode():
+    """low-cost, a 5 s hole on taxel 5 while the room steps -0.3 K, then a 0.6 K fall: no
+    onset (the taxel's stale common mode kept its board holding: 16 false onsets)."""
+    def room(t):
+        return _ramp(-0.3, 60.0, 2.0)(t) + _ramp(-0.6, 100.0, 13.0, 3.0)(t)
+    t, y, s = _room_board("low-cost", room, seconds=220.0, hole=(5, 61.0, 66.0))
+    on, _ = _onsets(t, y, s)
+    assert [e for e in on if e.time > 20.0] == []
