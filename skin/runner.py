@@ -156,7 +156,8 @@ class Skin:
                 self.layout, self.classifier, calibration=self.calibration, sensors=self.sensors,
                 ambient_offset=0.0 if self.cal_file is None else self.cal_file.ambient_offset,
                 window=s.window, provisional=s.provisional, workers=s.workers,
-                common_mode=s.common_mode, force_onsets=s.force_onsets,
+                common_mode=None if s.common_mode == "auto" else s.common_mode,
+                force_onsets=s.force_onsets,
                 noise=noise_sigma(self.cal_file, self.layout))  # commissioned noise, if any
         except ValueError as exc:
             raise SkinError(f"--window / --provisional: {exc}") from None

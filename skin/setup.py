@@ -133,10 +133,12 @@ class Setup:
         boards' ports and decodes, assembles, calibrates and detects onsets
         (`skin.stream.board_workers`); otherwise onset detection alone is sharded across that
         many processes, this one included (`skin.stream.shards`). The same results.
-    common_mode : bool
+    common_mode : bool or "auto"
         The onset detector's board common mode (`skin.stream.onset.OnsetDetector`'s
         ``common_mode``: the room's change, shared alike by nearly every free taxel of a
-        board of 4 or more, taken off first; default off). With it, onset shards keep whole
+        board of 4 or more, taken off first). ``"auto"`` (default): on for sensors whose
+        heater is not PID-held, off for PID-held ones (`skin.stream.onset.common_auto`);
+        true / false: on / off for every sensor. With it, onset shards keep whole
         boards (fewer worker processes than ``workers`` on a skin of fewer boards).
     force_onsets : bool
         Date the contacts of taxels whose frames carry a force or contact reading by it
@@ -175,7 +177,7 @@ class Setup:
     video: str | None = None
     view_mode: str = "material"
     workers: int = 1
-    common_mode: bool = False
+    common_mode: bool | str = "auto"
     force_onsets: bool = True
     robot: str = "skin"
     robot_pose: list[float] = field(default_factory=list)
@@ -333,6 +335,12 @@ def _flag(value: Any) -> bool:
     return value
 
 
+def _auto_flag(value: Any) -> bool | str:
+    if value == "auto" or isinstance(value, bool):
+        return value
+    raise TypeError(f"must be true, false or \"auto\", got {value!r}")
+
+
 def _choice(*options: str) -> Callable[[Any], str]:
     def check(value: Any) -> str:
         if value not in options:
@@ -372,7 +380,7 @@ _CHECKS: dict[str, Callable[[Any], Any]] = {
     "video": _optional_text,
     "view_mode": _choice("material", "temperature"),
     "workers": _count,
-    "common_mode": _flag,
+    "common_mode": _auto_flag,
     "force_onsets": _flag,
     "robot": _name,
     "robot_pose": _pose,

@@ -883,7 +883,7 @@ def miss_margins(stream: object, sensor: object, which: Sequence[int],
     cols = sorted({contacts[k].taxel for k in which})
     end = max(contacts[k].release for k in which) + after
     n = int(np.searchsorted(stream.times, end, side="right"))
-    det = OnsetDetector(len(cols), sensor=sensor)
+    det = OnsetDetector(len(cols), sensor=sensor, common_mode=False)  # columns apart: no board
     trace = det.trace(stream.times[:n], stream.temperature[:n, cols], margins=True)
     out = {}
     for k in which:

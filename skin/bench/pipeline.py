@@ -85,7 +85,8 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
         The onset detector's gust-envelope margin (`skin.stream.onset.OnsetDetector`'s
         ``envelope_noise``; None: its default); one process only (``workers`` 1).
     common_mode : bool, optional
-        The onset detector's board common mode (``common_mode``; None: its default, off);
+        The onset detector's board common mode (``common_mode``; None: its default, on
+        where the heater is not PID-held);
         one process only (``workers`` 1).
 
     Returns

@@ -28,7 +28,7 @@ SURE = 0.9
 
 
 def play(scene: str, seed: int, duration: float | None = None,
-         ceiling: bool = False, common_mode: bool = False,
+         ceiling: bool = False, common_mode: bool | str = "auto",
          force_onsets: bool = True) -> dict[str, Any]:
     """Run ``scene`` with ``seed`` through `skin.Skin`; return its figures and its misses.
 
@@ -233,7 +233,7 @@ def _median(values: list) -> float | None:
 def run(scene: str = "default", seeds: Sequence[int] = tuple(range(10)),
         duration: float | None = None,
         progress: Callable[[int, int], None] | None = None,
-        ceiling: bool = False, common_mode: bool = False,
+        ceiling: bool = False, common_mode: bool | str = "auto",
         force_onsets: bool = True) -> dict[str, Any]:
     """Play ``scene`` once per seed; return the runs and the figures over all of them.
 

@@ -26,8 +26,10 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
                        help="also the known-nuisance ceiling of each touch (the best classifier "
                             "told all but the material) and the gap from the run to it, in "
                             "steps (skin.bench.scene_ceiling)")
-    scene.add_argument("--common-mode", action="store_true",
-                       help="the onset detector's board common mode on (skin run --common-mode)")
+    scene.add_argument("--common-mode", action=argparse.BooleanOptionalAction, default=None,
+                       help="the onset detector's board common mode on / off (skin run "
+                            "--[no-]common-mode; default: skin run's, on where the heater is "
+                            "not PID-held)")
     scene.add_argument("--force-channel", choices=("force", "contact"), default=None,
                        help="give the scene's taxels a force sensor or a contact switch (the "
                             "scene's field force; the scene must not set it)")
@@ -127,7 +129,8 @@ def main(args: argparse.Namespace) -> int:
         started = time.monotonic()
         out = run(scene, seeds, args.duration,
                   progress=lambda d, n: progress.bar(d, n, "runs", started),
-                  ceiling=args.ceiling, common_mode=args.common_mode,
+                  ceiling=args.ceiling,
+                  common_mode="auto" if args.common_mode is None else args.common_mode,
                   force_onsets=args.force_onsets)
         progress.done()
     finally:

@@ -74,12 +74,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--why", action="store_true",
                     help="give every missed contact (the 5-sigma ones with --sensor) and every "
                          "false alarm its cause (`skin.bench.onset_why`; simulated streams)")
-    ev.add_argument("--common-mode", action="store_true",
+    ev.add_argument("--common-mode", action=argparse.BooleanOptionalAction, default=None,
                     help="take a change shared alike by nearly every taxel (the room) off the "
                          "readings first (the detector's common_mode; every column is one "
                          "board, of at least 4 taxels: refused with fewer). A PID-held "
                          "heater's: the median of the free taxels' departures, taken off on "
-                         "every sample")
+                         "every sample. Default: on for a simulated stream (--sensor) whose "
+                         "heater is not PID-held (with 4 taxels or more), off for a PID-held "
+                         "one and for --data (its trials are no board); --no-common-mode: off")
     ev.add_argument("--envelope-sigmas", type=float, default=None, metavar="Z",
                     help="the detector's gust-envelope noise margin, sigmas: the z of the "
                          "fall's noise table (default the false-alarm target's Gaussian "
@@ -303,7 +305,8 @@ def main(args: argparse.Namespace) -> int:
     if args.flat_envelope:
         knobs["envelope_noise"] = False
     detector = OnsetDetector(temperature.shape[1], sensor=judged, sigma=sigma,
-                             common_mode=args.common_mode, **knobs)
+                             common_mode=(False if args.data and args.common_mode is None
+                                          else args.common_mode), **knobs)
     source += "".join(f", {k.replace('_', ' ')} {v:g}" for k, v in knobs.items()
                       if k != "envelope_noise")
     source += ", common mode" if detector.common_active else ", no common mode"

@@ -127,11 +127,13 @@ def add_setup_options(run: argparse.ArgumentParser) -> None:
                           "detection is sharded across them (default 1; the same results); "
                           "with --common-mode each board stays in one process (a board's "
                           "common mode needs all its taxels), so a one-board skin runs in one")
-    run.add_argument("--common-mode", action="store_true",
+    run.add_argument("--common-mode", action=argparse.BooleanOptionalAction,
                      help="the onset detector's board common mode: the room's change, shared "
                           "alike by nearly every free taxel of a board of 4 or more, taken "
-                          "off first (OnsetDetector common_mode; default off); it keeps "
-                          "each board in one process, so --workers shards by whole boards")
+                          "off first (OnsetDetector common_mode; default: on for sensors "
+                          "whose heater is not PID-held, off for PID-held ones, skin.toml "
+                          "[skin] common_mode = \"auto\"); it keeps each board in one "
+                          "process, so --workers shards by whole boards")
     run.add_argument("--force-onsets", action=argparse.BooleanOptionalAction,
                      help="date the contacts of taxels whose frames carry a force or contact "
                           "reading by it (exact onset and release; the onset detector where "

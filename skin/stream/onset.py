@@ -679,6 +679,26 @@ class DetectorTrace:
     margins: np.ndarray | None = None
 
 
+def common_auto(sensor: object) -> bool:
+    """Return whether the board common mode is on by default (``common_mode=None``) for ``sensor``.
+
+    On where the heater is not PID-held (``sensor.heater != "pid"``: constant power, the
+    gated form, robust to a board-wide gust or touch), off where it is (the loop form's
+    median follows a touch of most of a board: opt-in). A board of fewer than `COMMON_MIN`
+    taxels has none either way (`OnsetDetector.common_active`).
+
+    Parameters
+    ----------
+    sensor : object
+        A sensor description (`skin.models.sensors.load_sensor`'s) with a ``heater``.
+
+    Returns
+    -------
+    bool
+    """
+    return getattr(sensor, "heater", None) != "pid"
+
+
 class OnsetDetector:
     """Vectorised streaming onset/release detector.
 
@@ -806,10 +826,13 @@ class OnsetDetector:
         board's common mode fits its CUSUM's allowance to these gusts (`_gust_allowance`).
     boards : array_like of int, optional
         Each taxel's board (default: all on one). The common mode is a board's.
-    common_mode : bool
+    common_mode : bool, optional
         Whether a change shared by (nearly) every free taxel of a board is taken off their
-        readings before anything else (default: no; when asked, active on boards of
-        `COMMON_MIN` taxels or more only, `common_active`). A PID-held heater's board
+        readings before anything else (active on boards of `COMMON_MIN` taxels or more only,
+        `common_active`). None (the default, "auto", `common_auto`): on for a sensor whose
+        heater is not PID-held (the gated form below), off for a PID-held one (its loop
+        form is opt-in: a touch of 12 of a board's 16 taxels gives the other 4 a false
+        rise, one of all 16 is taken for the room). A PID-held heater's board
         (``sensor.heater == "pid"``, with the gust-envelope test) has its own
         (`_loop_common`): the loop high-passes the room into a band-limited noise that never
         moves (nearly) every taxel beyond its noise at once, so the gated form below
@@ -892,7 +915,7 @@ class OnsetDetector:
         gust_depth: float | None = None,
         gust_rise: float = GUST_RISE,
         boards: np.ndarray | None = None,
-        common_mode: bool = False,
+        common_mode: bool | None = None,
     ) -> None:
         from skin.models.sensors import load_sensor
 
@@ -1065,14 +1088,15 @@ class OnsetDetector:
         # read-only: `_groups` caches the board table for this array (an in-place edit would
         # leave it stale); another wiring is another array (``detector.board = ...``)
         self.board.flags.writeable = False
-        self.common_mode = common_mode
+        # None ("auto"): on where the heater is not PID-held (the gated form, `common_auto`)
+        self.common_mode = common_auto(sensor) if common_mode is None else bool(common_mode)
         # `_groups`' cache: the board array it was built for and its table (None: not built)
         self._groups_of: tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None] | None = None
         # a loop-held board's common mode (`_loop_common`): the median of its free taxels'
         # departures, always taken off; the envelope's room allowance then scaled by what it
         # leaves (``common_var``) against the room's own variance through the loop
         # (none when no board has `COMMON_MIN` taxels: then neither is the gust allowance)
-        self.loop_common = bool(common_mode and self.envelope is not None
+        self.loop_common = bool(self.common_mode and self.envelope is not None
                                 and self._groups() is not None)
         self._room_var = (_room_variance(sensor, self.medium_tau, self.slow_tau)
                           if self.envelope is not None else 0.0)

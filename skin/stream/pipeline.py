@@ -255,10 +255,11 @@ class Pipeline:
         `start` (or at the first block) and stopped by `close`. The results are the same.
         With the board common mode on, a board is never split, so there are at most as many
         processes as boards (`skin.stream.shards.shard_taxels`' ``whole_boards``).
-    common_mode : bool
-        Switch the default detector's board common mode on (`OnsetDetector`'s
-        ``common_mode``: the room's change, shared alike by nearly every free taxel of a board
-        of `skin.stream.onset.COMMON_MIN` taxels or more, taken off first). Ignored when
+    common_mode : bool, optional
+        The default detector's board common mode (`OnsetDetector`'s ``common_mode``: the
+        room's change, shared alike by nearly every free taxel of a board of
+        `skin.stream.onset.COMMON_MIN` taxels or more, taken off first; None, the default:
+        on where the heater is not PID-held, `skin.stream.onset.common_auto`). Ignored when
         ``detector`` is given: that detector's own setting holds.
     force_onsets : bool
         Date the contacts of the taxels whose frames carry a force reading by it
@@ -298,7 +299,7 @@ class Pipeline:
         provisional: Sequence[float] = (),
         noise: np.ndarray | None = None,
         workers: int = 1,
-        common_mode: bool = False,
+        common_mode: bool | None = None,
         force_onsets: bool = True,
     ) -> None:
         rates = {b.sample_rate for b in layout.boards.values()}
@@ -520,11 +521,12 @@ class Pipeline:
 
 def _detector_for(layout: Layout, noise: np.ndarray | None = None,
                   envelope_noise: bool | None = None,
-                  common_mode: bool = False) -> OnsetDetector:
+                  common_mode: bool | None = None) -> OnsetDetector:
     """Return an onset detector set by the boards' sensors (each taxel's noise: its board's).
 
     ``envelope_noise``: the detector's (None: its default); ``common_mode``: the detector's
-    board common mode (on boards of `skin.stream.onset.COMMON_MIN` taxels or more).
+    board common mode (None: `skin.stream.onset.common_auto` of the first board's sensor;
+    on boards of `skin.stream.onset.COMMON_MIN` taxels or more).
     """
     from skin.models.sensors import SensorDescription
 
