@@ -56,6 +56,6 @@ def test_bench_pipeline_compares_the_two_envelope_margins_in_the_same_run():
     # the board common mode on and off, alternated alike (16 taxels: one board, so it runs)
     (pair,) = doc["common_mode_compare"]
     assert pair["on"]["common_mode"] is True and pair["off"]["common_mode"] is False
-    assert row["common_mode"] is False  # off by default
+    assert row["common_mode"] is True  # on by default: the bench's boards are not PID-held
     assert pair["on_over_off"]["onset"] == round(pair["on"]["stages"]["onset"]
                                                  / pair["off"]["stages"]["onset"], 3)

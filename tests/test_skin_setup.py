@@ -171,8 +171,8 @@ def test_config_show_prints_a_skin_file_that_reads_back():
     ("[classifier]\nprovisional = [\n  0.5,\n  -1,\n]\nwindow = 'x'\n",
      "bad.toml:2: provisional: must be more than 0"),
     ("[source\n", "bad.toml: not valid TOML"),
-    ("[skin]\ncommon_mode = \"yes\"\n", "bad.toml:2: common_mode: must be true or false, "
-     "got 'yes'"),
+    ("[skin]\ncommon_mode = \"yes\"\n", "bad.toml:2: common_mode: must be true, false or "
+     "\"auto\", got 'yes'"),
 ])
 def test_skin_file_errors_name_the_file_and_line(tmp_path, text, message):
     from skin.formats.skin_file import load_skin_file
@@ -276,17 +276,26 @@ def test_skin_run_is_a_thin_shell_over_skin():
 
 
 def test_the_board_common_mode_reaches_the_detector_from_python_and_a_skin_file(tmp_path):
-    """``common_mode`` (off by default) switches the detector's board common mode on: the
-    default scene's arm is one board of 72 taxels (>= COMMON_MIN), so it runs."""
+    """``common_mode`` ("auto" by default: on where the heater is not PID-held) switches the
+    detector's board common mode on or off: the default scene's arm is one board of 72
+    taxels (>= COMMON_MIN) of a constant-power sensor, so "auto" runs it."""
     from skin.formats.skin_file import load_skin_file
+    from skin.stream.onset import common_auto
 
     (tmp_path / "on.toml").write_text("[skin]\ncommon_mode = true\n")
-    asked = [(Setup(), False), (Setup(common_mode=True), True),
-             (load_skin_file(tmp_path / "on.toml"), True)]
+    (tmp_path / "off.toml").write_text("[skin]\ncommon_mode = false\n")
+    (tmp_path / "auto.toml").write_text("[skin]\ncommon_mode = \"auto\"\n")
+    assert Setup().common_mode == "auto"
+    asked = [(Setup(), True), (Setup(common_mode=True), True), (Setup(common_mode=False), False),
+             (load_skin_file(tmp_path / "on.toml"), True),
+             (load_skin_file(tmp_path / "off.toml"), False),
+             (load_skin_file(tmp_path / "auto.toml"), True)]
     for setup, active in asked:
         with Skin(setup, speed=0.0, duration=1.0, out=None, map=False, sinks=[]) as s:
             assert s.pipeline.detector.n_taxels >= 4
             assert s.pipeline.detector.common_active is active
+            if setup.common_mode == "auto":
+                assert common_auto(s.pipeline.detector.sensor)  # the arm's heater: not PID
 
 
 def test_leaving_the_with_block_closes_sources_sinks_and_the_simulation(tmp_path):

@@ -145,7 +145,7 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
         writer.close()
         detector = (None if envelope_noise is None and common_mode is None
                     else _detector_for(layout, envelope_noise=envelope_noise,
-                                       common_mode=bool(common_mode)))
+                                       common_mode=common_mode))
         pipe = Pipeline(layout, JointClassifier(layout), budget=budget, detector=detector)
         if workers == 1:
             timed = _one_process(pipe, WireSource(folder, tuple(boards)), n, block)
