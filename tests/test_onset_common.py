@@ -71,8 +71,13 @@ def test_no_room_change_no_common_mode():
     assert [(e.taxel, e.time, e.detected_at) for e in on] == \
         [(e.taxel, e.time, e.detected_at) for e in off]
     np.testing.assert_allclose([e.baseline for e in on], [e.baseline for e in off], atol=1e-3)
-    # none unless asked for; when asked, on boards of COMMON_MIN taxels
-    assert not OnsetDetector(16, sensor="low-cost").common_active
+    # by default ("auto") on where the heater is not PID-held, off where it is (the loop form
+    # is opt-in); off when asked off; on boards of COMMON_MIN taxels only
+    assert OnsetDetector(16, sensor="low-cost").common_active
+    assert not OnsetDetector(16, sensor="pid-logger").common_active
+    assert OnsetDetector(16, sensor="pid-logger", common_mode=True).common_active
+    assert not OnsetDetector(16, sensor="low-cost", common_mode=False).common_active
+    assert not OnsetDetector(COMMON_MIN - 1, sensor="low-cost").common_active
     assert OnsetDetector(COMMON_MIN, sensor="low-cost", common_mode=True).common_active
 
 

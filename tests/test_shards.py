@@ -49,6 +49,14 @@ def test_with_the_common_mode_a_board_is_never_split_across_workers():
         assert [sh.size for sh in pipe.onset_workers.shards] == [72]
     finally:
         pipe.close()
+    # the default ("auto"): on for the default skin's constant-power heaters, so the same
+    pipe = Pipeline(scene.layout, HistogramClassifier(scene.layout), workers=2)
+    try:
+        assert pipe.detector.common_active
+        pipe.start()
+        assert [sh.size for sh in pipe.onset_workers.shards] == [72]
+    finally:
+        pipe.close()
 
 
 def test_a_sub_detector_is_the_whole_detector_on_its_taxels():
@@ -124,9 +132,11 @@ def test_skin_run_with_workers_gives_the_events_of_one_process(tmp_path):
     from skin.runner import Skin
 
     got = {}
+    # the default skin is one board: split across workers only without the board common mode
+    # (on by default for its constant-power heaters: then one process, see below)
     for workers in (1, 3):
         with Skin(speed=0.0, duration=12.0, out=None, map=False, sinks=[],
-                  workers=workers) as skin:
+                  workers=workers, common_mode=False) as skin:
             got[workers] = list(skin.results())
             shards = skin.pipeline.onset_workers
             procs = [] if shards is None else [p for p in shards._procs if p is not None]
@@ -139,7 +149,9 @@ def test_skin_run_with_workers_gives_the_events_of_one_process(tmp_path):
 def test_a_worker_that_dies_is_named_and_the_blocks_before_were_observed():
     scene = load_scene("default")
     frames = list(SkinSimulator(scene, duration=2.0).frames())
-    pipe = Pipeline(scene.layout, HistogramClassifier(scene.layout), workers=2).start()
+    # one board split across two workers: only without the board common mode
+    pipe = Pipeline(scene.layout, HistogramClassifier(scene.layout), workers=2,
+                    common_mode=False).start()
     seen = []
     pipe.observers.append(lambda times, temperature, host: seen.append(len(times)))
     try:
