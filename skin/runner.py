@@ -714,6 +714,13 @@ class Skin:
                                for k in np.flatnonzero(pipeline.stats.flagged)],
             "contacts": self._final_count,
         }
+        force = getattr(pipeline, "force", None)
+        if force is not None:  # the frames carried a force channel (skin.stream.force)
+            summary["force"] = {
+                "dated_taxels": [int(layout.ids[k]) for k in np.flatnonzero(force.trusted)],
+                "unseen_onsets": {str(layout.ids[k]): int(force.unseen[k])
+                                  for k in np.flatnonzero(force.unseen)},
+                "notes": list(force.notes)}
         if self.publishers:
             summary["published"] = {p.url: dict(p.sent) for p in self.publishers}
         if self.scene is not None:

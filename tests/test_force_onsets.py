@@ -285,3 +285,41 @@ def test_a_force_channel_appearing_mid_stream_is_chunk_invariant() -> None:
     assert any("force" in k[3] for k in ref)
     for chunk in (1, 97, 333):
         assert run(chunk) == ref, chunk
+
+
+def test_notes_name_taxels_by_their_layout_ids() -> None:
+    """A dead channel's note names the taxel as the layout does (ids 100-102), not its column."""
+    t, f = _stream()
+    dead = f.copy()
+    dead[:, 0] = 0.0
+    seen = [OnsetEvent("onset", 0, 5.02, 5.2, 30.0, 0.0),
+            OnsetEvent("release", 0, 7.05, 7.4, float("nan"), 0.0),
+            OnsetEvent("onset", 0, 9.02, 9.2, 30.0, 0.0)]
+    fo = ForceOnsets(3, FS, ids=[100, 101, 102])
+    y = np.full_like(dead, 30.0)
+    for i in range(0, len(t), 50):
+        sel = slice(i, i + 50)
+        fo.merge(t[sel], dead[sel], y[sel],
+                 [e for e in seen if t[sel][0] <= e.detected_at <= t[sel][-1]])
+    assert fo.unseen.tolist() == [2, 0, 0]
+    assert len(fo.notes) == 1 and fo.notes[0].startswith("taxel 100: ")
+    with pytest.raises(ValueError, match="2 ids for 3 taxels"):
+        ForceOnsets(3, FS, ids=[1, 2])
+
+
+def test_skin_run_reports_the_force_channel_in_its_summary() -> None:
+    """`skin run`'s summary says which taxels their force dated (layout ids) and its notes."""
+    from skin.commands.bench_scene import _with_fields
+    from skin.runner import Skin
+
+    scene = _with_fields("default", {"force": "force", "sensor": None})
+    try:
+        with Skin(scene=scene, seed=31, speed=0.0, duration=6.0, out=None, map=False,
+                  sinks=[]) as skin:
+            summary = skin.run()
+            ids = set(int(i) for i in skin.layout.ids)
+    finally:
+        Path(scene).unlink()
+    force = summary["force"]
+    assert force["dated_taxels"] and set(force["dated_taxels"]) <= ids
+    assert isinstance(force["notes"], list) and isinstance(force["unseen_onsets"], dict)

@@ -10,14 +10,6 @@
 #include "skin_board.h"
 #include "skin_proto.h"
 
-#if SKIN_TIMING_MARKS
-#define MARK_ON(b) (GPIOR0 |= (1 << (b)))
-#define MARK_OFF(b) (GPIOR0 &= ~(1 << (b)))
-#else
-#define MARK_ON(b) ((void)0)
-#define MARK_OFF(b) ((void)0)
-#endif
-
 #define RX_MAX 32 /* the longest command body is 8 bytes; COBS and CRC add 3 */
 #define WIRE_MAX(len) ((len) + 2 + ((len) + 2) / 254 + 2)
 /* the longest body: a SELFTEST_RESULT (5 + 4n) or, below 11 taxels, a SAMPLE (16 + 3n); it was

@@ -186,6 +186,10 @@ def _print_table(records: list[dict[str, Any]], summary: dict[str, Any], out: st
               + ("" if summary["median_log10_effusivity_error"] is None else
                  f", median error of the measured effusivity "
                  f"{summary['median_log10_effusivity_error']} decades"))
+    if "force" in summary:
+        dated = summary["force"]["dated_taxels"]
+        print(f"force channel: {len(dated)} taxels dated by their force"
+              + "".join(f"\n  {note}" for note in summary["force"]["notes"]))
     if out is not None:
         files = [Path(out) / n for n in ("events.jsonl", "summary.json", "contact_map.png")]
         print(f"outputs: {', '.join(str(f) for f in files if f.exists())}")

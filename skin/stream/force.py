@@ -39,6 +39,7 @@ levels within `SPANS` stretches still starts false contacts (ended by the lock r
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -88,10 +89,16 @@ class ForceOnsets:
         The stream's index of the first sample given (stretches are counted from the
         stream's first sample, so a force channel appearing mid-stream gives the same
         stretches whatever the chunking).
+    ids : sequence of int, optional
+        The taxels' layout ids, by which `notes` name them (default: their columns).
     """
 
-    def __init__(self, n_taxels: int, sample_rate: float, start: int = 0) -> None:
+    def __init__(self, n_taxels: int, sample_rate: float, start: int = 0,
+                 ids: Sequence[int] | None = None) -> None:
         self.n = int(n_taxels)
+        self.ids = list(range(self.n)) if ids is None else [int(i) for i in ids]
+        if len(self.ids) != self.n:
+            raise ValueError(f"ForceOnsets: {len(self.ids)} ids for {self.n} taxels")
         self.rate = float(sample_rate)
         self.held = max(2, round(FORCE_CONTACT_HELD * self.rate))
         self.held_s = self.held / self.rate
@@ -255,8 +262,9 @@ class ForceOnsets:
                     self.unseen[k] += 1
                     if self.unseen[k] == 2:
                         self.notes.append(
-                            f"taxel {k}: the onset detector reports onsets its force channel "
-                            "did not see (a dead or miswired force?): dated by the detector")
+                            f"taxel {self.ids[k]}: the onset detector reports onsets its "
+                            "force channel did not see (a dead or miswired force?): dated by "
+                            "the detector")
         return kept
 
     def _piece(self, t: np.ndarray, f: np.ndarray, y: np.ndarray) -> list[OnsetEvent]:
@@ -414,7 +422,8 @@ class ForceOnsets:
                     self._spans[:, :, k] = np.nan
                     self._spans[0, :, k] = (lvk, nzk)
                     self.notes.append(
-                        f"taxel {k}: force flat near its threshold for {LOCK_SECONDS:g} s "
+                        f"taxel {self.ids[k]}: force flat near its threshold for "
+                        f"{LOCK_SECONDS:g} s "
                         f"(a drifting free level?) at {end:.3f} s: contact ended, level re-learnt")
                     events.append(self._release(k, end, end))
         self._spans[:, :, cols[fresh_level]] = np.nan

@@ -444,7 +444,8 @@ class Pipeline:
                 from skin.stream.force import ForceOnsets
 
                 self.force = ForceOnsets(len(self.layout), self.sample_rate,
-                                         start=self.stats.samples - len(times))
+                                         start=self.stats.samples - len(times),
+                                         ids=self.layout.ids)
             events = self._timed("onset", self.force.merge, times, force, temperature, events)
         self.stats.onsets += sum(e.kind == "onset" for e in events)
         self.stats.releases += sum(e.kind == "release" for e in events)

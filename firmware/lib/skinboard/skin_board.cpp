@@ -21,13 +21,6 @@
  * change here cannot move their conversions by a cycle. */
 #define MARK_POLL 0
 #define MARK_SCAN 1
-#if SKIN_TIMING_MARKS
-#define MARK_ON(b) (GPIOR0 |= (1 << (b)))
-#define MARK_OFF(b) (GPIOR0 &= ~(1 << (b)))
-#else
-#define MARK_ON(b) ((void)0)
-#define MARK_OFF(b) ((void)0)
-#endif
 #define GROUPS ((N + 7) / 8)
 #define TIMER_HZ (F_CPU / 64UL) /* timer 1 runs at F_CPU / 64 */
 

@@ -12,6 +12,18 @@
 #include "skin_config.h"
 #include "skin_proto.h"
 
+/* GPIOR0 timing marks (bit b set while a stretch of work runs) in builds with
+ * SKIN_TIMING_MARKS only (`make -C firmware timing`, read by firmware/sim/skin_avr.c for
+ * `skin bench firmware`); nothing in the others. The board's bits are in skin_board.cpp, the
+ * sketch's (2: waiting for the link) in skin_controller.ino. */
+#if SKIN_TIMING_MARKS
+#define MARK_ON(b) (GPIOR0 |= (1 << (b)))
+#define MARK_OFF(b) (GPIOR0 &= ~(1 << (b)))
+#else
+#define MARK_ON(b) ((void)0)
+#define MARK_OFF(b) ((void)0)
+#endif
+
 #ifdef __cplusplus
 extern "C" {
 #endif
