@@ -160,7 +160,8 @@ class Skin:
                 force_onsets=s.force_onsets,
                 noise=noise_sigma(self.cal_file, self.layout))  # commissioned noise, if any
         except ValueError as exc:
-            raise SkinError(f"--window / --provisional: {exc}") from None
+            which = "" if str(exc).startswith("common_mode") else "--window / --provisional: "
+            raise SkinError(f"{which}{exc}") from None
         if s.out is not None and not s.force:
             # an empty events.jsonl is a run that received nothing (a dead port): no loss
             used = [name for name in OUTPUTS if (Path(s.out) / name).exists()

@@ -79,6 +79,33 @@ def test_no_room_change_no_common_mode():
     assert not OnsetDetector(16, sensor="low-cost", common_mode=False).common_active
     assert not OnsetDetector(COMMON_MIN - 1, sensor="low-cost").common_active
     assert OnsetDetector(COMMON_MIN, sensor="low-cost", common_mode=True).common_active
+    # "auto" is None (Setup's spelling): the PID loop form stays off; any other value is refused
+    assert not OnsetDetector(16, sensor="pid-logger", common_mode="auto").common_active
+    with pytest.raises(TypeError, match="common_mode"):
+        OnsetDetector(16, sensor="low-cost", common_mode="off")
+
+
+def test_auto_refuses_a_layout_mixing_pid_held_and_constant_power_boards(tmp_path):
+    """One detector, one sensor: "auto" on a layout of a pid-logger and a low-cost board would
+    give the PID board the gated form or the low-cost board none, by board order; it is refused
+    before the first frame, and an explicit choice runs."""
+    from skin.formats.layout import load_layout
+    from skin.stream.pipeline import _detector_for
+
+    lines = ['name = "mixed"']
+    for i, sensor in enumerate(("pid-logger", "low-cost")):
+        lines += ["[[boards]]", f"id = {i}", f'sensor = "{sensor}"', "sample_rate = 50.0"]
+    for k in range(16):
+        lines += ["[[taxels]]", f"id = {k}", f"board = {k // 8}", f"address = {k % 8}",
+                  'link = "upper_arm"', f"position = [0.055, 0.0, {0.01 * k:.3f}]",
+                  "normal = [1.0, 0.0, 0.0]"]
+    (tmp_path / "mixed.toml").write_text("\n".join(lines) + "\n")
+    layout = load_layout(tmp_path / "mixed.toml")
+    for auto in (None, "auto"):
+        with pytest.raises(ValueError, match="mixes boards whose heater is PID-held"):
+            _detector_for(layout, common_mode=auto)
+    assert not _detector_for(layout, common_mode=False).common_active
+    assert _detector_for(layout, common_mode=True).common_active
 
 
 def test_a_small_board_has_no_common_mode_and_is_no_error():

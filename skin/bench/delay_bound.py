@@ -860,8 +860,9 @@ def miss_margins(stream: object, sensor: object, which: Sequence[int],
                  after: float) -> dict[int, dict]:
     """Return how near each of the detector's fall tests came to firing on each contact.
 
-    The detector (as evaluate-onset sets it for the sensor; its taxels are independent) is
-    traced (`skin.stream.onset.OnsetDetector.trace` with ``margins``) over the columns of
+    The detector (as evaluate-onset sets it for the sensor, but without the board common
+    mode: the traced columns are a subset of the board, no board themselves; a miss the
+    common mode caused or delayed is measured here without it) is traced (`skin.stream.onset.OnsetDetector.trace` with ``margins``) over the columns of
     the contacts ``which``, from the stream's start to the end of the last one's window.
 
     Returns

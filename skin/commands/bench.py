@@ -144,7 +144,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                            "throughput over without's (order with, without, without, with)")
     pipe.add_argument("--compare-common-mode", action="store_true",
                       help="also run each size (one process) with the onset detector's board "
-                           "common mode on and off (its default), and give on's throughput "
+                           "common mode on and off (its default: on where the heater is not "
+                           "PID-held), and give on's throughput "
                            "over off's (same run, in the order on, off, off, on: each one's "
                            "run with the faster onset stage)")
     pipe.add_argument("--json", action="store_true", help="print one JSON document")

@@ -829,7 +829,7 @@ class OnsetDetector:
     common_mode : bool, optional
         Whether a change shared by (nearly) every free taxel of a board is taken off their
         readings before anything else (active on boards of `COMMON_MIN` taxels or more only,
-        `common_active`). None (the default, "auto", `common_auto`): on for a sensor whose
+        `common_active`). None or "auto" (the default, `common_auto`): on for a sensor whose
         heater is not PID-held (the gated form below), off for a PID-held one (its loop
         form is opt-in: a touch of 12 of a board's 16 taxels gives the other 4 a false
         rise, one of all 16 is taken for the room). A PID-held heater's board
@@ -915,7 +915,7 @@ class OnsetDetector:
         gust_depth: float | None = None,
         gust_rise: float = GUST_RISE,
         boards: np.ndarray | None = None,
-        common_mode: bool | None = None,
+        common_mode: bool | str | None = None,
     ) -> None:
         from skin.models.sensors import load_sensor
 
@@ -1089,7 +1089,10 @@ class OnsetDetector:
         # leave it stale); another wiring is another array (``detector.board = ...``)
         self.board.flags.writeable = False
         # None ("auto"): on where the heater is not PID-held (the gated form, `common_auto`)
-        self.common_mode = common_auto(sensor) if common_mode is None else bool(common_mode)
+        if not (common_mode is None or common_mode == "auto" or isinstance(common_mode, bool)):
+            raise TypeError(f"common_mode: True, False, None or \"auto\", got {common_mode!r}")
+        self.common_mode = (common_auto(sensor) if common_mode is None or common_mode == "auto"
+                            else common_mode)
         # `_groups`' cache: the board array it was built for and its table (None: not built)
         self._groups_of: tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None] | None = None
         # a loop-held board's common mode (`_loop_common`): the median of its free taxels'

@@ -42,7 +42,7 @@ from skin.formats.layout import Layout
 from skin.frame import Frame
 from skin.stream.assembly import FrameAssembler, Samples
 from skin.stream.calibration import Calibration
-from skin.stream.onset import OnsetDetector
+from skin.stream.onset import OnsetDetector, common_auto
 from skin.stream.onset_refine import refine_span
 from skin.stream.tracking import (
     ContactTracker,
@@ -522,12 +522,12 @@ class Pipeline:
 
 def _detector_for(layout: Layout, noise: np.ndarray | None = None,
                   envelope_noise: bool | None = None,
-                  common_mode: bool | None = None) -> OnsetDetector:
+                  common_mode: bool | str | None = None) -> OnsetDetector:
     """Return an onset detector set by the boards' sensors (each taxel's noise: its board's).
 
     ``envelope_noise``: the detector's (None: its default); ``common_mode``: the detector's
-    board common mode (None: `skin.stream.onset.common_auto` of the first board's sensor;
-    on boards of `skin.stream.onset.COMMON_MIN` taxels or more).
+    board common mode (None or "auto": `skin.stream.onset.common_auto` of the boards' sensors,
+    a ValueError when they differ; on boards of `skin.stream.onset.COMMON_MIN` taxels or more).
     """
     from skin.models.sensors import SensorDescription
 
@@ -536,6 +536,14 @@ def _detector_for(layout: Layout, noise: np.ndarray | None = None,
     sigma = [sensors[t.board].delivered_noise(25.0 + sensors[t.board].heated_rise)
              for t in layout.taxels]
     knobs = {} if envelope_noise is None else {"envelope_noise": envelope_noise}
+    if common_mode is None or common_mode == "auto":
+        kinds = {common_auto(sensors[b]) for b in {t.board for t in layout.taxels}}
+        if len(kinds) > 1:  # one detector, one sensor: "auto" cannot hold for both kinds
+            raise ValueError(
+                "common_mode: the layout mixes boards whose heater is PID-held with "
+                "constant-power ones: "
+                "the board common mode's \"auto\" cannot serve both; set common_mode true or "
+                "false (skin file [skin] common_mode, --[no-]common-mode)")
     return OnsetDetector(len(layout), sensor=first, sigma=sigma if noise is None else noise,
                          boards=[t.board for t in layout.taxels], common_mode=common_mode,
                          **knobs)
