@@ -862,8 +862,9 @@ def miss_margins(stream: object, sensor: object, which: Sequence[int],
 
     The detector (as evaluate-onset sets it for the sensor, but without the board common
     mode: the traced columns are a subset of the board, no board themselves; a miss the
-    common mode caused or delayed is measured here without it) is traced (`skin.stream.onset.OnsetDetector.trace` with ``margins``) over the columns of
-    the contacts ``which``, from the stream's start to the end of the last one's window.
+    common mode caused or delayed is measured here without it) is traced
+    (`skin.stream.onset.OnsetDetector.trace` with ``margins``) over the columns of the
+    contacts ``which``, from the stream's start to the end of the last one's window.
 
     Returns
     -------
