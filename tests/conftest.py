@@ -88,3 +88,25 @@ def firmware_built(firmware_make) -> None:
         proc = firmware_make(["-C", str(FIRMWARE_DIR), target])
         assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
     assert DEFAULT_HARNESS.is_file() and firmware_elf("uno").is_file()
+
+
+@pytest.fixture
+def node_bus(request):
+    """A python-can virtual bus and the `can://virtual/...` driver listening on it."""
+    can = pytest.importorskip("can")
+    from skin import drivers
+
+    channel = f"skin-test-{request.node.name}"
+    bus = can.Bus(interface="virtual", channel=channel)
+    driver = drivers.open(f"can://virtual/{channel}")
+    yield bus, driver
+    driver.close()
+    bus.shutdown()
+
+
+def send_can(bus, frames) -> None:
+    """Put ``(identifier, data)`` frames on a python-can bus."""
+    import can
+
+    for ident, data in frames:
+        bus.send(can.Message(arbitration_id=ident, data=data, is_extended_id=False))

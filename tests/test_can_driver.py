@@ -17,20 +17,7 @@ from skin.errors import DeviceError, ProtocolError
 
 can = pytest.importorskip("can")
 
-
-@pytest.fixture
-def node_bus(request):
-    channel = f"skin-test-{request.node.name}"
-    bus = can.Bus(interface="virtual", channel=channel)
-    driver = drivers.open(f"can://virtual/{channel}")
-    yield bus, driver
-    driver.close()
-    bus.shutdown()
-
-
-def send(bus, frames):
-    for ident, data in frames:
-        bus.send(can.Message(arbitration_id=ident, data=data, is_extended_id=False))
+from conftest import send_can  # noqa: E402
 
 
 def sample(node, seq, n=10):
@@ -41,7 +28,7 @@ def sample(node, seq, n=10):
 def test_a_nodes_samples_come_out_as_frames(node_bus):
     bus, driver = node_bus
     for seq in range(5):
-        send(bus, sample(3, seq)[1])
+        send_can(bus, sample(3, seq)[1])
     frames = [driver.recv(timeout=1.0) for _ in range(5)]
     assert [f.seq for f in frames] == list(range(5))
     counts, _ = sample(3, 4)
@@ -53,12 +40,12 @@ def test_a_nodes_samples_come_out_as_frames(node_bus):
 
 def test_a_lost_data_frame_drops_its_sample_and_garbage_is_counted(node_bus):
     bus, driver = node_bus
-    send(bus, sample(1, 0)[1])
+    send_can(bus, sample(1, 0)[1])
     lossy = sample(1, 1)[1]
-    send(bus, lossy[:2] + lossy[3:])  # DATA group 1 lost
+    send_can(bus, lossy[:2] + lossy[3:])  # DATA group 1 lost
     bus.send(can.Message(arbitration_id=0x1ABCDEF, data=b"\xff" * 8, is_extended_id=True))
-    send(bus, [(0x0FF, b"")])  # a SYNC too short to hold anything
-    send(bus, sample(1, 2)[1])
+    send_can(bus, [(0x0FF, b"")])  # a SYNC too short to hold anything
+    send_can(bus, sample(1, 2)[1])
     frames = []
     while (f := driver.recv(timeout=0.3)) is not None:
         frames.append(f)
@@ -71,19 +58,19 @@ def test_request_gets_the_nodes_reply_and_keeps_the_frames(node_bus):
     sent = driver.send(Command(MsgType.IDENTIFY), node=2)
     msg = bus.recv(timeout=1.0)  # the node sees the command
     assert msg.arbitration_id == (1 << 8 | 2 << 5) and msg.data[1] == MsgType.IDENTIFY
-    send(bus, sample(2, 0)[1])
+    send_can(bus, sample(2, 0)[1])
     identity = Identity(token=sent.token + 1, fw_major=1, fw_minor=0, fw_patch=0, board_id=2,
                         mcu=1, transport=1, options=3, taxels=10, adc_bits=12, oversampling=4,
                         rate_hz=200, max_rate_hz=217, layout_hash=0, baud_div=1000)
-    send(bus, can_reply_frames(2, identity.body()))  # answers the request sent next
+    send_can(bus, can_reply_frames(2, identity.body()))  # answers the request sent next
     reply = driver.request(Command(MsgType.IDENTIFY), node=2, timeout=2.0)
     assert reply == identity
     assert driver.recv(timeout=0.5).seq == 0  # the sample that came first was kept
     refusal = ErrorReply(token=sent.token + 2, command=MsgType.SET_RATE, code=6, detail=0)
-    send(bus, can_reply_frames(2, refusal.body()))
+    send_can(bus, can_reply_frames(2, refusal.body()))
     with pytest.raises(ProtocolError, match="ARGUMENT"):
         driver.request(Command(MsgType.SET_RATE, rate_hz=9999), node=2, timeout=2.0)
-    send(bus, can_reply_frames(2, Ack(token=sent.token + 3, command=MsgType.START).body()))
+    send_can(bus, can_reply_frames(2, Ack(token=sent.token + 3, command=MsgType.START).body()))
     assert isinstance(driver.request(Command(MsgType.START), node=2, timeout=2.0), Ack)
     with pytest.raises(ProtocolError, match="no reply"):
         driver.request(Command(MsgType.STOP), node=2, timeout=0.2)

@@ -7,10 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from skin import drivers
 from skin.drivers.protocol import CanReassembler, CanType, can_sample_frames
 
 can = pytest.importorskip("can")
+
+from conftest import send_can  # noqa: E402
 
 N = 10  # 3 groups: 4, 4, 2 taxels
 
@@ -27,21 +28,6 @@ def frames_of(seq: int, node: int = 2, force: bool = True) -> list:
                              force=force_of(seq) if force else None)
 
 
-@pytest.fixture
-def node_bus(request):
-    channel = f"skin-test-{request.node.name}"
-    bus = can.Bus(interface="virtual", channel=channel)
-    driver = drivers.open(f"can://virtual/{channel}")
-    yield bus, driver
-    driver.close()
-    bus.shutdown()
-
-
-def send(bus, frames):
-    for ident, data in frames:
-        bus.send(can.Message(arbitration_id=ident, data=data, is_extended_id=False))
-
-
 def test_force_frames_come_between_duty_and_status():
     kinds = [ident >> 8 for ident, _ in frames_of(7)]
     assert kinds == [CanType.SYNC, *[CanType.DATA] * 3, CanType.DUTY, *[CanType.FORCE] * 3,
@@ -56,18 +42,18 @@ def test_force_frames_come_between_duty_and_status():
 
 def test_the_driver_attaches_force_and_counts_lost_orphan_and_damaged_frames(node_bus):
     bus, driver = node_bus
-    send(bus, frames_of(0))
-    send(bus, frames_of(1, force=False))  # every FORCE frame of sample 1 lost
+    send_can(bus, frames_of(0))
+    send_can(bus, frames_of(1, force=False))  # every FORCE frame of sample 1 lost
     lossy = frames_of(2)
-    send(bus, [f for f in lossy if f[0] != (CanType.FORCE << 8 | 2 << 5 | 1)])  # group 1 lost
+    send_can(bus, [f for f in lossy if f[0] != (CanType.FORCE << 8 | 2 << 5 | 1)])  # group 1 lost
     orphan = frames_of(3)
-    send(bus, orphan[1:])  # its SYNC lost: the sample is dropped, its FORCE frames orphans
+    send_can(bus, orphan[1:])  # its SYNC lost: the sample is dropped, its FORCE frames orphans
     damaged = frames_of(4)
     k = next(i for i, f in enumerate(damaged) if f[0] >> 8 == CanType.FORCE)
     damaged[k + 2] = (damaged[k + 2][0], damaged[k + 2][1][:2])  # group 2: 1 taxel of 2
-    send(bus, damaged)
-    send(bus, [(CanType.FORCE << 8 | 2 << 5 | 0, b"\x01\x02\x03")])  # odd length: not ours
-    send(bus, frames_of(5))
+    send_can(bus, damaged)
+    send_can(bus, [(CanType.FORCE << 8 | 2 << 5 | 0, b"\x01\x02\x03")])  # odd length: not ours
+    send_can(bus, frames_of(5))
     frames = [driver.recv(timeout=1.0) for _ in range(5)]
     assert [f.seq for f in frames] == [0, 1, 2, 4, 5]
     for f in (frames[0], frames[-1]):
@@ -87,7 +73,7 @@ def test_the_driver_attaches_force_and_counts_lost_orphan_and_damaged_frames(nod
 def test_a_node_without_force_is_unchanged(node_bus):
     bus, driver = node_bus
     for seq in range(3):
-        send(bus, frames_of(seq, node=4, force=False))
+        send_can(bus, frames_of(seq, node=4, force=False))
     frames = [driver.recv(timeout=1.0) for _ in range(3)]
     assert all(f.force is None for f in frames)
     s = driver.stats
