@@ -774,31 +774,25 @@ def main_pipeline(args: argparse.Namespace) -> int:
                                       progress)
             flat.append({"taxels": n, "noise": best[True], "flat": best[False],
                          "runs_each": 2, "noise_over_flat": ratio})
-    forced = []
-    if getattr(args, "compare_force", False):
+    switched: dict[str, list[dict]] = {}  # on / off of one knob, each size: its JSON key
+    for flag, knob, name, key in (("compare_common_mode", "common_mode", "common mode",
+                                   "common_mode_compare"),
+                                  ("compare_force", "force", "force channel", "force_compare")):
+        if not getattr(args, flag, False):
+            continue
         for n in sizes:
-            best, ratio = _alternated(run, n, args, budget, "force",
-                                      lambda on: f"force channel {'on' if on else 'off'}",
+            best, ratio = _alternated(run, n, args, budget, knob,
+                                      lambda on, name=name: f"{name} {'on' if on else 'off'}",
                                       progress)
-            forced.append({"taxels": n, "on": best[True], "off": best[False], "runs_each": 2,
-                           "on_over_off": ratio})
-    common = []
-    if args.compare_common_mode:
-        for n in sizes:
-            best, ratio = _alternated(run, n, args, budget, "common_mode",
-                                      lambda on: f"common mode {'on' if on else 'off'}",
-                                      progress)
-            common.append({"taxels": n, "on": best[True], "off": best[False], "runs_each": 2,
-                           "on_over_off": ratio})
+            switched.setdefault(key, []).append(
+                {"taxels": n, "on": best[True], "off": best[False], "runs_each": 2,
+                 "on_over_off": ratio})
     progress.done()
     doc = {"machine": bench.machine(), "block": args.block, "results": rows,
            "speedup": _speedups(rows, workers)}
     if flat:
         doc["envelope_compare"] = flat
-    if common:
-        doc["common_mode_compare"] = common
-    if forced:
-        doc["force_compare"] = forced
+    doc.update(switched)
     if args.json:
         print(json.dumps(doc))
         return 0
@@ -828,12 +822,10 @@ def main_pipeline(args: argparse.Namespace) -> int:
               f"{f['noise']['stages']['onset']}), the flat one's "
               f"{f['flat']['taxel_samples_per_s']} ({f['flat']['stages']['onset']}): "
               f"x{f['noise_over_flat']['chain']} chain, x{f['noise_over_flat']['onset']} onset")
-    for f in common:
-        print(f"\n{f['taxels']} taxels, one process, each one's faster onset stage of two runs "
-              f"(on, off, off, on), taxel-samples/s: board common mode on "
-              f"{f['on']['taxel_samples_per_s']} (onset stage {f['on']['stages']['onset']}), "
-              f"off {f['off']['taxel_samples_per_s']} ({f['off']['stages']['onset']}): "
-              f"x{f['on_over_off']['chain']} chain, x{f['on_over_off']['onset']} onset")
+    for key, name in (("common_mode_compare", "board common mode"),
+                      ("force_compare", "force channel")):
+        for f in switched.get(key, []):
+            _print_switched(f, name)
     for sp in doc["speedup"]:
         print(f"\n{sp['taxels']} taxels, samples in blocks of {args.block}: speed-up over "
               f"{workers[0]} worker{'s' if workers[0] > 1 else ''} (same run): "
@@ -846,6 +838,15 @@ def main_pipeline(args: argparse.Namespace) -> int:
                   f"x{paper['pipelined']}; 2 workers on 2 cores of their own: "
                   f"x{paper['two_cores']}")
     return 0
+
+
+def _print_switched(f: dict, name: str) -> None:
+    """Print one size's on / off comparison of a knob (`skin bench pipeline --compare-...`)."""
+    print(f"\n{f['taxels']} taxels, one process, each one's faster onset stage of two runs "
+          f"(on, off, off, on), taxel-samples/s: {name} on "
+          f"{f['on']['taxel_samples_per_s']} (onset stage {f['on']['stages']['onset']}), "
+          f"off {f['off']['taxel_samples_per_s']} ({f['off']['stages']['onset']}): "
+          f"x{f['on_over_off']['chain']} chain, x{f['on_over_off']['onset']} onset")
 
 
 def _speedups(rows: list[dict], workers: list[int]) -> list[dict]:
