@@ -350,7 +350,7 @@ def force_contacts(times: np.ndarray, force: np.ndarray,
     `FORCE_CONTACT_SHARE` of the strongest rise, staying over it `FORCE_CONTACT_HELD`, and
     ends where it stays under it as long. The onset is taken back to where the rise left
     the free level, along the line through the rise's samples between 10 noise levels and
-    half the contact's peak (`_force_onset`: a linear ramp is dated where it starts); a rise done
+    half the contact's peak (`force_onset`: a linear ramp is dated where it starts); a rise done
     within one sample (a switch) is dated midway between its last open and first closed
     sample (within half a sample). A NaN sample (no reading) counts as under the threshold,
     but for a run inside a contact that is shorter than `FORCE_CONTACT_HELD` or after which
@@ -401,7 +401,7 @@ def force_contacts(times: np.ndarray, force: np.ndarray,
     out = []
     for k, end in _held_runs(over, held):
         stop = end if end is not None else f.size
-        on = _force_onset(t, f, k, level, noise, float(np.nanmax(f[k:stop])))
+        on = force_onset(t, f, k, level, noise, float(np.nanmax(f[k:stop])))
         out.append((on, float(t[end]) if end is not None else math.inf))
     if weak is not None and threshold > level + FORCE_CONTACT_SNR * noise:
         # the contacts over the noise alone that the share of the strongest one left out
@@ -625,10 +625,10 @@ def span_noise(free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     f = np.asarray(free, dtype=float)
     srt = np.sort(f, axis=0)  # NaN last
     count = np.isfinite(f).sum(axis=0)
-    level = _sorted_quantile(srt, count, 0.5)
+    level = sorted_quantile(srt, count, 0.5)
     dev = np.sort(np.abs(f - level), axis=0)
-    mad = 1.4826 * _sorted_quantile(dev, count, 0.5)
-    upper = _sorted_quantile(srt, count, 0.8413) - level
+    mad = 1.4826 * sorted_quantile(dev, count, 0.5)
+    upper = sorted_quantile(srt, count, 0.8413) - level
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         steps = np.diff(srt, axis=0)
@@ -638,7 +638,7 @@ def span_noise(free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return level, np.where(np.isfinite(level), noise, np.nan)
 
 
-def _sorted_quantile(srt: np.ndarray, count: np.ndarray, q: float) -> np.ndarray:
+def sorted_quantile(srt: np.ndarray, count: np.ndarray, q: float) -> np.ndarray:
     """Each column's ``q`` quantile (linear, as numpy's) of its ``count`` sorted finite values.
 
     NaN where a column has none. Vectorised over the columns (numpy's nanpercentile loops).
@@ -654,7 +654,7 @@ def _sorted_quantile(srt: np.ndarray, count: np.ndarray, q: float) -> np.ndarray
     return np.where(count > 0, out, np.nan)
 
 
-def _force_onset(t: np.ndarray, f: np.ndarray, k: int, level: float, noise: float,
+def force_onset(t: np.ndarray, f: np.ndarray, k: int, level: float, noise: float,
                  top: float) -> float:
     """Where the rise through sample ``k`` (the first over the threshold) left ``level``.
 

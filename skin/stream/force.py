@@ -4,7 +4,7 @@ A taxel whose frames carry a force reading (`skin.frame.Frame.force`) may be dat
 contact begins where the force first exceeds its free level by `FORCE_CONTACT_SNR` noise
 levels and stays over that `FORCE_CONTACT_HELD`, and ends where it stays under it as long. The
 onset is the dating core of `skin.models.commission.force_contacts`
-(`skin.models.commission._force_onset`, shared): for a fast press, back along the rise to
+(`skin.models.commission.force_onset`, shared): for a fast press, back along the rise to
 where it left the free level; for a slow one (a rise longer than the held time) near where it
 crosses the threshold. It is never put before the ring's start nor the taxel's last release.
 
@@ -48,8 +48,8 @@ from skin.models.commission import (
     FORCE_CONTACT_SNR,
     FORCE_NOISE_SPAN,
     FORCE_STUCK,
-    _force_onset,
-    _sorted_quantile,
+    force_onset,
+    sorted_quantile,
     span_noise,
 )
 from skin.stream.onset import OnsetEvent
@@ -351,7 +351,7 @@ class ForceOnsets:
         t, f = self._t[idx], self._f[idx, k]
         j = max(0, start - lo)
         top = float(np.nanmax(f[j:]))
-        onset = _force_onset(t, f, j, float(self.level[k]), float(self.noise[k]), top)
+        onset = force_onset(t, f, j, float(self.level[k]), float(self.noise[k]), top)
         # never before the ring's start nor the taxel's last release (a drifting level)
         onset = max(onset, float(np.nanmin(t)), float(self._released[k]))
         self._on_since[k] = onset
@@ -434,8 +434,8 @@ class ForceOnsets:
         self._noisy[good] |= noise[quiet] > 0
         self._span_count += 1
         count = np.isfinite(self._spans[:, 0]).sum(axis=0)  # a taxel without one yet: NaN
-        lv = _sorted_quantile(np.sort(self._spans[:, 0], axis=0), count, 0.5)
-        nz = _sorted_quantile(np.sort(self._spans[:, 1], axis=0), count, 0.5)
+        lv = sorted_quantile(np.sort(self._spans[:, 0], axis=0), count, 0.5)
+        nz = sorted_quantile(np.sort(self._spans[:, 1], axis=0), count, 0.5)
         fresh = np.isfinite(lv) & ~np.isfinite(self.known_from)
         self.known_from[fresh] = end
         self.level = np.where(np.isfinite(lv), lv, self.level)
