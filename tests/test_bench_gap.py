@@ -14,7 +14,7 @@ from skin.bench.ceiling import (
     known_nuisance_ceiling,
     told_less_ceiling,
 )
-from skin.bench.gap import binomial_se, clustered_se, paired_se
+from skin.bench.gap import binomial_se, clustered_se, paired_se, pooled_margins
 from skin.models.materials import load_materials
 from skin.models.physics import SensorConstants, contact_trace
 from skin.models.timescale import warp_to_nominal
@@ -245,3 +245,35 @@ def test_bench_gap_reach_only_with_the_range_prior_prints_reach_minus_target():
     assert len(cells) == len(head) - 1  # "dur s" is one column
     assert float(cells[head.index("reach-target") - 1]) == pytest.approx(row["margin"], abs=6e-4)
     assert cells[-1] == ("yes" if row["ruled_out_commissioned"] else "no")
+
+
+def _row(seed: int, duration: float, margin: float, se: float, default: float = 0.3,
+         target: float = 0.32) -> dict:
+    return {"seed": seed, "duration": duration, "margin": margin, "margin_se": se,
+            "margin_commissioned": margin + 0.1, "margin_commissioned_se": se,
+            "default": default, "target": target, "met": default >= target}
+
+
+def test_pooled_margins_are_the_seeds_mean_with_the_larger_of_two_errors():
+    from scipy.stats import t
+
+    margins = [-0.03, -0.01, -0.02, -0.04]
+    rows = [_row(s, 0.25, m, 0.01) for s, m in enumerate(margins)]
+    rows += [_row(9, 0.5, -0.2, 0.01)]  # one seed only: not pooled
+    (p,) = pooled_margins(rows)
+    assert p["duration"] == 0.25 and p["seeds"] == 4
+    assert p["margin"] == pytest.approx(np.mean(margins), abs=1e-4)
+    assert p["se_within"] == pytest.approx(np.sqrt(4 * 0.01 ** 2) / 4, abs=1e-4)
+    between = np.std(margins, ddof=1) / 2
+    assert p["se_between"] == pytest.approx(between, abs=1e-4)
+    assert p["t"] == pytest.approx(t.ppf(0.975, 3), abs=1e-3)
+    # -0.025 against t(3) = 3.18 x max(0.005, 0.0065): -0.0205 -> ruled out
+    assert p["ruled_out"] is True
+    assert p["margin_commissioned"] == pytest.approx(0.075, abs=1e-4)
+    assert p["ruled_out_commissioned"] is False
+    assert p["default_minus_target"] == pytest.approx(-0.02, abs=1e-4) and p["met_seeds"] == 0
+    # the same mean with a spread between seeds twice as large is no longer ruled out
+    wide = [_row(s, 0.25, -0.025 + 2 * (m + 0.025), 0.01) for s, m in enumerate(margins)]
+    (q,) = pooled_margins(wide)
+    assert q["margin"] == pytest.approx(-0.025, abs=1e-4)
+    assert q["se_between"] == pytest.approx(2 * between, abs=1e-4) and q["ruled_out"] is False

@@ -42,7 +42,13 @@ def main(args: argparse.Namespace) -> int:
     import time
 
     from skin.bench import machine
-    from skin.bench.gap import ALL_UNKNOWN, COMMISSIONED_UNKNOWN, TOLD_LESS, gap_table
+    from skin.bench.gap import (
+        ALL_UNKNOWN,
+        COMMISSIONED_UNKNOWN,
+        TOLD_LESS,
+        gap_table,
+        pooled_margins,
+    )
     from skin.errors import SkinError
     from skin.progress import Progress
 
@@ -66,13 +72,14 @@ def main(args: argparse.Namespace) -> int:
                      taxel_prior=args.taxel_prior)
     wall = time.monotonic() - started
     progress.done()
+    pooled = pooled_margins(rows)
     if args.json:
         print(json.dumps({"machine": machine(), "trials": args.trials, "cv": args.cv,
                           "reference_trials": args.reference_trials,
                           "points": args.points, "taxel_prior": args.taxel_prior,
                           "reachable_unknown": list(ALL_UNKNOWN),
                           "reachable_commissioned_unknown": list(COMMISSIONED_UNKNOWN),
-                          "wall_s": round(wall, 1), "rows": rows}))
+                          "wall_s": round(wall, 1), "rows": rows, "pooled": pooled}))
         return 0
     print(f"accuracy, {args.cv}-fold grouped, {args.trials} trials per material, 11 "
           f"materials, one heated channel; commissioned: {args.reference_trials} reference "
@@ -100,6 +107,14 @@ def main(args: argparse.Namespace) -> int:
           f"taxel, the contacts of one taxel are not independent); out: reach - target below "
           f"-{t:.2f} times it (Student's t, taxels - 1 degrees of freedom); out-c: the same "
           f"with reach-c; one accuracy's binomial error <= {worst:.3f}")
+    for p in pooled:
+        print(f"pooled over {p['seeds']} seeds, {p['duration']:g} s: reach - target "
+              f"{p['margin']:+.3f} +- {max(p['se_within'], p['se_between']):.3f} (within "
+              f"seeds {p['se_within']:.3f}, between {p['se_between']:.3f}), "
+              f"{'ruled out' if p['ruled_out'] else 'not ruled out'} at t({p['seeds'] - 1}) "
+              f"= {p['t']:.2f}; reach-c - target {p['margin_commissioned']:+.3f} +- "
+              f"{p['se_commissioned']:.3f}; default - target {p['default_minus_target']:+.3f}"
+              f" +- {p['default_se']:.3f}, met on {p['met_seeds']} of {p['seeds']} seeds")
     if any(r["told_less"] for r in rows):
         print("ceiling told less (untold nuisances integrated over their ranges):")
     names = ["+".join(u) for u in TOLD_LESS]
