@@ -46,3 +46,22 @@ def test_the_boards_that_fit_compile(tmp_path, mcu, defs):
 def test_a_board_the_mcu_cannot_read_is_refused(tmp_path, mcu, defs, message):
     proc = compile_config(tmp_path, mcu, *defs)
     assert proc.returncode != 0 and "#error" in proc.stderr and message in proc.stderr
+
+
+VARIANTS = Path("/usr/share/arduino/hardware/arduino/avr/variants")  # Debian's arduino-core-avr
+
+
+@pytest.mark.skipif(not (VARIANTS / "standard").is_dir(), reason="the Arduino AVR core is absent")
+@pytest.mark.parametrize(("variant", "force", "fits"), [
+    # 4 direct taxels on A0-A3, ambient on A4, force from A5: an Uno brings out A0-A5 only
+    ("standard", 1, True), ("standard", 2, False),
+    # a Nano (the 328P's TQFP package) also brings out A6 and A7
+    ("eightanaloginputs", 3, True), ("eightanaloginputs", 4, False),
+])
+def test_an_arduino_build_checks_the_inputs_its_board_brings_out(tmp_path, variant, force, fits):
+    proc = compile_config(tmp_path, "atmega328p", "-DARDUINO=10807", f"-I{VARIANTS / variant}",
+                          "-DSKIN_TAXELS=4", "-DSKIN_MUXES=0", f"-DSKIN_FORCE_INPUTS={force}")
+    if fits:
+        assert proc.returncode == 0, proc.stderr
+    else:
+        assert proc.returncode != 0 and "analog inputs" in proc.stderr, proc.stderr

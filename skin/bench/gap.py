@@ -244,15 +244,8 @@ def pooled_margins(rows: Sequence[dict]) -> list[dict]:
         if n < 2:
             continue
         tq = float(t.ppf(0.975, n - 1))
-
-        def pool(key: str, se_key: str) -> tuple[float, float, float]:
-            m = np.array([r[key] for r in of], dtype=float)
-            within = float(np.sqrt(np.sum(np.square([r[se_key] for r in of]))) / n)
-            between = float(np.std(m, ddof=1) / np.sqrt(n))
-            return float(m.mean()), within, between
-
-        m, within, between = pool("margin", "margin_se")
-        mc, within_c, between_c = pool("margin_commissioned", "margin_commissioned_se")
+        m, within, between = _pool(of, "margin", "margin_se")
+        mc, within_c, between_c = _pool(of, "margin_commissioned", "margin_commissioned_se")
         gaps = np.array([r["default"] - r["target"] for r in of], dtype=float)
         se, se_c = max(within, between), max(within_c, between_c)
         out.append({
@@ -266,3 +259,10 @@ def pooled_margins(rows: Sequence[dict]) -> list[dict]:
             "met_seeds": int(sum(bool(r["met"]) for r in of))})
     return out
 
+
+def _pool(rows: Sequence[dict], key: str, se_key: str) -> tuple[float, float, float]:
+    """Return the mean of ``key`` over ``rows``, its within-row and its between-row error."""
+    values = np.array([r[key] for r in rows], dtype=float)
+    n = values.size
+    within = float(np.sqrt(np.sum(np.square([r[se_key] for r in rows]))) / n)
+    return float(values.mean()), within, float(np.std(values, ddof=1) / np.sqrt(n))

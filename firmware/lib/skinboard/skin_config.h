@@ -87,14 +87,23 @@
 #endif
 
 /* every ADC channel the board reads (taxel multiplexers or inputs, ambient, force) must be an
- * analog input of the MCU: on the 328P channel 8 is the internal temperature sensor */
-#if defined(__AVR_ATmega2560__) || defined(__AVR_ATmega1280__)
+ * analog input the board brings out: the Arduino variant's NUM_ANALOG_INPUTS in an Arduino build
+ * (an Uno's "standard" variant has A0-A5, a Nano's A0-A7), else the MCU's (the 328P's 8, its TQFP
+ * package; channel 8 is its internal temperature sensor) */
+#if defined(ARDUINO) && defined(__has_include)
+#if __has_include(<pins_arduino.h>)
+#include <pins_arduino.h>
+#endif
+#endif
+#if defined(NUM_ANALOG_INPUTS)
+#define SKIN_ADC_INPUTS NUM_ANALOG_INPUTS
+#elif defined(__AVR_ATmega2560__) || defined(__AVR_ATmega1280__)
 #define SKIN_ADC_INPUTS 16
 #elif defined(__AVR_ATmega328P__) || defined(__AVR_ATmega328__) || defined(__AVR_ATmega168__)
 #define SKIN_ADC_INPUTS 8
 #endif
 #if defined(SKIN_ADC_INPUTS) && SKIN_AMBIENT_CHANNEL + SKIN_FORCE_CHANNELS >= SKIN_ADC_INPUTS
-#error "taxel, ambient and force channels exceed the MCU's analog inputs (SKIN_AMBIENT_CHANNEL + SKIN_FORCE_CHANNELS)"
+#error "taxel, ambient and force channels exceed the board's analog inputs (SKIN_AMBIENT_CHANNEL + SKIN_FORCE_CHANNELS >= SKIN_ADC_INPUTS)"
 #endif
 #if SKIN_ADC_PRESCALER != 2 && SKIN_ADC_PRESCALER != 4 && SKIN_ADC_PRESCALER != 8 && \
     SKIN_ADC_PRESCALER != 16 && SKIN_ADC_PRESCALER != 32 && SKIN_ADC_PRESCALER != 64 && \
