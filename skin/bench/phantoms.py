@@ -25,30 +25,36 @@ PHANTOM_CLEAR = 1.0
 
 def place(scene: Scene, n: int, seed: int = 0, duration: float | None = None,
           ) -> list[Phantom]:
-    """Return ``n`` one-taxel phantom presses no touch of ``scene`` comes near.
+    """Return ``n`` phantom presses of two neighbouring taxels no touch of ``scene`` comes near.
 
-    Each is on a taxel drawn at random, starting at a time drawn at random within the scene
-    (from 1 s to its end, or ``duration`` when shorter, less 2 s), such that no touch of
-    that taxel lies within `PHANTOM_CLEAR` of it and no other phantom overlaps it; seeded,
+    Each is on a taxel drawn at random and one of its neighbours (the layout's, at random;
+    issue 16's glitch pressed taxels 50 and 51: two taxels pin an object's temperature, and a
+    flat reading was named cardboard at p = 1.00), starting at a time drawn at random within
+    the scene (from 1 s to its end, or ``duration`` when shorter, less 2 s), such that no touch of
+    either taxel lies within `PHANTOM_CLEAR` of it and no other phantom overlaps it; seeded,
     so one file serves every run seed (the noise differs, the glitches do not). A phantom
     may press a taxel beside a touch while it lasts (it then joins that contact).
     """
     rng = np.random.default_rng([seed, 16])
     last = scene.duration if duration is None else min(duration, scene.duration)
     ids = [int(t) for t in scene.layout.ids]
+    near = scene.layout.neighbour_lists()
     out: list[Phantom] = []
     for _ in range(1000 * max(n, 1)):
         if len(out) == n:
             break
-        taxel = ids[int(rng.integers(len(ids)))]
+        k = int(rng.integers(len(ids)))
+        if not near[k].size:
+            continue
+        pair = (ids[k], ids[int(rng.choice(near[k]))])
         start = round(float(rng.uniform(1.0, last - 2.0)), 2)
         end = start + PHANTOM_SECONDS
-        near = [t for t in scene.touches if taxel in t.taxels
-                and t.start < end + PHANTOM_CLEAR and t.end > start - PHANTOM_CLEAR]
+        touched = [t for t in scene.touches if set(pair) & set(t.taxels)
+                   and t.start < end + PHANTOM_CLEAR and t.end > start - PHANTOM_CLEAR]
         overlap = [p for p in out if p.start < end + PHANTOM_CLEAR
                    and p.end > start - PHANTOM_CLEAR]
-        if not near and not overlap:
-            out.append(Phantom((taxel,), start, PHANTOM_SECONDS, PHANTOM_FORCE))
+        if not touched and not overlap:
+            out.append(Phantom(pair, start, PHANTOM_SECONDS, PHANTOM_FORCE))
     if len(out) < n:
         raise ValueError(f"{scene.source}: room for only {len(out)} of {n} phantom presses")
     return out

@@ -44,7 +44,8 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
                        help="answer \"unknown\" for force-dated contacts whose temperature "
                             "shows no contact (skin run --response-check; default on)")
     scene.add_argument("--phantoms", type=int, default=0, metavar="N",
-                       help="add N force glitches (2 N for 1 s on a taxel no touch comes near, "
+                       help="add N force glitches (2 N for 1 s on two neighbouring taxels no touch "
+                            "comes near, "
                             "nothing thermal behind them: skin.bench.phantoms) to the scene; "
                             "needs a force channel (--force-channel)")
     scene.add_argument("--json", action="store_true", help="print one JSON document")
@@ -178,7 +179,8 @@ def main(args: argparse.Namespace) -> int:
           + ", ".join(f"{k}: {n}" for k, n in t["runs_material_at_least"].items()))
     ph = t["phantoms"]
     if ph["phantoms"]:
-        print(f"phantom presses (force glitches): {ph['phantoms']}, contacts they started "
+        print(f"phantom presses (force glitches of two taxels): {ph['phantoms']}, contacts "
+              f"they started "
               f"{ph['contacts']}: unknown {ph['unknown']} (no thermal response "
               f"{ph['no_response']}), named {ph['named']}")
     print(f"classify stage: {t['classify_ms_per_contact']} ms per contact")

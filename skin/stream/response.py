@@ -115,13 +115,29 @@ def free_columns(tau: np.ndarray, relax: float) -> np.ndarray:
     return u[:, s > 1e-9 * s[0]]
 
 
+#: The responses are computed on whole samples from the onset, in blocks of this many, and
+#: kept per sensor (a contact's window is a slice of them: no filter runs per contact).
+BLOCK = 256
+
+
 @functools.lru_cache(maxsize=16)
-def _grid(effusivities: tuple[float, ...], h_points: int) -> tuple[np.ndarray, np.ndarray]:
+def _basis(sensor: object, effusivities: tuple[float, ...], h_points: int, lo: int, hi: int,
+           ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """`skin.models.sensors.contact_basis` at samples ``lo`` .. ``hi`` from the onset.
+
+    (materials x conductances, samples) each.
+    """
     from skin.models.joint import CONDUCTANCE_RANGE
+    from skin.models.sensors import contact_basis
 
     e = np.asarray(effusivities, dtype=float)[:, None]
     h = np.geomspace(*CONDUCTANCE_RANGE, h_points)[None, :]
-    return e, h
+    lags = np.arange(lo, hi + 1) / float(sensor.sample_rate)
+    p, q, a = contact_basis(lags, e, h, sensor)
+    if a is not None:
+        a = np.broadcast_to(a, p.shape)
+    return tuple(None if x is None else np.ascontiguousarray(x.reshape(-1, lags.size))
+                 for x in (p, q, a))
 
 
 def templates(tau: np.ndarray, sensor: object, effusivities: Sequence[float],
@@ -132,17 +148,19 @@ def templates(tau: np.ndarray, sensor: object, effusivities: Sequence[float],
     ``(T_obj - T0) P + (T_amb - T0) Q + A`` (`skin.models.sensors.contact_basis`) for a taxel
     at ``t0`` in a room at ``ambient``: ``P`` scales with the object's temperature (free),
     the heater's part ``(T_amb - T0) Q + A`` is known (None for a heater that has none); 0
-    before the onset but for a non-causal smoothing's spread.
+    before the onset but for a non-causal smoothing's spread. ``tau`` is read at the nearest
+    whole sample of the sensor's rate (at most half a sample off: the force's onset need not
+    fall on one), from responses kept per sensor (`BLOCK`).
     """
-    from skin.models.sensors import contact_basis
-
-    e, h = _grid(tuple(float(v) for v in effusivities), h_points)
-    p, q, a = contact_basis(tau, e, h, sensor)
-    known = None if q is None else (ambient - t0) * q
+    k = np.rint(np.asarray(tau, dtype=float) * float(sensor.sample_rate)).astype(int)
+    lo = int(np.floor(k.min() / BLOCK)) * BLOCK
+    hi = int(np.ceil((k.max() + 1) / BLOCK)) * BLOCK
+    p, q, a = _basis(sensor, tuple(float(v) for v in effusivities), h_points, lo, hi)
+    at = k - lo
+    known = None if q is None else (ambient - t0) * q[:, at]
     if a is not None:
-        a = np.broadcast_to(a, p.shape)
-        known = a if known is None else known + a
-    return p.reshape(-1, tau.size), None if known is None else known.reshape(-1, tau.size)
+        known = a[:, at] if known is None else known + a[:, at]
+    return p[:, at], known
 
 
 def chi2_gains(tau: np.ndarray, y: np.ndarray, sigma: float, relax: float,
