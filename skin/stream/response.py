@@ -42,9 +42,9 @@ from scipy.stats import f as f_dist
 #: How many standard errors (two-sided) a contact's fitted response must stand clear of none.
 RESPONSE_SIGMAS = 5.0
 #: Within a contact that shows a response, a force-dated taxel is left out of the
-#: classification only when its own response stays under this many standard errors (a
-#: glitch beside a real touch): the contact's response makes a real contact of it likely, so
-#: a weak taxel of a real touch (low-cost, pine, 1.5 s: 4.8 sigma) is kept.
+#: classification only when its own response stays under this many standard errors and its
+#: samples reject the response the contact's object predicts for it by as many (a glitch
+#: beside a real touch); a weak taxel of a real touch is kept.
 LEAVE_OUT_SIGMAS = 3.0
 #: Contact conductances tried per material (log-spaced over the pipeline's range).
 H_POINTS = 4
@@ -64,9 +64,9 @@ class ResponseVerdict:
     taxels : int
         Taxels tested (those with samples enough on both sides of the onset).
     silent : tuple of int
-        Indices (into the members given) of the tested taxels whose own best gain stays under
-        the one-taxel threshold at `LEAVE_OUT_SIGMAS`: no response of their own (a glitch
-        beside a real touch).
+        Indices (into the members given) of the tested taxels with no response of their own
+        whose samples reject the response the contact's object would give them (`_silent`:
+        a glitch beside a real touch).
     gains : tuple of (int, float)
         Each tested taxel's index and its own best chi-square gain.
     """
@@ -163,9 +163,23 @@ def templates(tau: np.ndarray, sensor: object, effusivities: Sequence[float],
     return p[:, at], known
 
 
-def chi2_gains(tau: np.ndarray, y: np.ndarray, sigma: float, relax: float,
-               shapes: np.ndarray, known: np.ndarray | None = None) -> np.ndarray:
-    """Each grid point's chi-square gain over the no-contact model on one taxel's samples, (g,).
+@dataclass(frozen=True)
+class _Fit:
+    """One taxel's samples against the contact model's grid (`fit_taxel`)."""
+
+    gain: np.ndarray  # (g,) chi-square gain over the free model
+    free: np.ndarray  # (g, n) each P less what the free trajectory makes
+    known: np.ndarray | None  # (g, n) the heater's known part, likewise
+    resid: np.ndarray  # (n,) the samples less the free trajectory's fit
+    norm2: np.ndarray  # (g,) |free|^2
+    proj: np.ndarray  # (g,) free . (resid - known)
+    sigma: float
+    t0: float
+
+
+def fit_taxel(tau: np.ndarray, y: np.ndarray, sigma: float, relax: float, t0: float,
+              shapes: np.ndarray, known: np.ndarray | None = None) -> _Fit:
+    """Fit one taxel's samples with the free model and with each grid point's contact model.
 
     The contact model adds ``c shapes[g] + known[g]`` (``c`` free) to the free trajectory;
     ``sigma`` is the white-equivalent noise per sample, K. A gain may be negative (the known
@@ -179,6 +193,7 @@ def chi2_gains(tau: np.ndarray, y: np.ndarray, sigma: float, relax: float,
     resid = off(y[None, :])[0]
     free = off(shapes)
     norm2 = np.einsum("gn,gn->g", free, free)
+    k = None
     if known is None:
         rest, drop = resid[None, :], 0.0
     else:
@@ -188,7 +203,16 @@ def chi2_gains(tau: np.ndarray, y: np.ndarray, sigma: float, relax: float,
     proj = np.einsum("gn,gn->g", free, np.broadcast_to(rest, free.shape))
     with np.errstate(divide="ignore", invalid="ignore"):
         gain = np.where(norm2 > 0.0, proj**2 / norm2, 0.0) - drop
-    return gain / sigma**2
+    return _Fit(gain / sigma**2, free, k, resid, norm2, proj, sigma, t0)
+
+
+def chi2_gains(tau: np.ndarray, y: np.ndarray, sigma: float, relax: float,
+               shapes: np.ndarray, known: np.ndarray | None = None) -> np.ndarray:
+    """Each grid point's chi-square gain over the no-contact model on one taxel's samples, (g,).
+
+    `fit_taxel`'s ``gain`` (``t0`` plays no part in it).
+    """
+    return fit_taxel(tau, y, sigma, relax, 0.0, shapes, known).gain
 
 
 #: Fewest samples before the onset from which a taxel's noise is measured (else the detector's).
@@ -249,7 +273,7 @@ def check_contact(members: Sequence[object], refined: Sequence[tuple[float, floa
     sigmas : float
         Two-sided tail of the test, in normal deviates.
     """
-    total, tested, dofs, own = None, 0, [], []
+    total, tested, dofs, fits = None, 0, [], []
     for i, (m, (onset, initial, end), sensor, s) in enumerate(zip(members, refined, sensors,
                                                                    sigma, strict=True)):
         ok = (np.isfinite(m.temperature) & (m.time <= min(end, onset + window)))
@@ -264,15 +288,46 @@ def check_contact(members: Sequence[object], refined: Sequence[tuple[float, floa
                 continue
             noise = (float(s), 0)
         t0 = float(initial) if math.isfinite(initial) else float(y[tau <= 0][-1])
-        gain = chi2_gains(tau, y, noise[0], relax,
-                          *templates(tau, sensor, effusivities, ambient, t0))
-        total = gain if total is None else total + gain
+        fit = fit_taxel(tau, y, noise[0], relax, t0,
+                        *templates(tau, sensor, effusivities, ambient, t0))
+        total = fit.gain if total is None else total + fit.gain
         tested += 1
         dofs.append(noise[1])
-        own.append((i, float(gain.max()), noise[1]))
+        fits.append((i, fit, noise[1]))
     if total is None:
         return ResponseVerdict(0.0, 0.0, 0)
-    silent = tuple(i for i, g, dof in own
-                   if g <= threshold(1, min(sigmas, LEAVE_OUT_SIGMAS), dof))
     return ResponseVerdict(float(total.max()), threshold(tested, sigmas, min(dofs)), tested,
-                           silent, tuple((i, g) for i, g, _ in own))
+                           _silent(fits, sigmas),
+                           tuple((i, float(f.gain.max())) for i, f, _ in fits))
+
+
+def _silent(fits: list[tuple[int, _Fit, int]], sigmas: float) -> tuple[int, ...]:
+    """Return the taxels whose samples contradict the contact's object (glitches beside it).
+
+    At each grid point (material, conductance), each taxel's fitted amplitude is an estimate
+    of the object's temperature less its own starting one, with a standard error; the taxels
+    that show a response of their own (past `LEAVE_OUT_SIGMAS`) give the object's temperature
+    (precision-weighted). A taxel without one of its own is silent when, at every grid point,
+    its estimate differs from that by more than `LEAVE_OUT_SIGMAS` of the two errors
+    together: the response the object would give it should have shown and did not. Where
+    that response is too small to tell from none at some grid point (a low-contrast touch:
+    skin on a taxel near its temperature, a slow sensor), it is kept.
+    """
+    bar = min(sigmas, LEAVE_OUT_SIGMAS)
+    loud = [f for _, f, dof in fits if f.gain.max() > threshold(1, bar, dof)]
+    if not loud:
+        return ()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = np.array([f.norm2 / f.sigma**2 for f in loud])  # (loud, g)
+        est = np.array([f.t0 + f.proj / f.norm2 for f in loud])
+        t_obj = np.nansum(w * est, axis=0) / w.sum(axis=0)
+        out = []
+        for i, f, dof in fits:
+            if f.gain.max() > threshold(1, bar, dof):
+                continue
+            var = f.sigma**2 / f.norm2 + 1.0 / w.sum(axis=0)
+            z2 = (f.t0 + f.proj / f.norm2 - t_obj) ** 2 / var
+            z2 = z2[np.isfinite(z2)]
+            if z2.size and float(z2.min()) > threshold(1, bar, dof):
+                out.append(i)
+    return tuple(out)
