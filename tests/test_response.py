@@ -169,3 +169,20 @@ def test_events_and_summary_say_no_thermal_response(tmp_path) -> None:
     assert silent and all(r["label"] == "unknown" and 39 in r["taxels"] for r in silent)
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["force"]["no_thermal_response"] == [r["contact"] for r in silent]
+
+
+def test_a_glitch_beside_a_real_touch_is_left_out() -> None:
+    """A glitch on taxel 58 (4.12-5.12 s) joins the skin touch of taxels 56, 57, 64, 65 at
+    4.5 s: it was weighed with them and changed the answer; it is now left out, noted, and the
+    answer is the one without the glitch."""
+    scene = dataclasses.replace(load_scene("default"), force="force")
+    clean = _finals(scene, _glitched(scene, 7.0, []))
+    dirty = _finals(scene, _glitched(scene, 7.0, [([58], 4.12, 5.12)]))
+    touch = [r for r in dirty if 58 in r.contact.taxels]
+    assert touch and set(touch[0].contact.taxels) >= {56, 57, 58, 64, 65}
+    assert touch[0].estimate.note.startswith("taxels 58: no thermal response")
+    ref = next(r for r in clean if 56 in r.contact.taxels)
+    assert (touch[0].estimate.label, round(touch[0].estimate.confidence, 3)) == (
+        ref.estimate.label, round(ref.estimate.confidence, 3))
+    before = _finals(scene, _glitched(scene, 7.0, [([58], 4.12, 5.12)]), response_check=False)
+    assert next(r for r in before if 58 in r.contact.taxels).estimate.label != ref.estimate.label
