@@ -139,6 +139,9 @@ class SkinSimulator:
                                   np.log10(mat.conductance_range)))
         self._force_touches = [(touch.start, touch.end, t[2], touch.force)
                                for touch, t in zip(scene.touches, self._touches, strict=True)]
+        # presses of the force alone (`skin.formats.scene.Phantom`): no heat flows
+        self._force_touches += [(p.start, p.end, np.array([self.layout.index(t) for t in p.taxels]),
+                                 p.force) for p in scene.phantoms]
         self._idx, self._addr = self.layout.channel_map(self.board.id)
         self._channels = int(self._addr.max()) + 1
 
@@ -324,7 +327,8 @@ class SkinSimulator:
     def forces(self, k0: int, m: int, rng: np.random.Generator | None = None) -> np.ndarray:
         """Return the force channel of samples ``k0`` .. ``k0 + m - 1``, N, (m, n_taxels).
 
-        A force sensor (scene ``force = "force"``) reads each touch's force, reached linearly
+        A force sensor (scene ``force = "force"``) reads each touch's force (and each phantom
+        press's, `skin.formats.scene.Phantom`: no object behind it), reached linearly
         over `FORCE_RISE` from the touch's start and gone at its end, plus white noise of
         `FORCE_NOISE` from ``rng`` (none without), never below 0; a contact switch
         (``"contact"``) reads 1 while touched, else 0. Rounded to the wire's 1 mN, so that

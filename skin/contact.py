@@ -102,6 +102,10 @@ class MaterialEstimate:
         resolvable but its family is, ``"unknown"`` when neither is; None: not given.
     family_confidence : float
         Probability of the most probable family.
+    note : str
+        Why the answer is what it is, when it is not the classifier's own ("no thermal
+        response: ..." for a force-dated contact whose temperature shows no contact,
+        `skin.stream.response`); "" otherwise.
     """
 
     label: str
@@ -111,3 +115,4 @@ class MaterialEstimate:
     method: str
     family: str | None = None
     family_confidence: float = 0.0
+    note: str = ""

@@ -157,7 +157,7 @@ class Skin:
                 ambient_offset=0.0 if self.cal_file is None else self.cal_file.ambient_offset,
                 window=s.window, provisional=s.provisional, workers=s.workers,
                 common_mode=None if s.common_mode == "auto" else s.common_mode,
-                force_onsets=s.force_onsets,
+                force_onsets=s.force_onsets, response_check=s.response_check,
                 noise=noise_sigma(self.cal_file, self.layout))  # commissioned noise, if any
         except ValueError as exc:
             which = "" if str(exc).startswith("common_mode") else "--window / --provisional: "
@@ -721,7 +721,9 @@ class Skin:
                 "dated_taxels": [int(layout.ids[k]) for k in np.flatnonzero(force.trusted)],
                 "unseen_onsets": {str(layout.ids[k]): int(force.unseen[k])
                                   for k in np.flatnonzero(force.unseen)},
-                "notes": list(force.notes)}
+                "notes": list(force.notes),
+                # force-dated contacts whose temperature showed no contact: "unknown"
+                "no_thermal_response": list(pipeline.no_response)}
         if self.publishers:
             summary["published"] = {p.url: dict(p.sent) for p in self.publishers}
         if self.scene is not None:

@@ -28,7 +28,8 @@ contact on stderr); any other entry ending in ``.jsonl`` is a JSON-lines file of
 GROUPS: dict[str, tuple[str, ...]] = {
     "source": ("port", "reconnect", "first_frame_timeout", "firmware_sim", "scene", "seed",
                "duration", "speed", "contact"),
-    "skin": ("layout", "calibration", "workers", "common_mode", "force_onsets"),
+    "skin": ("layout", "calibration", "workers", "common_mode", "force_onsets",
+             "response_check"),
     "classifier": ("model", "classifier", "threshold", "expect", "window", "provisional",
                    "object_temperature_range"),
     "output": ("out", "force", "sinks", "publish", "record", "map", "arm", "view", "video",
@@ -144,6 +145,10 @@ class Setup:
         Date the contacts of taxels whose frames carry a force or contact reading by it
         (`skin.stream.force`; the onset detector where it has none); False: the onset
         detector dates every taxel. Default on.
+    response_check : bool
+        Test each contact the force alone dated for a thermal response and answer "unknown"
+        (noted "no thermal response") where it shows none (`skin.stream.response`); False:
+        classify it whatever it shows. Default on.
     origin : dict
         Field name -> where its value came from (``default`` when absent).
     """
@@ -179,6 +184,7 @@ class Setup:
     workers: int = 1
     common_mode: bool | str = "auto"
     force_onsets: bool = True
+    response_check: bool = True
     robot: str = "skin"
     robot_pose: list[float] = field(default_factory=list)
     origin: dict[str, str] = field(default_factory=dict, compare=False)
@@ -382,6 +388,7 @@ _CHECKS: dict[str, Callable[[Any], Any]] = {
     "workers": _count,
     "common_mode": _auto_flag,
     "force_onsets": _flag,
+    "response_check": _flag,
     "robot": _name,
     "robot_pose": _pose,
 }

@@ -29,8 +29,12 @@ SURE = 0.9
 
 def play(scene: str, seed: int, duration: float | None = None,
          ceiling: bool = False, common_mode: bool | str = "auto",
-         force_onsets: bool = True) -> dict[str, Any]:
+         force_onsets: bool = True, response_check: bool = True) -> dict[str, Any]:
     """Run ``scene`` with ``seed`` through `skin.Skin`; return its figures and its misses.
+
+    ``phantoms``: what the scene's phantom presses (force glitches,
+    `skin.bench.phantoms.phantom_figures`) became; ``classify_s``: the pipeline's classify
+    stage, s (the response test included), over ``contacts`` final contacts.
 
     With ``ceiling``, also ``ceiling`` (touches the known-nuisance ceiling names right, and
     ``ceiling_family``) and ``steps`` (the gap from the run to it,
@@ -45,7 +49,7 @@ def play(scene: str, seed: int, duration: float | None = None,
     quiet = Progress(io.StringIO())  # the run's own status lines; the bench shows its bar
     with Skin(scene=scene, seed=seed, speed=0.0, duration=duration, out=None, map=False,
               common_mode=common_mode, force_onsets=force_onsets,
-              sinks=[], progress=quiet) as skin:
+              response_check=response_check, sinks=[], progress=quiet) as skin:
         if ceiling:
             import copy
 
@@ -101,7 +105,12 @@ def play(scene: str, seed: int, duration: float | None = None,
                                  round(table[best].effusivity / table[truth].effusivity, 3)),
             "taxels": len(rec["taxels"]), "duration": rec["duration"],
             "onset": rec["onset"]})
+    from skin.bench.phantoms import phantom_figures
+
     extra: dict[str, Any] = {"dating": _dating(skin, contacts),
+                             "phantoms": phantom_figures(skin.scene.phantoms, finals),
+                             "classify_s": skin.pipeline.stats.seconds["classify"],
+                             "contacts": len(contacts),
                              "dated_by": {src: sum(w.dated_by == src for c in contacts
                                                    for w in c.windows)
                                           for src in ("thermal", "force")}}
@@ -234,11 +243,13 @@ def run(scene: str = "default", seeds: Sequence[int] = tuple(range(10)),
         duration: float | None = None,
         progress: Callable[[int, int], None] | None = None,
         ceiling: bool = False, common_mode: bool | str = "auto",
-        force_onsets: bool = True) -> dict[str, Any]:
+        force_onsets: bool = True, response_check: bool = True) -> dict[str, Any]:
     """Play ``scene`` once per seed; return the runs and the figures over all of them.
 
     ``common_mode``: the onset detector's board common mode (`skin.setup.Setup`'s);
     ``force_onsets``: contacts dated by the scene's force channel where it has one (its).
+    ``response_check``: force-dated contacts without a thermal response answered "unknown"
+    (`skin.stream.pipeline.Pipeline`'s).
 
     Returns
     -------
@@ -256,7 +267,7 @@ def run(scene: str = "default", seeds: Sequence[int] = tuple(range(10)),
     runs = []
     for i, seed in enumerate(seeds):
         runs.append(play(scene, int(seed), duration, ceiling, common_mode,
-                         force_onsets))
+                         force_onsets, response_check))
         if progress is not None:
             progress(i + 1, len(seeds))
     keys = ("touches", "detected", "material", "family", "unknown", "wrong", "sure_wrong",
@@ -283,6 +294,11 @@ def run(scene: str = "default", seeds: Sequence[int] = tuple(range(10)),
     totals["dating"] = dating_summary([d for r in runs for d in r["dating"]])
     totals["dated_by"] = {src: int(sum(r["dated_by"][src] for r in runs))
                           for src in ("thermal", "force")}
+    totals["phantoms"] = {k: int(sum(r["phantoms"][k] for r in runs))
+                          for k in runs[0]["phantoms"]}
+    contacts = sum(r["contacts"] for r in runs)
+    totals["classify_ms_per_contact"] = (round(1e3 * sum(r["classify_s"] for r in runs)
+                                               / contacts, 3) if contacts else None)
     totals["reliability"] = material_and_family(
         [a[1] for r in runs for a in r["answers"]], [a[0] for r in runs for a in r["answers"]],
         runs[0]["classes"], runs[0]["family_of"])

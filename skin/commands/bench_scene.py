@@ -40,6 +40,14 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
                        help="date contacts by the scene's force channel where it has one "
                             "(skin run --force-onsets; default on); --no-force-onsets: the "
                             "onset detector alone")
+    scene.add_argument("--response-check", action=argparse.BooleanOptionalAction, default=True,
+                       help="answer \"unknown\" for force-dated contacts whose temperature "
+                            "shows no contact (skin run --response-check; default on)")
+    scene.add_argument("--phantoms", type=int, default=0, metavar="N",
+                       help="add N force glitches (2 N for 1 s on two neighbouring taxels no touch "
+                            "comes near, "
+                            "nothing thermal behind them: skin.bench.phantoms) to the scene; "
+                            "needs a force channel (--force-channel)")
     scene.add_argument("--json", action="store_true", help="print one JSON document")
     scene.set_defaults(func=main)
     fit = kinds.add_parser("fit-calibration", help="fit the joint classifier's calibration "
@@ -76,8 +84,10 @@ def parse_seeds(text: str) -> list[int]:
     return seeds
 
 
-def _with_fields(scene: str, fields: dict[str, str | None]) -> str:
+def _with_fields(scene: str, fields: dict[str, str | None], tail: str = "") -> str:
     """Write ``scene`` with top-level ``fields`` added (None: left) to a temporary file; its path.
+
+    ``tail`` is appended to the file (tables such as ``[[phantoms]]``).
 
     The scene's ``layout`` must be a shipped layout name (the copy lives elsewhere). The
     caller removes the file (`main` does, when the bench is done).
@@ -100,7 +110,7 @@ def _with_fields(scene: str, fields: dict[str, str | None]) -> str:
         head += f"{key} = {value!r}\n".replace("'", '"')
     out = tempfile.NamedTemporaryFile("w", suffix=".toml", prefix="bench_scene_", delete=False)
     with out:
-        out.write(head + text)
+        out.write(head + text + tail)
     return out.name
 
 
@@ -120,9 +130,23 @@ def main(args: argparse.Namespace) -> int:
         raise SkinError(f"--duration must be positive, got {args.duration}")
     scene = args.scene
     temporary = None
-    if args.force_channel or args.sensor:
+    if args.phantoms < 0:
+        raise SkinError(f"--phantoms must be >= 0, got {args.phantoms}")
+    tail = ""
+    if args.phantoms:
+        from skin.bench.phantoms import place, tables
+
+        loaded = load_scene(scene)
+        if not (args.force_channel or loaded.force):
+            raise SkinError("--phantoms presses the force channel: the scene has none; give "
+                            "--force-channel force or contact")
+        try:
+            tail = tables(place(loaded, args.phantoms, duration=args.duration))
+        except ValueError as exc:
+            raise SkinError(f"--phantoms {args.phantoms}: {exc}") from None
+    if args.force_channel or args.sensor or tail:
         scene = temporary = _with_fields(scene, {"force": args.force_channel,
-                                                 "sensor": args.sensor})
+                                                 "sensor": args.sensor}, tail)
     try:
         load_scene(scene)  # a missing or bad scene is named before the work
         progress = Progress()
@@ -131,7 +155,7 @@ def main(args: argparse.Namespace) -> int:
                   progress=lambda d, n: progress.bar(d, n, "runs", started),
                   ceiling=args.ceiling,
                   common_mode="auto" if args.common_mode is None else args.common_mode,
-                  force_onsets=args.force_onsets)
+                  force_onsets=args.force_onsets, response_check=args.response_check)
         progress.done()
     finally:
         if temporary is not None:
@@ -153,6 +177,13 @@ def main(args: argparse.Namespace) -> int:
           f"family {f['mean']} (min {f['min']}, max {f['max']}) of {t['touches'] // t['runs']}")
     print("runs with at least k right at material level: "
           + ", ".join(f"{k}: {n}" for k, n in t["runs_material_at_least"].items()))
+    ph = t["phantoms"]
+    if ph["phantoms"]:
+        print(f"phantom presses (force glitches of two taxels): {ph['phantoms']}, contacts "
+              f"they started "
+              f"{ph['contacts']}: unknown {ph['unknown']} (no thermal response "
+              f"{ph['no_response']}), named {ph['named']}")
+    print(f"classify stage: {t['classify_ms_per_contact']} ms per contact")
     _print_reliability(t["reliability"])
     if args.ceiling:
         _print_ceiling(t, len(seeds))

@@ -139,6 +139,11 @@ def add_setup_options(run: argparse.ArgumentParser) -> None:
                           "reading by it (exact onset and release; the onset detector where "
                           "it has none); --no-force-onsets: the onset detector dates every "
                           "taxel (skin.stream.force; default on)")
+    run.add_argument("--response-check", action=argparse.BooleanOptionalAction,
+                     help="answer \"unknown\" (noted \"no thermal response\") for a contact "
+                          "the force alone dated whose temperature shows no contact: a "
+                          "likelihood-ratio test at the detector's noise (skin.stream.response; "
+                          "default on); --no-response-check: classify it whatever it shows")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -188,7 +193,10 @@ def _print_table(records: list[dict[str, Any]], summary: dict[str, Any], out: st
                  f"{summary['median_log10_effusivity_error']} decades"))
     if "force" in summary:
         dated = summary["force"]["dated_taxels"]
+        silent = summary["force"].get("no_thermal_response", [])
         print(f"force channel: {len(dated)} taxels dated by their force"
+              + (f"; {len(silent)} of its contacts showed no thermal response (unknown: "
+                 f"{', '.join(map(str, silent))})" if silent else "")
               + "".join(f"\n  {note}" for note in summary["force"]["notes"]))
     if out is not None:
         files = [Path(out) / n for n in ("events.jsonl", "summary.json", "contact_map.png")]

@@ -73,6 +73,29 @@ class Touch:
 
 
 @dataclass(frozen=True)
+class Phantom:
+    """A press the force channel reads with nothing thermal behind it (a glitch, a test).
+
+    The taxels' force sensors read ``force`` from ``start`` for ``duration`` s (a contact
+    switch reads 1) while no object touches them: no heat flows. A scene's ``[[phantoms]]``
+    tables (fields ``taxels``, ``start``, ``duration``, ``force``, 2 N by default); only a
+    scene with a force channel (``force``) reads them. `skin bench scene --phantoms N` adds
+    them to measure what `skin run` makes of force glitches.
+    """
+
+    taxels: tuple[int, ...]
+    start: float
+    duration: float
+    force: float = 2.0
+    line: int = 0
+
+    @property
+    def end(self) -> float:
+        """When the press ends, s."""
+        return self.start + self.duration
+
+
+@dataclass(frozen=True)
 class Scene:
     """A validated simulation scene.
 
@@ -90,6 +113,7 @@ class Scene:
     ``force`` says whether the taxels carry a force channel (``Frame.force``, the wire's
     FORCE message): ``""`` none (default), ``"force"`` a force sensor (each touch's
     ``force``, N, with noise), ``"contact"`` a contact switch (1 while touched, else 0).
+    ``phantoms`` are presses of the force channel alone (`Phantom`: nothing touches).
     """
 
     name: str
@@ -106,6 +130,7 @@ class Scene:
     taxel_spread: float = 0.0
     contact: str = "perfect"
     force: str = ""
+    phantoms: tuple[Phantom, ...] = ()
 
     def material_of(self, touch: Touch) -> str:
         """Material of the object of a touch."""
@@ -237,6 +262,26 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
             raise SceneError(f"{where}: field 'force' must be within (0, 65] N, got {newtons!r}")
         touches.append(Touch(obj, tuple(taxels), start, length, line, newtons))
     touches.sort(key=lambda t: t.start)
+    phantoms: list[Phantom] = []
+    phantom_lines = header_lines(text, "phantoms")
+    for k, raw in enumerate(_tables(data, "phantoms", source)):
+        line = phantom_lines[k] if k < len(phantom_lines) else 0
+        where = f"{source}:{line}: phantom #{k}"
+        taxels = raw.get("taxels")
+        if not isinstance(taxels, list) or not taxels:
+            raise SceneError(f"{where}: field 'taxels' must be a non-empty list of taxel ids")
+        for tid in taxels:
+            if not isinstance(tid, int) or isinstance(tid, bool) or tid not in layout._index:
+                raise SceneError(f"{where}: field 'taxels': no taxel {tid!r} in {layout.source}")
+        start = _number(raw, "start", where)
+        length = _number(raw, "duration", where, positive=True)
+        if not 0 <= start <= duration - length:
+            raise SceneError(f"{where}: the press ({start} s + {length} s) does not fit in the "
+                             f"scene's {duration} s")
+        newtons = _number(raw, "force", where, 2.0)
+        if not 0 < newtons <= 65.0:
+            raise SceneError(f"{where}: field 'force' must be within (0, 65] N, got {newtons!r}")
+        phantoms.append(Phantom(tuple(taxels), start, length, newtons, line))
     for i, a in enumerate(touches):
         for b in touches[i + 1 :]:
             if b.start >= a.end:
@@ -260,6 +305,7 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
         taxel_spread=spread,
         contact=contact,
         force=force,
+        phantoms=tuple(sorted(phantoms, key=lambda p: p.start)),
     )
 
 

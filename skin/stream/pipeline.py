@@ -28,6 +28,7 @@ that decided it.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections import deque
 from collections.abc import Callable, Iterable, Sequence
@@ -36,7 +37,7 @@ from typing import TYPE_CHECKING, Protocol, TypeVar
 
 import numpy as np
 
-from skin.contact import Contact, MaterialEstimate
+from skin.contact import UNKNOWN, Contact, MaterialEstimate
 from skin.errors import SkinError
 from skin.formats.layout import Layout
 from skin.frame import Frame
@@ -55,6 +56,7 @@ from skin.stream.tracking import (
 if TYPE_CHECKING:
     from skin.stream.board_workers import CalibratedBlock
     from skin.stream.force import ForceOnsets
+    from skin.stream.response import ResponseVerdict
     from skin.stream.shards import OnsetShards
 
 T = TypeVar("T")
@@ -268,6 +270,12 @@ class Pipeline:
         stretches where the force has no reading. False: the onset detector dates every
         taxel. A stream without a force channel costs nothing either way. Blocks assembled
         in board worker processes (`process_calibrated`) carry no force: dated thermally.
+    response_check : bool
+        Test each contact the force alone dated for a thermal response before classifying it
+        (`skin.stream.response`: a likelihood-ratio test of its samples, contact against the
+        free sensor's trajectory, at the detector's noise); one that shows none is answered
+        "unknown" with the note "no thermal response ..." (`MaterialEstimate.note`), never a
+        material or family. False: every contact is classified (as before).
 
     Attributes
     ----------
@@ -301,6 +309,7 @@ class Pipeline:
         workers: int = 1,
         common_mode: bool | None = None,
         force_onsets: bool = True,
+        response_check: bool = True,
     ) -> None:
         rates = {b.sample_rate for b in layout.boards.values()}
         if len(rates) != 1:
@@ -346,6 +355,12 @@ class Pipeline:
         self.force_onsets = bool(force_onsets)
         self.sample_rate = float(next(iter(layout.boards.values())).sample_rate)
         self.force: ForceOnsets | None = None  # made at the first block with a force channel
+        self.response_check = bool(response_check)
+        self._response_sensors: tuple | None = None  # (sensors, smoothing factors, effusivities)
+        #: the last contact's response test (`skin.stream.response`), None before any
+        self.last_verdict: ResponseVerdict | None = None
+        #: ids of the final contacts answered "unknown" for showing no thermal response
+        self.no_response: list[int] = []
 
     @property
     def pending(self) -> int:
@@ -463,6 +478,52 @@ class Pipeline:
         self._queue.extend(_Deciding(d) for d in decided)
         self.stats.contacts += sum(d.final for d in decided)
 
+    def _classify(self, head: _Deciding, contact: Contact) -> MaterialEstimate:
+        """Classify a contact, or answer "unknown" where the force dated it and no heat flowed.
+
+        The force-dated taxels of a contact are first tested for a thermal response
+        (`skin.stream.response.check_contact`; ``response_check``). A contact every taxel of
+        which the force dated and which shows none (a force glitch on a taxel nothing
+        touched) is "unknown", material and family, with a note saying so, and is not
+        classified (nor taught to the classifier's priors). A force-dated taxel of a contact
+        that does show one, but none of its own (a glitch beside a real touch), is left out
+        of the classification, noted.
+        """
+        members = head.decided.members
+        forced = [i for i, m in enumerate(members) if m.dated_by == "force"]
+        sigma = getattr(self.detector, "sigma", None)
+        if not (self.response_check and forced and sigma is not None):
+            return self.classifier.classify(contact)
+        from skin.stream.response import check_contact
+
+        if self._response_sensors is None:
+            self._response_sensors = _response_sensors(self.layout, self.classifier)
+        sensors, shrink, effusivities = self._response_sensors
+        idx = [members[i].index for i in forced]
+        verdict = check_contact([members[i] for i in forced], [head.refined[i] for i in forced],
+                                [sensors[k] for k in idx],
+                                np.asarray(sigma)[idx] / shrink[idx], contact.ambient,
+                                effusivities, self.tracker.window)
+        self.last_verdict = verdict
+        method = getattr(self.classifier, "method", type(self.classifier).__name__)
+        if len(forced) == len(members) and not verdict.responded:
+            if contact.final:
+                self.no_response.append(contact.id)
+            return MaterialEstimate(
+                UNKNOWN, {}, 0.0, None, method, family=UNKNOWN,
+                note=(f"no thermal response: the force dated it, the temperature shows no "
+                      f"contact (chi2 {verdict.chi2:.1f} <= {verdict.threshold:.1f}, "
+                      f"{verdict.taxels} taxels)"))
+        silent = {forced[i] for i in verdict.silent}
+        if not silent or len(silent) == len(members):
+            return self.classifier.classify(contact)
+        kept = [w for i, w in enumerate(contact.windows) if i not in silent]
+        estimate = self.classifier.classify(dataclasses.replace(contact, windows=kept))
+        left = sorted(contact.windows[i].taxel for i in silent)
+        return dataclasses.replace(estimate, note=(
+            f"taxels {', '.join(map(str, left))}: no thermal response of their own (the "
+            f"force dated them), left out of the classification"))
+
     def _host_times(self, contact: Contact) -> HostTimes | None:
         to_host = self.timeline.to_host
         onset = to_host(contact.onset)
@@ -504,7 +565,7 @@ class Pipeline:
                 self._queue.popleft()
                 contact = finish_contact(head.decided, self.layout, head.refined,
                                          self.tracker.window)
-                result = ContactResult(contact, self.classifier.classify(contact), self._now,
+                result = ContactResult(contact, self._classify(head, contact), self._now,
                                        self._host_times(contact))
             spent = time.perf_counter() - t0
             seconds[kind] += spent
@@ -518,6 +579,27 @@ class Pipeline:
             self.stats.results += 1
             results.append(result)
         return results
+
+
+def _response_sensors(layout: Layout, classifier: object,
+                      ) -> tuple[list, np.ndarray, tuple[float, ...]]:
+    """Each taxel's sensor description and smoothing factor, and the candidates' effusivities.
+
+    The candidates are the classifier's (``classifier.model.effusivity``), else the shipped
+    table's ``classify = true`` materials.
+    """
+    from skin.models.sensors import SensorDescription
+
+    boards = {b.id: SensorDescription.from_board(b) for b in layout.boards.values()}
+    sensors = [boards[t.board] for t in layout.taxels]
+    shrink = np.array([s.smoothing_noise_factor() for s in sensors])
+    model = getattr(classifier, "model", None)
+    eff = getattr(model, "effusivity", None)
+    if eff is None:
+        from skin.models.materials import load_materials
+
+        eff = [m.effusivity for m in load_materials().values() if m.classify]
+    return sensors, shrink, tuple(sorted({float(v) for v in np.ravel(eff)}))
 
 
 def _detector_for(layout: Layout, noise: np.ndarray | None = None,

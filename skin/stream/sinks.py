@@ -44,6 +44,7 @@ def event_record(result: ContactResult) -> dict[str, Any]:
                                                             key=lambda kv: -kv[1])},
         "effusivity": None if e.effusivity is None else round(e.effusivity, 1),
         "method": e.method,
+        "note": e.note or None,
         "initial_temperature": {str(w.taxel): round(w.initial, 3) for w in c.windows},
         "dated_by": "+".join(sorted({w.dated_by for w in c.windows})) or None,
         "ambient": round(c.ambient, 3),
