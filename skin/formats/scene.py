@@ -90,6 +90,10 @@ class Scene:
     ``force`` says whether the taxels carry a force channel (``Frame.force``, the wire's
     FORCE message): ``""`` none (default), ``"force"`` a force sensor (each touch's
     ``force``, N, with noise), ``"contact"`` a contact switch (1 while touched, else 0).
+    ``force_inverted`` (default false) wires that channel inverted, as a miswired sensor or an
+    active-low switch reads: the force sensor reads its full scale
+    (`skin.drivers.sim.FORCE_FULL_SCALE`, 20 N) less what it would read (high at rest,
+    dropping when pressed; 0 beyond full scale), the switch 0 while touched, else 1.
     """
 
     name: str
@@ -106,6 +110,7 @@ class Scene:
     taxel_spread: float = 0.0
     contact: str = "perfect"
     force: str = ""
+    force_inverted: bool = False
 
     def material_of(self, touch: Touch) -> str:
         """Material of the object of a touch."""
@@ -188,6 +193,13 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
     if force not in ("", "force", "contact"):
         raise SceneError(f"{source}: field 'force' must be \"force\", \"contact\" or \"\" "
                          f"(no force channel), got {force!r}")
+    inverted = data.get("force_inverted", False)
+    if not isinstance(inverted, bool):
+        raise SceneError(f"{source}: field 'force_inverted' must be true or false, got "
+                         f"{inverted!r}")
+    if inverted and not force:
+        raise SceneError(f"{source}: field 'force_inverted' needs a force channel (field "
+                         "'force' = \"force\" or \"contact\")")
     init = data.get("initial_temperature", [ambient + 6.0, ambient + 14.0])
     if not (
         isinstance(init, list)
@@ -260,6 +272,7 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
         taxel_spread=spread,
         contact=contact,
         force=force,
+        force_inverted=inverted,
     )
 
 
