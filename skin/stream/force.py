@@ -172,7 +172,8 @@ class ForceOnsets:
         self._edge = np.full((2, 2, n), np.nan)  # (rise, fall) x (time, detected at), unmatched
         self._onset_seen = np.full((2, n), np.nan)  # the detector's last unmatched onset
         self._votes: list[list[tuple[float, int, int]]] = [[] for _ in range(n)]
-        self._voted = np.zeros(n, dtype=bool)  # has votes (folded or not)
+        self._against = np.zeros(n, dtype=bool)  # has had a vote against (folded or not)
+        self._pending: set[int] = set()  # taxels with votes not folded yet
         self._base = np.zeros((3, n), dtype=np.int64)  # folded votes: for, against, epoch
         self._turns: list[list[float]] = [[] for _ in range(n)]  # when each taxel was turned
         self._retrusted = np.full(n, np.inf)  # trusted again after its last turn
@@ -283,7 +284,7 @@ class ForceOnsets:
 
     def _fold(self, start: float) -> None:
         """Fold the votes cast before ``start`` into counts (no later question goes back)."""
-        for k in np.flatnonzero(self._voted).tolist():
+        for k in sorted(self._pending):
             epoch = len(self._turns[k])
             if self._base[2, k] != epoch:
                 self._base[:, k] = (0, 0, epoch)
@@ -294,6 +295,8 @@ class ForceOnsets:
                 elif vote[2] == epoch:
                     rest.append(vote)
             self._votes[k] = rest
+            if not rest:
+                self._pending.discard(k)
 
     def _tally(self, k: int, when: float) -> tuple[int, int]:
         """Taxel ``k``'s votes (for, against its polarity) cast by ``when``, since its last turn."""
@@ -309,7 +312,7 @@ class ForceOnsets:
 
     def _suspect(self, k: int, when: float) -> bool:
         """Whether taxel ``k``'s force fell at more of the detector's onsets than it rose."""
-        if not self._voted[k]:
+        if not self._against[k]:
             return False
         up, down = self._tally(k, when)
         return down > up
@@ -335,14 +338,15 @@ class ForceOnsets:
         fall = int(np.nanargmin(gaps))
         at = max(float(seen_at), float(self._edge[fall, 1, k]))
         self._votes[k].append((at, -1 if fall else 1, len(self._turns[k])))
-        self._voted[k] = True
+        self._pending.add(k)
+        self._against[k] |= bool(fall)
         self._edge[fall, :, k] = np.nan
         self._onset_seen[:, k] = np.nan
 
     def _turn(self, end: float) -> list[OnsetEvent]:
         """Turn the taxels whose votes say their force reads inverted (module docstring)."""
         events: list[OnsetEvent] = []
-        for k in np.flatnonzero(self._voted).tolist():
+        for k in np.flatnonzero(self._against).tolist():
             up, down = self._tally(k, end)
             if down < INVERT_VOTES * (1 + up):
                 continue
@@ -576,7 +580,7 @@ class ForceOnsets:
         low_for = np.where(self._low_run[cols] >= self.held, end - self._low_t[cols], 0.0)
         far_under = level < old_level - margin
         fresh_level = quiet & far_under & (low_for >= FRESH_SECONDS)
-        for j in np.flatnonzero(fresh_level & self._voted[cols]).tolist():
+        for j in np.flatnonzero(fresh_level & self._against[cols]).tolist():
             fresh_level[j] = not self._suspect(int(cols[j]), end)
         # a contact flat near its threshold for long: the free level drifted
         if self.on.any():
