@@ -66,6 +66,9 @@ CHUNK = 1000
 #: A simulated force sensor: white noise, N, and the rise time of a touch's force, s (linear).
 FORCE_NOISE = 0.005
 FORCE_RISE = 0.02
+#: An inverted force sensor (scene ``force_inverted``) reads this less its force, N (the AVR
+#: firmware's default full scale, ``SKIN_FORCE_FULL_MN``).
+FORCE_FULL_SCALE = 20.0
 #: Key of the scene seed's stream the force noise is drawn from (``[seed + 1, FORCE_STREAM]``).
 FORCE_STREAM = 3
 
@@ -332,7 +335,8 @@ class SkinSimulator:
         over `FORCE_RISE` from the touch's start and gone at its end, plus white noise of
         `FORCE_NOISE` from ``rng`` (none without), never below 0; a contact switch
         (``"contact"``) reads 1 while touched, else 0. Rounded to the wire's 1 mN, so that
-        the frames equal what a serial link or a recording gives back.
+        the frames equal what a serial link or a recording gives back. A scene with
+        ``force_inverted`` reads `FORCE_FULL_SCALE` less that (never below 0), a switch 1 less.
         """
         t = (k0 + np.arange(m))[:, None] / self.sample_rate
         out = np.zeros((m, len(self.layout)))
@@ -345,6 +349,8 @@ class SkinSimulator:
             out[:, idx] = np.where(on, level, out[:, idx])
         if not switch and rng is not None:
             out = np.maximum(out + rng.normal(0.0, FORCE_NOISE, out.shape), 0.0)
+        if self.scene.force_inverted:
+            out = np.maximum((1.0 if switch else FORCE_FULL_SCALE) - out, 0.0)
         return np.rint(out * 1000.0) / 1000.0
 
     def _frames_of(self, raw: np.ndarray, k0: int, amb_rng: np.random.Generator,

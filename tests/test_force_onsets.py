@@ -323,3 +323,147 @@ def test_skin_run_reports_the_force_channel_in_its_summary() -> None:
     force = summary["force"]
     assert force["dated_taxels"] and set(force["dated_taxels"]) <= ids
     assert isinstance(force["notes"], list) and isinstance(force["unseen_onsets"], dict)
+
+
+def _presses(inverted: bool, switch: bool = False, seed: int = 5) -> tuple:
+    """Taxel 0 pressed 2 N (or a switch closed) 1.5 s from 3, 8, ..., 33 s, read inverted
+    (20 N less it; an active-low switch) or not; taxel 1 never pressed; and the onset
+    detector's events of each touch (onset 20 ms in, found 0.2 s in; release found late)."""
+    rng = np.random.default_rng(seed)
+    n = 4000
+    t = np.arange(n) / FS
+    starts = np.arange(3.0, 34.0, 5.0)
+    pressed = np.zeros(n, dtype=bool)
+    for s in starts:
+        pressed |= (t >= s) & (t < s + 1.5)
+    f = np.zeros((n, 2)) if switch else np.clip(rng.normal(0.0, 0.005, (n, 2)), 0, None)
+    f[:, 0] += pressed * (1.0 if switch else 2.0)
+    if inverted:
+        f = (1.0 if switch else 20.0) - f
+    thermal = [e for s in starts for e in (
+        OnsetEvent("onset", 0, s + 0.02, s + 0.2, 30.0, 0.0),
+        OnsetEvent("release", 0, s + 1.55, s + 1.9, float("nan"), 0.0))]
+    return t, np.round(f, 3), starts, thermal
+
+
+def _merged(t, f, thermal, chunk):
+    fo = ForceOnsets(f.shape[1], FS, ids=[40, 41])
+    y = np.full_like(f, 30.0)
+    out = []
+    for i in range(0, len(t), chunk):
+        sel = slice(i, i + chunk)
+        out += fo.merge(t[sel], f[sel], y[sel],
+                        [e for e in thermal if t[sel][0] <= e.detected_at <= t[sel][-1]])
+    return fo, out
+
+
+@pytest.mark.parametrize("switch", [False, True])
+def test_an_inverted_force_channel_is_turned_and_dates_touches_at_their_presses(switch):
+    """An inverted channel (20 N at rest, 18 N pressed; an active-low switch) dated contacts at
+    the touches' releases (their onsets 1.5 s late, false contacts between touches). Now its
+    falls at the detector's onsets are votes against it: while they outnumber its rises its
+    force dates nothing (the detector's events kept), after INVERT_VOTES it is read negated
+    (a note names taxel 40) and dates the later touches at their presses."""
+    t, f, starts, thermal = _presses(inverted=True, switch=switch)
+    ref = None
+    for chunk in (1, 7, 64, 1000):
+        fo, out = _merged(t, f, thermal, chunk)
+        key = sorted((e.detected_at, e.kind, e.taxel, e.time, e.dated_by) for e in out)
+        assert ref is None or key == ref, chunk
+        ref = key
+    onsets = [e for e in out if e.kind == "onset"]
+    # every touch has one onset, at its press; none at a release
+    assert len(onsets) == len(starts)
+    for e, s in zip(sorted(onsets, key=lambda e: e.time), starts, strict=True):
+        assert e.time == pytest.approx(s, abs=0.021)
+    releases = sorted(e.time for e in out if e.kind == "release")
+    assert len(releases) == len(starts)
+    assert all(abs(r - (s + 1.5)) <= 0.06 for r, s in zip(releases, starts, strict=True))
+    from skin.stream.force import INVERT_VOTES
+
+    by_force = [e.time for e in onsets if e.dated_by == "force"]
+    # after the touch it is turned in (its third: turned mid-press, the detector's contact)
+    assert len(by_force) == len(starts) - INVERT_VOTES
+    assert all(abs(x - s) <= 0.011 for x, s in zip(by_force, starts[INVERT_VOTES:],
+                                                     strict=True))
+    assert fo.polarity.tolist() == [-1.0, 1.0]
+    assert len(fo.notes) == 1 and fo.notes[0].startswith("taxel 40: its force fell at 3")
+
+
+def test_a_normal_force_channel_is_not_turned():
+    """The same touches read as they come: all dated by the force, no vote against it."""
+    t, f, starts, thermal = _presses(inverted=False)
+    fo, out = _merged(t, f, thermal, 64)
+    onsets = [e for e in out if e.kind == "onset"]
+    assert [e.dated_by for e in onsets] == ["force"] * len(starts)
+    assert all(abs(e.time - s) <= 0.011 for e, s in zip(onsets, starts, strict=True))
+    assert fo.polarity.tolist() == [1.0, 1.0] and not fo.notes
+    assert fo._tally(0, t[-1]) == (len(starts), 0)
+
+
+def test_a_channel_falling_at_too_few_touches_is_not_turned_but_not_trusted():
+    """Two touches of an inverted channel: too few to turn it; its force dates nothing (it
+    dated the second touch at the first's release, a false contact between them), the
+    detector both touches."""
+    t, f, _, thermal = _presses(inverted=True)
+    keep = t < 12.0
+    fo, out = _merged(t[keep], f[keep], [e for e in thermal if e.detected_at < 12.0], 50)
+    assert [(e.kind, e.dated_by) for e in out] == [("onset", "thermal"), ("release", "thermal")] * 2
+    assert fo.polarity.tolist() == [1.0, 1.0] and not fo.notes
+
+
+def _repeated_scene(path: Path, inverted: bool) -> str:
+    """Taxels 0-1 and 44 touched 12 times each, aluminium and pine by turns, with a force
+    channel read inverted or not."""
+    lines = ['name = "repeated"', 'layout = "arm"', "duration = 32.0", "seed = 3",
+             'force = "force"', f"force_inverted = {'true' if inverted else 'false'}",
+             '[[objects]]', 'name = "bar"', 'material = "aluminium"',
+             '[[objects]]', 'name = "board"', 'material = "pine"']
+    for i in range(12):
+        for taxels, offset in (("[0, 1]", 1.0), ("[44]", 2.2)):
+            lines += ["[[touches]]", f'object = "{("bar", "board")[i % 2]}"',
+                      f"taxels = {taxels}", f"start = {offset + 2.5 * i}", "duration = 0.9"]
+    path.write_text("\n".join(lines) + "\n")
+    return str(path)
+
+
+def test_skin_run_on_an_inverted_force_channel_gives_no_contact_at_releases(tmp_path) -> None:
+    """skin run on a scene whose force channel is wired inverted: contacts were dated at the
+    releases (false contacts between touches). Now none is false, every touch is found, the
+    later ones dated by the force (at their presses) once it is turned; the notes name the
+    taxels; the same scene read as it comes is dated as before."""
+    from skin.bench.scene_seeds import play
+    from skin.runner import Skin
+
+    inverted = _repeated_scene(tmp_path / "inverted.toml", True)
+    on = play(inverted, 3)
+    off = play(inverted, 3, force_onsets=False)
+    assert on["false_contacts"] == 0 and on["detected"] == on["touches"] == 24
+    assert on["detected"] >= off["detected"]
+    assert on["dated_by"]["force"] >= 20
+    errors = np.abs([d["onset"] for d in on["dating"]])
+    assert np.median(errors) <= 10.0  # ms
+    normal = play(_repeated_scene(tmp_path / "normal.toml", False), 3)
+    assert normal["false_contacts"] == 0 and normal["dated_by"]["thermal"] == 0
+    with Skin(scene=inverted, seed=3, speed=0.0, duration=12.0, out=None, map=False,
+              sinks=[]) as skin:
+        notes = skin.run()["force"]["notes"]
+    assert {n.split(":")[0] for n in notes if "inverted" in n} == {"taxel 0", "taxel 1",
+                                                                  "taxel 44"}
+
+
+def test_force_inverted_needs_a_force_channel(tmp_path, capsys) -> None:
+    """The scene field and the bench's option say what is wrong."""
+    from skin.cli import main
+    from skin.formats.scene import SceneError, load_scene
+
+    path = Path(_repeated_scene(tmp_path / "s.toml", True))
+    assert load_scene(str(path)).force_inverted
+    path.write_text(path.read_text().replace('force = "force"\n', ""))
+    with pytest.raises(SceneError, match="'force_inverted' needs a force channel"):
+        load_scene(str(path))
+    path.write_text(path.read_text().replace("force_inverted = true", "force_inverted = 1"))
+    with pytest.raises(SceneError, match="'force_inverted' must be true or false"):
+        load_scene(str(path))
+    assert main(["bench", "scene", "--seeds", "20", "--force-inverted"]) != 0
+    assert "--force-inverted needs --force-channel" in capsys.readouterr().err

@@ -92,12 +92,13 @@ def _two_boards(scene, frames):
             channels = address[b::2]
             split.append(dataclasses.replace(
                 f, board=b, counts=f.counts[channels], duty=f.duty[channels],
-                status=None if f.status is None else f.status[channels]))
+                status=None if f.status is None else f.status[channels],
+                force=None if f.force is None else f.force[channels]))
     return two, split
 
 
-def _run(layout, frames, workers, chunk=20):
-    pipe = Pipeline(layout, JointClassifier(layout), workers=workers)
+def _run(layout, frames, workers, chunk=20, **options):
+    pipe = Pipeline(layout, JointClassifier(layout), workers=workers, **options)
     try:
         results = []
         for i in range(0, len(frames), chunk):
@@ -144,6 +145,31 @@ def test_skin_run_with_workers_gives_the_events_of_one_process(tmp_path):
         assert len(procs) == (2 if workers == 3 else 0)  # shard 0 is detected in this process
     assert len(got[1]) >= 5
     assert _key(got[3]) == _key(got[1])
+
+
+def _force_frames(seconds):
+    """The default scene with a force sensor on every taxel, wired to two boards."""
+    scene = dataclasses.replace(load_scene("default"), force="force")
+    layout, frames = _two_boards(scene, list(SkinSimulator(scene, duration=seconds).frames()))
+    assert frames[0].force is not None
+    return layout, frames
+
+
+def _dated(results):
+    """Each final contact's taxels, onset, release and its windows' dating source."""
+    return [(r.contact.taxels, r.contact.onset, r.contact.release,
+             [w.dated_by for w in r.contact.windows]) for r in results if r.contact.final]
+
+
+def test_onset_workers_carry_the_force_channel():
+    """skin run --workers N on a simulated scene shards onset detection alone; the force is
+    merged in this process: the same contacts, dated by the force, as one process."""
+    layout, frames = _force_frames(10.0)
+    one = _run(layout, frames, 1)
+    assert any("force" in k[3] for k in _dated(one))
+    for workers in (2, 3):
+        assert _key(_run(layout, frames, workers, common_mode=False)) == _key(one), workers
+    assert _dated(_run(layout, frames, 2, common_mode=False)) == _dated(one)
 
 
 def test_a_worker_that_dies_is_named_and_the_blocks_before_were_observed():
@@ -204,6 +230,39 @@ def test_board_workers_give_the_results_of_one_process_when_contacts_cross_board
     assert len([r for r in one if len({boards[k] for k in r.contact.taxels}) > 1]) >= 3
     assert _key(two) == _key(one)
     assert pipe.stats.frames == len(frames) and pipe.stats.samples == len(frames) // 2
+
+
+def test_board_workers_carry_the_force_channel():
+    """Boards read in workers passed no force: their taxels were dated thermally. Now the
+    parent merges each block's force as one process does: the same contacts, onsets, dating
+    sources and labels; and with force_onsets off, every window thermal again."""
+    from skin.stream.board_workers import BoardWorkers, FramesSource
+
+    layout, frames = _force_frames(14.0)
+    one = _run(layout, frames, 1)  # 20 frames of two boards: blocks of 10 samples
+    dated = _dated(one)
+    assert sum(k[3].count("force") for k in dated) >= 10
+    shards = [([b], FramesSource(tuple(f for f in frames if f.board == b), step=7))
+              for b in (0, 1)]
+    two, pipe = _board_workers(layout, shards, block=10)
+    assert _dated(two) == dated
+    assert _key(two) == _key(one)
+    assert pipe.force is not None and pipe.force.onsets > 0
+    # without force on one board's first frames: None there, NaN-filled blocks after
+    late = [dataclasses.replace(f, force=None) if f.board == 1 and f.seq < 333 else f
+            for f in frames]
+    ref = _run(layout, late, 1)
+    shards = [([b], FramesSource(tuple(f for f in late if f.board == b), step=7))
+              for b in (0, 1)]
+    assert _key(_board_workers(layout, shards, block=10)[0]) == _key(ref)
+    pipe = Pipeline(layout, JointClassifier(layout), force_onsets=False)
+    off = []
+    with BoardWorkers(pipe, [([b], FramesSource(tuple(f for f in frames if f.board == b)))
+                             for b in (0, 1)], block=10) as bw:
+        while not bw.done:
+            off += bw.feed(bw.blocks())
+        off += bw.finish()
+    assert off and all(set(k[3]) == {"thermal"} for k in _dated(off))
 
 
 def test_board_workers_join_a_sample_one_shard_lost_as_one_process_does():
@@ -353,6 +412,40 @@ def test_skin_with_workers_reads_each_serial_board_in_its_own_worker(tmp_path):
     for (taxels, onset), (want, start) in zip(found, touches, strict=True):
         assert taxels == want and abs(onset - start) < 0.3
     assert summary["contacts"] == 6 and summary["gaps"] == 0 and summary["crc_errors"] == 0
+
+
+def test_skin_with_workers_on_serial_boards_dates_by_their_force(tmp_path):
+    """skin run --port A --port B --workers 2 (board workers) on boards sending FORCE: the
+    contacts are dated by it (they were thermal: the workers dropped the force)."""
+    from skin.bench.soak import soak_scenes
+    from skin.drivers.sim import PtySerialDevice
+    from skin.formats.layout import layout_toml
+    from skin.runner import Skin
+
+    layout, scenes = soak_scenes(512, 14.0, seed=5)
+    scenes = [dataclasses.replace(s, force="force") for s in scenes]
+    path = tmp_path / "two_boards.toml"
+    path.write_text(layout_toml(layout))
+    devs = [PtySerialDevice(SkinSimulator(s), speed=4.0) for s in scenes]
+    try:
+        ports = [f"serial://{d.port}?board={d.simulator.board.id}" for d in devs]
+        with Skin(port=ports, layout=str(path), workers=2, duration=13.0, out=None,
+                  map=False, sinks=[]) as skin:
+            skin.open()
+            assert len(skin._workers.shards) == 2
+            for d in devs:
+                d.start()
+            got = [r for r in skin.results() if r.contact.final]
+            summary = skin.finish()
+    finally:
+        for d in devs:
+            d.close()
+    starts = [t.start for s in scenes for t in s.touches if t.start < 12.0]
+    assert len(got) == len(starts) >= 2
+    assert all(w.dated_by == "force" for r in got for w in r.contact.windows)
+    for r in got:
+        assert min(abs(r.contact.onset - s) for s in starts) < 0.006
+    assert summary["force"]["dated_taxels"]
 
 
 @pytest.mark.parametrize("sensor", ["paper", "fast-film", "low-cost", "pid-logger"])

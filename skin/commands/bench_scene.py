@@ -33,6 +33,9 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
     scene.add_argument("--force-channel", choices=("force", "contact"), default=None,
                        help="give the scene's taxels a force sensor or a contact switch (the "
                             "scene's field force; the scene must not set it)")
+    scene.add_argument("--force-inverted", action="store_true",
+                       help="wire that force channel inverted: high at rest, dropping when "
+                            "pressed (an active-low switch; the scene's field force_inverted)")
     scene.add_argument("--sensor", default=None,
                        help="put this sensor preset or file on every board (the scene's field "
                             "sensor; the scene must not set it)")
@@ -84,7 +87,7 @@ def parse_seeds(text: str) -> list[int]:
     return seeds
 
 
-def _with_fields(scene: str, fields: dict[str, str | None], tail: str = "") -> str:
+def _with_fields(scene: str, fields: dict[str, str | bool | None], tail: str = "") -> str:
     """Write ``scene`` with top-level ``fields`` added (None: left) to a temporary file; its path.
 
     ``tail`` is appended to the file (tables such as ``[[phantoms]]``).
@@ -107,7 +110,8 @@ def _with_fields(scene: str, fields: dict[str, str | None], tail: str = "") -> s
         if key in data:
             raise SceneError(f"{source}: sets '{key}' already; drop --{key.replace('_', '-')} "
                              "or the field")
-        head += f"{key} = {value!r}\n".replace("'", '"')
+        text_value = str(value).lower() if isinstance(value, bool) else repr(value)
+        head += f"{key} = {text_value}\n".replace("'", '"')
     out = tempfile.NamedTemporaryFile("w", suffix=".toml", prefix="bench_scene_", delete=False)
     with out:
         out.write(head + text + tail)
@@ -130,6 +134,8 @@ def main(args: argparse.Namespace) -> int:
         raise SkinError(f"--duration must be positive, got {args.duration}")
     scene = args.scene
     temporary = None
+    if args.force_inverted and not args.force_channel:
+        raise SkinError("--force-inverted needs --force-channel force|contact")
     if args.phantoms < 0:
         raise SkinError(f"--phantoms must be >= 0, got {args.phantoms}")
     tail = ""
@@ -146,6 +152,7 @@ def main(args: argparse.Namespace) -> int:
             raise SkinError(f"--phantoms {args.phantoms}: {exc}") from None
     if args.force_channel or args.sensor or tail:
         scene = temporary = _with_fields(scene, {"force": args.force_channel,
+                                                 "force_inverted": args.force_inverted or None,
                                                  "sensor": args.sensor}, tail)
     try:
         load_scene(scene)  # a missing or bad scene is named before the work

@@ -114,6 +114,10 @@ class Scene:
     FORCE message): ``""`` none (default), ``"force"`` a force sensor (each touch's
     ``force``, N, with noise), ``"contact"`` a contact switch (1 while touched, else 0).
     ``phantoms`` are presses of the force channel alone (`Phantom`: nothing touches).
+    ``force_inverted`` (default false) wires that channel inverted, as a miswired sensor or an
+    active-low switch reads: the force sensor reads its full scale
+    (`skin.drivers.sim.FORCE_FULL_SCALE`, 20 N) less what it would read (high at rest,
+    dropping when pressed; 0 beyond full scale), the switch 0 while touched, else 1.
     """
 
     name: str
@@ -131,6 +135,7 @@ class Scene:
     contact: str = "perfect"
     force: str = ""
     phantoms: tuple[Phantom, ...] = ()
+    force_inverted: bool = False
 
     def material_of(self, touch: Touch) -> str:
         """Material of the object of a touch."""
@@ -213,6 +218,13 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
     if force not in ("", "force", "contact"):
         raise SceneError(f"{source}: field 'force' must be \"force\", \"contact\" or \"\" "
                          f"(no force channel), got {force!r}")
+    inverted = data.get("force_inverted", False)
+    if not isinstance(inverted, bool):
+        raise SceneError(f"{source}: field 'force_inverted' must be true or false, got "
+                         f"{inverted!r}")
+    if inverted and not force:
+        raise SceneError(f"{source}: field 'force_inverted' needs a force channel (field "
+                         "'force' = \"force\" or \"contact\")")
     init = data.get("initial_temperature", [ambient + 6.0, ambient + 14.0])
     if not (
         isinstance(init, list)
@@ -306,6 +318,7 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
         contact=contact,
         force=force,
         phantoms=tuple(sorted(phantoms, key=lambda p: p.start)),
+        force_inverted=inverted,
     )
 
 

@@ -8,18 +8,20 @@ per-taxel stages on its taxels: decoding (in the drivers), assembling its boards
 samples (`skin.stream.assembly.FrameAssembler`), calibrating and onset detection. It sends
 each block of samples to the parent as compact arrays through a pipe: the sequence numbers,
 times, each board's ambient reading, the temperatures (deg C, NaN where flagged), the onset
-and release events (layout indices) and its taxels in contact.
+and release events (layout indices), the force channel where its frames carry one and its
+taxels in contact.
 
 The parent (`BoardWorkers`) joins the shards' samples by sequence number into skin-wide
 blocks of ``block`` samples - a sample missing from a shard (all its boards lost that frame)
 has its taxels NaN, as the one-process assembler would - and hands them to
 `skin.stream.pipeline.Pipeline.process_calibrated`, which observes (a recording), tracks,
-refines, classifies and writes the sinks. A sample's time is that of its lowest board present
-and its ambient the mean over its boards in board order, as in one process; the events of a
-block are merged in the detector's own order (sample, `OnsetEvent.channel`, taxel). Contacts
-that span shards are tracked in the parent with the whole skin's samples, so with boards in
-step and no frame lost the results are those of one process taking blocks of the same size
-(tests/test_shards.py).
+refines, classifies and writes the sinks; a block's force is merged there with the onset
+detector's events (`skin.stream.force.ForceOnsets`), as in one process. A sample's time is
+that of its lowest board present and its ambient the mean over its boards in board order, as
+in one process; the events of a block are merged in the detector's own order (sample,
+`OnsetEvent.channel`, taxel). Contacts that span shards are tracked in the parent with the
+whole skin's samples, so with boards in step and no frame lost the results are those of one
+process taking blocks of the same size (tests/test_shards.py).
 
 A worker that dies or fails raises `skin.errors.SkinError` naming it (its number, process id,
 exit code and boards); the results given before stand.
@@ -64,6 +66,10 @@ class CalibratedBlock:
         Deg C in layout order, NaN where flagged or missing, (n, taxels).
     events : list of OnsetEvent
         The onset and release events recognised in these samples, in the detector's order.
+    force : numpy.ndarray or None
+        The force channel, N, in layout order, NaN where a taxel has no reading or its board
+        sent none, (n, taxels); None when no frame of these samples has one (as
+        `skin.stream.assembly.Samples.force`).
     """
 
     times: np.ndarray
@@ -71,6 +77,7 @@ class CalibratedBlock:
     ambient: np.ndarray
     temperature: np.ndarray
     events: list[OnsetEvent]
+    force: np.ndarray | None = None
 
 
 # --- sources: what a worker opens ------------------------------------------------------------
@@ -233,7 +240,10 @@ class WireWriter:
 
 # --- the worker --------------------------------------------------------------------------------
 class _BoardAssembler(FrameAssembler):
-    """The assembler, also keeping each sample's per-board ambient readings."""
+    """The assembler, also keeping each sample's per-board ambient and force presence.
+
+    ``has_force``: whether any frame of the sample carried a force channel.
+    """
 
     def _assemble(self, ready: list[dict[int, Frame]]) -> Any:
         boards = sorted(self.layout.boards)
@@ -241,10 +251,12 @@ class _BoardAssembler(FrameAssembler):
         self.board_ambient = np.full((len(ready), len(boards)), np.nan)
         self.present = np.zeros((len(ready), len(boards)), dtype=bool)
         self.first = np.empty(len(ready), dtype=np.int64)
+        self.has_force = np.zeros(len(ready), dtype=bool)
         for i, got in enumerate(ready):
             for b, f in got.items():
                 self.board_ambient[i, col[b]] = f.ambient
                 self.present[i, col[b]] = True
+                self.has_force[i] |= f.force is not None
             self.first[i] = min(got)
         return super()._assemble(ready)
 
@@ -292,6 +304,7 @@ def _work(conn: Connection, spec: _Spec) -> None:
                 "seqs": seqs, "times": samples.times, "host": samples.host_times,
                 "first": assembler.first, "ambient": assembler.board_ambient,
                 "present": assembler.present, "temperature": temperature, "events": tagged,
+                "force": samples.force, "has_force": assembler.has_force,
                 "in_contact": state.in_contact, "frames": assembler.stats.frames,
                 "gaps": sum(assembler.stats.gaps.values()), "late": assembler.stats.late,
                 "crc_errors": reader.crc_errors(), "flagged": flagged,
@@ -386,12 +399,19 @@ class _Shard:
             0, dtype=np.int64)
 
     def pop(self, upto: int) -> dict[str, np.ndarray]:
-        """Remove and return the rows with seq <= ``upto`` (a prefix), arrays joined."""
-        keys = ("seqs", "times", "host", "first", "ambient", "present", "temperature")
+        """Remove and return the rows with seq <= ``upto`` (a prefix), arrays joined.
+
+        ``force`` is NaN in the rows of a message that carried none (``has_force`` False).
+        """
+        keys = ("seqs", "times", "host", "first", "ambient", "present", "temperature",
+                "has_force")
         joined = {k: np.concatenate([p[k] for p in self.parts]) for k in keys} if self.parts \
             else None
         if joined is None:
             return {}
+        joined["force"] = np.concatenate([
+            np.full((len(p["seqs"]), self.taxels.size), np.nan) if p["force"] is None
+            else p["force"] for p in self.parts])
         c = int(np.searchsorted(joined["seqs"], upto, side="right"))
         rest = {k: v[c:] for k, v in joined.items()}
         self.parts = [rest] if len(rest["seqs"]) else []
@@ -580,6 +600,8 @@ class BoardWorkers:
         host = np.zeros((m, len(self.shards)))
         ambient = np.full((m, nb), np.nan)
         present = np.zeros((m, nb), dtype=bool)
+        force = np.full((m, n_all), np.nan)
+        has_force = np.zeros(m, dtype=bool)
         events = []
         for j, s in enumerate(self.shards):
             got = s.pop(int(ready[-1]))
@@ -598,6 +620,9 @@ class BoardWorkers:
                 host[rows, j] = got["host"]
                 ambient[np.ix_(rows, s.columns)] = got["ambient"]
                 present[np.ix_(rows, s.columns)] = got["present"]
+                if got["has_force"].any():
+                    force[np.ix_(rows, s.taxels)] = got["force"]
+                    has_force[rows] |= got["has_force"]
             keep = [e for e in s.events if e[0] > ready[-1]]
             events += [e for e in s.events if e[0] <= ready[-1]]
             s.events = keep
@@ -611,9 +636,11 @@ class BoardWorkers:
         out = []
         for a in range(0, m, self.block):
             b = min(a + self.block, m)
+            # None where no frame of the block had a force channel, as in one process
             out.append(CalibratedBlock(times[a:b], host[a:b], amb[a:b], temperature[a:b],
                                        [e[3] for e, k in zip(events, at, strict=True)
-                                        if a <= k < b]))
+                                        if a <= k < b],
+                                       force[a:b] if has_force[a:b].any() else None))
         return out
 
     def feed(self, blocks: Sequence[CalibratedBlock]) -> list:

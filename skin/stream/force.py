@@ -13,7 +13,9 @@ The free level and noise are each taxel's `skin.models.commission.span_noise` pe
 from the stream's first sample), the median of the last `SPANS` stretches that were at least
 half free and quiet (their free readings spread over at most twice the threshold): a touch
 begun in the first stretch is not learnt as the free level. A quiet stretch far under the
-level (a taxel pressed since the stream began, released) replaces it; a contact flat near its
+level once the readings have been held there `FRESH_SECONDS` (a taxel pressed since the
+stream began, released) replaces it, and is not learnt before (nor is a press of an
+inverted channel); a contact flat near its
 threshold for `LOCK_SECONDS` (a drifting free level) is ended there and the level re-learnt,
 with a note (`ForceOnsets.notes`).
 
@@ -27,9 +29,21 @@ readings have varied, as `skin.models.commission.force_stuck`) and during a cont
 date (a rise after a gap of more than `FORCE_CONTACT_HELD` or the stream's start: force coming
 back mid-contact; `GRACE_SECONDS` after it), the detector's events are kept. A dead channel
 (never a contact) thus never hides the detector's touches; detector onsets the force did not
-see are counted (`ForceOnsets.unseen`) and noted. An inverted channel (reading high at rest)
-still reports contacts at the touches' releases: not told from a real one. A run of readings
-restarts after a gap: a release inside a gap is dated at the first reading after it.
+see are counted (`ForceOnsets.unseen`) and noted. A run of readings restarts after a gap: a
+release inside a gap is dated at the first reading after it.
+
+An inverted channel (a miswired sensor, an active-low switch: high at rest, falling when
+pressed) would date contacts at the touches' releases. Each of the detector's onsets is
+matched with the taxel's force edge within `CONFIRM_SECONDS` of it: a rise (a force onset)
+is a vote for the channel's polarity, a fall (the readings held as far under the free level
+as the threshold is over it; not a release, which a late detector onset after a short touch
+would meet) a vote against. While a taxel's votes
+against outnumber those for, its force dates nothing (onsets withheld, the detector's events
+kept); once there are `INVERT_VOTES` against and none for (`INVERT_VOTES` more for each
+vote for), at the close of a stretch, its readings are taken negated from there on, its free
+level negated and its votes counted afresh, with a note naming it (`ForceOnsets.polarity`;
+a wrong turn is turned back by the same rule). A taxel whose force the detector never
+confirms (a dead channel, or a sensor too noisy for the detector) is never turned.
 
 Unlike the whole-recording `force_contacts`, the threshold has no share of the strongest touch
 (that needs the recording's end): a force whose free level drifts by more than ten noise
@@ -74,6 +88,13 @@ GRACE_SECONDS = 2.0
 #: A contact whose force sits flat within `FORCE_CONTACT_SNR` noise levels of its threshold
 #: this long is a drifting free level: it is ended and the level re-learnt, s.
 LOCK_SECONDS = 5.0
+#: A taxel's force is read inverted once this many of the detector's onsets met a fall of
+#: the force (and this many more for each that met a rise): see `ForceOnsets.polarity`.
+INVERT_VOTES = 3
+#: A quiet stretch far under the free level replaces it once the readings have been held
+#: under it this long, s (a taxel pressed since the stream's start, released; not a press of
+#: an inverted channel).
+FRESH_SECONDS = 3.0
 
 
 class ForceOnsets:
@@ -144,6 +165,19 @@ class ForceOnsets:
         self._unknown = np.ones(n, dtype=bool)
         self.onsets = 0
         self.releases = 0
+        # polarity: -1 where the readings are taken negated (an inverted channel)
+        self.polarity = np.ones(n)
+        self._low_run = np.zeros(n, dtype=np.int64)  # readings held under the mirrored threshold
+        self._low_t = np.full(n, np.nan)  # ... since
+        self._edge = np.full((2, 2, n), np.nan)  # (rise, fall) x (time, detected at), unmatched
+        self._onset_seen = np.full((2, n), np.nan)  # the detector's last unmatched onset
+        self._votes: list[list[tuple[float, int, int]]] = [[] for _ in range(n)]
+        self._against = np.zeros(n, dtype=bool)  # has had a vote against (folded or not)
+        self._pending: set[int] = set()  # taxels with votes not folded yet
+        self._base = np.zeros((3, n), dtype=np.int64)  # folded votes: for, against, epoch
+        self._turns: list[list[float]] = [[] for _ in range(n)]  # when each taxel was turned
+        self._retrusted = np.full(n, np.inf)  # trusted again after its last turn
+        self._closing: set[int] = set()  # releases closing a contact at a turn (no trust)
 
     def merge(self, times: np.ndarray, force: np.ndarray, temperature: np.ndarray,
               thermal: list[OnsetEvent]) -> list[OnsetEvent]:
@@ -165,16 +199,29 @@ class ForceOnsets:
             The onset detector's events for the block.
         """
         times = np.asarray(times, dtype=float)
-        force = np.asarray(force, dtype=float)
+        force = np.array(force, dtype=float)  # a copy: taken negated where turned
         events: list[OnsetEvent] = []
         start = 0
         before = (self.last_reading.copy(), self.known_from.copy(), self._value.copy(),
                   self._same_from.copy())
+        if len(times):
+            self._fold(float(times[0]))
+        seen = sorted((ev.detected_at, ev.taxel, ev.time) for ev in thermal
+                      if ev.kind == "onset")
+        at = 0
         while start < len(times):  # pieces end where a stretch of the noise ends
             stop = min(len(times), start + self.span - self._in_span)
+            force[start:stop] *= self.polarity
             events += self._piece(times[start:stop], force[start:stop],
                                   temperature[start:stop])
+            while at < len(seen) and seen[at][0] <= times[stop - 1]:
+                self._seen_onset(*seen[at])  # the detector's onsets, before the stretch closes
+                at += 1
+            if self._in_span == self.span:
+                events += self._close_span(float(times[stop - 1]))
             start = stop
+        for item in seen[at:]:
+            self._seen_onset(*item)
         events, thermal = self._confirm(events, thermal)
         if len(times):
             prev = np.vstack([self._value[None], force[:-1]])
@@ -202,6 +249,8 @@ class ForceOnsets:
             if ev.kind == "silent":
                 continue
             if ev.kind == "onset":
+                if self._suspect(k, ev.detected_at):
+                    continue  # its force falls where the detector sees touches: withheld
                 self._emitted[k] = True
                 self._span[:, k] = (ev.time - CONFIRM_SECONDS, np.inf)
                 out.append(ev)
@@ -209,17 +258,129 @@ class ForceOnsets:
                 self._emitted[k] = False
                 self._span[1, k] = ev.time + CONFIRM_SECONDS
                 out.append(ev)
-                if not self.trusted[k]:
+                if not self.trusted[k] and id(ev) not in self._closing:
                     self.trusted[k] = True
-                    self._trusted_from[k] = ev.detected_at
+                    if self._turns[k]:
+                        self._retrusted[k] = ev.detected_at
+                    else:
+                        self._trusted_from[k] = ev.detected_at
+        self._closing.clear()
         keep = []
         for ev in thermal:
             k = ev.taxel
-            if (ev.detected_at < self._trusted_from[k]
+            if (self._untrusted(k, ev.detected_at) and not self._suspect(k, ev.detected_at)
                     and self._span[0, k] <= ev.time <= self._span[1, k]):
                 continue  # the force's contact, not trusted yet: the force dates it
             keep.append(ev)
         return out, keep
+
+    # --- polarity: the detector's onsets against the force's rises and falls -----------------
+    def _untrusted(self, k: int, when: float) -> bool:
+        """Whether taxel ``k``'s force had not dated a contact at ``when`` (or since a turn)."""
+        turns = self._turns[k]
+        if turns and turns[-1] <= when:  # since its last turn
+            return bool(when < self._retrusted[k])
+        return bool(when < self._trusted_from[k])
+
+    def _fold(self, start: float) -> None:
+        """Fold the votes cast before ``start`` into counts (no later question goes back)."""
+        for k in sorted(self._pending):
+            epoch = len(self._turns[k])
+            if self._base[2, k] != epoch:
+                self._base[:, k] = (0, 0, epoch)
+            rest = []
+            for vote in self._votes[k]:
+                if vote[2] == epoch and vote[0] < start:
+                    self._base[0 if vote[1] > 0 else 1, k] += 1
+                elif vote[2] == epoch:
+                    rest.append(vote)
+            self._votes[k] = rest
+            if not rest:
+                self._pending.discard(k)
+
+    def _tally(self, k: int, when: float) -> tuple[int, int]:
+        """Taxel ``k``'s votes (for, against its polarity) cast by ``when``, since its last turn."""
+        epoch = sum(t <= when for t in self._turns[k])
+        up = down = 0
+        if self._base[2, k] == epoch:
+            up, down = int(self._base[0, k]), int(self._base[1, k])
+        for at, sign, ep in self._votes[k]:
+            if ep == epoch and at <= when:
+                up += sign > 0
+                down += sign < 0
+        return up, down
+
+    def _suspect(self, k: int, when: float) -> bool:
+        """Whether taxel ``k``'s force fell at more of the detector's onsets than it rose."""
+        if not self._against[k]:
+            return False
+        up, down = self._tally(k, when)
+        return down > up
+
+    def _seen_onset(self, detected: float, k: int, time: float) -> None:
+        """Register one of the detector's onsets (at its detection) and match it."""
+        self._onset_seen[:, k] = (time, detected)
+        self._match(k)
+
+    def _add_edge(self, k: int, fall: bool, time: float, detected: float) -> None:
+        """Register a rise or fall of taxel ``k``'s force (at its detection) and match it."""
+        self._edge[int(fall), :, k] = (time, detected)
+        self._match(k)
+
+    def _match(self, k: int) -> None:
+        """Vote where a detector onset lies within `CONFIRM_SECONDS` of a force edge (nearer)."""
+        seen, seen_at = self._onset_seen[:, k]
+        if not math.isfinite(seen):
+            return
+        gaps = np.abs(self._edge[:, 0, k] - seen)  # NaN: no edge
+        if not (gaps <= CONFIRM_SECONDS).any():
+            return
+        fall = int(np.nanargmin(gaps))
+        at = max(float(seen_at), float(self._edge[fall, 1, k]))
+        self._votes[k].append((at, -1 if fall else 1, len(self._turns[k])))
+        self._pending.add(k)
+        self._against[k] |= bool(fall)
+        self._edge[fall, :, k] = np.nan
+        self._onset_seen[:, k] = np.nan
+
+    def _turn(self, end: float) -> list[OnsetEvent]:
+        """Turn the taxels whose votes say their force reads inverted (module docstring)."""
+        events: list[OnsetEvent] = []
+        for k in np.flatnonzero(self._against).tolist():
+            up, down = self._tally(k, end)
+            if down < INVERT_VOTES * (1 + up):
+                continue
+            if self._emitted[k] or self.on[k]:  # close what it reported (the tracker's)
+                ev = OnsetEvent("release", k, end, end, float("nan"), 0.0, -1,
+                                channel=FORCE_CHANNEL, dated_by="force")
+                self._closing.add(id(ev))
+                events.append(ev)
+            # its free level stays (stretches far under it were not learnt): negated
+            self.polarity[k] *= -1
+            self._f[:, k] *= -1
+            self._value[k] *= -1
+            self._spans[:, 0, k] *= -1
+            margin = self._threshold[k] - self.level[k]
+            self.level[k] *= -1
+            self._threshold[k] = self.level[k] + margin
+            pressed = self._low_run[k] >= self.held
+            self.on[k], self._run[k], self._low_run[k] = pressed, 0, 0
+            self._edge[:, :, k] = np.nan
+            self._onset_seen[:, k] = np.nan
+            self._silent[:, k] = self._span[:, k] = np.nan
+            self._on_since[k] = self._peak[k] = np.nan
+            if pressed:  # turned mid-press: a contact the force did not date (the detector's)
+                self._silent[:, k] = (self._low_t[k], np.inf)
+                self._on_since[k] = self._low_t[k]
+            self.trusted[k] = False
+            self._retrusted[k] = np.inf
+            self._turns[k].append(end)
+            self.notes.append(
+                f"taxel {self.ids[k]}: its force fell at {down} of the detector's onsets and "
+                f"rose at {up} (wired inverted, or an active-low switch?): read "
+                f"{'negated' if self.polarity[k] < 0 else 'as it comes again'} from "
+                f"{end:.3f} s")
+        return events
 
     def _kept(self, times: np.ndarray, force: np.ndarray, thermal: list[OnsetEvent],
               last_before: np.ndarray, known_before: np.ndarray, value_before: np.ndarray,
@@ -254,11 +415,13 @@ class ForceOnsets:
                      and abs(value - self.level[ev.taxel]) <= 3 * self.noise[ev.taxel])
             k = ev.taxel
             silent = self._silent[0, k] <= ev.detected_at <= self._silent[1, k]
-            untrusted = ev.detected_at < self._trusted_from[k]
+            suspect = self._suspect(k, ev.detected_at)
+            untrusted = suspect or self._untrusted(k, ev.detected_at)
             if (stuck or silent or untrusted
                     or not (known <= ev.detected_at and ev.detected_at - seen <= self.held_s)):
                 kept.append(ev)
-                if ev.kind == "onset" and known <= ev.detected_at and not silent:
+                if (ev.kind == "onset" and known <= ev.detected_at and not silent
+                        and not suspect):
                     self.unseen[k] += 1
                     if self.unseen[k] == 2:
                         self.notes.append(
@@ -285,35 +448,47 @@ class ForceOnsets:
         threshold = self._threshold
         over = f > threshold  # NaN (no reading, or the threshold not known yet): neither
         under = f <= threshold
+        low = f < 2 * self.level - threshold  # as far under the level as the threshold is over
         # only the taxels that may change state walk their samples
         walk = np.flatnonzero((self.on & under.any(axis=0)) | (~self.on & over.any(axis=0))
-                              | (self._run > 0))
+                              | (self._run > 0) | (~self.on & low.any(axis=0))
+                              | (self._low_run > 0))
         events = [ev for k in walk for ev in self._walk(int(k), t, f, over[:, k],
-                                                        under[:, k], first,
+                                                        under[:, k], low[:, k], first,
                                                         float(prev_reading[k]))]
         # the stretch's free samples: under the threshold, or every reading before it is known
         free = np.where(self._unknown, fin, under)
         self._span_f[self._in_span:self._in_span + m] = f
         self._span_free[self._in_span:self._in_span + m] = free
         self._in_span += m
-        if self._in_span == self.span:
-            events += self._close_span(float(t[-1]))
         return events
 
     def _walk(self, k: int, t: np.ndarray, f: np.ndarray, over: np.ndarray, under: np.ndarray,
-              first: int, prev: float) -> list[OnsetEvent]:
+              low: np.ndarray, first: int, prev: float) -> list[OnsetEvent]:
         """Step one taxel through a piece: its held crossings, as events.
 
         A run of readings restarts after a gap of more than `FORCE_CONTACT_HELD` (a
         release inside a gap is dated at the first reading after it); a rise whose last
         reading before it precedes such a gap (or the stream's start) is force coming back
-        mid-contact: no force onset, the detector dates that contact (kind "silent").
+        mid-contact: no force onset, the detector dates that contact (kind "silent"). Free,
+        readings held ``low`` (under the level by the threshold's margin) are a fall of the
+        force (`_add_edge`: no event).
         """
         out = []
         on, run, run_start = bool(self.on[k]), int(self._run[k]), int(self._run_start[k])
         run_t, after_gap = float(self._run_t[k]), bool(self._after_gap[k])
+        low_run, low_t = int(self._low_run[k]), float(self._low_t[k])
         held = self.held
-        for i, (o, u) in enumerate(zip(over.tolist(), under.tolist(), strict=True)):
+        for i, (o, u, lo) in enumerate(zip(over.tolist(), under.tolist(), low.tolist(),
+                                           strict=True)):
+            if lo and not on:
+                if low_run == 0:
+                    low_t = float(t[i])
+                low_run += 1
+                if low_run == held:
+                    self._add_edge(k, True, low_t, float(t[i]))
+            else:
+                low_run = 0
             gap = False
             if o or u:
                 gap = float(t[i]) - prev > self._gap_s
@@ -339,6 +514,7 @@ class ForceOnsets:
                 run = 0  # a reading under it, or none: the rise was not held
         self.on[k], self._run[k], self._run_start[k] = on, run, run_start
         self._run_t[k], self._after_gap[k] = run_t, after_gap
+        self._low_run[k], self._low_t[k] = low_run, low_t
         return out
 
     def _ring(self, upto: int) -> tuple[np.ndarray, int]:
@@ -365,6 +541,7 @@ class ForceOnsets:
         base = y[before & np.isfinite(y)]
         baseline = float(base.mean()) if base.size else float(y[j])
         self.onsets += 1
+        self._add_edge(k, False, onset, float(t[-1]))
         return OnsetEvent("onset", k, onset, float(t[-1]), baseline, 0.0, -1,
                           channel=FORCE_CHANNEL, dated_by="force")
 
@@ -399,7 +576,12 @@ class ForceOnsets:
         cols = np.flatnonzero(enough)
         old_level = self.level[cols]
         margin = self._threshold[cols] - old_level
-        fresh_level = quiet & (level < old_level - margin)  # released after a start pressed
+        # released after a start pressed (not a press of a taxel whose force falls at touches)
+        low_for = np.where(self._low_run[cols] >= self.held, end - self._low_t[cols], 0.0)
+        far_under = level < old_level - margin
+        fresh_level = quiet & far_under & (low_for >= FRESH_SECONDS)
+        for j in np.flatnonzero(fresh_level & self._against[cols]).tolist():
+            fresh_level[j] = not self._suspect(int(cols[j]), end)
         # a contact flat near its threshold for long: the free level drifted
         if self.on.any():
             allf = self._span_f
@@ -429,6 +611,9 @@ class ForceOnsets:
         self._spans[:, :, cols[fresh_level]] = np.nan
         row = self._spans[self._span_count % SPANS]
         row[:] = np.nan
+        # a quiet stretch far under the level is no free level (a press of an inverted
+        # channel) unless it replaces it
+        quiet = quiet & (fresh_level | ~far_under)
         good = cols[quiet]
         row[0, good], row[1, good] = level[quiet], noise[quiet]
         self._noisy[good] |= noise[quiet] > 0
@@ -446,4 +631,4 @@ class ForceOnsets:
         self._span_f[:] = np.nan
         self._span_free[:] = False
         self._in_span = 0
-        return events
+        return events + self._turn(end)

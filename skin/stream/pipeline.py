@@ -269,7 +269,7 @@ class Pipeline:
         starting at the force's onset), the onset detector dating the others and those
         stretches where the force has no reading. False: the onset detector dates every
         taxel. A stream without a force channel costs nothing either way. Blocks assembled
-        in board worker processes (`process_calibrated`) carry no force: dated thermally.
+        in board worker processes (`process_calibrated`) carry their force: merged here alike.
     response_check : bool
         Test each contact the force alone dated for a thermal response before classifying it
         (`skin.stream.response`: a likelihood-ratio test of its samples, contact against the
@@ -435,8 +435,9 @@ class Pipeline:
         """
         started = time.perf_counter()
         if len(block.times):
+            force = block.force if self.force_onsets else None
             self._track(block.times, block.temperature, block.ambient, block.host_times,
-                        block.events)
+                        block.events, force)
         return self._drain(started, self.budget)
 
     def _track(self, times: np.ndarray, temperature: np.ndarray, ambient: np.ndarray,
