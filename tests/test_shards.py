@@ -465,3 +465,45 @@ def test_a_sub_detector_keeps_the_whole_noise_table(sensor):
     per_taxel = {k for k, v in vars(small).items()
                  if isinstance(v, np.ndarray) and v.shape == (7,)}
     assert per_taxel <= set(OnsetDetector.PER_TAXEL)
+
+
+@pytest.mark.parametrize("workers", [2, 3])
+def test_workers_give_the_events_of_one_process_with_the_common_mode_on_several_boards(workers):
+    """``skin run --workers N`` (`OnsetShards`) with the board common mode on a layout of
+    three boards (16, 16, 8 taxels), wired interleaved (a board's taxels are no run in layout
+    order): the events of one process, every field, through a stream whose room the common
+    mode takes off (tests/test_onset_pinned.py's, low-cost: it engages on every board)."""
+    from test_onset_pinned import BOARDS, stream
+
+    from skin.formats.layout import Board, Taxel
+    from skin.stream.onset import OnsetDetector
+    from skin.stream.shards import OnsetShards
+
+    t, y = stream("low-cost", 200.0)
+    n = sum(BOARDS)
+    # board of each layout index: the pinned stream's boards, dealt out interleaved
+    own = np.repeat(np.arange(len(BOARDS)), BOARDS)
+    order = np.argsort(np.arange(n) % 5, kind="stable")  # layout index -> stream column
+    boards = own[order]
+    y = y[:, order]
+    layout = Layout([Taxel(k, int(boards[k]), k, "forearm", (0.0, 0.0, 0.01 * k), (1.0, 0.0, 0.0))
+                     for k in range(n)], [Board(id=b) for b in range(len(BOARDS))],
+                    name="three boards, interleaved", source="<three boards>")
+    detector = OnsetDetector(n, sensor="low-cost", boards=boards)  # the default: on
+    assert detector.common_active and detector._groups().order is not None
+    state = detector.initial_state()
+    one, engaged = [], set()
+    shards = OnsetShards(detector, layout, workers)
+    try:
+        assert len(shards.shards) == min(workers, len(BOARDS))  # whole boards
+        many = []
+        for k in range(0, t.size, 10):
+            got, state = detector.process(t[k:k + 10], y[k:k + 10], state)
+            one += got
+            engaged |= set(boards[state.common != 0.0].tolist())
+            many += shards.process(t[k:k + 10], y[k:k + 10])
+    finally:
+        shards.close()
+    assert engaged == set(range(len(BOARDS)))  # the room taken off on every board
+    assert sum(e.kind == "onset" for e in one) >= 10
+    assert [(e, e.channel) for e in many] == [(e, e.channel) for e in one]

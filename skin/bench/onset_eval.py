@@ -133,7 +133,7 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
     events = []
     started = time.perf_counter()
     for k in range(0, n, chunk):
-        new, state = detector.process(times[k:k + chunk], y[k:k + chunk], state)
+        new, state = detector.process(times[k:k + chunk], y[k:k + chunk], state, in_place=True)
         events += new
         if progress is not None and (k // chunk) % 500 == 0:
             progress(min(k + chunk, n), n)

@@ -291,7 +291,8 @@ def _work(conn: Connection, spec: _Spec) -> None:
             t0 = time.process_time()
             temperature, status = spec.calibration.temperature(samples.counts)
             t1 = time.process_time()
-            events, state = spec.detector.process(samples.times, temperature, state)
+            events, state = spec.detector.process(samples.times, temperature, state,
+                                                  in_place=True)
             t2 = time.process_time()
             seqs = assembler.last_seqs
             rows = np.searchsorted(samples.times, [e.detected_at for e in events])

@@ -94,7 +94,9 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass, field, fields, replace
+import threading
+from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -171,6 +173,74 @@ def _shared(count: np.ndarray) -> np.ndarray:
     All but `COMMON_SHARE`, rounded up: 4 of 4, 8 of 8, 15 of 16, 18 of 20.
     """
     return np.ceil((1.0 - COMMON_SHARE) * np.asarray(count, dtype=float) - 1e-9)
+
+
+class _Boards(NamedTuple):
+    """A layout's boards as the common mode uses them (`OnsetDetector._groups`).
+
+    ``table``: each board's taxel indices, a row each, padded with ``n``; ``row``: each taxel's
+    board (its row); ``order`` (None when the boards are runs of taxels in layout order
+    already) and ``starts``: the taxels in board order and where each board's begin, for
+    counting by board (`OnsetDetector._per_board`); ``need``: `_shared` of 0 .. the widest
+    board's taxels; ``sigma``: each board's largest departure sigma (`COMMON_AGREE`'s);
+    ``low``: minus each taxel's noise margin; ``still``: `_STILL` of the margin, squared;
+    ``ahead``: each table position's index in a table twice as wide (`OnsetDetector._agree`).
+    """
+
+    table: np.ndarray
+    row: np.ndarray
+    order: np.ndarray | None
+    starts: np.ndarray
+    need: np.ndarray
+    sigma: np.ndarray
+    low: np.ndarray
+    still: np.ndarray
+    ahead: np.ndarray
+
+
+class _Scratch:
+    """A step's float temporaries (`OnsetDetector._step`), reused rather than allocated.
+
+    One set per taxel count and thread (`_scratch`): a step overwrites them, none outlives it.
+    """
+
+    ROWS = ("dt", "tmp", "part", "pred", "resid", "sigma", "allowance", "slack", "g", "u",
+            "fall", "since", "drop", "margin", "flat", "gusty", "err")
+
+    def __init__(self, n: int) -> None:
+        for name, row in zip(self.ROWS, np.empty((len(self.ROWS), n)), strict=True):
+            setattr(self, name, row)
+        #: a padded board table's source (`OnsetDetector._padded`): the last slot stays NaN
+        self.ext = np.full(n + 1, np.nan)
+        #: the common mode's counts' masks (`OnsetDetector._common`)
+        self.flags = np.empty((3, n), dtype=bool)
+
+
+_SCRATCH = threading.local()
+
+
+def _scratch(n: int) -> _Scratch:
+    """Return this thread's `_Scratch` for ``n`` taxels (made at its first use)."""
+    mine = getattr(_SCRATCH, "by_size", None)
+    if mine is None:
+        mine = _SCRATCH.by_size = {}
+    work = mine.get(n)
+    if work is None:
+        work = mine[n] = _Scratch(n)
+    return work
+
+
+def _toward(x: np.ndarray, target: np.ndarray, gain: np.ndarray, where: np.ndarray,
+            tmp: np.ndarray) -> None:
+    """Move ``x`` one exponential-average step toward ``target`` where ``where``, in place.
+
+    ``x + (target - x) * gain``, the same arithmetic, without temporaries (``tmp`` is
+    overwritten).
+    """
+    np.subtract(target, x, out=tmp)
+    tmp *= gain
+    np.add(x, tmp, out=x, where=where)
+
 
 _PAPER_RESPONSE = 2.516  # s, the paper sensor's half-response time (SensorDescription)
 _PAPER_MODE = 2.4e-4**2 / 2.796e-9  # s, the paper sensor's l^2 / alpha
@@ -643,7 +713,9 @@ class DetectorState:
 
     def copy(self) -> DetectorState:
         """Return a deep copy."""
-        return replace(self, **{f.name: getattr(self, f.name).copy() for f in fields(self)})
+        new = object.__new__(DetectorState)  # frozen: its fields set as `replace` would
+        new.__dict__.update({name: value.copy() for name, value in self.__dict__.items()})
+        return new
 
 
 @dataclass(frozen=True)
@@ -1093,8 +1165,9 @@ class OnsetDetector:
             raise TypeError(f"common_mode: True, False, None or \"auto\", got {common_mode!r}")
         self.common_mode = (common_auto(sensor) if common_mode is None or common_mode == "auto"
                             else common_mode)
-        # `_groups`' cache: the board array it was built for and its table (None: not built)
-        self._groups_of: tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None] | None = None
+        # `_groups`' cache: the board array and margins it was built for and its tables
+        # (None: not built)
+        self._groups_of: tuple[np.ndarray, np.ndarray, _Boards | None] | None = None
         # a loop-held board's common mode (`_loop_common`): the median of its free taxels'
         # departures, always taken off; the envelope's room allowance then scaled by what it
         # leaves (``common_var``) against the room's own variance through the loop
@@ -1148,7 +1221,8 @@ class OnsetDetector:
         )
 
     def process(
-        self, times: np.ndarray, temperature: np.ndarray, state: DetectorState
+        self, times: np.ndarray, temperature: np.ndarray, state: DetectorState,
+        in_place: bool = False,
     ) -> tuple[list[OnsetEvent], DetectorState]:
         """Run the detector over a chunk of samples.
 
@@ -1159,7 +1233,12 @@ class OnsetDetector:
         temperature : numpy.ndarray, shape (n_samples, n_taxels)
             Temperatures, deg C; NaN marks a missing or flagged sample, which is skipped.
         state : DetectorState
-            State after the previous chunk (`initial_state` for the first); not modified.
+            State after the previous chunk (`initial_state` for the first); not modified,
+            unless ``in_place``.
+        in_place : bool
+            Update ``state`` itself and return it (no copy): for a caller that hands its state
+            over, as a live pipeline does on every sample (the copy of its 31 arrays was a
+            tenth of the detector's time there).
 
         Returns
         -------
@@ -1168,13 +1247,15 @@ class OnsetDetector:
         state : DetectorState
             State after this chunk.
         """
-        s = state.copy()
+        s = state if in_place else state.copy()
         events: list[OnsetEvent] = []
         temperature = np.asarray(temperature, dtype=float).reshape(len(times), self.n_taxels)
         groups = self._groups()
         taus = self._taus(groups)
-        for t, y in zip(np.asarray(times, dtype=float), temperature, strict=True):
-            self._step(float(t), y, s, events, taus, groups)
+        work = _scratch(self.n_taxels)
+        limits = self._limits()
+        for t, y in zip(np.asarray(times, dtype=float).tolist(), temperature, strict=True):
+            self._step(t, y, s, events, taus, groups, work=work, limits=limits)
         return events, s
 
     def trace(
@@ -1214,33 +1295,59 @@ class OnsetDetector:
         kept = (np.full((len(times), len(MARGIN_TESTS), self.n_taxels), np.nan) if margins
                 else None)
         row: list | None = [] if margins else None
-        for i, (t, y) in enumerate(zip(times, temperature, strict=True)):
-            self._step(float(t), y, s, events, taus, groups, row)
+        work = _scratch(self.n_taxels)
+        limits = self._limits()
+        for i, (t, y) in enumerate(zip(times.tolist(), temperature, strict=True)):
+            self._step(t, y, s, events, taus, groups, row, work, limits)
             smooth[i] = s.smooth
             slope[i] = s.slope
             if row:
                 kept[i] = row.pop()
         return DetectorTrace(times, smooth, slope, events, s, kept)
 
-    def _taus(self, groups: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
+    def _taus(self, groups: _Boards | None) -> np.ndarray:
         """Return the smoothing time constants of `_step`'s gains, a row each.
 
         Smooth, slow, level, slope (free, in contact), noise, medium, and, with a common mode
-        (``groups``), how fast the room's change is forgotten.
+        (``groups``), how fast the room's change is forgotten. Kept while they stay the same
+        (`process` asks at every call).
         """
-        taus = [self.smooth_tau, self.slow_tau, self.level_tau, self.slope_tau,
-                self.contact_slope_tau, self.noise_tau, self.medium_tau]
+        taus = (self.smooth_tau, self.slow_tau, self.level_tau, self.slope_tau,
+                self.contact_slope_tau, self.noise_tau, self.medium_tau)
         if groups is not None:
-            taus.append(COMMON_FORGET * self.slow_tau)
-        return np.array(taus)[:, None]
+            taus += (COMMON_FORGET * self.slow_tau,)
+        cached = getattr(self, "_taus_of", None)
+        if cached is None or cached[0] != taus:
+            cached = self._taus_of = (taus, np.array(taus)[:, None])
+        return cached[1]
+
+    def _limits(self) -> tuple[np.ndarray | float, ...]:
+        """Return the CUSUM's derived limits, kept while their sources stay the same objects.
+
+        ``threshold / 10`` (a fall begun: no rebound), ``threshold / 4``, ``rise_threshold /
+        4``, ``end_threshold / 4`` and ``end_rise_threshold / 4`` (the baseline still
+        follows), ``noise_floor**2`` and ``_resid_sigma**2`` (the envelope's readout noise).
+        """
+        sources = (self.threshold, self.rise_threshold, self.end_threshold,
+                   self.end_rise_threshold, self.noise_floor,
+                   getattr(self, "_resid_sigma", None))
+        ids = tuple(map(id, sources))
+        cached = getattr(self, "_limits_of", None)
+        if cached is None or cached[0] != ids:
+            th, rise, end, end_rise, floor, resid = sources
+            # (the sources kept with their ids: no id is reused while they are cached)
+            cached = self._limits_of = (ids, (
+                th / 10, th / 4, rise / 4, end / 4, end_rise / 4, floor**2,
+                None if resid is None else resid**2), sources)
+        return cached[1]
 
     @property
     def common_active(self) -> bool:
         """Whether a board common mode runs: ``common_mode`` and a board of `COMMON_MIN`."""
         return self._groups() is not None
 
-    def _groups(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """Return each board's taxel indices (a row each, padded with n) and each taxel's row.
+    def _groups(self) -> _Boards | None:
+        """Return the boards' tables (`_Boards`: ``table`` and ``row`` first).
 
         None when the common mode is off or no board has `COMMON_MIN` taxels.
         """
@@ -1249,8 +1356,9 @@ class OnsetDetector:
         # built once per board array (`process` asks at every call: a live skin's call is a
         # sample or a few); a shard's detector (`skin.stream.shards.sub_detector`) has its own
         cached = self._groups_of
-        if cached is not None and cached[0] is self.board:
-            return cached[1]
+        if (cached is not None and cached[0] is self.board
+                and cached[1] is self._common_margin):
+            return cached[2]
         ids, row, counts = np.unique(self.board, return_inverse=True, return_counts=True)
         groups = None
         if counts.max(initial=0) >= COMMON_MIN:
@@ -1259,28 +1367,63 @@ class OnsetDetector:
             start = np.concatenate([[0], np.cumsum(counts)[:-1]])
             col = np.arange(self.n_taxels) - np.repeat(start, counts)
             table[row[order], col] = order
-            groups = (table, row)
-        self._groups_of = (self.board, groups)
+            margin = self._common_margin
+            groups = _Boards(
+                table, row,
+                None if np.array_equal(order, np.arange(self.n_taxels)) else order,
+                start.astype(np.intp), _shared(np.arange(table.shape[1] + 1)),
+                np.append(margin / COMMON_MARGIN, 0.0)[table].max(axis=1), -margin,
+                (_STILL * margin)**2,
+                np.arange(table.size).reshape(table.shape) + np.arange(ids.size)[:, None]
+                * table.shape[1])
+        self._groups_of = (self.board, self._common_margin, groups)
         return groups
 
+    @staticmethod
+    def _per_board(mask: np.ndarray, groups: _Boards) -> np.ndarray:
+        """Return how many taxels of each board ``mask`` holds (integers; the last axis)."""
+        if groups.order is not None:
+            mask = mask[..., groups.order]
+        return np.add.reduceat(mask, groups.starts, axis=-1)
+
+    @staticmethod
+    def _padded(values: np.ndarray, keep: np.ndarray, table: np.ndarray,
+                work: _Scratch) -> np.ndarray:
+        """Return each board's ``values`` of its ``keep`` taxels, sorted, a row each, NaN last.
+
+        (``np.append(np.where(keep, values, np.nan), np.nan)[table]``, sorted: the same
+        values, through ``work.ext``, whose last slot, the padding's, stays NaN.)
+        """
+        ext = work.ext[:-1]
+        np.copyto(ext, values)
+        np.copyto(ext, np.nan, where=~keep)
+        out = work.ext.take(table)
+        out.sort(axis=1)
+        return out
+
     def _common(self, t: float, y: np.ndarray, s: DetectorState, live: np.ndarray,
-                gain: np.ndarray, groups: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+                gain: np.ndarray, groups: _Boards, work: _Scratch) -> np.ndarray:
         """Return the readings with their board's common mode taken off (``common_mode``)."""
-        table, row = groups
+        table, row = groups.table, groups.row
         # a taxel read again after a hole: its ``common`` is what its board held before the
         # hole; it rejoins at the board's value now, its level re-seated to it (else its stale
         # 0 against a board holding the room's -0.18 K kept the board's no-step test failing:
         # the board held for ever, low-cost, a 5 s hole on one taxel, 16 false onsets)
-        self._rejoin(t, y, s, live, gain, table, row)
+        self._rejoin(t, y, s, live, groups, work)
         if self.loop_common:
             return self._loop_common(t, y, s, live, gain, table, row)
         # (the gated form's ``common_var``: the mean square of each reading's step from its
         # smoothed one, over the level's time constant; 0 for a taxel that never varies)
-        np.copyto(s.common_var, s.common_var + ((y - s.common_smooth)**2 - s.common_var)
-                  * gain[1], where=live)
-        np.copyto(s.common_smooth, s.common_smooth + (y - s.common_smooth) * gain[6],
-                  where=live)
-        part = s.common_smooth - s.common_level
+        # (``var + ((y - smooth)**2 - var) * gain[1]``, then ``smooth + (y - smooth) *
+        # gain[6]``: one step ``y - smooth`` for both)
+        step = np.subtract(y, s.common_smooth, out=work.tmp)
+        square = np.square(step, out=work.part)
+        square -= s.common_var
+        square *= gain[1]
+        np.add(s.common_var, square, out=s.common_var, where=live)
+        step *= gain[6]
+        np.add(s.common_smooth, step, out=s.common_smooth, where=live)
+        part = np.subtract(s.common_smooth, s.common_level, out=work.part)
         # beyond the noise: a board's noise alone (all its taxels a little low at once) is
         # taken for nothing, and the common mode stays continuous as it leaves 0. A departure
         # beyond the margin, ``part + margin < 0`` (``part - margin > 0``), is counted as
@@ -1299,21 +1442,21 @@ class OnsetDetector:
             count = np.array([free])
             moved = np.zeros(1, dtype=bool)
             if free >= COMMON_MIN:
-                need = int(_shared(free))
-                moved[0] = (np.count_nonzero(use & (part < -margin)) >= need
+                need = int(groups.need[free])
+                moved[0] = (np.count_nonzero(use & (part < groups.low)) >= need
                             or np.count_nonzero(use & (part > margin)) >= need)
         else:
-            size = table.shape[0]
-            count = np.bincount(row, weights=use, minlength=size)
-            moved = count >= COMMON_MIN
-            if moved.any():
-                # a common fall (rise) needs at least `_shared` of the free taxels below
-                # (above) 0
-                need = _shared(count)
-                down = np.bincount(row, weights=use & (part < -margin), minlength=size)
-                up = np.bincount(row, weights=use & (part > margin), minlength=size)
-                moved &= (down >= need) | (up >= need)
-        if moved.any():
+            # each board's free taxels, and those below (above) 0: a common fall (rise) needs
+            # at least `_shared` of them
+            flags = work.flags
+            np.copyto(flags[0], use)
+            np.less(part, groups.low, out=flags[1])
+            np.greater(part, margin, out=flags[2])
+            flags[1:] &= use
+            count, down, up = self._per_board(flags, groups)
+            need = groups.need[count]
+            moved = (count >= COMMON_MIN) & ((down >= need) | (up >= need))
+        if np.count_nonzero(moved):
             # ... and moved every free taxel: the room moves each heated taxel of a board, so
             # a change that left a free taxel within its noise of its level is a touch of the
             # others (15 of 16 taxels under one block: taken for the room until they were
@@ -1321,21 +1464,21 @@ class OnsetDetector:
             # (a taxel whose reading does not vary at all, stuck or constant, is no heated
             # taxel the room could move: never counted, else it vetoed the board's common mode
             # for ever; low-cost, a 0.6 K fall with one taxel constant: 15 false onsets)
-            flat = use & (np.abs(part) <= margin) & (s.common_var > (_STILL * margin)**2)
-            if flat.any():
+            flat = use & (np.abs(part, out=work.tmp) <= margin) & (s.common_var > groups.still)
+            if np.count_nonzero(flat):
                 if table.shape[0] == 1:
                     moved[0] = False
                 else:
-                    moved &= np.bincount(row, weights=flat, minlength=table.shape[0]) == 0
-        if moved.any():
+                    moved &= self._per_board(flat, groups) == 0
+        if np.count_nonzero(moved):
             # ... by the same amount (`COMMON_AGREE`): a warm-up's rises, each taxel's own, are
             # no room (the default scene with it on: 373 -> 232 of 450 touches named right
             # without this, seeds 0-29)
-            moved &= self._agree(part, use, table, count)
-        if not moved.any() and not s.common.any():
+            moved &= self._agree(part, use, groups, count, work)
+        if not np.count_nonzero(moved) and not np.count_nonzero(s.common):
             # a quiet skin: no board's common mode, before nor now (no held mode, no terms of
             # the room's change)
-            self._follow_level(s, live, gain, 0.0)
+            self._follow_level(s, live, gain, 0.0, work.tmp, part)
             return y
         # a board whose gate is off, whatever the reason, holds its last common mode, fading
         # as each taxel's level absorbs it (`COMMON_FORGET` ``slow_tau``), 0 once within
@@ -1346,8 +1489,8 @@ class OnsetDetector:
         # 0.16 K room rise dropped)
         held = s.common * (1.0 - gain[7])
         held[np.abs(held) < COMMON_SNAP * margin] = 0.0
-        if moved.any():
-            common = self._board_common(part + margin, part - margin, use, table, row, count)
+        if np.count_nonzero(moved):
+            common = self._board_common(part + margin, part - margin, use, groups, count, work)
             # ... and never steps: the room moves a board's readings by far less than their
             # noise from one sample to the next, so a common mode more than its margin from
             # the board's last one is no room (the gate passing with the departures already
@@ -1357,33 +1500,33 @@ class OnsetDetector:
             # back within a margin of what it holds (its levels absorb them within
             # ``slow_tau``); a common mode that follows the room stays continuous
             # (one value per board: each taxel's own may have faded by its own gap)
-            last = self._board_value(s.common, live, table, row)
+            last = self._board_value(s.common, live, groups, work)
             far = live & (np.abs(common - last) > margin)
-            if far.any():
+            if np.count_nonzero(far):
                 if table.shape[0] == 1:
                     moved[0] = False
                 else:
-                    moved &= np.bincount(row, weights=far, minlength=table.shape[0]) == 0
-        if moved.any():
+                    moved &= self._per_board(far, groups) == 0
+        if np.count_nonzero(moved):
             common = np.where(moved[row], common, held)
-        elif held.any():
+        elif np.count_nonzero(held):
             common = held
         else:
             common = 0.0
         np.copyto(s.common, common, where=live)
-        self._follow_level(s, live, gain, common)
+        self._follow_level(s, live, gain, common, work.tmp)
         return y - common if np.any(common) else y
 
-    @staticmethod
-    def _board_value(values: np.ndarray, keep: np.ndarray, table: np.ndarray,
-                     row: np.ndarray) -> np.ndarray:
+    @classmethod
+    def _board_value(cls, values: np.ndarray, keep: np.ndarray, groups: _Boards,
+                     work: _Scratch) -> np.ndarray:
         """Return each taxel's board's median of ``values`` over its ``keep`` taxels.
 
         NaN where a board has none. One value per board (each taxel's ``common`` may have
         faded by its own gap since its last sample).
         """
-        vals = np.append(np.where(keep, values, np.nan), np.nan)[table]
-        vals.sort(axis=1)  # NaN last
+        vals = cls._padded(values, keep, groups.table, work)  # NaN last
+        row = groups.row
         count = np.count_nonzero(np.isfinite(vals), axis=1)
         lo = np.clip((count - 1) // 2, 0, vals.shape[1] - 1)[:, None]
         hi = np.clip(count // 2, 0, vals.shape[1] - 1)[:, None]
@@ -1391,7 +1534,7 @@ class OnsetDetector:
         return np.where(count > 0, mid, np.nan)[row]
 
     def _rejoin(self, t: float, y: np.ndarray, s: DetectorState, live: np.ndarray,
-                gain: np.ndarray, table: np.ndarray, row: np.ndarray) -> None:
+                groups: _Boards, work: _Scratch) -> None:
         """Re-seat a taxel read again after a hole at its board's common mode.
 
         Its ``common`` is its board's (`_board_value` of the taxels read on), its smoothed
@@ -1399,9 +1542,9 @@ class OnsetDetector:
         `_loop_common` re-seats a taxel back from a contact).
         """
         ret = live & (s.t_seated == t)  # `process`: a hole (or a warm-up's worth) just ended
-        if not ret.any():
+        if not np.count_nonzero(ret):
             return
-        board = self._board_value(s.common, live & ~ret, table, row)
+        board = self._board_value(s.common, live & ~ret, groups, work)
         board = np.where(np.isnan(board), s.common, board)
         np.copyto(s.common, board, where=ret)
         np.copyto(s.common_smooth, y, where=ret)
@@ -1409,16 +1552,26 @@ class OnsetDetector:
 
     @staticmethod
     def _follow_level(s: DetectorState, live: np.ndarray, gain: np.ndarray,
-                      common: np.ndarray | float) -> None:
+                      common: np.ndarray | float, tmp: np.ndarray,
+                      part: np.ndarray | None = None) -> None:
         """Move each live taxel's ``common_level`` (`_common`) one step.
 
         The level follows the reading with the common mode taken off, and slowly the room
         too: a room that settled elsewhere is each taxel's new level (the common mode, and its
-        noise, gone again); slower changes reach the baseline as a trend.
+        noise, gone again); slower changes reach the baseline as a trend. (``level +
+        (smooth - common - level) * gain[1] + common * gain[7]``, in place: ``tmp`` is
+        overwritten; ``part``, given with a ``common`` of 0, is ``smooth - level``: the same
+        numbers, x - 0 being x.)
         """
-        np.copyto(s.common_level, s.common_level
-                  + (s.common_smooth - common - s.common_level) * gain[1]
-                  + common * gain[7], where=live)
+        if part is None:
+            np.subtract(s.common_smooth, common, out=tmp)
+            tmp -= s.common_level
+            tmp *= gain[1]
+        else:
+            np.multiply(part, gain[1], out=tmp)
+        np.add(s.common_level, tmp, out=tmp)
+        tmp += common * gain[7]
+        np.copyto(s.common_level, tmp, where=live)
 
     def _loop_common(self, t: float, y: np.ndarray, s: DetectorState, live: np.ndarray,
                      gain: np.ndarray, table: np.ndarray, row: np.ndarray) -> np.ndarray:
@@ -1478,48 +1631,48 @@ class OnsetDetector:
                   where=live)
         return y - common
 
-    def _agree(self, part: np.ndarray, use: np.ndarray, table: np.ndarray,
-               count: np.ndarray) -> np.ndarray:
+    def _agree(self, part: np.ndarray, use: np.ndarray, groups: _Boards,
+               count: np.ndarray, work: _Scratch) -> np.ndarray:
         """Return whether `_shared` of each board's free taxels' departures agree in size.
 
         True where some `_shared` (k) of them, consecutive in order, span no more than
         `COMMON_AGREE` noise sigmas of the departure (the board's largest): one change moving
         them all alike, not each taxel's own (a warm-up, a reheat).
         """
-        if table.shape[0] == 1:
+        if groups.table.shape[0] == 1:
             # one board (a skin warming up passes the count on most samples): the same
             # spreads and sigma without the padded table; ``count[0]`` is ``values.size``
             # (`_common` counted the same ``use``)
             values = np.sort(part[use])
-            k = max(int(_shared(count[0])), 1)
+            k = max(int(groups.need[count[0]]), 1)
             spread = values[k - 1:] - values[: values.size - k + 1]
             sigma = np.max(self._common_margin, initial=0.0) / COMMON_MARGIN
             return np.array([np.min(spread, initial=np.inf) <= COMMON_AGREE * sigma])
-        values = np.append(np.where(use, part, np.nan), np.nan)[table]
-        values.sort(axis=1)  # NaN last
-        k = np.maximum(_shared(count), 1).astype(np.int64)
-        width = values.shape[1]
-        start = np.arange(width)[None, :]
-        end = start + (k - 1)[:, None]
-        spread = (np.take_along_axis(values, np.minimum(end, width - 1), 1) - values)
-        spread = np.where(end < count[:, None], spread, np.inf)
-        sigma = np.append(self._common_margin / COMMON_MARGIN, 0.0)[table].max(axis=1)
-        return np.min(spread, axis=1, initial=np.inf) <= COMMON_AGREE * sigma
+        values = self._padded(part, use, groups.table, work)  # NaN last
+        k = np.maximum(groups.need[count], 1).astype(np.intp)
+        # the spread of each k consecutive departures: the (k-1)-th after each, through a
+        # table twice as wide (NaN beyond a board's free taxels: such spreads passed over)
+        rows, width = values.shape
+        wide = np.full((rows, 2 * width), np.nan)
+        wide[:, :width] = values
+        spread = wide.take(groups.ahead + (k - 1)[:, None])
+        spread -= values
+        return np.fmin.reduce(spread, axis=1, initial=np.inf) <= COMMON_AGREE * groups.sigma
 
-    @staticmethod
-    def _board_common(fall_part: np.ndarray, rise_part: np.ndarray, use: np.ndarray,
-                      table: np.ndarray, row: np.ndarray, count: np.ndarray) -> np.ndarray:
+    @classmethod
+    def _board_common(cls, fall_part: np.ndarray, rise_part: np.ndarray, use: np.ndarray,
+                      groups: _Boards, count: np.ndarray, work: _Scratch) -> np.ndarray:
         """Return each taxel's board's common mode from its free taxels' departures.
 
         ``fall_part`` and ``rise_part``: the departures with the noise margin added, taken off.
         """
-        k = np.maximum(_shared(count), 1).astype(np.int64)
+        k = np.maximum(groups.need[count], 1).astype(np.int64)
         last = np.maximum(count - 1, 0).astype(np.int64)
+        row = groups.row
 
         def order(part: np.ndarray, at: np.ndarray) -> np.ndarray:
             """Return the ``at``-th smallest (from 0) of each board's free taxels' ``part``."""
-            values = np.append(np.where(use, part, np.nan), np.nan)[table]  # NaN: not counted
-            values.sort(axis=1)  # NaN last
+            values = cls._padded(part, use, groups.table, work)  # NaN: not counted, last
             return np.take_along_axis(values, np.clip(at, 0, last)[:, None], 1)[:, 0]
 
         with np.errstate(invalid="ignore"):
@@ -1531,15 +1684,22 @@ class OnsetDetector:
         return board[row]
 
     def _step(self, t: float, y: np.ndarray, s: DetectorState, events: list[OnsetEvent],
-              taus: np.ndarray, groups: tuple[np.ndarray, np.ndarray] | None = None,
-              margins: list | None = None) -> None:
-        # Whole-array updates selected with `np.copyto(..., where=)` (the same arithmetic,
-        # element by element, as masked updates, at a fraction of the calls), and the rare
-        # branches (new taxels, holes, onsets, contacts) skipped when no taxel takes them:
-        # a per-sample step is numpy's call overhead, whatever the taxels.
+              taus: np.ndarray, groups: _Boards | None = None,
+              margins: list | None = None, work: _Scratch | None = None,
+              limits: tuple | None = None) -> None:
+        # Whole-array updates selected with `np.copyto(..., where=)` or a ufunc's ``where``
+        # (the same arithmetic, element by element, as masked updates, at a fraction of the
+        # calls), the float temporaries written into ``work`` (`_Scratch`: each expression's
+        # operations in its order, so the same numbers to the bit), and the rare branches
+        # (new taxels, holes, onsets, contacts) skipped when no taxel takes them: a
+        # per-sample step is numpy's call overhead, whatever the taxels.
+        w = _scratch(self.n_taxels) if work is None else work
+        tmp = w.tmp
+        tenth, fall_quarter, rise_quarter, end_quarter, end_rise_quarter, floor2, resid2 = (
+            self._limits() if limits is None else limits)
         valid = np.isfinite(y)
         new = valid & np.isnan(s.level)
-        if new.any():
+        if np.count_nonzero(new):
             s.common_smooth[new] = s.common_level[new] = y[new]
             s.level[new] = y[new]
             s.smooth[new] = y[new]
@@ -1552,14 +1712,17 @@ class OnsetDetector:
             live = valid & ~new
         else:
             live = valid
-        if not live.any():
+        n_live = np.count_nonzero(live)
+        if not n_live:
             return
+        quiet = ~live if n_live < live.size else None  # (None: every taxel read)
         free = ~s.in_contact
         # a free taxel read again after a hole longer than the warm-up (its
         # board's samples lost, or flagged) starts again as a new one: its trend extrapolated
         # across the hole is no baseline, and what changed unseen cannot be dated
-        back = live & free & (t - s.t_last > self.warmup)
-        if back.any():
+        dt = np.subtract(t, s.t_last, out=w.dt)
+        back = live & free & (dt > self.warmup)
+        if np.count_nonzero(back):
             s.level[back] = s.smooth[back] = s.slow[back] = s.medium[back] = y[back]
             s.slope[back] = 0.0
             s.t_level[back] = s.t_last[back] = s.t_seated[back] = t
@@ -1569,48 +1732,68 @@ class OnsetDetector:
             s.armed_at[back] = t + self.warmup
             s.common_smooth[back] = y[back]
             s.common_level[back] = y[back] - s.common[back]
-        dt = np.maximum(np.where(live, t - s.t_last, 1.0), 1e-9)
+            np.subtract(t, s.t_last, out=dt)
+        # (``max(where(live, t - t_last, 1), 1e-9)``)
+        if quiet is not None:
+            np.copyto(dt, 1.0, where=quiet)
+        np.maximum(dt, 1e-9, out=dt)
         # a hole shorter than the warm-up keeps the baseline, but the smoothing's and the
         # baseline's noise after it is not the settled filters' the noise table models: the
         # settle clock starts again (`SETTLE_TAUS`)
         hole = live & (dt > self._hole)
-        np.copyto(s.t_seated, t, where=hole)
-        np.add(s.settle_restarts, hole, out=s.settle_restarts)
-        # every smoothing gain at once: smooth, slow, level, slope (free, in contact), noise
-        gain = 1 - np.exp(-dt / taus)
+        if np.count_nonzero(hole):
+            np.copyto(s.t_seated, t, where=hole)
+            np.add(s.settle_restarts, hole, out=s.settle_restarts)
+        # every smoothing gain at once: smooth, slow, level, slope (free, in contact), noise;
+        # one column when every taxel's step is the same (a skin's boards sample in step)
+        first = dt[:1]
+        if np.count_nonzero(dt != first):
+            gain = 1 - np.exp(-dt / taus)
+        else:
+            gain = 1 - np.exp(-first / taus)
         if groups is not None:
             # the room's change, shared by every free taxel of a board, taken off first
-            y = self._common(t, y, s, live, gain, groups)
+            y = self._common(t, y, s, live, gain, groups, w)
         # the smoothed reading averages noise and dithered ADC steps; everything runs on it
-        np.copyto(s.smooth, s.smooth + (y - s.smooth) * gain[0], where=live)
+        _toward(s.smooth, y, gain[0], live, tmp)
         # the slow channel's reading: averaged over a tenth of its window
-        np.copyto(s.medium, s.medium + (y - s.medium) * gain[6], where=live)
-        pred = s.level + s.slope * (t - s.t_level)
-        resid = np.where(live, s.smooth - pred, 0.0)
-        sigma = np.sqrt(np.maximum(s.var, self.noise_floor**2))
+        _toward(s.medium, y, gain[6], live, tmp)
+        # the baseline's prediction, ``level + slope * (t - t_level)``, and the residual
+        pred = np.subtract(t, s.t_level, out=w.pred)
+        pred *= s.slope
+        np.add(s.level, pred, out=pred)
+        resid = np.subtract(s.smooth, pred, out=w.resid)
+        if quiet is not None:
+            np.copyto(resid, 0.0, where=quiet)
+        sigma = np.maximum(s.var, floor2, out=w.sigma)
+        np.sqrt(sigma, out=sigma)
+        allowance = w.allowance
         if self.loop_common:
             # the room's leftover in the noise estimate had covered the fastest gusts, which
             # the CUSUM of the room-free reading took for contacts (pid-logger seed 2: 14 of
             # 15 false alarms, each within 0.5 s of a gust's start): the allowance adds what
             # the family's gusts need through the loop (`_gust_allowance`), in quadrature
-            allowance = np.maximum(self.drift, np.hypot(4.0 * sigma, self._gust_k))
+            np.multiply(4.0, sigma, out=allowance)
+            np.hypot(allowance, self._gust_k, out=allowance)
         else:
-            allowance = np.maximum(self.drift, 4.0 * sigma)
+            np.multiply(4.0, sigma, out=allowance)
+        np.maximum(self.drift, allowance, out=allowance)
         idle = live & free
         armed = t >= s.armed_at
         # in contact the baseline follows the reading's in-contact trend, and the CUSUM of the
         # other sign watches for the contact's end: a fall stopping short, or a rise
         contact = live & s.in_contact
-        any_contact = bool(contact.any())
+        any_contact = bool(np.count_nonzero(contact))
         if any_contact:
             cool = live & (s.direction < 0)
             warm = live & (s.direction > 0)
             watch_fall, watch_rise = idle | warm, idle | cool
             # the trend in contact decelerates and the baseline lags it by a fraction of its
             # slope: only a departure beyond that counts
-            slack = np.where(cool | warm,
-                             np.maximum(allowance, self.release_slack * np.abs(s.slope)),
-                             allowance)
+            slack = np.abs(s.slope, out=w.slack)
+            np.multiply(self.release_slack, slack, out=slack)
+            np.maximum(allowance, slack, out=slack)
+            np.copyto(slack, allowance, where=~(cool | warm))
         else:
             watch_fall = watch_rise = idle
             slack = allowance
@@ -1620,33 +1803,44 @@ class OnsetDetector:
         # reading's trend at start and during the fast recovery after a release)
         g_old, u_old = s.cusum, s.rise_cusum
         unarmed = idle & ~armed
-        g = np.where(watch_fall, np.maximum(0.0, g_old - resid - slack), g_old)
-        u = np.where(watch_rise, np.maximum(0.0, u_old + resid - slack), u_old)
+        g = np.subtract(g_old, resid, out=w.g)  # ``max(0, g_old - resid - slack)``
+        g -= slack
+        np.maximum(0.0, g, out=g)
+        np.copyto(g, g_old, where=~watch_fall)
+        u = np.add(u_old, resid, out=w.u)  # ``max(0, u_old + resid - slack)``
+        u -= slack
+        np.maximum(0.0, u, out=u)
+        np.copyto(u, u_old, where=~watch_rise)
         np.copyto(g, 0.0, where=unarmed)
         np.copyto(u, 0.0, where=unarmed)
         np.copyto(s.t_start, s.t_last, where=watch_fall & (g_old == 0) & (g > 0))
         np.copyto(s.rise_start, s.t_last, where=watch_rise & (u_old == 0) & (u > 0))
-        stale = watch_fall & (g > 0) & (t - s.t_start > self.stale)
-        rise_stale = watch_rise & (u > 0) & (t - s.rise_start > self.stale)
+        stale = watch_fall & (g > 0) & (np.subtract(t, s.t_start, out=tmp) > self.stale)
+        rise_stale = watch_rise & (u > 0) & (np.subtract(t, s.rise_start, out=tmp) > self.stale)
         fell = (g > self.threshold) & ~stale
         rose = (u > self.rise_threshold) & ~rise_stale
         alarm = idle & fell & armed
         # a rise that begins right after the reading fell is the taxel reheating (after a touch
         # too brief to be reported, or a gust), not a warm object
-        rebound = idle & rose & (s.rise_start - s.t_fell <= self.rebound)
+        rebound = idle & rose & (np.subtract(s.rise_start, s.t_fell, out=tmp) <= self.rebound)
         rise_alarm = idle & rose & armed & ~alarm & ~rebound
-        for k in np.flatnonzero(alarm):
-            t0 = float(s.t_start[k])
-            events.append(OnsetEvent("onset", int(k), t0, t,
-                                     float(s.level[k] + s.slope[k] * (t0 - s.t_level[k])),
-                                     float(s.slope[k]), -1))
-        for k in np.flatnonzero(rise_alarm):
-            t0 = float(s.rise_start[k])
-            events.append(OnsetEvent("onset", int(k), t0, t,
-                                     float(s.level[k] + s.slope[k] * (t0 - s.t_level[k])),
-                                     float(s.slope[k]), 1, 1))
+        any_alarm = np.count_nonzero(alarm)
+        if any_alarm:
+            for k in np.flatnonzero(alarm):
+                t0 = float(s.t_start[k])
+                events.append(OnsetEvent("onset", int(k), t0, t,
+                                         float(s.level[k] + s.slope[k] * (t0 - s.t_level[k])),
+                                         float(s.slope[k]), -1))
+        any_rise = np.count_nonzero(rise_alarm)
+        if any_rise:
+            for k in np.flatnonzero(rise_alarm):
+                t0 = float(s.rise_start[k])
+                events.append(OnsetEvent("onset", int(k), t0, t,
+                                         float(s.level[k] + s.slope[k] * (t0 - s.t_level[k])),
+                                         float(s.slope[k]), 1, 1))
         # the slow channel: a fall below the slow average of the smoothed reading
-        fall = np.where(idle, s.slow - s.medium, 0.0)
+        fall = np.subtract(s.slow, s.medium, out=w.fall)
+        np.copyto(fall, 0.0, where=~idle)
         np.copyto(s.slow_start, s.t_last,
                   where=idle & (fall > self.slow_begin) & np.isnan(s.slow_start))
         np.copyto(s.slow_start, np.nan, where=idle & (fall <= self.slow_begin))
@@ -1656,18 +1850,31 @@ class OnsetDetector:
         # to fall, deeper than the deepest, fastest gust and the steepest heater step could
         # make in the time since, and clear of the noise (the baseline, which follows a
         # smooth fall as a trend, lets such a fall pass the CUSUM)
-        since = t - s.ref_t
-        drop = s.ref_level + np.minimum(s.ref_slope, 0.0) * since - s.smooth
+        since = np.subtract(t, s.ref_t, out=w.since)
+        # ``ref_level + min(ref_slope, 0) * since - smooth``
+        drop = np.minimum(s.ref_slope, 0.0, out=w.drop)
+        drop *= since
+        np.add(s.ref_level, drop, out=drop)
+        drop -= s.smooth
+        margin = w.margin
         if self.envelope_noise:
             # the fall's own noise at the time since: the readout noise's through the
             # baseline's extrapolation (`drop_noise`, growing with the time since), and what
             # the running estimate finds beyond the readout's (disturbances: not extrapolated)
-            j = np.ceil(since / self._drop_step)
+            j = np.divide(since, self._drop_step, out=tmp)
+            np.ceil(j, out=j)
             np.copyto(j, self._drop_sd.size - 1, where=~(j < self._drop_sd.size))  # or none
             j = j.astype(np.intp)
-            readout = self._drop_sd[j] * self._resid_sigma
-            beyond = np.maximum(sigma**2 - self._resid_sigma**2, 0.0)
-            margin = self.envelope_sigmas * np.sqrt(readout**2 + beyond)
+            readout = np.take(self._drop_sd, j, out=margin)  # ``drop_sd[j] * resid_sigma``
+            readout *= self._resid_sigma
+            beyond = np.square(sigma, out=w.flat)  # ``max(sigma**2 - resid_sigma**2, 0)``
+            beyond -= resid2
+            np.maximum(beyond, 0.0, out=beyond)
+            # ``envelope_sigmas * sqrt(readout**2 + beyond)``
+            np.square(readout, out=margin)
+            margin += beyond
+            np.sqrt(margin, out=margin)
+            np.multiply(self.envelope_sigmas, margin, out=margin)
             # a reference taken before the filters settled after their seat (``t_seated``):
             # the flat margin's 8 sigmas (the table does not model the start-up transient);
             # after, the smaller of the two: tens of ms after the reference the table's,
@@ -1675,14 +1882,23 @@ class OnsetDetector:
             # which grows past the flat margin there, and the flat margin has held the room's
             # random walk, which neither models, on every preset). Never above the flat
             # margin. NaN reference: no drop.
-            flat = FLAT_SIGMAS * np.maximum(sigma, self.smoothed_sigma)
-            young = ~(s.ref_t - s.t_seated >= self._settle)
-            margin = np.where(young, flat, np.minimum(margin, flat))
+            flat = np.maximum(sigma, self.smoothed_sigma, out=w.flat)
+            np.multiply(FLAT_SIGMAS, flat, out=flat)
+            young = ~(np.subtract(s.ref_t, s.t_seated, out=tmp) >= self._settle)
+            np.minimum(margin, flat, out=margin)
+            np.copyto(margin, flat, where=young)
         else:
-            margin = self.envelope_sigmas * np.maximum(sigma, self.smoothed_sigma)
+            np.maximum(sigma, self.smoothed_sigma, out=margin)
+            np.multiply(self.envelope_sigmas, margin, out=margin)
         if self.envelope is None:
-            gusty = (self.gust_depth * -np.expm1(-since / self.gust_rise)
-                     + self.heater_rate * since + margin)
+            # ``gust_depth * -expm1(-since / gust_rise) + heater_rate * since + margin``
+            gusty = np.negative(since, out=w.gusty)
+            gusty /= self.gust_rise
+            np.expm1(gusty, out=gusty)
+            np.negative(gusty, out=gusty)
+            np.multiply(self.gust_depth, gusty, out=gusty)
+            gusty += np.multiply(self.heater_rate, since, out=tmp)
+            gusty += margin
         else:
             # a loop-held sensor: the room's drift and the noise added in quadrature (taken as
             # independent). ``sigma`` is the CUSUM's running noise estimate, which on a
@@ -1709,60 +1925,73 @@ class OnsetDetector:
                 np.where(np.isfinite(s.slow_start), fall, 0.0) / self.slow_threshold,
                 np.where(np.isfinite(drop), drop, 0.0) / gusty]), np.nan))
         slow_alarm = slow_alarm | deep
-        # a fall the CUSUM has begun to gather is dated where the CUSUM left zero, as its own
-        # onset would be; otherwise where the reading left the noise
-        cusum_began = deep & (g > 0) & np.isfinite(s.t_start)
-        for k in np.flatnonzero(slow_alarm):
-            if cusum_began[k]:
-                t0k = float(s.t_start[k])
-                events.append(OnsetEvent("onset", int(k), t0k, t,
-                                         float(s.level[k] + s.slope[k] * (t0k - s.t_level[k])),
-                                         float(s.slope[k]), -1, 2))
-            elif deep[k] and self.envelope is not None:
-                # a loop-held sensor's reference may date from long before the contact (the
-                # room's drift, a gust take the reading out of its noise first): dated when
-                # raised, so that `refine_onset`, which searches before the coarse onset,
-                # searches the span before the alarm (pid-logger seed 0: the envelope's
-                # onsets' refined error median 1.1 s -> 58 ms), the baseline carried there
-                # along the reference's trend as ``drop`` does (a falling one, a rising not)
-                trend = min(float(s.ref_slope[k]), 0.0)
-                events.append(OnsetEvent("onset", int(k), t, t,
-                                         float(s.ref_level[k] + trend * since[k]), trend, -1, 2))
-            elif deep[k]:
-                events.append(OnsetEvent("onset", int(k), float(s.ref_t[k]), t,
-                                         float(s.ref_level[k]), float(s.ref_slope[k]), -1, 2))
-            else:
-                events.append(OnsetEvent("onset", int(k), float(s.slow_start[k]), t,
-                                         float(s.slow[k]), 0.0, -1, 2))
-        t0 = np.where(alarm, s.t_start, s.rise_start)
-        # an envelope onset re-bases the baseline from where the fall began, as a CUSUM's does
-        # (the baseline re-based from where the reading left the noise: the CUSUM may have
-        # left zero a sample ago); taken before the reference slides below, which on the
-        # sample the slow channel's window runs out would move it to now
-        t0 = np.where(deep, s.ref_t, t0)
+        any_slow = np.count_nonzero(slow_alarm)
+        if any_slow:
+            # a fall the CUSUM has begun to gather is dated where the CUSUM left zero, as its
+            # own onset would be; otherwise where the reading left the noise
+            cusum_began = deep & (g > 0) & np.isfinite(s.t_start)
+            for k in np.flatnonzero(slow_alarm):
+                if cusum_began[k]:
+                    t0k = float(s.t_start[k])
+                    events.append(OnsetEvent(
+                        "onset", int(k), t0k, t,
+                        float(s.level[k] + s.slope[k] * (t0k - s.t_level[k])),
+                        float(s.slope[k]), -1, 2))
+                elif deep[k] and self.envelope is not None:
+                    # a loop-held sensor's reference may date from long before the contact
+                    # (the room's drift, a gust take the reading out of its noise first):
+                    # dated when raised, so that `refine_onset`, which searches before the
+                    # coarse onset, searches the span before the alarm (pid-logger seed 0: the
+                    # envelope's onsets' refined error median 1.1 s -> 58 ms), the baseline
+                    # carried there along the reference's trend as ``drop`` does (a falling
+                    # one, a rising not)
+                    trend = min(float(s.ref_slope[k]), 0.0)
+                    events.append(OnsetEvent("onset", int(k), t, t,
+                                             float(s.ref_level[k] + trend * since[k]), trend,
+                                             -1, 2))
+                elif deep[k]:
+                    events.append(OnsetEvent("onset", int(k), float(s.ref_t[k]), t,
+                                             float(s.ref_level[k]), float(s.ref_slope[k]),
+                                             -1, 2))
+                else:
+                    events.append(OnsetEvent("onset", int(k), float(s.slow_start[k]), t,
+                                             float(s.slow[k]), 0.0, -1, 2))
+        any_onset = bool(any_alarm or any_rise or any_slow)
+        if any_onset:
+            t0 = np.where(alarm, s.t_start, s.rise_start)
+            # an envelope onset re-bases the baseline from where the fall began, as a CUSUM's
+            # does (the baseline re-based from where the reading left the noise: the CUSUM
+            # may have left zero a sample ago); taken before the reference slides below,
+            # which on the sample the slow channel's window runs out would move it to now
+            t0 = np.where(deep, s.ref_t, t0)
         # the reference slides with the baseline while the reading stays within noise of it
         # (a falling trend extrapolated, a rising one not: it decelerates), and starts again
         # after the slow channel's window (a slower fall is the slow channel's)
-        slide = ~(drop > 2.0 * sigma) | (since > self.slow_tau)
+        slide = ~(drop > np.multiply(2.0, sigma, out=tmp)) | (since > self.slow_tau)
         np.copyto(s.ref_level, pred, where=slide)
         np.copyto(s.ref_slope, s.slope, where=slide)
         np.copyto(s.ref_t, t, where=slide)
         np.copyto(s.ref_level, np.nan, where=~(idle & armed) | slow_alarm)
-        alarm = alarm | slow_alarm
-        onset = alarm | rise_alarm
-        any_onset = bool(onset.any())
-        calm = idle & ~onset if any_onset else idle
-        np.copyto(s.slow, s.slow + gain[1] * (s.medium - s.slow), where=calm)
+        if any_onset:
+            alarm = alarm | slow_alarm
+            onset = alarm | rise_alarm
+            calm = idle & ~onset
+        else:
+            calm = idle
+        _toward(s.slow, s.medium, gain[1], calm, tmp)
         # while the taxel recovers from a release, the slow average keeps up with it
-        np.copyto(s.slow, s.medium, where=calm & (t < s.recover_until)
-                  & (s.recover_dir * (s.medium - s.slow) > 0))
+        recovering = calm & (t < s.recover_until)
+        if np.count_nonzero(recovering):
+            away = np.subtract(s.medium, s.slow, out=tmp)
+            np.multiply(s.recover_dir, away, out=away)
+            np.copyto(s.slow, s.medium, where=recovering & (away > 0))
         # and until the taxel is armed it is the slow channel's reading itself: seeded with
         # one raw reading, whose noise is the readout's before any averaging (low-cost: 0.17-
         # 0.22 K sd against the reading's first seconds), it would stay there for ``slow_tau``
         # while the medium average settles, and the difference is a fall of one sample's
         # noise (low-cost seeds 0, 14, 20, 24: 6 of 17 false alarms, raised 1.75-12 s into a
         # stream by the slow channel, the first reading 0.30-0.54 K above the next seconds')
-        if unarmed.any():
+        if np.count_nonzero(unarmed):
             np.copyto(s.slow, s.medium, where=unarmed)
         if any_onset:
             s.slow_start[onset] = np.nan
@@ -1783,33 +2012,35 @@ class OnsetDetector:
             # contact again). Where `onset_span` is the 1e-3 s guard, as before: the change
             # over max(t - t0, 1e-3)
             o = onset & np.isfinite(t0)
-            since = t - t0[o]
+            since_o = t - t0[o]
             start = s.level[o] + s.slope[o] * (t0[o] - s.t_level[o])
             span = self.onset_span
             if span > 1e-3:
                 s.slope[o] = (s.smooth[o] - start
-                              + s.slope[o] * np.maximum(span - since, 0.0)) / np.maximum(
-                                  since, span)
+                              + s.slope[o] * np.maximum(span - since_o, 0.0)) / np.maximum(
+                                  since_o, span)
             else:
-                s.slope[o] = (s.smooth[o] - start) / np.maximum(since, span)
+                s.slope[o] = (s.smooth[o] - start) / np.maximum(since_o, span)
             s.slope[onset & ~o] = 0.0
             s.level[onset] = s.smooth[onset]
             s.t_level[onset] = t
-        np.copyto(s.t_fell, t, where=idle & (g > self.threshold / 10))
-        np.copyto(g, 0.0, where=onset | stale)
-        np.copyto(u, 0.0, where=onset | rebound | rise_stale)
-        s.cusum[:] = g
-        s.rise_cusum[:] = u
+            np.copyto(s.t_fell, t, where=idle & (g > tenth))
+            np.copyto(g, 0.0, where=onset | stale)
+            np.copyto(u, 0.0, where=onset | rebound | rise_stale)
+        else:
+            np.copyto(s.t_fell, t, where=idle & (g > tenth))
+            np.copyto(g, 0.0, where=stale)
+            np.copyto(u, 0.0, where=rebound | rise_stale)
+        np.copyto(s.cusum, g)
+        np.copyto(s.rise_cusum, u)
 
         # the baseline follows the signal until there is real evidence of contact (or, in
         # contact, of its end)
-        fall_ok = g <= self.threshold / 4
-        rise_ok = u <= self.rise_threshold / 4
-        follow = calm & fall_ok & rise_ok
+        follow = calm & (g <= fall_quarter) & (u <= rise_quarter)
         if any_contact:
             # in contact, against the end's thresholds (`END_SIGMAS`)
-            end_fall_ok = g <= self.end_threshold / 4
-            end_rise_ok = u <= self.end_rise_threshold / 4
+            end_fall_ok = g <= end_quarter
+            end_rise_ok = u <= end_rise_quarter
             stopped = ((warm & (g > self.end_threshold) & ~stale)
                        | (cool & (u > self.end_rise_threshold) & ~rise_stale)
                        ) if self.ends_when_stopped else np.zeros_like(live)
@@ -1817,9 +2048,11 @@ class OnsetDetector:
             b = np.where(idle, gain[3], gain[4])
         else:
             b = gain[3]
-        err = gain[2] * resid
-        np.copyto(s.level, pred + err, where=follow)
-        np.copyto(s.slope, s.slope + b * err / dt, where=follow)
+        err = np.multiply(gain[2], resid, out=w.err)
+        np.add(pred, err, out=s.level, where=follow)  # ``pred + err``
+        step = np.multiply(b, err, out=tmp)  # ``slope + b * err / dt``
+        step /= dt
+        np.add(s.slope, step, out=s.slope, where=follow)
         np.copyto(s.t_level, t, where=follow)
         v = gain[5]
         if self.running_start:
@@ -1831,30 +2064,38 @@ class OnsetDetector:
             # own trend at start, which a running mean would take for noise (the default
             # scene's pipeline then missed its early touches)
             v = np.maximum(v, dt / np.maximum(t - s.t_first, dt))
-        np.copyto(s.var, s.var + v * (resid**2 - s.var), where=follow & idle & (g == 0) & (u == 0))
+        # ``var + v * (resid**2 - var)``
+        np.square(resid, out=tmp)
+        tmp -= s.var
+        np.multiply(v, tmp, out=tmp)
+        np.add(s.var, tmp, out=s.var, where=follow & idle & (g == 0) & (u == 0))
 
         # release: the smoothed temperature returns clearly from its in-contact extreme, or
         # its departure stops short of the in-contact trend
         if any_contact:
-            self._release(t, s, events, contact, sigma, warm, stopped)
+            self._release(t, s, events, contact, sigma, warm, stopped, tmp)
         np.copyto(s.t_last, t, where=live)
 
     def _release(self, t: float, s: DetectorState, events: list[OnsetEvent],
                  touching: np.ndarray, sigma: np.ndarray, warm: np.ndarray,
-                 stopped: np.ndarray) -> None:
+                 stopped: np.ndarray, tmp: np.ndarray) -> None:
         """End the contacts whose reading came back, or whose departure stopped short.
 
-        ``touching``: the taxels in contact before this sample (not those whose onset it is).
+        ``touching``: the taxels in contact before this sample (not those whose onset it is);
+        ``tmp`` is overwritten.
         """
         d = s.direction
-        further = touching & (d * (s.smooth - s.extreme) > 0)
-        s.extreme[further] = s.smooth[further]
-        s.t_extreme[further] = t
-        back = np.maximum(self.release_rise, 4 * sigma)
+        np.subtract(s.smooth, s.extreme, out=tmp)
+        tmp *= d  # ``d * (smooth - extreme)``
+        further = touching & (tmp > 0)
+        np.copyto(s.extreme, s.smooth, where=further)
+        np.copyto(s.t_extreme, t, where=further)
+        back = np.multiply(4, sigma, out=tmp)
+        np.maximum(self.release_rise, back, out=back)
         returned = touching & (d * (s.extreme - s.smooth) > back)
         stopped = stopped & touching & ~returned
         released = returned | stopped
-        if not released.any():
+        if not np.count_nonzero(released):
             return
         # a contact that stopped short ended where its CUSUM left zero, if not at its extreme
         turn = np.where(warm, s.t_start, s.rise_start)

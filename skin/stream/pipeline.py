@@ -471,7 +471,8 @@ class Pipeline:
 
     def _onsets(self, times: np.ndarray, temperature: np.ndarray) -> list:
         if self.workers == 1:
-            events, self._state = self.detector.process(times, temperature, self._state)
+            events, self._state = self.detector.process(times, temperature, self._state,
+                                                         in_place=True)
             return events
         return self.start()._shards.process(times, temperature)
 

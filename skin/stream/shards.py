@@ -102,7 +102,7 @@ def _serve(conn: Connection, detector: OnsetDetector, taxels: np.ndarray) -> Non
                 return
             times, temperature = job
             wall, cpu = time.perf_counter(), time.process_time()
-            events, state = detector.process(times, temperature, state)
+            events, state = detector.process(times, temperature, state, in_place=True)
             busy = (time.perf_counter() - wall, time.process_time() - cpu)
             # layout indices, so the parent merges without knowing the shard
             conn.send(("ok", [_relabel(e, int(taxels[e.taxel])) for e in events],
@@ -187,7 +187,7 @@ class OnsetShards:
         wall, cpu = time.perf_counter(), time.process_time()
         taxels = self.shards[0]
         events, self._local_state = self._local.process(times, temperature[:, taxels],
-                                                        self._local_state)
+                                                        self._local_state, in_place=True)
         events = [_relabel(e, int(taxels[e.taxel])) for e in events]
         self.in_contact[taxels] = self._local_state.in_contact
         self.busy[0] += (time.perf_counter() - wall, time.process_time() - cpu)
