@@ -187,3 +187,11 @@ def test_a_glitch_beside_a_real_touch_is_left_out() -> None:
         ref.estimate.label, round(ref.estimate.confidence, 3))
     before = _finals(scene, _glitched(scene, 7.0, [([58], 4.12, 5.12)]), response_check=False)
     assert next(r for r in before if 58 in r.contact.taxels).estimate.label != ref.estimate.label
+
+
+def test_a_taxel_on_the_detectors_noise_keeps_the_others_small_sample_correction():
+    from skin.stream.response import noise_dof, threshold
+
+    assert noise_dof([0, 9]) == 9 and noise_dof([20, 9]) == 9 and noise_dof([0, 0]) == 0
+    # two taxels, one measured on 9 degrees of freedom: the F threshold, far above chi-square's
+    assert threshold(2, noise_dof=noise_dof([0, 9])) > 5 * threshold(2)

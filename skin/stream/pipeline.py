@@ -514,7 +514,7 @@ class Pipeline:
             return MaterialEstimate(
                 UNKNOWN, {}, 0.0, None, method, family=UNKNOWN,
                 note=(f"no thermal response: the force dated it, the temperature shows no "
-                      f"contact (chi2 {verdict.chi2:.1f} <= {verdict.threshold:.1f}, "
+                      f"contact (likelihood gain {verdict.chi2:.1f} <= {verdict.threshold:.1f}, "
                       f"{verdict.taxels} taxels)"))
         silent = {forced[i] for i in verdict.silent}
         if not silent or len(silent) == len(members):

@@ -103,6 +103,17 @@ def threshold(taxels: int, sigmas: float = RESPONSE_SIGMAS, noise_dof: int = 0) 
     return float(chi2.isf(tail, taxels))
 
 
+def noise_dof(dofs: Sequence[int]) -> int:
+    """Return the degrees of freedom a contact's threshold takes from its taxels' noise.
+
+    The fewest of the taxels whose noise was measured (> 0); 0 (known noise) only when none
+    was: a taxel on the detector's noise must not turn the small-sample correction off for a
+    taxel measured on a few samples (a plain chi-square threshold let ~1000x the claimed rate
+    of contact-free windows through).
+    """
+    return min((d for d in dofs if d > 0), default=0)
+
+
 def free_columns(tau: np.ndarray, relax: float) -> np.ndarray:
     """Return the no-contact model's columns at ``tau`` (s from the onset): level, trend, relax.
 
@@ -296,7 +307,7 @@ def check_contact(members: Sequence[object], refined: Sequence[tuple[float, floa
         fits.append((i, fit, noise[1]))
     if total is None:
         return ResponseVerdict(0.0, 0.0, 0)
-    return ResponseVerdict(float(total.max()), threshold(tested, sigmas, min(dofs)), tested,
+    return ResponseVerdict(float(total.max()), threshold(tested, sigmas, noise_dof(dofs)), tested,
                            _silent(fits, sigmas),
                            tuple((i, float(f.gain.max())) for i, f, _ in fits))
 
