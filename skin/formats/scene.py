@@ -142,6 +142,26 @@ class Scene:
         return self.objects[touch.object].material
 
 
+def _press(raw: dict, where: str, what: str, layout: Layout, duration: float
+           ) -> tuple[list, float, float, float]:
+    """Check a touch's or phantom's taxels, start, duration and force; return them."""
+    taxels = raw.get("taxels")
+    if not isinstance(taxels, list) or not taxels:
+        raise SceneError(f"{where}: field 'taxels' must be a non-empty list of taxel ids")
+    for tid in taxels:
+        if not isinstance(tid, int) or isinstance(tid, bool) or tid not in layout._index:
+            raise SceneError(f"{where}: field 'taxels': no taxel {tid!r} in {layout.source}")
+    start = _number(raw, "start", where)
+    length = _number(raw, "duration", where, positive=True)
+    if not 0 <= start <= duration - length:
+        raise SceneError(f"{where}: the {what} ({start} s + {length} s) does not fit in the "
+                         f"scene's {duration} s")
+    newtons = _number(raw, "force", where, 2.0)
+    if not 0 < newtons <= 65.0:
+        raise SceneError(f"{where}: field 'force' must be within (0, 65] N, got {newtons!r}")
+    return taxels, start, length, newtons
+
+
 def _tables(data: dict, key: str, source: str) -> list[dict]:
     items = data.get(key, [])
     if not isinstance(items, list) or not all(isinstance(x, dict) for x in items):
@@ -258,20 +278,7 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
         obj = raw.get("object")
         if not isinstance(obj, str) or obj not in objects:
             raise SceneError(f"{where}: field 'object' names {obj!r}, which is not in [[objects]]")
-        taxels = raw.get("taxels")
-        if not isinstance(taxels, list) or not taxels:
-            raise SceneError(f"{where}: field 'taxels' must be a non-empty list of taxel ids")
-        for tid in taxels:
-            if not isinstance(tid, int) or isinstance(tid, bool) or tid not in layout._index:
-                raise SceneError(f"{where}: field 'taxels': no taxel {tid!r} in {layout.source}")
-        start = _number(raw, "start", where)
-        length = _number(raw, "duration", where, positive=True)
-        if not 0 <= start <= duration - length:
-            raise SceneError(f"{where}: the touch ({start} s + {length} s) does not fit in the "
-                             f"scene's {duration} s")
-        newtons = _number(raw, "force", where, 2.0)
-        if not 0 < newtons <= 65.0:
-            raise SceneError(f"{where}: field 'force' must be within (0, 65] N, got {newtons!r}")
+        taxels, start, length, newtons = _press(raw, where, "touch", layout, duration)
         touches.append(Touch(obj, tuple(taxels), start, length, line, newtons))
     touches.sort(key=lambda t: t.start)
     phantoms: list[Phantom] = []
@@ -279,20 +286,7 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
     for k, raw in enumerate(_tables(data, "phantoms", source)):
         line = phantom_lines[k] if k < len(phantom_lines) else 0
         where = f"{source}:{line}: phantom #{k}"
-        taxels = raw.get("taxels")
-        if not isinstance(taxels, list) or not taxels:
-            raise SceneError(f"{where}: field 'taxels' must be a non-empty list of taxel ids")
-        for tid in taxels:
-            if not isinstance(tid, int) or isinstance(tid, bool) or tid not in layout._index:
-                raise SceneError(f"{where}: field 'taxels': no taxel {tid!r} in {layout.source}")
-        start = _number(raw, "start", where)
-        length = _number(raw, "duration", where, positive=True)
-        if not 0 <= start <= duration - length:
-            raise SceneError(f"{where}: the press ({start} s + {length} s) does not fit in the "
-                             f"scene's {duration} s")
-        newtons = _number(raw, "force", where, 2.0)
-        if not 0 < newtons <= 65.0:
-            raise SceneError(f"{where}: field 'force' must be within (0, 65] N, got {newtons!r}")
+        taxels, start, length, newtons = _press(raw, where, "press", layout, duration)
         phantoms.append(Phantom(tuple(taxels), start, length, newtons, line))
     for i, a in enumerate(touches):
         for b in touches[i + 1 :]:
