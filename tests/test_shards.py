@@ -381,20 +381,24 @@ def test_board_workers_check_their_boards_and_ports_before_the_first_frame():
                             ([2], UrlSource(("serial:///dev/no-such-port?board=2",)))])
 
 
-def test_skin_with_workers_reads_each_serial_board_in_its_own_worker(tmp_path):
-    """skin run --port A --port B --workers 2: each worker opens its port; every touch found."""
+def _two_serial_boards(tmp_path, seconds: float, duration: float, force: str = ""):
+    """skin run --port A --port B --workers 2 on two simulated serial boards (ptys).
+
+    Returns the layout, the boards' scenes, the final results and the run's summary."""
     from skin.bench.soak import soak_scenes
     from skin.drivers.sim import PtySerialDevice
     from skin.formats.layout import layout_toml
     from skin.runner import Skin
 
-    layout, scenes = soak_scenes(512, 25.0, seed=5)  # touches at 2, 11.3 and 20.7 s per board
+    layout, scenes = soak_scenes(512, seconds, seed=5)  # touches at 2, 11.3, 20.7 s per board
+    if force:
+        scenes = [dataclasses.replace(s, force=force) for s in scenes]
     path = tmp_path / "two_boards.toml"
     path.write_text(layout_toml(layout))
     devs = [PtySerialDevice(SkinSimulator(s), speed=4.0) for s in scenes]
     try:
         ports = [f"serial://{d.port}?board={d.simulator.board.id}" for d in devs]
-        with Skin(port=ports, layout=str(path), workers=2, duration=24.0, out=None,
+        with Skin(port=ports, layout=str(path), workers=2, duration=duration, out=None,
                   map=False, sinks=[]) as skin:
             skin.open()
             assert len(skin._workers.shards) == 2
@@ -405,6 +409,12 @@ def test_skin_with_workers_reads_each_serial_board_in_its_own_worker(tmp_path):
     finally:
         for d in devs:
             d.close()
+    return layout, scenes, got, summary
+
+
+def test_skin_with_workers_reads_each_serial_board_in_its_own_worker(tmp_path):
+    """skin run --port A --port B --workers 2: each worker opens its port; every touch found."""
+    layout, scenes, got, summary = _two_serial_boards(tmp_path, 25.0, 24.0)
     touches = sorted((sorted(layout.index(i) for i in t.taxels), t.start)
                      for s in scenes for t in s.touches if t.start < 22.0)
     found = sorted((sorted(r.contact.taxels), r.contact.onset) for r in got)
@@ -417,29 +427,7 @@ def test_skin_with_workers_reads_each_serial_board_in_its_own_worker(tmp_path):
 def test_skin_with_workers_on_serial_boards_dates_by_their_force(tmp_path):
     """skin run --port A --port B --workers 2 (board workers) on boards sending FORCE: the
     contacts are dated by it (they were thermal: the workers dropped the force)."""
-    from skin.bench.soak import soak_scenes
-    from skin.drivers.sim import PtySerialDevice
-    from skin.formats.layout import layout_toml
-    from skin.runner import Skin
-
-    layout, scenes = soak_scenes(512, 14.0, seed=5)
-    scenes = [dataclasses.replace(s, force="force") for s in scenes]
-    path = tmp_path / "two_boards.toml"
-    path.write_text(layout_toml(layout))
-    devs = [PtySerialDevice(SkinSimulator(s), speed=4.0) for s in scenes]
-    try:
-        ports = [f"serial://{d.port}?board={d.simulator.board.id}" for d in devs]
-        with Skin(port=ports, layout=str(path), workers=2, duration=13.0, out=None,
-                  map=False, sinks=[]) as skin:
-            skin.open()
-            assert len(skin._workers.shards) == 2
-            for d in devs:
-                d.start()
-            got = [r for r in skin.results() if r.contact.final]
-            summary = skin.finish()
-    finally:
-        for d in devs:
-            d.close()
+    _, scenes, got, summary = _two_serial_boards(tmp_path, 14.0, 13.0, force="force")
     starts = [t.start for s in scenes for t in s.touches if t.start < 12.0]
     assert len(got) == len(starts) >= 2
     assert all(w.dated_by == "force" for r in got for w in r.contact.windows)
