@@ -56,7 +56,6 @@ from skin.stream.tracking import (
 if TYPE_CHECKING:
     from skin.stream.board_workers import CalibratedBlock
     from skin.stream.force import ForceOnsets
-    from skin.stream.response import ResponseVerdict
     from skin.stream.shards import OnsetShards
 
 T = TypeVar("T")
@@ -357,8 +356,6 @@ class Pipeline:
         self.force: ForceOnsets | None = None  # made at the first block with a force channel
         self.response_check = bool(response_check)
         self._response_sensors: tuple | None = None  # (sensors, smoothing factors, effusivities)
-        #: the last contact's response test (`skin.stream.response`), None before any
-        self.last_verdict: ResponseVerdict | None = None
         #: ids of the final contacts answered "unknown" for showing no thermal response
         self.no_response: list[int] = []
 
@@ -506,7 +503,6 @@ class Pipeline:
                                 [sensors[k] for k in idx],
                                 np.asarray(sigma)[idx] / shrink[idx], contact.ambient,
                                 effusivities, self.tracker.window)
-        self.last_verdict = verdict
         method = getattr(self.classifier, "method", type(self.classifier).__name__)
         if len(forced) == len(members) and not verdict.responded:
             if contact.final:
@@ -514,7 +510,7 @@ class Pipeline:
             return MaterialEstimate(
                 UNKNOWN, {}, 0.0, None, method, family=UNKNOWN,
                 note=(f"no thermal response: the force dated it, the temperature shows no "
-                      f"contact (likelihood gain {verdict.chi2:.1f} <= {verdict.threshold:.1f}, "
+                      f"contact (likelihood gain {verdict.gain:.1f} <= {verdict.threshold:.1f}, "
                       f"{verdict.taxels} taxels)"))
         silent = {forced[i] for i in verdict.silent}
         if not silent or len(silent) == len(members):

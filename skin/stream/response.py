@@ -20,12 +20,17 @@ the force's onset:
 Each taxel's gain in chi-square (its fitted response's amplitude over its standard error,
 squared) is summed over the contact's taxels for each (material, conductance) and the best is
 set against the chi-square quantile of as many degrees of freedom at `RESPONSE_SIGMAS` (a
-two-sided 5-sigma tail): under the no-contact model, a window of noise passes it about once in
-two million. The noise is the taxel's as the detector has it (``OnsetDetector.sigma``) over the
-sensor's smoothing factor: a sum over many samples keeps the unsmoothed noise's
-low-frequency power (as the detector's CUSUM takes it). The samples before the onset (the
-tracker cuts them from its search span on) pin the free trajectory; nothing is tuned to a
-sensor: the models, their time constants and the noise come from each taxel's description.
+two-sided 5-sigma tail; the F quantile where the noise is measured on few samples,
+`threshold`). The noise is measured on each taxel's own samples before the onset, with the free
+trajectory taken off (`measured_noise`; the detector's ``OnsetDetector.sigma`` over the sensor's
+smoothing factor where fewer than `NOISE_SAMPLES` are there). The 5-sigma tail is nominal: with
+independent samples and white noise a window of noise passes about once in two million; a
+sensor whose reading is smoothed has correlated samples, so its measured noise reads low and
+its degrees of freedom are fewer than counted (on pid-logger, a review's draws: contact-free
+windows passed a 3-sigma test 4-6x as often as nominal). The samples before the onset come from
+the tracker's search span (up to 4 s on low-cost), which can hold an earlier touch's reheat.
+Nothing is tuned to a sensor: the models, their time constants and the noise come from each
+taxel's description and samples.
 """
 
 from __future__ import annotations
@@ -56,8 +61,10 @@ class ResponseVerdict:
 
     Attributes
     ----------
-    chi2 : float
-        The best (material, conductance) response's chi-square gain, summed over the taxels.
+    gain : float
+        The best (material, conductance) response's likelihood gain (2 log of the likelihood
+        ratio at the measured noise), summed over the taxels: a chi-square gain where the
+        heater's part is not known, and it can be negative where it is (fast-film).
     threshold : float
         The chi-square quantile it had to pass (`RESPONSE_SIGMAS`, ``taxels`` degrees of
         freedom).
@@ -67,35 +74,26 @@ class ResponseVerdict:
         Indices (into the members given) of the tested taxels with no response of their own
         whose samples reject the response the contact's object would give them (`_silent`:
         a glitch beside a real touch).
-    gains : tuple of (int, float)
-        Each tested taxel's index and its own best chi-square gain.
     """
 
-    chi2: float
+    gain: float
     threshold: float
     taxels: int
     silent: tuple[int, ...] = ()
-    gains: tuple[tuple[int, float], ...] = ()
 
     @property
     def responded(self) -> bool:
         """Whether the data show a thermal response (True when no taxel could be tested)."""
-        return self.taxels == 0 or self.chi2 > self.threshold
-
-    @property
-    def sigmas(self) -> float:
-        """The chi-square gain as a two-sided normal deviate, for notes (inf past ~37)."""
-        if self.taxels == 0:
-            return float("nan")
-        return float(norm.isf(0.5 * chi2.sf(self.chi2, self.taxels)))
+        return self.taxels == 0 or self.gain > self.threshold
 
 
 def threshold(taxels: int, sigmas: float = RESPONSE_SIGMAS, noise_dof: int = 0) -> float:
     """Return the gain a contact of ``taxels`` taxels must pass: a two-sided ``sigmas`` tail.
 
     The chi-square quantile with ``taxels`` degrees of freedom; with the noise measured on
-    ``noise_dof`` degrees of freedom (the fewest of the taxels'), ``taxels`` times the F
-    quantile (the measured noise's own spread widens the tail). 0: the noise is known.
+    ``noise_dof`` degrees of freedom (`noise_dof`: the fewest of the measured taxels'),
+    ``taxels`` times the F quantile (the measured noise's own spread widens the tail). 0: the
+    noise is known.
     """
     tail = 2.0 * norm.sf(sigmas)
     if noise_dof > 0:
@@ -217,15 +215,6 @@ def fit_taxel(tau: np.ndarray, y: np.ndarray, sigma: float, relax: float, t0: fl
     return _Fit(gain / sigma**2, free, k, resid, norm2, proj, sigma, t0)
 
 
-def chi2_gains(tau: np.ndarray, y: np.ndarray, sigma: float, relax: float,
-               shapes: np.ndarray, known: np.ndarray | None = None) -> np.ndarray:
-    """Each grid point's chi-square gain over the no-contact model on one taxel's samples, (g,).
-
-    `fit_taxel`'s ``gain`` (``t0`` plays no part in it).
-    """
-    return fit_taxel(tau, y, sigma, relax, 0.0, shapes, known).gain
-
-
 #: Fewest samples before the onset from which a taxel's noise is measured (else the detector's).
 NOISE_SAMPLES = 12
 
@@ -308,8 +297,7 @@ def check_contact(members: Sequence[object], refined: Sequence[tuple[float, floa
     if total is None:
         return ResponseVerdict(0.0, 0.0, 0)
     return ResponseVerdict(float(total.max()), threshold(tested, sigmas, noise_dof(dofs)), tested,
-                           _silent(fits, sigmas),
-                           tuple((i, float(f.gain.max())) for i, f, _ in fits))
+                           _silent(fits, sigmas))
 
 
 def _silent(fits: list[tuple[int, _Fit, int]], sigmas: float) -> tuple[int, ...]:
