@@ -402,7 +402,8 @@ class _Shard:
     def pop(self, upto: int) -> dict[str, np.ndarray]:
         """Remove and return the rows with seq <= ``upto`` (a prefix), arrays joined.
 
-        ``force`` is NaN in the rows of a message that carried none (``has_force`` False).
+        ``force`` is NaN in the rows of a message that carried none (``has_force`` False);
+        absent when no message did (a skin without force: nothing allocated).
         """
         keys = ("seqs", "times", "host", "first", "ambient", "present", "temperature",
                 "has_force")
@@ -410,9 +411,10 @@ class _Shard:
             else None
         if joined is None:
             return {}
-        joined["force"] = np.concatenate([
-            np.full((len(p["seqs"]), self.taxels.size), np.nan) if p["force"] is None
-            else p["force"] for p in self.parts])
+        if any(p.get("force") is not None for p in self.parts):
+            joined["force"] = np.concatenate([
+                np.full((len(p["seqs"]), self.taxels.size), np.nan) if p.get("force") is None
+                else p["force"] for p in self.parts])
         c = int(np.searchsorted(joined["seqs"], upto, side="right"))
         rest = {k: v[c:] for k, v in joined.items()}
         self.parts = [rest] if len(rest["seqs"]) else []
@@ -601,7 +603,7 @@ class BoardWorkers:
         host = np.zeros((m, len(self.shards)))
         ambient = np.full((m, nb), np.nan)
         present = np.zeros((m, nb), dtype=bool)
-        force = np.full((m, n_all), np.nan)
+        force = None  # made when a shard has a force channel in these samples
         has_force = np.zeros(m, dtype=bool)
         events = []
         for j, s in enumerate(self.shards):
@@ -622,6 +624,8 @@ class BoardWorkers:
                 ambient[np.ix_(rows, s.columns)] = got["ambient"]
                 present[np.ix_(rows, s.columns)] = got["present"]
                 if got["has_force"].any():
+                    if force is None:
+                        force = np.full((m, n_all), np.nan)
                     force[np.ix_(rows, s.taxels)] = got["force"]
                     has_force[rows] |= got["has_force"]
             keep = [e for e in s.events if e[0] > ready[-1]]
@@ -641,7 +645,8 @@ class BoardWorkers:
             out.append(CalibratedBlock(times[a:b], host[a:b], amb[a:b], temperature[a:b],
                                        [e[3] for e, k in zip(events, at, strict=True)
                                         if a <= k < b],
-                                       force[a:b] if has_force[a:b].any() else None))
+                                       force[a:b] if force is not None and has_force[a:b].any()
+                                       else None))
         return out
 
     def feed(self, blocks: Sequence[CalibratedBlock]) -> list:
