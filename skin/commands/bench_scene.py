@@ -47,10 +47,10 @@ def add_parsers(kinds: argparse._SubParsersAction) -> None:
                        help="answer \"unknown\" for force-dated contacts whose temperature "
                             "shows no contact (skin run --response-check; default on)")
     scene.add_argument("--phantoms", type=int, default=0, metavar="N",
-                       help="add N force glitches (2 N for 1 s on two neighbouring taxels no touch "
-                            "comes near, "
-                            "nothing thermal behind them: skin.bench.phantoms) to the scene; "
-                            "needs a force channel (--force-channel)")
+                       help="add N force glitches (2 N for 1 s on two neighbouring taxels no "
+                            "touch comes near, nothing thermal behind them: "
+                            "skin.bench.phantoms) to the scene; needs a force channel "
+                            "(--force-channel)")
     scene.add_argument("--json", action="store_true", help="print one JSON document")
     scene.set_defaults(func=main)
     fit = kinds.add_parser("fit-calibration", help="fit the joint classifier's calibration "
@@ -187,8 +187,7 @@ def main(args: argparse.Namespace) -> int:
     ph = t["phantoms"]
     if ph["phantoms"]:
         print(f"phantom presses (force glitches of two taxels): {ph['phantoms']}, contacts "
-              f"they started "
-              f"{ph['contacts']}: unknown {ph['unknown']} (no thermal response "
+              f"they started {ph['contacts']}: unknown {ph['unknown']} (no thermal response "
               f"{ph['no_response']}), named {ph['named']}")
     print(f"classify stage: {t['classify_ms_per_contact']} ms per contact")
     _print_reliability(t["reliability"])
