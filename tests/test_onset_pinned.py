@@ -95,16 +95,17 @@ def detector(case: str) -> OnsetDetector:
     return OnsetDetector(boards.size, sensor=preset, boards=boards, common_mode=common_mode)
 
 
-def run(case: str, chunk: int) -> tuple[list[list], str, int]:
+def run(case: str, chunk: int, in_place: bool = False) -> tuple[list[list], str, int]:
     """Return the case's events (each as a list of its fields), its final state's hash and
-    after how many chunks some taxel's board common mode was not 0."""
+    after how many chunks some taxel's board common mode was not 0 (``in_place``: the
+    state updated in place, as the pipeline runs it)."""
     d = detector(case)
     t, y = stream(CASES[case][0], CASES[case][2])
     state = d.initial_state()
     events = []
     engaged = 0
     for k in range(0, t.size, chunk):
-        got, state = d.process(t[k:k + chunk], y[k:k + chunk], state)
+        got, state = d.process(t[k:k + chunk], y[k:k + chunk], state, in_place=in_place)
         events += got
         engaged += bool(np.any(state.common != 0.0))
     rows = [[e.kind, e.taxel, e.time, e.detected_at, e.baseline, e.slope, e.direction,
@@ -138,6 +139,15 @@ def test_chunks_give_the_pinned_events(case):
     pinned = json.loads(PINNED.read_text())[case]
     for chunk in (13, 10**6):
         rows, digest, _ = run(case, chunk)
+        assert _same(rows, pinned["events"]) and digest == pinned["state_sha256"], chunk
+
+
+@pytest.mark.parametrize("case", ["paper", "pid-logger-loop"])
+def test_a_state_updated_in_place_gives_the_pinned_events(case):
+    # the pipeline's way (`Pipeline._onsets`): no copy of the state per call
+    pinned = json.loads(PINNED.read_text())[case]
+    for chunk in (1, 13):
+        rows, digest, _ = run(case, chunk, in_place=True)
         assert _same(rows, pinned["events"]) and digest == pinned["state_sha256"], chunk
 
 

@@ -21,6 +21,13 @@ def test_bench_pipeline_reports_every_stage_and_what_the_budget_delays():
                                   "refine", "classify", "sinks"}
     assert row["contacts"] > 100  # 40 % of the taxels touched in the 6th second
     assert all(v > 0 for v in row["stages"].values())
+    # the same stages per CPU second: together they are the run's CPU seconds, less what
+    # falls between the stages (the loop, the file reads)
+    assert set(row["stages_cpu"]) == set(row["stages"])
+    assert all(v > 0 for v in row["stages_cpu"].values())
+    samples = row["frames"] // row["boards"] * row["taxels"]
+    cpu = sum(samples / v for v in row["stages_cpu"].values())
+    assert 0.5 * row["cpu_s"] < cpu <= 1.01 * row["cpu_s"]
     assert 0 < row["latency_ms"]["p50"] <= row["latency_ms"]["p99"]
     # one step a sample: results wait, by whole samples of 5 ms
     assert row["result_wait_ms"]["p99"] >= 5.0
@@ -53,6 +60,8 @@ def test_bench_pipeline_compares_the_two_envelope_margins_in_the_same_run():
     assert ratio["onset"] == round(both["noise"]["stages"]["onset"]
                                    / both["flat"]["stages"]["onset"], 3)
     assert ratio["chain"] > 0
+    assert ratio["onset_cpu"] == round(both["noise"]["stages_cpu"]["onset"]
+                                       / both["flat"]["stages_cpu"]["onset"], 3)
     # the board common mode on and off, alternated alike (16 taxels: one board, so it runs)
     (pair,) = doc["common_mode_compare"]
     assert pair["on"]["common_mode"] is True and pair["off"]["common_mode"] is False

@@ -93,7 +93,9 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
     -------
     dict
         ``taxel_samples_per_s`` (whole chain), ``stages`` (taxel-samples per second of each
-        stage; with workers, decode to onset: their CPU seconds, summed over the workers),
+        stage's wall time; with workers, decode to onset: their CPU seconds, summed over the
+        workers), ``stages_cpu`` (the same per CPU second of the process that ran the stage:
+        on a loaded machine the wall time counts what other processes ran meanwhile),
         ``realtime_factor``, ``latency_ms`` (p50, p99 per call of the pipeline after
         decoding), ``result_wait_ms`` (p50, p99 of device time from a contact's decision to
         its result), ``contacts``
@@ -156,6 +158,8 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
     waits = np.array([r.reported_at - r.contact.decided_at for r in results]) * 1e3
     # with workers, the parent's assemble, calibrate and onset are the workers' (summed)
     stages = {"decode": 0.0, **pipe.stats.seconds, **timed.pop("stages")}
+    # the same in CPU seconds of the process that ran each stage (the workers' are CPU already)
+    stages_cpu = {"decode": 0.0, **pipe.stats.cpu_seconds, **timed.pop("stages_cpu")}
     doc = {"taxels": n_taxels, "boards": len(boards), "workers": workers, "block": block,
            "frames": n * len(boards),
            "seconds_simulated": duration, "contacts_per_minute": contacts_per_minute,
@@ -164,7 +168,8 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
            "envelope": "noise" if pipe.detector.envelope_noise else "flat",
            "common_mode": pipe.detector.common_active,
            "taxel_samples_per_s": round(samples / total),
-           "stages": {k: round(samples / v) if v > 0 else None for k, v in stages.items()},
+           "stages": _per_second(samples, stages),
+           "stages_cpu": _per_second(samples, stages_cpu),
            "stage_share": {k: round(v / total, 3) for k, v in stages.items()},
            "realtime_factor": round(duration / total, 2),
            "latency_ms": {"p50": round(1e3 * float(np.percentile(latency, 50)), 3),
@@ -181,22 +186,28 @@ def run(n_taxels: int, duration: float = 20.0, seed: int = 0, contacts_per_minut
     return doc
 
 
+def _per_second(samples: int, seconds: dict[str, float]) -> dict[str, int | None]:
+    """Taxel-samples per second of each stage (None for a stage that took no time)."""
+    return {k: round(samples / v) if v > 0 else None for k, v in seconds.items()}
+
+
 def _one_process(pipe: Any, source: Any, n: int, block: int) -> dict:
     """Run the whole chain in this process: decode each sample's packets, process blocks."""
     reader = source.reader()
     cpu = time.process_time()  # with the file reads: a sliver more than the chain's
     latency = np.empty(n)
     results: list = []
-    t_decode = t_chain = 0.0
+    t_decode = t_chain = c_decode = 0.0
     waiting: list = []  # the frames of the samples since ``since``, for the next call
     since = 0
     try:
         for k in range(n):
             since = k if not waiting else since
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             waiting += reader.read(0.0)
             t1 = time.perf_counter()
             t_decode += t1 - t0
+            c_decode += time.process_time() - c0
             if (k + 1) % block and k + 1 < n:
                 continue
             results += pipe.process(waiting)
@@ -210,7 +221,8 @@ def _one_process(pipe: Any, source: Any, n: int, block: int) -> dict:
     results += pipe.flush()  # the contacts still open or waiting at the end
     t_chain += time.perf_counter() - started
     return {"results": results, "wall": t_decode + t_chain, "latency": latency,
-            "stages": {"decode": t_decode}, "wall_s": round(t_decode + t_chain, 3),
+            "stages": {"decode": t_decode}, "stages_cpu": {"decode": c_decode},
+            "wall_s": round(t_decode + t_chain, 3),
             "cpu_s": round(time.process_time() - cpu, 3)}
 
 
@@ -234,11 +246,14 @@ def _board_workers(pipe: Any, folder: str, workers: int, block: int) -> dict:
         wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
         seconds, peaks = bw.seconds.copy(), list(bw.peak_mb)
     per = dict(zip(WORKER_STAGES, seconds[:, :-1].T, strict=True))
+    worker_stages = {"decode": float(per["read"].sum()),
+                     "assemble": float(per["assemble"].sum()),
+                     "calibrate": float(per["calibrate"].sum()),
+                     "onset": float(per["onset"].sum())}
     return {"results": results, "wall": wall, "latency": np.array(latency or [0.0]),
-            # the workers' stages, summed over the workers (decode: reading their bytes)
-            "stages": {"decode": float(per["read"].sum()), "assemble": float(
-                per["assemble"].sum()), "calibrate": float(per["calibrate"].sum()),
-                "onset": float(per["onset"].sum())},
+            # the workers' stages, summed over the workers (decode: reading their bytes);
+            # their seconds are CPU seconds already
+            "stages": worker_stages, "stages_cpu": worker_stages,
             "worker_seconds": {**{k: [round(float(x), 3) for x in v] for k, v in per.items()},
                                "cpu": [round(float(x), 3) for x in seconds[:, -1]]},
             "shards": len(shards), "parent_cpu_s": round(cpu, 3), "wall_s": round(wall, 3),

@@ -734,7 +734,8 @@ def _alternated(run: object, n: int, args: argparse.Namespace, budget: float | N
     best = {k: max(v, key=lambda r: r["stages"]["onset"]) for k, v in runs.items()}
     a, b = best[True], best[False]
     return best, {"chain": round(a["taxel_samples_per_s"] / b["taxel_samples_per_s"], 3),
-                  "onset": round(a["stages"]["onset"] / b["stages"]["onset"], 3)}
+                  "onset": round(a["stages"]["onset"] / b["stages"]["onset"], 3),
+                  "onset_cpu": round(a["stages_cpu"]["onset"] / b["stages_cpu"]["onset"], 3)}
 
 
 def main_pipeline(args: argparse.Namespace) -> int:
@@ -796,7 +797,9 @@ def main_pipeline(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(doc))
         return 0
-    print(f"streaming chain, one sample at a time ({doc['machine']['cpus']} cores; "
+    taken = ("one sample at a time" if args.block == 1
+             else f"samples taken in blocks of {args.block}")
+    print(f"streaming chain, {taken} ({doc['machine']['cpus']} cores; "
           f"{args.contacts_per_minute:g} contacts per taxel-minute; budget "
           f"{'none' if budget is None else f'{args.budget:g} ms'})")
     print("taxel-samples per second, of the chain and of each stage alone (with workers, "
@@ -806,6 +809,11 @@ def main_pipeline(args: argparse.Namespace) -> int:
     for r in rows:
         print(f"{r['taxels']:>7} {r['workers']:>7} {r['taxel_samples_per_s']:>10} "
               + " ".join(f"{r['stages'][k] or '-':>10}" for k in names))
+    print("the same per CPU second of the process that ran each stage (on a loaded machine "
+          "the wall time also counts what others ran meanwhile):")
+    for r in rows:
+        print(f"{r['taxels']:>7} {r['workers']:>7} {r['taxel_samples_per_s']:>10} "
+              + " ".join(f"{r['stages_cpu'][k] or '-':>10}" for k in names))
     print(f"\n{'taxels':>7} {'x real time':>11} {'p50 ms':>7} {'p99 ms':>7} {'contacts':>8} "
           f"{'wait p50 ms':>11} {'wait p99 ms':>11} {'memory MB':>9} {'peak MB':>8} {'wall s':>7} "
           f"{'CPU s':>7}")
@@ -821,7 +829,8 @@ def main_pipeline(args: argparse.Namespace) -> int:
               f"envelope margin {f['noise']['taxel_samples_per_s']} (onset stage "
               f"{f['noise']['stages']['onset']}), the flat one's "
               f"{f['flat']['taxel_samples_per_s']} ({f['flat']['stages']['onset']}): "
-              f"x{f['noise_over_flat']['chain']} chain, x{f['noise_over_flat']['onset']} onset")
+              f"x{f['noise_over_flat']['chain']} chain, x{f['noise_over_flat']['onset']} onset "
+              f"(x{f['noise_over_flat']['onset_cpu']} per CPU second)")
     for key, name in (("common_mode_compare", "board common mode"),
                       ("force_compare", "force channel")):
         for f in switched.get(key, []):
@@ -846,7 +855,8 @@ def _print_switched(f: dict, name: str) -> None:
           f"(on, off, off, on), taxel-samples/s: {name} on "
           f"{f['on']['taxel_samples_per_s']} (onset stage {f['on']['stages']['onset']}), "
           f"off {f['off']['taxel_samples_per_s']} ({f['off']['stages']['onset']}): "
-          f"x{f['on_over_off']['chain']} chain, x{f['on_over_off']['onset']} onset")
+          f"x{f['on_over_off']['chain']} chain, x{f['on_over_off']['onset']} onset "
+          f"(x{f['on_over_off']['onset_cpu']} per CPU second)")
 
 
 def _speedups(rows: list[dict], workers: list[int]) -> list[dict]:

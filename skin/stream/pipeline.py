@@ -190,7 +190,11 @@ class PipelineStats:
     results : int
         Results handed to the sinks (provisional ones too).
     seconds : dict
-        Stage name -> time spent in it, s (`STAGES`).
+        Stage name -> wall time spent in it, s (`STAGES`).
+    cpu_seconds : dict
+        Stage name -> CPU time of this process spent in it, s (`time.process_time`: on a
+        loaded machine the wall time also counts what others ran meanwhile; onset workers'
+        CPU is not in it).
     """
 
     frames: int = 0
@@ -203,6 +207,8 @@ class PipelineStats:
     contacts: int = 0
     results: int = 0
     seconds: dict[str, float] = field(default_factory=lambda: dict.fromkeys(STAGES, 0.0))
+    cpu_seconds: dict[str, float] = field(
+        default_factory=lambda: dict.fromkeys(STAGES, 0.0))
 
 
 @dataclass
@@ -403,10 +409,17 @@ class Pipeline:
             self._shards = None
 
     def _timed(self, stage: str, func: Callable[..., T], *args: object) -> T:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         out = func(*args)
-        self.stats.seconds[stage] += time.perf_counter() - t0
+        self._spent(stage, t0, c0)
         return out
+
+    def _spent(self, stage: str, t0: float, c0: float) -> float:
+        """Book the wall and CPU time since ``t0`` / ``c0`` to ``stage``; return the wall time."""
+        wall = time.perf_counter() - t0
+        self.stats.seconds[stage] += wall
+        self.stats.cpu_seconds[stage] += time.process_time() - c0
+        return wall
 
     def _advance(self, samples: Samples) -> None:
         """Calibrate, detect and track one block of samples; queue the contacts it decides."""
@@ -446,10 +459,10 @@ class Pipeline:
         self._now = float(times[-1])
         self.timeline.append(times, host_times)
         if self.observers:
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             for observe in self.observers:
                 observe(times, temperature, host_times)
-            self.stats.seconds["sinks"] += time.perf_counter() - t0
+            self._spent("sinks", t0, c0)
         if events is None:
             events = self._timed("onset", self._onsets, times, temperature)
         if force is not None:
@@ -533,7 +546,6 @@ class Pipeline:
     def _drain(self, started: float, budget: float | None) -> list[ContactResult]:
         """Refine and classify waiting contacts, one step at a time, within the budget."""
         results: list[ContactResult] = []
-        seconds = self.stats.seconds
         steps = 0
         while self._queue:
             head = self._queue[0]
@@ -541,11 +553,11 @@ class Pipeline:
             if refining and head.decided.members[len(head.refined)].dated_by == "force":
                 # nothing to fit (the force dated it): no budgeted step (one step per call
                 # for each force-dated member made results wait ~90 ms, p99 ~300 ms)
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 head.refined.append(refine_member(head.decided.members[len(head.refined)],
                                                   self.depth, self.diffusivity,
                                                   sensor=self.refine_sensor))
-                seconds["refine"] += time.perf_counter() - t0
+                self._spent("refine", t0, c0)
                 continue
             kind = "refine" if refining else "classify"
             # after the first step, start one only if its usual cost fits what is left
@@ -554,7 +566,7 @@ class Pipeline:
                     and self._now - head.decided.decided_at < self.max_wait):
                 break
             steps += 1
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             if refining:
                 member = head.decided.members[len(head.refined)]
                 head.refined.append(refine_member(member, self.depth, self.diffusivity,
@@ -565,15 +577,14 @@ class Pipeline:
                                          self.tracker.window)
                 result = ContactResult(contact, self._classify(head, contact), self._now,
                                        self._host_times(contact))
-            spent = time.perf_counter() - t0
-            seconds[kind] += spent
+            spent = self._spent(kind, t0, c0)
             self._typical[kind] += 0.1 * (spent - self._typical[kind])
             if refining:
                 continue
-            t1 = time.perf_counter()
+            t1, c1 = time.perf_counter(), time.process_time()
             for sink in self.sinks:
                 sink.write(result)
-            seconds["sinks"] += time.perf_counter() - t1
+            self._spent("sinks", t1, c1)
             self.stats.results += 1
             results.append(result)
         return results
