@@ -44,7 +44,7 @@ ruled out.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -549,14 +549,9 @@ def measure_delay_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
     import time
 
     from skin.bench.streams import delay_bound as lorden_bound
-    from skin.bench.streams import simulate_stream
-    from skin.commands.evaluate_onset import MATERIALS
-    from skin.models import load_materials
 
     cpu = time.process_time()
-    table = load_materials()
-    stream = simulate_stream([table[n] for n in MATERIALS.split(",")], n_taxels=taxels,
-                             duration=60.0 * minutes, seed=seed, sensor=sensor)
+    stream = onset_stream(sensor, seed, minutes, taxels)
     contacts = stream.contacts
     fs = stream.fs
     from skin.bench.onset_eval import five_sigma
@@ -770,15 +765,37 @@ def _misses_against_disturbances(result: dict, rows: dict) -> None:
     }
 
 
-def _run_detector(stream: object, sensor: object) -> tuple[dict, object]:
-    """Run the real detector over the stream as ``skin evaluate-onset --sensor`` does."""
+def onset_stream(sensor: object, seed: int = 0, minutes: float = 15.0,
+                 taxels: int = 16) -> object:
+    """Return the stream ``skin evaluate-onset --sensor S --seed N`` simulates.
+
+    Its materials, taxels, minutes and contact rate, disturbances on: the same contacts
+    (`skin.bench.streams.simulate_stream` with the sensor: the contacts' templates and the
+    raw noise come with it).
+    """
+    from skin.bench.streams import simulate_stream
+    from skin.commands.evaluate_onset import MATERIALS
+    from skin.models import load_materials
+
+    table = load_materials()
+    return simulate_stream([table[n] for n in MATERIALS.split(",")], n_taxels=taxels,
+                           duration=60.0 * minutes, seed=seed, sensor=sensor)
+
+
+def _run_detector(stream: object, sensor: object,
+                  progress: Callable[[int, int], None] | None = None) -> tuple[dict, object]:
+    """Run the real detector over the stream as ``skin evaluate-onset --sensor`` does.
+
+    ``progress`` is called as ``progress(done, total)`` with the samples processed.
+    """
     from skin.bench.onset_eval import evaluate_onsets
     from skin.stream.onset import OnsetDetector
 
     truth = [(c.taxel, c.onset, c.release, c.visible_after) for c in stream.contacts]
     det = OnsetDetector(stream.temperature.shape[1], sensor=sensor)
     res = evaluate_onsets(stream.times, stream.temperature, truth, stream.fs, detector=det,
-                          depth=sensor.depth, diffusivity=sensor.diffusivity, sensor=sensor)
+                          depth=sensor.depth, diffusivity=sensor.diffusivity, sensor=sensor,
+                          progress=progress)
     return res, det
 
 

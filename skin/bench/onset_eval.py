@@ -56,6 +56,35 @@ def release_window(sensor: object | None = None) -> float:
     return EARLY + delay
 
 
+#: Issue 16's refined-onset target: the median |error| at most this, s, or
+#: `TARGET_FLOOR_SHARE` of the median physical floor if that is more (`onset_error_target`).
+TARGET_ONSET_ERROR = 0.015
+TARGET_FLOOR_SHARE = 0.1
+
+
+def onset_error_target(floors: Sequence[float]) -> float:
+    """Return issue 16's target for the refined onset's median |error|, ms.
+
+    ``max(15 ms, 10 % of the median physical floor)``; the floor of a contact is when its
+    noise-free reading first moves 3 sigma (`skin.bench.streams.StreamContact.visible_after`).
+
+    Parameters
+    ----------
+    floors : sequence of float
+        The contacts' floors, s; the infinite ones (never visible) are left out. With none
+        left the target is 15 ms.
+
+    Returns
+    -------
+    float
+        The target, ms (rounded to 0.1 ms).
+    """
+    f = np.asarray(floors, dtype=float)
+    f = f[np.isfinite(f)]
+    share = TARGET_FLOOR_SHARE * float(np.median(f)) if f.size else 0.0
+    return round(1e3 * max(TARGET_ONSET_ERROR, share), 1)
+
+
 def five_sigma(contacts: list, detector: object, min_duration: float) -> list[bool]:
     """Whether each contact counts towards issue 16's 5-sigma figures.
 

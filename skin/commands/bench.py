@@ -81,6 +81,7 @@ from skin.commands import (
     bench_gap,
     bench_map,
     bench_onset_shape,
+    bench_refine_bound,
     bench_scene,
     bench_tracking,
     bench_view,
@@ -301,6 +302,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     bench_map.add_parsers(kinds)
     bench_onset_shape.add_parsers(kinds)
     bench_delay_bound.add_parsers(kinds)
+    bench_refine_bound.add_parsers(kinds)
     bench_envelope_rate.add_parsers(kinds)
     bench_tracking.add_parsers(kinds)
     bench_scene.add_parsers(kinds)

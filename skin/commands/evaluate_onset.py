@@ -19,6 +19,9 @@ their release in which an alarm still counts as theirs (Lorden's bound on their 
 `skin.bench.streams.StreamContact.detectable_after`; ``detectable_in_contact_5sigma``: before
 the release); ``detected_of_detectable``, the detector's rate among those; and
 ``detected_not_detectable``, how many it found all the same (the bound holds on average).
+Beside the refined onset's error median it gives issue 16's target for it,
+``refined_onset_target_ms``: max(15 ms, 10 % of the median floor of every contact with one,
+detected or not; `skin.bench.onset_eval.onset_error_target`).
 """
 
 from __future__ import annotations
@@ -143,7 +146,7 @@ def _sensor_figures(contacts: list, flags: list, delays: list, errors: list, det
     ``described``: the stream is a described sensor's (`simulate_stream`'s ``sensor``), whose
     contacts carry Lorden's bound; else the ``detectable`` figures are None (unknown).
     """
-    from skin.bench.onset_eval import five_sigma
+    from skin.bench.onset_eval import five_sigma, onset_error_target
 
     sigma = float(np.median(detector.sigma))
     big = [k for k, five in enumerate(five_sigma(contacts, detector, min_duration)) if five]
@@ -189,6 +192,9 @@ def _sensor_figures(contacts: list, flags: list, delays: list, errors: list, det
             "delay_bound_ratio_median": round(float(np.median(over)), 3) if over else None,
             "refined_onset_error_ms_median": (round(1e3 * float(np.median(err)), 1)
                                               if err.size else None),
+            # issue 16's target for it: max(15 ms, 10 % of the median floor of every
+            # contact with one, detected or not)
+            "refined_onset_target_ms": onset_error_target(floor),
             "refined_onset_sd_bound_ms_median": (round(1e3 * float(np.median(sd_bound)), 1)
                                                  if sd_bound.size else None),
             "refined_onset_error_bound_ratio_median": (
@@ -367,7 +373,8 @@ def main(args: argparse.Namespace) -> int:
               f"{doc['detected_5sigma']:.2%} of the {doc['contacts_5sigma']} contacts that move "
               f"the reading > 5 sigma; delay / floor median {doc['delay_floor_ratio_median']} "
               f"(floor median {doc['floor_ms_median']} ms); refined onset error median "
-              f"{doc['refined_onset_error_ms_median']} ms (its Cramer-Rao bound: sd median "
+              f"{doc['refined_onset_error_ms_median']} ms (target "
+              f"{doc['refined_onset_target_ms']} ms; its Cramer-Rao bound: sd median "
               f"{doc['refined_onset_sd_bound_ms_median']} ms; |error| / bound median "
               f"{doc['refined_onset_error_bound_ratio_median']}, 0.67 for an efficient "
               "unbiased estimate)")

@@ -1,0 +1,119 @@
+"""Cramér-Rao bounds on the refined onset (skin bench refine-bound) and issue 16's target."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from skin.bench.onset_eval import onset_error_target
+from skin.bench.refine_bound import (
+    VARIANTS,
+    efficient_sd,
+    fisher_matrix,
+    median_draws,
+    onset_crb,
+    smoothing_kernel,
+    summarise,
+)
+from skin.cli import main as skin_main
+from skin.models.sensors import load_sensor
+
+
+def test_a_ramp_in_white_noise_gives_the_closed_form() -> None:
+    # m(t) = a t from the onset: every sample of the window after the onset's own has
+    # m' = a, so var(t0) >= sigma^2 / sum(m'^2) = sigma^2 / (n a^2) with the rest known
+    fs, sigma, a, n = 100.0, 0.1, 0.5, 200
+    t = np.arange(n + 5) / fs  # past the window: the slope at its last sample is a too
+    got = onset_crb(a * t, fs, sigma, 1, n + 1)
+    assert got["known"] == pytest.approx(sigma / math.sqrt(n * a * a), rel=1e-9)
+    # the amplitude unknown: the Schur complement of the (t0, A) information
+    d, m = np.full(n, -a), a * t[1:n + 1]
+    info = np.array([[d @ d, d @ m], [m @ d, m @ m]]) / sigma**2
+    assert got["gain"] == pytest.approx(1.0 / math.sqrt(info[0, 0] - info[0, 1] ** 2
+                                                        / info[1, 1]), rel=1e-9)
+    # a step has no slope anywhere in the window but at the onset's sample: a window after
+    # it says nothing of the onset
+    assert onset_crb(np.ones(50), fs, sigma, 2, 50)["known"] == math.inf
+
+
+def test_smoothed_noise_is_weighed_by_its_own_covariance() -> None:
+    # the banded solve is the dense D^T (sigma^2 H H^T)^-1 D, H the smoothing's matrix
+    rng = np.random.default_rng(0)
+    for name in ("low-cost", "fast-film", "pid-logger"):
+        kernel, center = smoothing_kernel(load_sensor(name))
+        pad = max(center, kernel.size - 1 - center)
+        n = 40
+        cols = rng.normal(size=(n + 2 * pad, 3))
+        h = np.zeros((n, n + 2 * pad))
+        for j in range(n + 2 * pad):
+            e = np.zeros(n + 2 * pad)
+            e[j] = 1.0
+            h[:, j] = np.convolve(e, kernel)[center:center + e.size][pad:pad + n]
+        dense = (h @ cols).T @ np.linalg.solve(0.04 * h @ h.T, h @ cols)
+        assert np.allclose(fisher_matrix(cols, 0.2, kernel, center, pad), dense, rtol=1e-8)
+    # no smoothing: the plain sum of squares
+    cols = rng.normal(size=(30, 2))
+    assert np.allclose(fisher_matrix(cols, 0.5), cols.T @ cols / 0.25)
+
+
+def test_nuisances_only_raise_the_bound() -> None:
+    fs, sigma = 20.0, 0.2
+    t = np.arange(120) / fs
+    template = -1.5 * (1.0 - np.exp(-t / 1.2)) ** 2  # a lagged, smooth departure
+    kernel, center = smoothing_kernel(load_sensor("low-cost"))
+    got = onset_crb(template, fs, sigma, -30, 100, kernel, center)
+    assert 0 < got["known"] <= got["gain"] <= got["gain_offset"] < math.inf
+    # more samples, no less information
+    wide = onset_crb(template, fs, sigma, -30, 120, kernel, center)
+    assert wide["known"] <= got["known"] * (1 + 1e-12)
+    j = np.array([[4.0, 1.0], [1.0, 2.0]])
+    assert efficient_sd(j) == pytest.approx(1.0 / math.sqrt(4.0 - 0.5))
+
+
+def test_monte_carlo_medians_of_half_normal_errors() -> None:
+    sd = np.full(101, 0.01)  # 101 contacts of sd 10 ms: the median |error| is near 6.745 ms
+    med = median_draws(sd, 4000, np.random.default_rng(1))
+    out = summarise(med, 6.745)
+    assert out["median_ms"] == pytest.approx(6.745, abs=0.1)
+    assert 0.4 < out["p_meets_target"] < 0.6
+    assert out["p5_p95_ms"][0] < out["median_ms"] < out["p5_p95_ms"][1]
+    assert summarise(median_draws(np.full(3, np.inf), 10, np.random.default_rng(0)),
+                     15.0)["p_meets_target"] == 0.0
+
+
+def test_the_target_is_15_ms_or_a_tenth_of_the_median_floor() -> None:
+    assert onset_error_target([0.05, 0.1, np.inf]) == 15.0
+    assert onset_error_target([1.0, 2.0, 3.0, np.inf]) == 200.0
+    assert onset_error_target([]) == 15.0
+
+
+def test_the_command_and_evaluate_onset_give_the_same_target_and_library_error(capsys) -> None:
+    common = ["--minutes", "5", "--taxels", "4"]
+    assert skin_main(["evaluate-onset", "--sensor", "low-cost", "--seed", "0", *common,
+                      "--json"]) == 0
+    onset = json.loads(capsys.readouterr().out)
+    assert onset["refined_onset_target_ms"] >= 15.0
+    assert skin_main(["bench", "refine-bound", "--sensors", "low-cost", "--seeds", "0",
+                      *common, "--draws", "500", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    (run,) = doc["runs"]
+    assert run["refined_onset_target_ms"] == onset["refined_onset_target_ms"]
+    assert run["library_refined_onset_error_ms_median"] \
+        == onset["refined_onset_error_ms_median"]
+    assert run["contacts_with_floor"] > 0 and run["draws"] == 500
+    for name in VARIANTS:
+        b = run["bounds"][name]
+        assert {"sd_ms_median", "median_ms", "p5_p95_ms", "p_meets_target",
+                "detected"} <= set(b)
+        assert 0.0 <= b["p_meets_target"] <= 1.0
+    sd = {name: run["bounds"][name]["sd_ms_median"] for name in VARIANTS}
+    assert sd["known"] <= sd["gain"] <= sd["gain_offset"]
+    assert skin_main(["bench", "refine-bound", "--sensors", "low-cost", "--seeds", "0",
+                      *common, "--draws", "200"]) == 0
+    text = capsys.readouterr().out
+    assert "gain_offset" in text and "target" in text
+    assert skin_main(["evaluate-onset", "--sensor", "low-cost", "--seed", "0", *common]) == 0
+    assert f"target {onset['refined_onset_target_ms']} ms" in capsys.readouterr().out
