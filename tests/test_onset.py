@@ -350,3 +350,84 @@ def test_a_low_cost_streams_first_reading_raises_no_slow_alarm():
         events, _ = det.process(s.times, s.temperature, det.initial_state())
         assert events == []
     assert seeded == 2
+
+
+def _heater_stepping_down(seed: int = 0):
+    """16 fast-film taxels, their heater duty stepping down by 0.3 at 40 s (taxels 0-7).
+
+    Two thirds of the largest step (`HEATER_STEP`), through the body's slowest mode (the
+    detector's ``heater_rate`` at the largest step): on fast-film (a mode of 11 s) its fall
+    outruns the gust envelope, and only the heater's allowance holds it.
+    """
+    from skin.models.sensors import load_sensor
+    from skin.stream.onset import HEATER_STEP
+
+    sensor = load_sensor("fast-film")
+    det = OnsetDetector(16, sensor=sensor)
+    mode = HEATER_STEP * sensor.heated_rise / det.heater_rate
+    rng = np.random.default_rng(seed)
+    fs = sensor.sample_rate
+    t = np.arange(0, 60, 1 / fs)
+    duty = np.ones((t.size, 16))
+    duty[t >= 40.0, :8] = 0.7
+    fall = 0.3 * sensor.heated_rise * -np.expm1(-np.clip(t - 40.0, 0, None) / mode)
+    y = 25.0 + sensor.heated_rise + np.zeros((t.size, 16))
+    y[:, :8] -= fall[:, None]
+    y += rng.normal(0.0, sensor.delivered_noise(25.0 + sensor.heated_rise), y.shape)
+    return det, t, y, duty
+
+
+def test_a_heater_step_down_the_duty_shows_is_no_contact_and_chunks_do_not_matter():
+    det, t, y, duty = _heater_stepping_down()
+    events, state = det.process(t, y, det.initial_state(), duty=duty)
+    assert [e for e in events if e.kind == "onset"] == []
+    assert [e for e in det.process(t, y, det.initial_state())[0] if e.kind == "onset"] == []
+    # told the duty held, the same fall is a contact on the stepped taxels: the allowance
+    # is what holds it
+    held, _ = det.process(t, y, det.initial_state(), duty=np.ones_like(duty))
+    assert {e.taxel for e in held if e.kind == "onset"} == set(range(8))
+    assert np.all(state.t_switch[:8] == t[np.searchsorted(t, 40.0)])
+    assert np.all(state.t_switch[8:] == t[0])  # the first duty: as if it had just come
+    # chunked, in place, and through trace: the same events and state
+    s2 = det.initial_state()
+    got = []
+    for k in range(0, t.size, 7):
+        ev, s2 = det.process(t[k:k + 7], y[k:k + 7], s2, in_place=True, duty=duty[k:k + 7])
+        got += ev
+    tr = det.trace(t, y, duty=duty)
+    assert got == events == tr.events
+    for f in fields(state):
+        np.testing.assert_array_equal(getattr(s2, f.name), getattr(state, f.name))
+        np.testing.assert_array_equal(getattr(tr.state, f.name), getattr(state, f.name))
+
+
+def test_without_the_duty_every_fall_keeps_the_heaters_allowance():
+    # a duty of NaN (not known) is no duty: the same events and state as none given
+    det, t, y, duty = _heater_stepping_down(1)
+    none, s0 = det.process(t, y, det.initial_state())
+    nan, s1 = det.process(t, y, det.initial_state(), duty=np.full_like(duty, np.nan))
+    assert none == nan
+    assert np.all(np.isnan(s1.t_switch)) and np.all(np.isnan(s1.duty))
+    np.testing.assert_array_equal(s0.cusum, s1.cusum)
+
+
+def test_a_streams_duty_follows_its_switches_and_evaluate_onset_can_tell_the_detector(capsys):
+    import json
+
+    from skin.bench.streams import simulate_stream
+    from skin.cli import main as skin_main
+    from skin.models import load_materials
+
+    mats = load_materials()
+    s = simulate_stream([mats["pine"]], n_taxels=3, duration=200.0, fs=50.0, seed=2)
+    duty = s.duty()
+    assert duty.shape == s.temperature.shape and np.isfinite(duty).all()  # each from 0 s
+    for t, taxel, value in s.switches:
+        k = np.searchsorted(s.times, t)
+        assert duty[k, taxel] == value
+    assert len(s.switches) > 3  # some taxel switched after its first
+    args = ["evaluate-onset", "--sensor", "paper", "--seed", "3", "--minutes", "2",
+            "--taxels", "4", "--json"]
+    assert skin_main(args + ["--duty"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert 0.0 <= doc["detected_5sigma"] <= 1.0 and doc["false_alarms"] >= 0

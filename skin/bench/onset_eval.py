@@ -103,7 +103,7 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
                     progress: Callable[[int, int], None] | None = None,
                     directions: Sequence[int] | None = None,
                     detector: OnsetDetector | None = None,
-                    sensor: object | None = None) -> dict:
+                    sensor: object | None = None, duty: np.ndarray | None = None) -> dict:
     """Measure the detector's detection rate, false alarms, delay, onset error and cost.
 
     Parameters
@@ -136,6 +136,9 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
         The stream's sensor: the refinement fits its own response (loop, lag, smoothing) over
         a span stretched with its response time (`skin.stream.onset_refine.refine_span`), and
         an alarm may come `release_window` after a release and still be the contact's.
+    duty : numpy.ndarray, optional
+        Each taxel's heater duty at each sample, as frames carry it (`OnsetDetector.process`'s
+        ``duty``; `skin.bench.streams.Stream.duty`); None: the detector is not told it.
 
     Returns
     -------
@@ -162,7 +165,8 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
     events = []
     started = time.perf_counter()
     for k in range(0, n, chunk):
-        new, state = detector.process(times[k:k + chunk], y[k:k + chunk], state, in_place=True)
+        new, state = detector.process(times[k:k + chunk], y[k:k + chunk], state, in_place=True,
+                                      duty=None if duty is None else duty[k:k + chunk])
         events += new
         if progress is not None and (k // chunk) % 500 == 0:
             progress(min(k + chunk, n), n)

@@ -207,6 +207,16 @@ class Stream:
         """Observed taxel-hours."""
         return self.temperature.shape[1] * self.times.size / self.fs / 3600.0
 
+    def duty(self) -> np.ndarray:
+        """Each taxel's heater duty at each sample, (n_samples, n_taxels), as frames carry it.
+
+        From ``switches`` (NaN before a taxel's first; none on a quiet stream: all NaN).
+        """
+        out = np.full(self.temperature.shape, np.nan)
+        for t, taxel, value in self.switches:
+            out[np.searchsorted(self.times, t):, taxel] = value
+        return out
+
 
 def _lag(x: np.ndarray, tau: float, fs: float, start: np.ndarray) -> np.ndarray:
     """First-order lag of ``x`` (n_samples, n) with time constant ``tau``, from ``start``."""

@@ -115,6 +115,10 @@ DISTURBANCE = {"threshold": 0.4 / _PAPER_RISE, "rise_threshold": 0.6 / _PAPER_RI
 GUST_DEPTH = 0.4 / _PAPER_RISE
 GUST_RISE = 1.0
 HEATER_STEP = 0.45
+#: With the heater's duty given (`OnsetDetector.process`'s ``duty``), a fall is allowed a
+#: heater step only where the duty stepped down since this many ``slope_tau`` (plus the
+#: sensor's response time) before it began: the baseline's trend has taken up an older step.
+HEATER_WINDOW = 3.0
 #: The fall tests `OnsetDetector.trace` gives margins of (statistic over threshold): the
 #: CUSUM (not stale), the CUSUM gone stale (gathering longer than ``stale``: reset, no
 #: alarm), the slow channel (its fall below the slow average, counted once it began) and the
@@ -677,6 +681,9 @@ class DetectorState:
     common mode taken off its last reading (its board's), K; ``common_var`` (a loop-held
     board's) the variance of what the common mode leaves of a free taxel's departure, K^2;
     on a gated board, the mean square of each reading's step from its smoothed one, K^2.
+    ``duty`` is each taxel's last heater duty given (`OnsetDetector.process`'s ``duty``; NaN:
+    none yet) and ``t_switch`` when it last stepped down (or its first duty came; NaN: no
+    duty given).
     """
 
     level: np.ndarray
@@ -710,6 +717,8 @@ class DetectorState:
     common_level: np.ndarray
     common: np.ndarray
     common_var: np.ndarray
+    duty: np.ndarray
+    t_switch: np.ndarray
 
     def copy(self) -> DetectorState:
         """Return a deep copy."""
@@ -749,6 +758,19 @@ class DetectorTrace:
     events: list[OnsetEvent]
     state: DetectorState
     margins: np.ndarray | None = None
+
+
+def _heater_step(t: float, duty: np.ndarray, s: DetectorState) -> None:
+    """Take one sample's heater duties into ``s``: when each last stepped down (``t_switch``)."""
+    with np.errstate(invalid="ignore"):
+        down = duty < s.duty  # NaN either side: no step seen
+    if np.count_nonzero(down):
+        np.copyto(s.t_switch, t, where=down)
+    known = np.isfinite(duty)
+    # a taxel's first duty: what its heater did before is not known (it may have just come
+    # on): as if it had stepped then
+    np.copyto(s.t_switch, t, where=known & np.isnan(s.t_switch))
+    np.copyto(s.duty, duty, where=known)
 
 
 def common_auto(sensor: object) -> bool:
@@ -1099,6 +1121,9 @@ class OnsetDetector:
         # (counted per taxel in ``DetectorState.settle_restarts``)
         self._hole = 1.5 / fs
         self.heater_rate = HEATER_STEP * rise / mode
+        # a duty step down this long before a fall began can still steepen it past the
+        # baseline's trend (which takes ``slope_tau`` to follow), through the sensor's lag
+        self.heater_window = HEATER_WINDOW * self.slope_tau + sensor.response_time
         # a loop-held sensor's: the disturbances as its reading shows them, through the loop
         # (`loop_envelope`). The closed form above over-allowed a heater step there (0.86 K
         # over the slow window for at most 0.10 K) and a gust (0.29 K for 0.12 K), and under-
@@ -1218,11 +1243,13 @@ class OnsetDetector:
             common_level=nan.copy(),
             common=np.zeros(n),
             common_var=np.full(n, self._room_var),
+            duty=nan.copy(),
+            t_switch=nan.copy(),
         )
 
     def process(
         self, times: np.ndarray, temperature: np.ndarray, state: DetectorState,
-        in_place: bool = False,
+        in_place: bool = False, duty: np.ndarray | None = None,
     ) -> tuple[list[OnsetEvent], DetectorState]:
         """Run the detector over a chunk of samples.
 
@@ -1239,6 +1266,16 @@ class OnsetDetector:
             Update ``state`` itself and return it (no copy): for a caller that hands its state
             over, as a live pipeline does on every sample (the copy of its 31 arrays was a
             tenth of the detector's time there).
+        duty : numpy.ndarray, shape (n_samples, n_taxels), optional
+            Each taxel's heater duty at each sample (any unit; NaN: not known), as the frames
+            carry it. Given, a fall is allowed the steepest heater step's share
+            (``heater_rate``) only where the taxel's duty stepped down (or first came) since
+            `HEATER_WINDOW` before the fall began (`heater_window`): a taxel whose heater
+            held its duty has no heater step to fear. Not given (or NaN), every fall is
+            allowed it. On the simulated streams (``skin evaluate-onset --duty``) it finds
+            more of the 5-sigma contacts on paper and lets more gusts through: the heater's
+            allowance had also covered falls of gusts past the gust envelope, so the
+            pipeline does not pass it.
 
         Returns
         -------
@@ -1254,13 +1291,20 @@ class OnsetDetector:
         taus = self._taus(groups)
         work = _scratch(self.n_taxels)
         limits = self._limits()
-        for t, y in zip(np.asarray(times, dtype=float).tolist(), temperature, strict=True):
-            self._step(t, y, s, events, taus, groups, work=work, limits=limits)
+        if duty is None:
+            for t, y in zip(np.asarray(times, dtype=float).tolist(), temperature, strict=True):
+                self._step(t, y, s, events, taus, groups, work=work, limits=limits)
+            return events, s
+        duty = np.asarray(duty, dtype=float).reshape(len(times), self.n_taxels)
+        for t, y, d in zip(np.asarray(times, dtype=float).tolist(), temperature, duty,
+                           strict=True):
+            _heater_step(t, d, s)
+            self._step(t, y, s, events, taus, groups, work=work, limits=limits, duty=True)
         return events, s
 
     def trace(
         self, times: np.ndarray, temperature: np.ndarray, state: DetectorState | None = None,
-        margins: bool = False,
+        margins: bool = False, duty: np.ndarray | None = None,
     ) -> DetectorTrace:
         """Run the detector over a chunk and keep its smoothed reading and slope per sample.
 
@@ -1278,6 +1322,8 @@ class OnsetDetector:
             State after the previous chunk (default: `initial_state`); not modified.
         margins : bool
             Keep each fall test's statistic over its threshold per sample.
+        duty : numpy.ndarray, shape (n_samples, n_taxels), optional
+            Each taxel's heater duty at each sample (`process`'s ``duty``).
 
         Returns
         -------
@@ -1297,8 +1343,12 @@ class OnsetDetector:
         row: list | None = [] if margins else None
         work = _scratch(self.n_taxels)
         limits = self._limits()
+        if duty is not None:
+            duty = np.asarray(duty, dtype=float).reshape(len(times), self.n_taxels)
         for i, (t, y) in enumerate(zip(times.tolist(), temperature, strict=True)):
-            self._step(t, y, s, events, taus, groups, row, work, limits)
+            if duty is not None:
+                _heater_step(t, duty[i], s)
+            self._step(t, y, s, events, taus, groups, row, work, limits, duty is not None)
             smooth[i] = s.smooth
             slope[i] = s.slope
             if row:
@@ -1686,7 +1736,7 @@ class OnsetDetector:
     def _step(self, t: float, y: np.ndarray, s: DetectorState, events: list[OnsetEvent],
               taus: np.ndarray, groups: _Boards | None = None,
               margins: list | None = None, work: _Scratch | None = None,
-              limits: tuple | None = None) -> None:
+              limits: tuple | None = None, duty: bool = False) -> None:
         # Whole-array updates selected with `np.copyto(..., where=)` or a ufunc's ``where``
         # (the same arithmetic, element by element, as masked updates, at a fraction of the
         # calls), the float temporaries written into ``work`` (`_Scratch`: each expression's
@@ -1897,7 +1947,13 @@ class OnsetDetector:
             np.expm1(gusty, out=gusty)
             np.negative(gusty, out=gusty)
             np.multiply(self.gust_depth, gusty, out=gusty)
-            gusty += np.multiply(self.heater_rate, since, out=tmp)
+            heater = np.multiply(self.heater_rate, since, out=tmp)
+            if duty:
+                # no heater step to allow for where the duty held since a window before the
+                # fall began (`heater_window`; NaN ``t_switch``: no duty known, allowed)
+                began = np.subtract(s.ref_t, self.heater_window, out=w.flat)
+                np.copyto(heater, 0.0, where=s.t_switch < began)
+            gusty += heater
             gusty += margin
         else:
             # a loop-held sensor: the room's drift and the noise added in quadrature (taken as
