@@ -182,3 +182,14 @@ def test_a_released_taxels_samples_reach_past_its_release_short_of_its_next_cont
     m44, m45 = first.members
     assert m44.release == 1.5 and m44.end == 1.5
     assert m44.time[-1] == pytest.approx(2.0) and m45.time[-1] == pytest.approx(2.5 + 0.1)
+
+
+def test_quiet_since_is_when_the_taxels_earlier_touch_ended():
+    # 44 touched 1.0-1.5 s, then again at 2.0 s: the second contact's samples reach back to
+    # 1.4 s (search 0.6 s), but the taxel was quiet only from its release at 1.5 s; a taxel
+    # touched for the first time is quiet from its first sample
+    events = [_onset(44, 1.0), _release(44, 1.5), _onset(44, 2.0), _release(44, 2.4)]
+    first, second = _track(events)
+    assert first.members[0].quiet_since == pytest.approx(first.members[0].time[0])
+    m = second.members[0]
+    assert m.time[0] < 1.5 and m.quiet_since == pytest.approx(1.5)

@@ -233,7 +233,7 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
                     ambient: float = 25.0, fs: float = 200.0, seed: int = 0,
                     disturbances: bool = True, tau: float = 62.5, warm: float = 0.0,
                     warm_margin: tuple[float, float] = (2.0, 25.0),
-                    sensor: object | None = None) -> Stream:
+                    sensor: object | None = None, air: bool = True) -> Stream:
     """Simulate ``n_taxels`` taxels for ``duration`` s; see the module docstring.
 
     The whole run at once: `stream_chunks` joined (the same arrays, bit for bit).
@@ -267,6 +267,9 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
         Range of a warm object's temperature above the taxel's at contact, K.
     sensor : skin.models.sensors.SensorDescription or str, optional
         The sensor (see the module docstring); its sample rate replaces ``fs``.
+    air : bool
+        With ``disturbances``: the air currents (gusts and flutter) too. False keeps the
+        heater's switching and the room's drift, and every other draw as it is.
 
     Returns
     -------
@@ -275,10 +278,10 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
     if sensor is not None:
         return _sensor_stream(materials, n_taxels, duration, contacts_per_minute,
                               object_offset, ambient, seed, disturbances, tau, warm,
-                              warm_margin, sensor)
+                              warm_margin, sensor, air)
     parts = list(stream_chunks(materials, n_taxels, duration, contacts_per_minute,
                                object_offset, ambient, fs, seed, disturbances, tau, warm,
-                               warm_margin, chunk=max(1, round(duration * fs))))
+                               warm_margin, chunk=max(1, round(duration * fs)), air=air))
     if not parts:  # shorter than one sample
         return Stream(np.zeros(0), np.zeros((0, n_taxels)), np.zeros(0), [], fs)
     truth = [c for p in parts for c in p.contacts]
@@ -292,7 +295,8 @@ def simulate_stream(materials: Sequence[Material], n_taxels: int = 16, duration:
 def _sensor_stream(materials: Sequence[Material], n_taxels: int, duration: float,
                    contacts_per_minute: float, object_offset: tuple[float, float],
                    ambient: float, seed: int, disturbances: bool, tau: float, warm: float,
-                   warm_margin: tuple[float, float], sensor: object) -> Stream:
+                   warm_margin: tuple[float, float], sensor: object, air: bool = True,
+                   ) -> Stream:
     """Return the whole stream of a described sensor (see the module docstring)."""
     from dataclasses import replace
 
@@ -305,7 +309,7 @@ def _sensor_stream(materials: Sequence[Material], n_taxels: int, duration: float
     parts = list(stream_chunks(materials, n_taxels, duration, contacts_per_minute,
                                object_offset, ambient, fs, seed, disturbances, tau, warm,
                                warm_margin, chunk=max(1, round(duration * fs)),
-                               sensor=sensor, _rng=rng))
+                               sensor=sensor, _rng=rng, air=air))
     if not parts:
         return Stream(np.zeros(0), np.zeros((0, n_taxels)), np.zeros(0), [], fs,
                       raw_noise=sensor.noise_kelvin(ambient + sensor.heated_rise))
@@ -522,7 +526,8 @@ def stream_chunks(materials: Sequence[Material], n_taxels: int = 16, duration: f
                   tau: float = 62.5, warm: float = 0.0,
                   warm_margin: tuple[float, float] = (2.0, 25.0),
                   chunk: int = 2000, sensor: object | None = None,
-                  _rng: np.random.Generator | None = None) -> Iterator[StreamChunk]:
+                  _rng: np.random.Generator | None = None, air: bool = True,
+                  ) -> Iterator[StreamChunk]:
     """Yield the stream of `simulate_stream` in chunks of ``chunk`` samples.
 
     Memory is bounded by the chunk (times the taxels) and the schedule of events (heater
@@ -663,6 +668,8 @@ disturbances, tau, warm, warm_margin
             flutter, flutter_z = lfilter([1.0 - a_flutter], [1.0, -a_flutter], flutter, axis=0,
                                          zi=flutter_z)
             gust += flutter * np.sqrt(2 * 0.5 * fs)
+            if not air:  # drawn all the same: every other draw stays as it is
+                gust[:] = 0.0
         excess, excess_z = lfilter([1.0 - a_lag], [1.0, -a_lag], full_excess * duty, axis=0,
                                    zi=excess_z)
         free = amb[:, None] + excess + gust

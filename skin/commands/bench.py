@@ -82,6 +82,7 @@ from skin.commands import (
     bench_map,
     bench_onset_shape,
     bench_refine_bound,
+    bench_response_noise,
     bench_scene,
     bench_tracking,
     bench_view,
@@ -308,6 +309,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     bench_scene.add_parsers(kinds)
     bench_forward.add_parsers(kinds)
     bench_gap.add_parsers(kinds)
+    bench_response_noise.add_parsers(kinds)
 
 
 def main_object_prior(args: argparse.Namespace) -> int:

@@ -23,6 +23,7 @@ in a heap ordered by their instant, and an onset looks only at its own taxel's n
 from __future__ import annotations
 
 import heapq
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -63,6 +64,12 @@ class TaxelSamples:
         ``"thermal"`` (the onset detector's coarse onset, refined by `refine_member`) or
         ``"force"`` (the force channel's onset and release, exact: `refine_member` keeps
         them; ``baseline`` is then the temperature at the onset).
+    quiet_since : float
+        When the taxel was last quiet from: its earlier activity's end (the release of its
+        last contact before this one, or that contact's decision where it was not released),
+        or the start of its samples; -inf where not known. The samples before the onset
+        from then on hold no earlier touch's own change (its reheat aside, which the free
+        trajectory follows): `skin.stream.response` measures the noise on them.
     """
 
     index: int
@@ -75,6 +82,7 @@ class TaxelSamples:
     temperature: np.ndarray
     ambient: np.ndarray
     dated_by: str = "thermal"
+    quiet_since: float = -math.inf
 
 
 @dataclass(frozen=True)
@@ -107,6 +115,7 @@ class _Member:
     release: float | None = None  # when the temperature stopped falling
     released_at: float | None = None  # when the release was recognised
     dated_by: str = "thermal"
+    quiet: float = -np.inf  # when the taxel's activity before this contact ended
 
 
 @dataclass
@@ -199,6 +208,7 @@ class ContactTracker:
         # (instant, contact id, k): the k-th provisional snapshot, or the final decision (FINAL)
         self._heap: list[tuple[float, int, int]] = []
         self._owner: dict[int, _OpenContact] = {}
+        self._ended: dict[int, float] = {}  # per taxel, when its last activity ended
         self._next_id = 0
         self.now = -np.inf
 
@@ -246,10 +256,19 @@ class ContactTracker:
         elif ev.kind == "release" and (owner := self._owner.get(ev.taxel)) is not None:
             owner.members[ev.taxel].release = ev.time
             owner.members[ev.taxel].released_at = ev.detected_at
+            self._ended[ev.taxel] = max(self._ended.get(ev.taxel, -np.inf), ev.time)
             self._schedule(owner, ev.detected_at)
 
     def _on_onset(self, ev: OnsetEvent) -> None:
-        member = _Member(ev.time, ev.baseline, ev.slope, dated_by=ev.dated_by)
+        quiet = self._ended.get(ev.taxel, -np.inf)
+        before = self._owner.get(ev.taxel)
+        if before is not None and before.members[ev.taxel].release is None:
+            # its contact still open and not released: nothing quiet since, but where this
+            # onset joins that contact (a force onset confirming a thermal one): its quiet
+            quiet = before.members[ev.taxel].quiet
+            if abs(ev.time - before.members[ev.taxel].coarse) > self.join_window:
+                quiet = ev.time
+        member = _Member(ev.time, ev.baseline, ev.slope, dated_by=ev.dated_by, quiet=quiet)
         joined: list[_OpenContact] = []
         # a force onset confirming a thermal one of its taxel replaces it (one contact)
         own = (ev.taxel,) if ev.dated_by == "force" else ()
@@ -327,9 +346,11 @@ class ContactTracker:
             if contact.when != when:
                 continue  # stale entry: the decision moved
             del self._open[cid]
-            for m in contact.members:
+            for m, member in contact.members.items():
                 if self._owner.get(m) is contact:
                     del self._owner[m]
+                if member.release is None:  # decided while touching: its activity ends here
+                    self._ended[m] = max(self._ended.get(m, -np.inf), instant)
             done.append(self._cut(contact, instant))
         return done
 
@@ -346,8 +367,10 @@ class ContactTracker:
             if m.release is not None and other is not None and other is not contact:
                 stop = max(end, min(stop, other.members[k].coarse))
             idx = h.between(m.coarse - self.search, stop)
+            first = float(h.t[idx[0]]) if idx.size else m.coarse - self.search
             members.append(TaxelSamples(k, m.coarse, m.baseline, m.slope, m.release, end,
-                                        h.t[idx], h.y[idx, k], h.ambient[idx], m.dated_by))
+                                        h.t[idx], h.y[idx, k], h.ambient[idx], m.dated_by,
+                                        max(first, min(m.quiet, m.coarse))))
         return DecidedContact(contact.id, when, members, final)
 
 
