@@ -426,8 +426,7 @@ def test_a_streams_duty_follows_its_switches_and_evaluate_onset_can_tell_the_det
         k = np.searchsorted(s.times, t)
         assert duty[k, taxel] == value
     assert len(s.switches) > 3  # some taxel switched after its first
-    args = ["evaluate-onset", "--sensor", "paper", "--seed", "3", "--minutes", "2",
-            "--taxels", "4", "--json"]
-    assert skin_main(args + ["--duty"]) == 0
+    assert skin_main(["evaluate-onset", "--sensor", "paper", "--seed", "3", "--minutes", "2",
+                      "--taxels", "4", "--json", "--duty"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert 0.0 <= doc["detected_5sigma"] <= 1.0 and doc["false_alarms"] >= 0
