@@ -103,7 +103,7 @@ MEASURING_COMMANDS = {"skin.commands.bench", "skin.commands.bench_drivers",
                       "skin.commands.bench_forward", "skin.commands.bench_scene",
                       "skin.commands.bench_gap", "skin.commands.bench_delay_bound",
                       "skin.commands.bench_envelope_rate",
-                      "skin.commands.bench_response_noise",
+                      "skin.commands.bench_response_noise", "skin.commands.bench_refine_bound",
                       "skin.commands.evaluate",
                       "skin.commands.evaluate_onset"}
 
