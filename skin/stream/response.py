@@ -265,9 +265,13 @@ def _apply_cov(sensor: object, pos: np.ndarray, x: np.ndarray, white: bool) -> n
     return fftconvolve(z, sym, axes=1)[:, la - 1: la - 1 + span][:, pos]
 
 
-@functools.lru_cache(maxsize=256)
+@functools.lru_cache(maxsize=8)
 def _dense(sensor: object, pos: tuple[int, ...]) -> np.ndarray:
-    """Return the smoothed white noise's covariance per unit variance at ``pos``, (n, n)."""
+    """Return the smoothed white noise's covariance per unit variance at ``pos``, (n, n).
+
+    Few kept: each is n^2 floats (a 4 s span at 200 Hz: 5 MB), and a long run meets many
+    spans (an O(n^2) build is a millisecond's work).
+    """
     p = np.asarray(pos)
     acov = noise_autocovariance(sensor)
     lag = np.abs(p[:, None] - p[None, :])
