@@ -193,3 +193,11 @@ def test_quiet_since_is_when_the_taxels_earlier_touch_ended():
     assert first.members[0].quiet_since == pytest.approx(first.members[0].time[0])
     m = second.members[0]
     assert m.time[0] < 1.5 and m.quiet_since == pytest.approx(1.5)
+
+
+def test_a_release_after_its_contact_was_decided_still_ends_the_taxels_activity():
+    # touched 1.0-6.0 s: decided while touching (the window), released after; the next
+    # touch at 6.3 s reaches back to 5.7 s, but the taxel was quiet only from 6.0 s
+    events = [_onset(44, 1.0), _release(44, 6.0), _onset(44, 6.3), _release(44, 6.8)]
+    m = _track(events, duration=8.0)[-1].members[0]
+    assert m.time[0] < 6.0 and m.quiet_since == pytest.approx(6.0)

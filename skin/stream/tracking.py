@@ -253,11 +253,14 @@ class ContactTracker:
     def _on_event(self, ev: OnsetEvent) -> None:
         if ev.kind == "onset":
             self._on_onset(ev)
-        elif ev.kind == "release" and (owner := self._owner.get(ev.taxel)) is not None:
-            owner.members[ev.taxel].release = ev.time
-            owner.members[ev.taxel].released_at = ev.detected_at
+        elif ev.kind == "release":
+            # the taxel's activity ends here, whether or not its contact is still open (one
+            # longer than the window was decided while touching: its release comes after)
             self._ended[ev.taxel] = max(self._ended.get(ev.taxel, -np.inf), ev.time)
-            self._schedule(owner, ev.detected_at)
+            if (owner := self._owner.get(ev.taxel)) is not None:
+                owner.members[ev.taxel].release = ev.time
+                owner.members[ev.taxel].released_at = ev.detected_at
+                self._schedule(owner, ev.detected_at)
 
     def _on_onset(self, ev: OnsetEvent) -> None:
         quiet = self._ended.get(ev.taxel, -np.inf)
