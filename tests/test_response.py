@@ -236,6 +236,17 @@ def test_satterthwaite_dof_is_n_minus_p_for_white_noise() -> None:
     assert np.mean([d.sigma for d in draws]) == pytest.approx(0.2, rel=0.1)
     assert grid_tests([np.eye(5)]) == pytest.approx(5.0)
     assert grid_tests([np.ones((5, 5))]) == pytest.approx(1.0)
+    # readout noise under one count's rounding on a smoothed sensor: the rounding is the
+    # floor, before the smoothing (correlated samples, fewer dof), not white (review)
+    low = load_sensor("low-cost")
+    tau = np.arange(-199, 1) / low.sample_rate
+    floor = low.kelvin_per_count(39.0) / np.sqrt(12.0)
+    noise = measured_noise(tau, smooth(39.0 + 0.5 * floor * rng.normal(size=tau.size), low),
+                           low.reheat_time_constant, low)
+    assert noise.sigma == pytest.approx(floor, rel=1e-6) and not noise.white
+    assert noise.dof < 0.5 * (tau.size - 3)
+    for g in (3, 8, 16, 24):  # eigenvalues a rounding under g: still one test
+        assert grid_tests([np.ones((g, g)) + 1e-15 * np.eye(g)]) == pytest.approx(1.0)
 
 
 def test_a_reading_stuck_on_one_count_reads_white_and_shows_no_response() -> None:

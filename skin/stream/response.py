@@ -171,6 +171,7 @@ def grid_tests(correlations: Sequence[np.ndarray]) -> float:
         return 1.0
     rho2 = np.mean([np.square(c) for c in correlations], axis=0)
     lam = np.clip(np.linalg.eigvalsh(np.sqrt(np.clip(rho2, 0.0, 1.0))), 0.0, None)
+    lam = np.round(lam, 9)  # an eigenvalue k - 1e-15 is k: the count jumps at whole numbers
     return max(1.0, float(np.sum((lam >= 1.0) + lam - np.floor(lam))))
 
 
@@ -179,7 +180,7 @@ def free_columns(tau: np.ndarray, relax: float, room: np.ndarray | None = None) 
 
     With ``room`` (the room's temperature as the sensor reads it and the sensor's start-up
     transients, `room_column`: (n,) or (n, k)), those too (a room that drifts moves the
-    reading with it). Returns an orthonormal basis (n, <= 4) of
+    reading with it). Returns an orthonormal basis (n, <= 3 + k) of
     their span (a relaxation much slower than the window is a trend already, a steady room a
     level: the rank drops, not the fit).
     """
@@ -314,10 +315,11 @@ def measured_noise(tau: np.ndarray, y: np.ndarray, relax: float, sensor: object,
     (`noise_autocovariance`): their sum of squares has the mean ``sigma^2 tr(M A)``, whence
     ``sigma``, and its degrees of freedom are Satterthwaite's, ``2 E^2 / var`` of that
     quadratic form, ``tr(M A)^2 / tr((M A)^2)`` (n - p for white noise: fewer for a smoothed
-    reading, whose samples are correlated). A reading whose noise per sample comes out under
-    the rounding of one ADC count (a reading steady within a count, or stuck on one: no
-    noise measured) is read as white at that rounding, on n - p. None with fewer than
-    `NOISE_SAMPLES` samples.
+    reading, whose samples are correlated). ``sigma`` is never under the rounding of one ADC
+    count, which is white before the smoothing as the readout's noise is (a reading steady
+    within a count shows nothing finer); a reading that does not change at all (stuck on one
+    count) shows no smoothing either and is read as white at that rounding, on n - p. None
+    with fewer than `NOISE_SAMPLES` samples.
     """
     n = int(np.size(tau))
     if n < NOISE_SAMPLES:
@@ -329,10 +331,10 @@ def measured_noise(tau: np.ndarray, y: np.ndarray, relax: float, sensor: object,
     tr = float(np.trace(ma))
     sigma2 = float(resid @ resid) / max(tr, 1e-300)
     floor = _step(sensor, round(2.0 * float(np.median(y))) / 2.0) / math.sqrt(12.0)
-    if not sigma2 * float(a[0, 0]) >= floor**2:
+    if not np.ptp(y) > 0.0:  # stuck
         return Noise(floor, float(n - base.shape[1]), True)
     dof = tr**2 / max(float(np.sum(ma * ma.T)), 1e-300)
-    return Noise(math.sqrt(sigma2), float(dof), False)
+    return Noise(max(math.sqrt(sigma2), floor), float(dof), False)
 
 
 # -- the contact model -----------------------------------------------------------------------
