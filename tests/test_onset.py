@@ -430,3 +430,7 @@ def test_a_streams_duty_follows_its_switches_and_evaluate_onset_can_tell_the_det
                       "--taxels", "4", "--json", "--duty"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert 0.0 <= doc["detected_5sigma"] <= 1.0 and doc["false_alarms"] >= 0
+    assert doc["duty"] is True and "heater duty told" in doc["source"]
+    # a trial dataset carries no duty: refused, not ignored
+    assert skin_main(["evaluate-onset", "--data", "trials.npz", "--duty"]) == 2
+    assert "--duty" in capsys.readouterr().err

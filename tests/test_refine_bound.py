@@ -117,3 +117,11 @@ def test_the_command_and_evaluate_onset_give_the_same_target_and_library_error(c
     assert "gain_offset" in text and "target" in text
     assert skin_main(["evaluate-onset", "--sensor", "low-cost", "--seed", "0", *common]) == 0
     assert f"target {onset['refined_onset_target_ms']} ms" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("bad", [["--seeds", "-1"], ["--minutes", "0.00001"],
+                                 ["--draws", "0"], ["--sensors", "nosuch"]])
+def test_refine_bound_refuses_bad_input_before_the_work(bad, capsys) -> None:
+    assert skin_main(["bench", "refine-bound", "--sensors", "paper", *bad]) == 2
+    named = bad[1] if bad[0] == "--sensors" else bad[0]  # the message names the problem
+    assert named in capsys.readouterr().err

@@ -310,3 +310,22 @@ def test_contact_free_windows_pass_at_most_nominally_on_a_smoothed_sensor() -> N
         nominal = 2.0 * norm.sf(float(tail))
         assert c["windows"] > 300
         assert c["passed"] <= binom.ppf(0.999, c["windows"], nominal), (tail, c)
+
+
+@pytest.mark.parametrize("bad", [["--seeds", "-1"], ["--duration", "3"],
+                                 ["--sensors", "paper", "nosuch"], ["--group", "0"]])
+def test_response_noise_refuses_bad_input_before_the_work(bad, capsys) -> None:
+    from skin.cli import main as skin_main
+
+    assert skin_main(["bench", "response-noise", *bad]) == 2
+    named = bad[-1] if bad[0] == "--sensors" else bad[0]
+    assert named in capsys.readouterr().err
+
+
+def test_response_noise_gives_no_interval_where_no_window_was_tested() -> None:
+    from skin.bench.response_noise import summarise
+
+    run = {"sensor": "paper", "counts": {"1": {"3.0": {"windows": 0, "passed": 0,
+                                                       "untested": 0}}}}
+    (row, *_) = summarise([run])
+    assert row["windows"] == 0 and row["ratio"] is None and row["ratio_ci95"] is None

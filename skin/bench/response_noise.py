@@ -182,6 +182,8 @@ def summarise(runs: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
                     "passed": k, "untested": untested, "nominal": round(nominal, 5),
                     "rate": round(k / n, 5) if n else None,
                     "ratio": round(k / n / nominal, 2) if n else None,
-                    "ratio_ci95": [round(lo / nominal, 2), round(hi / nominal, 2)]})
+                    # none tested: no interval (it would be 1 / nominal, not a measurement)
+                    "ratio_ci95": ([round(lo / nominal, 2), round(hi / nominal, 2)] if n
+                                   else None)})
     out.sort(key=lambda r: (r["sensor"], r["taxels"] != "all", r["taxels"], r["sigmas"]))
     return out

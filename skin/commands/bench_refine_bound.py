@@ -53,8 +53,11 @@ def main(args: argparse.Namespace) -> int:
 
     names = args.sensors if args.sensors else list(load_sensors())
     sensors = [load_sensor(n) for n in names]  # a bad name fails before the work starts
-    if args.minutes <= 0 or args.taxels < 1 or args.draws < 1:
-        raise SkinError("--minutes, --taxels and --draws must be positive")
+    if args.minutes * 60.0 < 1.0 or args.taxels < 1 or args.draws < 1:
+        raise SkinError("--minutes must cover at least a second, --taxels and --draws must be "
+                        "positive")
+    if min(args.seeds) < 0:
+        raise SkinError("--seeds must be non-negative")
     progress = Progress()
     started = time.monotonic()
     runs = []

@@ -15,6 +15,10 @@ from __future__ import annotations
 
 import argparse
 
+#: Shortest stream, s: a phantom window needs the tracker's search span before its onset (up
+#: to 4 s) and the classifier's window after it (2.5 s).
+MIN_DURATION = 10.0
+
 
 def add_parsers(kinds: argparse._SubParsersAction) -> None:
     """Register ``skin bench response-noise``."""
@@ -46,14 +50,22 @@ def main(args: argparse.Namespace) -> int:
     from skin.bench import machine
     from skin.bench.response_noise import measure_response_noise, summarise
     from skin.errors import SkinError
-    from skin.models.sensors import load_sensors
+    from skin.models.sensors import load_sensor, load_sensors
     from skin.progress import Progress
 
     if args.duration <= 0 or args.taxels < 1 or args.group < 1 or args.rate < 0:
         raise SkinError("--duration, --taxels and --group must be positive, --rate >= 0")
     if args.group > args.taxels:
         raise SkinError(f"--group {args.group} is more than --taxels {args.taxels}")
+    if args.duration < MIN_DURATION:
+        raise SkinError(f"--duration {args.duration:g} s is too short: a phantom window needs "
+                        f"the tracker's search span before it and the classifier's window "
+                        f"after it (at least {MIN_DURATION:g} s)")
+    if min(args.seeds) < 0:
+        raise SkinError("--seeds must be non-negative")
     sensors = args.sensors or list(load_sensors())
+    for name in sensors:  # a bad name or file fails before the work starts
+        load_sensor(name)
     sizes = (1,) if args.group == 1 else (1, args.group)
     progress = Progress()
     started = time.monotonic()
@@ -82,7 +94,8 @@ def main(args: argparse.Namespace) -> int:
         ratio = "-" if r["ratio"] is None else f"{r['ratio']:.2f}"
         print(f"{r['sensor']:<12} {r['taxels']:>6} {r['sigmas']:>5g} {r['windows']:>8} "
               f"{r['passed']:>7} {r['nominal']:>8.4f} {ratio:>6}  "
-              f"{r['ratio_ci95'][0]:.2f}-{r['ratio_ci95'][1]:.2f}"
+              + ("-" if r["ratio_ci95"] is None
+                 else f"{r['ratio_ci95'][0]:.2f}-{r['ratio_ci95'][1]:.2f}")
               + (f" ({r['untested']} untested)" if r["untested"] else ""))
     for r in runs:
         if r["dof_median"] is not None:

@@ -242,6 +242,9 @@ def main(args: argparse.Namespace) -> int:
 
     if any(v is not None and not v > 0 for v in (args.envelope_sigmas, args.smooth_tau)):
         raise SkinError("--envelope-sigmas and --smooth-tau must be positive")
+    if args.duty and args.data:
+        raise SkinError("--duty tells the detector a simulated stream's heater duty: a trial "
+                        "dataset (--data) carries none")
     if args.commissioned and (args.data or args.calibration):
         raise SkinError("--commissioned simulates its own quiet stretch: not with --data or "
                         "--calibration")
@@ -324,6 +327,9 @@ def main(args: argparse.Namespace) -> int:
     source += "".join(f", {k.replace('_', ' ')} {v:g}" for k, v in knobs.items()
                       if k != "envelope_noise")
     source += ", common mode" if detector.common_active else ", no common mode"
+    if duty is not None:
+        source += (", heater duty told" if detector.envelope is None
+                   else ", heater duty told (no effect: a loop-held heater's envelope)")
     source += (", flat envelope margin" if not detector.envelope_noise
                else ", noise-table envelope margin")
     result = evaluate_onsets(times, temperature, truth, fs, min_duration=args.min_duration,
@@ -346,6 +352,7 @@ def main(args: argparse.Namespace) -> int:
             by_material[name] = {"contacts": len(counted),
                                  "detected": int(sum(flags[k] for k in counted))}
     doc = {"machine": machine(), "source": source, "common_mode": detector.common_active,
+           "duty": duty is not None,
            **result,
            "wall_time": round(time.monotonic() - started, 2)}
     if by_material is not None:

@@ -1272,9 +1272,11 @@ class OnsetDetector:
             (``heater_rate``) only where the taxel's duty stepped down (or first came) since
             `HEATER_WINDOW` before the fall began (`heater_window`): a taxel whose heater
             held its duty has no heater step to fear. Not given (or NaN), every fall is
-            allowed it. On the simulated streams (``skin evaluate-onset --duty``) it finds
-            more of the 5-sigma contacts on paper and lets more gusts through: the heater's
-            allowance had also covered falls of gusts past the gust envelope, so the
+            allowed it. A loop-held heater (``sensor.heater == "pid"``) has no such
+            allowance (its loop envelope holds its steps): there it changes nothing. On the
+            simulated streams (``skin evaluate-onset --duty``) it finds more of the 5-sigma
+            contacts on paper and fast-film and lets more false alarms through: the heater's
+            allowance had also covered gust and noise falls past the gust envelope, so the
             pipeline does not pass it.
 
         Returns
