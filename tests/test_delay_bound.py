@@ -221,6 +221,11 @@ def test_the_oracles_5sigma_contacts_are_evaluate_onsets(capsys) -> None:
     doc = json.loads(capsys.readouterr().out)
     assert out["contacts_5sigma"] == doc["contacts_5sigma"] > 0
     assert out["detector_detected_5sigma"] == doc["detected_5sigma"]
+    # the rates with their exact intervals around them
+    lo, hi = doc["detected_5sigma_ci95"]
+    assert lo <= doc["detected_5sigma"] <= hi and hi - lo > 0
+    lo, hi = doc["false_alarms_per_taxel_hour_ci95"]
+    assert lo <= doc["false_alarms_per_taxel_hour"] < hi
     assert 0.0 <= out["oracle_detected_5sigma"] <= 1.0
     assert out["oracle_5sigma_detected_under_99"] >= out["oracle_5sigma_detected_under_half"]
     missed = out["detector_missed_5sigma"]

@@ -22,7 +22,6 @@ from skin.bench.fuzz import (
     check_reply_body,
     check_serial,
     chunk_sizes,
-    clopper_pearson,
     damage_bytes,
     damage_frames,
     random_reply,
@@ -223,7 +222,23 @@ def test_crc15_syndromes_detect_every_error_of_up_to_five_bits():
 
 
 def test_clopper_pearson():
+    from skin.bench.intervals import clopper_pearson
+
     lo, hi = clopper_pearson(0, 100)
     assert lo == 0 and hi == pytest.approx(1 - 0.025 ** (1 / 100), rel=1e-9)
     lo, hi = clopper_pearson(25, 1_500_000)
     assert lo < 25 / 1_500_000 < hi and lo < 2**-16 < hi
+
+
+def test_poisson_interval():
+    from skin.bench.intervals import poisson_interval
+
+    # none seen in 4 taxel-hours: up to -ln(0.025) / 4 per taxel-hour (the exact bound)
+    lo, hi = poisson_interval(0, 4.0)
+    assert lo == 0 and hi == pytest.approx(-np.log(0.025) / 4.0, rel=1e-9)
+    # one in 4 taxel-hours: 0.25 measured, the interval wide enough to hold 0.1 and 1
+    lo, hi = poisson_interval(1, 4.0)
+    assert lo < 0.1 < 0.25 < 1.0 < hi
+    lo, hi = poisson_interval(400, 1000.0)
+    assert lo < 0.4 < hi and hi - lo < 0.1
+    assert poisson_interval(3, 0.0) == (0.0, float("inf"))

@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from skin._optional import require
+from skin.bench.intervals import clopper_pearson
 from skin.drivers.protocol import (
     DUPLICATE_WINDOW,
     MAX_PACKET,
@@ -737,18 +738,6 @@ class _Tally:
                                              "inconsistent", "examples")}
         out["stats"] = dict(self.stats)
         return out
-
-
-def clopper_pearson(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
-    """Return the exact (Clopper-Pearson) confidence interval of a binomial rate ``k / n``."""
-    from scipy.special import betaincinv
-
-    if n == 0:
-        return 0.0, 1.0
-    a = (1 - level) / 2
-    lo = 0.0 if k == 0 else float(betaincinv(k, n - k + 1, a))
-    hi = 1.0 if k == n else float(betaincinv(k + 1, n - k, 1 - a))
-    return lo, hi
 
 
 def _rate(name: str, accepted: int, tried: int, theory: float | None, note: str) -> dict:

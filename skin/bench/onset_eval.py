@@ -22,6 +22,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from skin.bench.intervals import poisson_interval
 from skin.stream.onset import OnsetDetector, OnsetEvent
 from skin.stream.onset_refine import refine_span
 from skin.stream.tracking import TaxelSamples, refine_member
@@ -145,7 +146,8 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
     dict
         ``contacts``, ``detected``, ``detection_rate`` (contacts >= ``min_duration``),
         ``detection_rate_all``, ``false_alarms``, ``taxel_hours``,
-        ``false_alarms_per_taxel_hour``, ``delay_ms``, ``visible_ms`` (the floor, for the
+        ``false_alarms_per_taxel_hour`` (and its exact 95 % interval,
+        ``false_alarms_per_taxel_hour_ci95``), ``delay_ms``, ``visible_ms`` (the floor, for the
         detected contacts) and ``onset_error_ms`` (median and p95 of the absolute values; the
         signed median too), the detector's and the refinement's cost,
         ``false_alarms_by_direction`` (``"fall"`` and ``"rise"``: the direction the detector
@@ -233,6 +235,9 @@ def evaluate_onsets(times: np.ndarray, temperature: np.ndarray,
         "false_alarms": n_false, "false_alarms_by_direction": false_alarms,
         "taxel_hours": round(hours, 3),
         "false_alarms_per_taxel_hour": round(n_false / hours, 3),
+        # exact 95 % interval: a few taxel-hours cannot tell 0.1 from 0.4 per taxel-hour
+        "false_alarms_per_taxel_hour_ci95": [round(v, 3) for v in poisson_interval(n_false,
+                                                                                  hours)],
         "visible_ms": (median_p95(np.asarray(floor)[np.isfinite(floor)], 1e3, 1) if floor
                        else None),
         "detector_us_per_taxel_sample": round(1e6 * detect_s / (n * n_taxels), 4),

@@ -29,7 +29,9 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-from scipy.stats import beta, norm
+from scipy.stats import norm
+
+from skin.bench.intervals import clopper_pearson
 
 #: How long a phantom press lasts, s (the glitch of issue 16: 2 N for 1 s).
 PHANTOM_SECONDS = 1.0
@@ -37,16 +39,6 @@ PHANTOM_SECONDS = 1.0
 TAILS = (2.0, 3.0)
 #: Taxels per phantom contact (a single-taxel contact and a multi-taxel one).
 SIZES = (1, 4)
-
-
-def clopper_pearson(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
-    """Return the exact binomial interval of a rate of ``k`` in ``n`` at ``level``."""
-    if n == 0:
-        return 0.0, 1.0
-    a = (1.0 - level) / 2.0
-    lo = 0.0 if k == 0 else float(beta.ppf(a, k, n - k + 1))
-    hi = 1.0 if k == n else float(beta.ppf(1.0 - a, k + 1, n - k))
-    return lo, hi
 
 
 def _windows(stream: Any, cols: Sequence[int], span: tuple[float, float],

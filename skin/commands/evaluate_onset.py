@@ -21,7 +21,9 @@ the release); ``detected_of_detectable``, the detector's rate among those; and
 ``detected_not_detectable``, how many it found all the same (the bound holds on average).
 Beside the refined onset's error median it gives issue 16's target for it,
 ``refined_onset_target_ms``: max(15 ms, 10 % of the median floor of every contact with one,
-detected or not; `skin.bench.onset_eval.onset_error_target`).
+detected or not; `skin.bench.onset_eval.onset_error_target`). The rates come with exact
+95 % intervals (``false_alarms_per_taxel_hour_ci95``, Garwood's; ``detected_5sigma_ci95``,
+Clopper-Pearson's): one false alarm in 4 taxel-hours reads 0.25 per taxel-hour, and holds 0.1.
 """
 
 from __future__ import annotations
@@ -153,6 +155,7 @@ def _sensor_figures(contacts: list, flags: list, delays: list, errors: list, det
     ``described``: the stream is a described sensor's (`simulate_stream`'s ``sensor``), whose
     contacts carry Lorden's bound; else the ``detectable`` figures are None (unknown).
     """
+    from skin.bench.intervals import clopper_pearson
     from skin.bench.onset_eval import five_sigma, onset_error_target
 
     sigma = float(np.median(detector.sigma))
@@ -192,6 +195,9 @@ def _sensor_figures(contacts: list, flags: list, delays: list, errors: list, det
     return {"sensor": detector.sensor.name, "noise_sigma_k": round(sigma, 5),
             "contacts_5sigma": len(big),
             "detected_5sigma": round(sum(flags[k] for k in big) / max(len(big), 1), 4),
+            # exact 95 % interval (none where no contact counts)
+            "detected_5sigma_ci95": ([round(v, 4) for v in clopper_pearson(
+                sum(flags[k] for k in big), len(big))] if big else None),
             **physics,
             "delay_floor_ratio_median": round(float(np.median(ratio)), 3) if ratio else None,
             "floor_ms_median": round(1e3 * float(np.median(floor)), 1) if floor.size else None,
@@ -380,13 +386,16 @@ def main(args: argparse.Namespace) -> int:
     fa = doc["false_alarms_by_direction"]
     print(f"detected {doc['detection_rate']:.2%} of contacts >= {args.min_duration:g} s "
           f"({doc['detection_rate_all']:.2%} of all); false alarms "
-          f"{doc['false_alarms_per_taxel_hour']:g} per taxel-hour ({doc['false_alarms']}: "
+          f"{doc['false_alarms_per_taxel_hour']:g} per taxel-hour (95 % "
+          f"{doc['false_alarms_per_taxel_hour_ci95'][0]:g}-"
+          f"{doc['false_alarms_per_taxel_hour_ci95'][1]:g}; {doc['false_alarms']}: "
           f"{fa['fall']} falls, {fa['rise']} rises); {doc['onsets']} onsets, "
           f"{doc['releases']} releases")
     if "detected_5sigma" in doc:
         print(f"sensor {doc['sensor']} (noise {doc['noise_sigma_k']:g} K): detected "
               f"{doc['detected_5sigma']:.2%} of the {doc['contacts_5sigma']} contacts that move "
-              f"the reading > 5 sigma; delay / floor median {doc['delay_floor_ratio_median']} "
+              f"the reading > 5 sigma{_interval(doc['detected_5sigma_ci95'])}; delay / floor "
+              f"median {doc['delay_floor_ratio_median']} "
               f"(floor median {doc['floor_ms_median']} ms); refined onset error median "
               f"{doc['refined_onset_error_ms_median']} ms (target "
               f"{doc['refined_onset_target_ms']} ms; its Cramer-Rao bound: sd median "
@@ -436,3 +445,7 @@ def main(args: argparse.Namespace) -> int:
             f"{k} {v['detected']}/{v['contacts']}" for k, v in by_material.items()))
     return 0
 
+
+def _interval(ci: list | None) -> str:
+    """`` (95 % a-b)`` for a rate's interval, in percent; nothing where there is none."""
+    return "" if ci is None else f" (95 % {ci[0]:.1%}-{ci[1]:.1%})"
