@@ -34,8 +34,9 @@ sigma against their nominal rate, per sensor preset):
   (`measured_noise`), on Satterthwaite's degrees of freedom (fewer than the samples on a
   smoothed sensor); where fewer than `NOISE_SAMPLES` samples or `NOISE_DOF` degrees of
   freedom measure it, the detector's ``OnsetDetector.sigma`` over the sensor's smoothing
-  factor, on `NOISE_DOF`; a reading steady within one ADC count (or stuck on one) reads as
-  white at that count's rounding;
+  factor, on `NOISE_DOF`; never under one ADC count's rounding (white before the smoothing,
+  as the readout's noise), and a reading that does not change at all (stuck on one count)
+  reads as white at that rounding;
 - a room that drifts moves the reading with it: where the samples' room channel moves beyond
   its own noise, the room through the sensor's loop, lag and smoothing joins the free model
   (`room_column`);
@@ -292,7 +293,7 @@ class Noise:
         Its degrees of freedom (Satterthwaite's; `NOISE_DOF` for the detector's).
     white : bool
         The reading is read as white (``sigma`` the rounding of one ADC count: a reading
-        steady within a count, or stuck on one, shows no smoothing's correlation).
+        that does not change at all, stuck on one count, shows no smoothing's correlation).
     """
 
     sigma: float
@@ -480,7 +481,7 @@ def check_contact(members: Sequence[object], refined: Sequence[tuple[float, floa
         relax = (sensor.control_time if sensor.heater == "pid"
                  else sensor.reheat_time_constant)
         room = room_column(np.asarray(m.ambient)[ok], sensor)
-        quiet = (tau <= 0) & (m.time[ok] >= getattr(m, "quiet_since", -math.inf))
+        quiet = (tau <= 0) & (m.time[ok] >= m.quiet_since)
         noise = measured_noise(tau[quiet], y[quiet], relax, sensor,
                                None if room is None else room[quiet])
         if noise is None or (noise.dof < NOISE_DOF and s > 0):
@@ -507,7 +508,7 @@ def check_contact(members: Sequence[object], refined: Sequence[tuple[float, floa
         return ResponseVerdict(0.0, 0.0, 0)
     dof, tests = noise_dof(dofs), grid_tests(corrs)
     return ResponseVerdict(float(total.max()), threshold(tested, sigmas, dof, tests), tested,
-                           _silent(fits, sigmas), float(dof), round(tests, 2))
+                           _silent(fits, sigmas), float(dof), tests)
 
 
 def _silent(fits: list[tuple[int, _Fit, float]], sigmas: float) -> tuple[int, ...]:
