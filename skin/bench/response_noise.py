@@ -14,17 +14,18 @@ random phase, each the tracker's (`skin.stream.onset_refine.refine_span`'s searc
 the onset, a press of `PHANTOM_SECONDS` after it), kept when no contact of any of the group's
 taxels overlaps it. Each is tested as the pipeline tests a force-dated contact
 (`skin.stream.pipeline.Pipeline._classify`): the force's onset and release (the last sample
-before it), the temperature at the onset as the initial one, the detector's white-equivalent
-noise (the sensor's ``noise_kelvin``) where too few samples measure it, the shipped table's
-classified materials. The 5-sigma tail is too rare to count; the 2- and 3-sigma tails are
-counted, with a 95 % Clopper-Pearson interval on the pass rate (windows of one taxel overlap
-in nothing; windows of neighbouring columns share the room's drift, so the interval is
-somewhat narrow).
+before it), the temperature at the onset as the initial one, the taxel quiet since its last
+touch's release (the stream's truth standing in for the tracker's ``quiet_since``), the
+detector's white-equivalent noise (the sensor's ``noise_kelvin``) where too few samples
+measure it, the shipped table's classified materials; one fit per window, each tail a
+threshold on its gain (`skin.stream.response.threshold`). The 5-sigma tail is too rare to
+count; the 2- and 3-sigma tails are counted, with a 95 % Clopper-Pearson interval on the pass
+rate (windows of one taxel overlap in nothing; windows of neighbouring columns share the
+room's drift, so the interval is somewhat narrow).
 """
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -73,13 +74,10 @@ def _member(stream: Any, col: int, onset: float, search: float) -> tuple[Any, tu
     sel = (stream.times >= t0 - search) & (stream.times <= release)
     t, y = stream.times[sel], stream.temperature[sel, col]
     baseline = float(stream.temperature[k0, col])
-    fields = {f.name for f in dataclasses.fields(TaxelSamples)}
-    extra = {}
-    if "quiet_since" in fields:  # when the taxel's last touch ended (the tracker's)
-        ended = [c.release for c in stream.contacts if c.taxel == col and c.release <= t0]
-        extra["quiet_since"] = max([float(t[0]), *ended])
+    # quiet since the taxel's last touch ended (the tracker's, here from the stream's truth)
+    ended = [c.release for c in stream.contacts if c.taxel == col and c.release <= t0]
     m = TaxelSamples(col, t0, baseline, 0.0, release, release, t, y, stream.ambient[sel],
-                     "force", **extra)
+                     "force", max([float(t[0]), *ended]))
     end = float(t[t < release][-1])
     return m, (t0, baseline, end)
 
@@ -103,7 +101,7 @@ def measure_response_noise(sensor: Any, seed: int, duration: float = 60.0, taxel
     from skin.models import load_materials
     from skin.models.sensors import load_sensor
     from skin.stream.onset_refine import refine_span
-    from skin.stream.response import check_contact
+    from skin.stream.response import check_contact, threshold
 
     sensor = load_sensor(sensor)
     table = load_materials()
@@ -129,17 +127,18 @@ def measure_response_noise(sensor: Any, seed: int, duration: float = 60.0, taxel
         pairs = [_member(stream, c, onset, search) for c in cols]
         members, refined = [p[0] for p in pairs], [p[1] for p in pairs]
         amb = float(np.mean(np.concatenate([m.ambient for m in members])))
+        # one fit per window; each tail only moves the threshold its gain must pass
+        v = check_contact(members, refined, [sensor] * size, np.full(size, sigma_white), amb,
+                          effusivities)
+        if v.taxels:
+            dofs.append(v.dof)
         for tail in TAILS:
-            v = check_contact(members, refined, [sensor] * size,
-                              np.full(size, sigma_white), amb, effusivities, sigmas=tail)
             row = counts[str(size)][f"{tail:g}"]
             if v.taxels == 0:
                 row["untested"] += 1
                 continue
             row["windows"] += 1
-            row["passed"] += int(v.responded)
-            if tail == TAILS[0] and getattr(v, "dof", None) is not None:
-                dofs.append(float(v.dof))
+            row["passed"] += int(v.gain > threshold(v.taxels, tail, v.dof, v.tests))
         if progress is not None and (i % 50 == 0 or i + 1 == len(plan)):
             progress(i + 1, len(plan))
     return {"sensor": sensor.name, "seed": seed, "duration": duration, "taxels": taxels,
