@@ -280,7 +280,6 @@ def measure_refine_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
     """
     from skin.bench.delay_bound import _run_detector, onset_stream
     from skin.bench.onset_eval import onset_error_target
-    from skin.commands.evaluate_onset import _sensor_figures
 
     if draws < 1:
         raise ValueError(f"draws must be >= 1, got {draws}")
@@ -289,11 +288,12 @@ def measure_refine_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
     which = [k for k, c in enumerate(contacts) if np.isfinite(c.visible_after)]
     target = onset_error_target([contacts[k].visible_after for k in which])
     tick = None if progress is None else (lambda d, n: progress(d, n, "samples"))
-    res, det = _run_detector(stream, sensor, tick)
+    res, _ = _run_detector(stream, sensor, tick)
     if tick is not None:
         tick(stream.times.size, stream.times.size)
     flags, errors = res["detected_flags"], res["onset_error_s"]
-    library = _sensor_figures(contacts, flags, res["delay_s"], errors, det, 0.3)
+    # evaluate-onset's refined_onset_error_ms_median: over every detected contact
+    dated = np.abs([errors[k] for k in range(len(contacts)) if flags[k]])
     tick = None if progress is None else (lambda d, n: progress(d, n, "contacts"))
     sds = contact_bounds(stream, sensor, which, tick)
     found = np.array([bool(flags[k]) for k in which], dtype=bool)
@@ -318,7 +318,8 @@ def measure_refine_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
                                                         for k in which])), 1)
                             if which else None),
         "refined_onset_target_ms": target,
-        "library_refined_onset_error_ms_median": library["refined_onset_error_ms_median"],
+        "library_refined_onset_error_ms_median": (round(1e3 * float(np.median(dated)), 1)
+                                                  if dated.size else None),
         "library_detected": res["detected"],
         "library_error_ms_median_with_floor": (round(1e3 * float(np.median(lib)), 1)
                                                if lib.size else None),
