@@ -103,9 +103,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     help="tell the detector each taxel's simulated heater duty, as frames carry "
                          "it (OnsetDetector.process's duty): a fall is allowed a heater step's "
                          "share only where the duty stepped down just before it. Diagnosis: "
-                         "on paper it finds more 5-sigma contacts and lets more gusts through "
-                         "(the heater's allowance had covered them); the pipeline does not "
-                         "pass it")
+                         "on paper and fast-film it finds more 5-sigma contacts and lets more "
+                         "false alarms through (the heater's allowance had covered gust and "
+                         "noise falls); the pipeline does not pass it")
     ev.add_argument("--smooth-tau", type=float, default=None, metavar="S",
                     help="the detector's smoothing time constant, s (default max(0.03 s, one "
                          "sample); diagnosis)")
