@@ -386,8 +386,17 @@ def test_a_heater_step_down_the_duty_shows_is_no_contact_and_chunks_do_not_matte
     # is what holds it
     held, _ = det.process(t, y, det.initial_state(), duty=np.ones_like(duty))
     assert {e.taxel for e in held if e.kind == "onset"} == set(range(8))
-    assert np.all(state.t_switch[:8] == t[np.searchsorted(t, 40.0)])
-    assert np.all(state.t_switch[8:] == t[0])  # the first duty: as if it had just come
+    # the duty through the body's slowest mode, the first one taken as a step down of
+    # HEATER_STEP just then: the closed form of a first-order lag, sample by sample
+    from skin.stream.onset import HEATER_STEP
+
+    decay = np.exp(-1.0 / (det.sensor.sample_rate * det.heater_mode))
+    held = 1.0 + (1.0 / (1.0 - HEATER_STEP) - 1.0) * decay ** t.size
+    np.testing.assert_allclose(state.duty_lag[8:], held, rtol=1e-9)
+    k = np.searchsorted(t, 40.0)
+    stepped = 0.7 + (1.0 + (1.0 / (1.0 - HEATER_STEP) - 1.0) * decay**k - 0.7) \
+        * decay ** (t.size - k)
+    np.testing.assert_allclose(state.duty_lag[:8], stepped, rtol=1e-9)
     # chunked, in place, and through trace: the same events and state
     s2 = det.initial_state()
     got = []
@@ -407,7 +416,7 @@ def test_without_the_duty_every_fall_keeps_the_heaters_allowance():
     none, s0 = det.process(t, y, det.initial_state())
     nan, s1 = det.process(t, y, det.initial_state(), duty=np.full_like(duty, np.nan))
     assert none == nan
-    assert np.all(np.isnan(s1.t_switch)) and np.all(np.isnan(s1.duty))
+    assert np.all(np.isnan(s1.duty_lag)) and np.all(np.isnan(s1.duty))
     np.testing.assert_array_equal(s0.cusum, s1.cusum)
 
 
@@ -427,10 +436,15 @@ def test_a_streams_duty_follows_its_switches_and_evaluate_onset_can_tell_the_det
         assert duty[k, taxel] == value
     assert len(s.switches) > 3  # some taxel switched after its first
     assert skin_main(["evaluate-onset", "--sensor", "paper", "--seed", "3", "--minutes", "2",
-                      "--taxels", "4", "--json", "--duty"]) == 0
+                      "--taxels", "4", "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert 0.0 <= doc["detected_5sigma"] <= 1.0 and doc["false_alarms"] >= 0
+    # told by default on a simulated stream, as the pipeline tells it; --no-duty: not
     assert doc["duty"] is True and "heater duty told" in doc["source"]
+    assert skin_main(["evaluate-onset", "--sensor", "paper", "--seed", "3", "--minutes", "2",
+                      "--taxels", "4", "--json", "--no-duty"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["duty"] is False and "heater duty" not in doc["source"]
     # a trial dataset carries no duty: refused, not ignored
     assert skin_main(["evaluate-onset", "--data", "trials.npz", "--duty"]) == 2
     assert "--duty" in capsys.readouterr().err

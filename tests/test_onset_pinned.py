@@ -14,7 +14,8 @@ does not move it. A change meant to move the detector's events re-pins them::
 
     python tests/test_onset_pinned.py --write
 
-and says so in its commit (the file was written by main's code of 2026-11-28, 661c2db).
+and says so in its commit (the file was last written on 2026-11-29, when the heater duty
+case came and the state's ``t_switch`` became ``duty_lag``: the other cases' events unchanged).
 """
 
 from __future__ import annotations
@@ -39,7 +40,10 @@ CASES = {
     "fast-film": ("fast-film", None, 8.0),
     "pid-logger-loop": ("pid-logger", True, 160.0),
     "paper-off": ("paper", False, 40.0),
+    "paper-duty": ("paper", None, 40.0),
 }
+#: The cases whose detector is told the heater duty (`heater_duty`), as the pipeline tells it.
+WITH_DUTY = {"paper-duty"}
 
 
 def stream(preset: str, seconds: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -88,6 +92,19 @@ def stream(preset: str, seconds: float, seed: int = 0) -> tuple[np.ndarray, np.n
     return t, y
 
 
+def heater_duty(t: np.ndarray) -> np.ndarray:
+    """Return the duty of the duty cases, (n, 40): board 0 steps down from 1 to 0.7 at 15 %
+    of the stream (before its touch), board 1 up from 0.85 to 1 at 40 %, board 2 not known
+    (NaN) but for a stretch from 60 % to 80 %: every branch of the heater's allowance."""
+    f = t / t[-1]
+    duty = np.ones((t.size, sum(BOARDS)))
+    duty[f >= 0.15, :16] = 0.7
+    duty[f < 0.4, 16:32] = 0.85
+    duty[:, 32:] = np.nan
+    duty[(f >= 0.6) & (f < 0.8), 32:] = 0.5
+    return duty
+
+
 def detector(case: str) -> OnsetDetector:
     """Return the case's detector: the preset, its common mode setting, three boards."""
     preset, common_mode, _ = CASES[case]
@@ -101,11 +118,13 @@ def run(case: str, chunk: int, in_place: bool = False) -> tuple[list[list], str,
     state updated in place, as the pipeline runs it)."""
     d = detector(case)
     t, y = stream(CASES[case][0], CASES[case][2])
+    duty = heater_duty(t) if case in WITH_DUTY else None
     state = d.initial_state()
     events = []
     engaged = 0
     for k in range(0, t.size, chunk):
-        got, state = d.process(t[k:k + chunk], y[k:k + chunk], state, in_place=in_place)
+        got, state = d.process(t[k:k + chunk], y[k:k + chunk], state, in_place=in_place,
+                               duty=None if duty is None else duty[k:k + chunk])
         events += got
         engaged += bool(np.any(state.common != 0.0))
     rows = [[e.kind, e.taxel, e.time, e.detected_at, e.baseline, e.slope, e.direction,
@@ -134,7 +153,7 @@ def test_the_events_and_state_are_the_pinned_ones_sample_by_sample(case):
     assert (engaged > 0) == (CASES[case][1] is not False), engaged
 
 
-@pytest.mark.parametrize("case", ["low-cost", "pid-logger-loop"])
+@pytest.mark.parametrize("case", ["low-cost", "pid-logger-loop", "paper-duty"])
 def test_chunks_give_the_pinned_events(case):
     pinned = json.loads(PINNED.read_text())[case]
     for chunk in (13, 10**6):

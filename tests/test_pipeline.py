@@ -205,3 +205,22 @@ def test_provisional_answers_come_before_the_final_one_and_change_nothing_final(
     assert max(per_contact.values()) == 2
     with pytest.raises(ValueError, match="provisional"):
         Pipeline(scene.layout, HistogramClassifier(scene.layout), provisional=(3.0,))
+
+
+def test_the_frames_heater_duty_reaches_the_detector(scene_frames):
+    """The pipeline tells the onset detector each taxel's duty as the frames carry it
+    (`OnsetDetector.process`'s ``duty``): one board's heaters stepped down half-way show in
+    the detector's state, lagging through the body's slowest mode; the others held."""
+    import dataclasses
+
+    scene, frames = scene_frames
+    board = frames[0].board
+    half = len(frames) // 2
+    stepped = [dataclasses.replace(f, duty=np.full_like(f.duty, 100))
+               if f.board == board and i >= half else f for i, f in enumerate(frames)]
+    pipe, _ = run(scene, stepped, 50)
+    state = pipe._state
+    own = np.array([t.board == board for t in scene.layout.taxels])
+    assert np.all(state.duty[own] == 100) and np.all(state.duty[~own] == 255)
+    # the stepped heaters' lag still holds most of the step (seconds of a ~60 s mode)
+    assert np.all(state.duty_lag[own] > 200) and np.all(state.duty_lag[~own] > 255)

@@ -460,8 +460,9 @@ def test_workers_give_the_events_of_one_process_with_the_common_mode_on_several_
     """``skin run --workers N`` (`OnsetShards`) with the board common mode on a layout of
     three boards (16, 16, 8 taxels), wired interleaved (a board's taxels are no run in layout
     order): the events of one process, every field, through a stream whose room the common
-    mode takes off (tests/test_onset_pinned.py's, low-cost: it engages on every board)."""
-    from test_onset_pinned import BOARDS, stream
+    mode takes off (tests/test_onset_pinned.py's, low-cost: it engages on every board), the
+    heater duty told as the pinned duty case's (stepping down, up, and not known)."""
+    from test_onset_pinned import BOARDS, heater_duty, stream
 
     from skin.formats.layout import Board, Taxel
     from skin.stream.onset import OnsetDetector
@@ -474,6 +475,7 @@ def test_workers_give_the_events_of_one_process_with_the_common_mode_on_several_
     order = np.argsort(np.arange(n) % 5, kind="stable")  # layout index -> stream column
     boards = own[order]
     y = y[:, order]
+    duty = heater_duty(t)[:, order]
     layout = Layout([Taxel(k, int(boards[k]), k, "forearm", (0.0, 0.0, 0.01 * k), (1.0, 0.0, 0.0))
                      for k in range(n)], [Board(id=b) for b in range(len(BOARDS))],
                     name="three boards, interleaved", source="<three boards>")
@@ -486,10 +488,11 @@ def test_workers_give_the_events_of_one_process_with_the_common_mode_on_several_
         assert len(shards.shards) == min(workers, len(BOARDS))  # whole boards
         many = []
         for k in range(0, t.size, 10):
-            got, state = detector.process(t[k:k + 10], y[k:k + 10], state)
+            got, state = detector.process(t[k:k + 10], y[k:k + 10], state,
+                                          duty=duty[k:k + 10])
             one += got
             engaged |= set(boards[state.common != 0.0].tolist())
-            many += shards.process(t[k:k + 10], y[k:k + 10])
+            many += shards.process(t[k:k + 10], y[k:k + 10], duty[k:k + 10])
     finally:
         shards.close()
     assert engaged == set(range(len(BOARDS)))  # the room taken off on every board

@@ -786,7 +786,8 @@ def _run_detector(stream: object, sensor: object,
                   progress: Callable[[int, int], None] | None = None) -> tuple[dict, object]:
     """Run the real detector over the stream as ``skin evaluate-onset --sensor`` does.
 
-    ``progress`` is called as ``progress(done, total)`` with the samples processed.
+    The heater duty told, as evaluate-onset and the pipeline tell it. ``progress`` is called
+    as ``progress(done, total)`` with the samples processed.
     """
     from skin.bench.onset_eval import evaluate_onsets
     from skin.stream.onset import OnsetDetector
@@ -795,7 +796,7 @@ def _run_detector(stream: object, sensor: object,
     det = OnsetDetector(stream.temperature.shape[1], sensor=sensor)
     res = evaluate_onsets(stream.times, stream.temperature, truth, stream.fs, detector=det,
                           depth=sensor.depth, diffusivity=sensor.diffusivity, sensor=sensor,
-                          progress=progress)
+                          progress=progress, duty=stream.duty())
     return res, det
 
 

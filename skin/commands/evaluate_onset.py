@@ -99,13 +99,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     help="the gust-envelope margin flat, 8 sigmas of the reading (the "
                          "detector's envelope_noise=False; the default is the fall's noise "
                          "table, capped at the flat margin)")
-    ev.add_argument("--duty", action="store_true",
-                    help="tell the detector each taxel's simulated heater duty, as frames carry "
-                         "it (OnsetDetector.process's duty): a fall is allowed a heater step's "
-                         "share only where the duty stepped down just before it. Diagnosis: "
-                         "on paper and fast-film it finds more 5-sigma contacts and lets more "
-                         "false alarms through (the heater's allowance had covered gust and "
-                         "noise falls); the pipeline does not pass it")
+    ev.add_argument("--duty", action=argparse.BooleanOptionalAction, default=None,
+                    help="tell the detector each taxel's simulated heater duty, as the frames "
+                         "carry it and the pipeline tells it (OnsetDetector.process's duty): a "
+                         "fall is allowed the heater's own fall only where the duty lies below "
+                         "its lag through the body's slowest mode. Default: on for a simulated "
+                         "stream; --no-duty allows every fall the steepest heater step's "
+                         "(as a detector told no duty does); a trial dataset (--data) has none")
     ev.add_argument("--smooth-tau", type=float, default=None, metavar="S",
                     help="the detector's smoothing time constant, s (default max(0.03 s, one "
                          "sample); diagnosis)")
@@ -248,6 +248,8 @@ def main(args: argparse.Namespace) -> int:
 
     if any(v is not None and not v > 0 for v in (args.envelope_sigmas, args.smooth_tau)):
         raise SkinError("--envelope-sigmas and --smooth-tau must be positive")
+    if args.duty is None:
+        args.duty = not args.data
     if args.duty and args.data:
         raise SkinError("--duty tells the detector a simulated stream's heater duty: a trial "
                         "dataset (--data) carries none")

@@ -292,7 +292,7 @@ def _work(conn: Connection, spec: _Spec) -> None:
             temperature, status = spec.calibration.temperature(samples.counts)
             t1 = time.process_time()
             events, state = spec.detector.process(samples.times, temperature, state,
-                                                  in_place=True)
+                                                  in_place=True, duty=samples.duty)
             t2 = time.process_time()
             seqs = assembler.last_seqs
             rows = np.searchsorted(samples.times, [e.detected_at for e in events])

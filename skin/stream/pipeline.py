@@ -433,7 +433,7 @@ class Pipeline:
         self.stats.flagged += (status != 0).sum(axis=0)
         force = samples.force if self.force_onsets else None
         self._track(samples.times, temperature, samples.ambient, samples.host_times, None,
-                    force)
+                    force, samples.duty)
 
     def process_calibrated(self, block: CalibratedBlock) -> list[ContactResult]:
         """Track a block assembled, calibrated and onset-detected elsewhere; return the results.
@@ -452,8 +452,12 @@ class Pipeline:
 
     def _track(self, times: np.ndarray, temperature: np.ndarray, ambient: np.ndarray,
                host_times: np.ndarray, events: list | None,
-               force: np.ndarray | None = None) -> None:
-        """Observe, detect (unless ``events`` are given) and track calibrated samples."""
+               force: np.ndarray | None = None, duty: np.ndarray | None = None) -> None:
+        """Observe, detect (unless ``events`` are given) and track calibrated samples.
+
+        ``duty`` is the frames' heater duty (`skin.stream.assembly.Samples.duty`), which the
+        detector is told (`skin.stream.onset.OnsetDetector.process`).
+        """
         self.stats.samples += len(times)
         self.last_temperature = temperature[-1]
         self._now = float(times[-1])
@@ -464,7 +468,7 @@ class Pipeline:
                 observe(times, temperature, host_times)
             self._spent("sinks", t0, c0)
         if events is None:
-            events = self._timed("onset", self._onsets, times, temperature)
+            events = self._timed("onset", self._onsets, times, temperature, duty)
         if force is not None:
             if self.force is None:
                 from skin.stream.force import ForceOnsets
@@ -479,12 +483,13 @@ class Pipeline:
                               ambient + self.ambient_offset, events)
         self._enqueue(decided)
 
-    def _onsets(self, times: np.ndarray, temperature: np.ndarray) -> list:
+    def _onsets(self, times: np.ndarray, temperature: np.ndarray,
+                duty: np.ndarray | None = None) -> list:
         if self.workers == 1:
             events, self._state = self.detector.process(times, temperature, self._state,
-                                                         in_place=True)
+                                                         in_place=True, duty=duty)
             return events
-        return self.start()._shards.process(times, temperature)
+        return self.start()._shards.process(times, temperature, duty)
 
     def _enqueue(self, decided: list[DecidedContact]) -> None:
         self._queue.extend(_Deciding(d) for d in decided)

@@ -92,7 +92,7 @@ def sub_detector(detector: OnsetDetector, taxels: np.ndarray) -> OnsetDetector:
 
 
 def _serve(conn: Connection, detector: OnsetDetector, taxels: np.ndarray) -> None:
-    """Worker loop: ``(times, temperature)`` in, ``("ok", events, in_contact, busy)`` out."""
+    """Worker loop: ``(times, temperature, duty)`` in, ``("ok", events, in_contact, busy)`` out."""
     detector.board.flags.writeable = False  # as in the parent: unpickled arrays are writeable
     state: DetectorState = detector.initial_state()
     try:
@@ -100,9 +100,10 @@ def _serve(conn: Connection, detector: OnsetDetector, taxels: np.ndarray) -> Non
             job = conn.recv()
             if job is None:
                 return
-            times, temperature = job
+            times, temperature, duty = job
             wall, cpu = time.perf_counter(), time.process_time()
-            events, state = detector.process(times, temperature, state, in_place=True)
+            events, state = detector.process(times, temperature, state, in_place=True,
+                                             duty=duty)
             busy = (time.perf_counter() - wall, time.process_time() - cpu)
             # layout indices, so the parent merges without knowing the shard
             conn.send(("ok", [_relabel(e, int(taxels[e.taxel])) for e in events],
@@ -169,8 +170,11 @@ class OnsetShards:
         return (f"worker {i} (pid {self._procs[i].pid}, {self.shards[i].size} taxels of "
                 f"board{'s' if len(self.boards[i]) > 1 else ''} {boards})")
 
-    def process(self, times: np.ndarray, temperature: np.ndarray) -> list[OnsetEvent]:
+    def process(self, times: np.ndarray, temperature: np.ndarray,
+                duty: np.ndarray | None = None) -> list[OnsetEvent]:
         """Detect onsets in a block; return its events in the one-process detector's order.
+
+        ``duty``: the taxels' heater duty (`skin.stream.onset.OnsetDetector.process`), or None.
 
         Raises
         ------
@@ -181,13 +185,16 @@ class OnsetShards:
             raise SkinError("the onset workers are closed")
         for i in range(1, len(self.shards)):
             try:
-                self._conns[i].send((times, np.ascontiguousarray(temperature[:, self.shards[i]])))
+                part = self.shards[i]
+                self._conns[i].send((times, np.ascontiguousarray(temperature[:, part]),
+                                     None if duty is None else np.ascontiguousarray(duty[:, part])))
             except (BrokenPipeError, ConnectionResetError, EOFError):
                 raise self._died(i) from None
         wall, cpu = time.perf_counter(), time.process_time()
         taxels = self.shards[0]
-        events, self._local_state = self._local.process(times, temperature[:, taxels],
-                                                        self._local_state, in_place=True)
+        events, self._local_state = self._local.process(
+            times, temperature[:, taxels], self._local_state, in_place=True,
+            duty=None if duty is None else duty[:, taxels])
         events = [_relabel(e, int(taxels[e.taxel])) for e in events]
         self.in_contact[taxels] = self._local_state.in_contact
         self.busy[0] += (time.perf_counter() - wall, time.process_time() - cpu)
