@@ -1048,6 +1048,7 @@ class _Node:
     has_force: bool = False  # the node has sent a FORCE frame: its samples carry force
     n_groups: int = 0  # G of the last STATUS seen, to count the groups of a dropped sample
     duty: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.uint8))
+    heard: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))  # duty known
     last_seq: int | None = None  # seq of the last complete sample
     dropped: int = 0  # samples dropped incomplete since then
     # a gap waiting for the next sample to confirm it: (seq before it, dropped then, gap)
@@ -1126,7 +1127,9 @@ class CanReassembler:
             end = 8 * index + len(data)
             if node.duty.size < end:
                 node.duty = np.concatenate([node.duty, np.zeros(end - node.duty.size, np.uint8)])
+                node.heard = np.concatenate([node.heard, np.zeros(end - node.heard.size, bool)])
             node.duty[8 * index : end] = np.frombuffer(data, dtype=np.uint8)
+            node.heard[8 * index : end] = True
         elif kind == CanType.STATUS and len(data) == _STATUS.size and index == 0:
             if node.seq is None:
                 self.stats.orphans += 1
@@ -1196,6 +1199,10 @@ class CanReassembler:
         duty = np.zeros(n, dtype=np.uint8)
         known = min(n, node.duty.size)
         duty[:known] = node.duty[:known]
+        # the duties not heard yet read 0: say so, until every one has come
+        heard = None if known == n and node.heard[:n].all() else np.zeros(n, dtype=bool)
+        if heard is not None:
+            heard[:known] = node.heard[:known]
         self.stats.frames += 1
         host = time.monotonic() if node.sync_host is None else node.sync_host
         frame = Frame(seq, node.time_us * 1e-6, host,
@@ -1204,6 +1211,8 @@ class CanReassembler:
                       self.boards.get(node_id, node_id), (words >> 12).astype(np.uint8))
         if node.has_force:
             _attach(frame, self._force(node, n))
+        if heard is not None:
+            object.__setattr__(frame, "duty_known", heard)  # as `_attach`: not handed on yet
         return frame
 
     def _force(self, node: _Node, n: int) -> np.ndarray:

@@ -59,6 +59,11 @@ class Frame:
         reports 0 (free) or 1 (touched) in the same field. None: the source has no force
         channel at all (most boards; every frame before this field existed). Per channel, not
         per board, because touches are dated per taxel (`skin.models.commission`).
+    duty_known : numpy.ndarray or None
+        Which channels' ``duty`` the source has heard (bool, one per channel), where it has
+        not heard them all yet: a CAN node sends each group of 8 duties in its own message,
+        and until a group's first arrives its duties read 0 in ``duty`` without being known
+        (`skin.stream.assembly` gives them as NaN). None: every duty known.
     """
 
     seq: int
@@ -71,3 +76,4 @@ class Frame:
     board: int = 0
     status: np.ndarray | None = None
     force: np.ndarray | None = None
+    duty_known: np.ndarray | None = None

@@ -386,17 +386,19 @@ def test_a_heater_step_down_the_duty_shows_is_no_contact_and_chunks_do_not_matte
     # is what holds it
     held, _ = det.process(t, y, det.initial_state(), duty=np.ones_like(duty))
     assert {e.taxel for e in held if e.kind == "onset"} == set(range(8))
-    # the duty through the body's slowest mode, the first one taken as a step down of
-    # HEATER_STEP just then: the closed form of a first-order lag, sample by sample
+    # the duty through the body's slowest mode, the first one taken as the steepest step
+    # down just then (from 1 / (1 - HEATER_STEP)): the closed form of a first-order lag,
+    # sample by sample
     from skin.stream.onset import HEATER_STEP
 
     decay = np.exp(-1.0 / (det.sensor.sample_rate * det.heater_mode))
-    held = 1.0 + (1.0 / (1.0 - HEATER_STEP) - 1.0) * decay ** t.size
+    before = 1.0 / (1.0 - HEATER_STEP) - 1.0
+    held = 1.0 + before * decay ** t.size
     np.testing.assert_allclose(state.duty_lag[8:], held, rtol=1e-9)
     k = np.searchsorted(t, 40.0)
-    stepped = 0.7 + (1.0 + (1.0 / (1.0 - HEATER_STEP) - 1.0) * decay**k - 0.7) \
-        * decay ** (t.size - k)
+    stepped = 0.7 + (1.0 + before * decay**k - 0.7) * decay ** (t.size - k)
     np.testing.assert_allclose(state.duty_lag[:8], stepped, rtol=1e-9)
+    assert np.all(state.duty_top == 1.0)  # the largest duty given: the heated rise's
     # chunked, in place, and through trace: the same events and state
     s2 = det.initial_state()
     got = []
@@ -417,7 +419,43 @@ def test_without_the_duty_every_fall_keeps_the_heaters_allowance():
     nan, s1 = det.process(t, y, det.initial_state(), duty=np.full_like(duty, np.nan))
     assert none == nan
     assert np.all(np.isnan(s1.duty_lag)) and np.all(np.isnan(s1.duty))
+    assert np.all(np.isnan(s1.duty_top))
     np.testing.assert_array_equal(s0.cusum, s1.cusum)
+
+
+def test_a_heater_switched_off_long_ago_has_no_fall_to_allow():
+    """The heater's allowance is the lag's excess over the duty in units of the largest duty
+    (the heated rise's): a heater off for many of the body's modes has none left, so a slow
+    contact fall is found as it is with the duty held; divided by the lag itself (the
+    review's reproducer), the share stayed 1 and the fall was allowed past the contact."""
+    from skin.models.sensors import load_sensor
+
+    sensor = load_sensor("fast-film")
+    det = OnsetDetector(8, sensor=sensor, common_mode=False)
+    fs = sensor.sample_rate
+    t = np.arange(0.0, 30.0, 1.0 / fs)
+    rng = np.random.default_rng(3)
+    y = 25.0 + sensor.heated_rise + rng.normal(0.0, sensor.delivered_noise(), (t.size, 8))
+    # a smooth contact fall of 2-6 K from 20 s, approached with 3 s: a slow conductor
+    depth = np.linspace(2.0, 6.0, 8)
+    y -= depth * -np.expm1(-np.clip(t - 20.0, 0.0, None) / 3.0)[:, None]
+    state = det.initial_state()
+    # the heater went off long ago: what a stream of 12 modes off left in the state
+    off = state.copy()
+    off.duty[:], off.duty_top[:] = 0.0, 200.0
+    off.duty_lag[:] = 200.0 * np.exp(-12.0)
+    held = state.copy()
+    held.duty[:], held.duty_top[:], held.duty_lag[:] = 200.0, 200.0, 200.0
+    got = {}
+    for name, start, duty in (("off", off, 0.0), ("held", held, 200.0)):
+        events, end = det.process(t, y, start, duty=np.full(y.shape, duty))
+        got[name] = {e.taxel for e in events if e.kind == "onset" and e.time > 19.0}
+        assert np.all(end.duty == duty) and np.all(end.duty_top == 200.0)
+    assert got["off"] == got["held"] == set(range(8))
+    # and a first duty of 0 (never heated as far as known): no allowance either
+    first = det.initial_state()
+    _, s0 = det.process(t[:2], y[:2], first, duty=np.zeros((2, 8)))
+    assert np.all(s0.duty_lag == 0.0) and np.all(s0.duty_top == 0.0)
 
 
 def test_a_streams_duty_follows_its_switches_and_evaluate_onset_can_tell_the_detector(capsys):

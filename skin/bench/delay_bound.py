@@ -904,7 +904,8 @@ def miss_margins(stream: object, sensor: object, which: Sequence[int],
     end = max(contacts[k].release for k in which) + after
     n = int(np.searchsorted(stream.times, end, side="right"))
     det = OnsetDetector(len(cols), sensor=sensor, common_mode=False)  # columns apart: no board
-    trace = det.trace(stream.times[:n], stream.temperature[:n, cols], margins=True)
+    trace = det.trace(stream.times[:n], stream.temperature[:n, cols], margins=True,
+                      duty=stream.duty()[:n, cols])  # told the duty, as `_run_detector`'s
     out = {}
     for k in which:
         c = contacts[k]

@@ -44,7 +44,8 @@ class Samples:
     ambient : numpy.ndarray
         Ambient temperature, deg C (mean over the boards that sent the sample), (n,).
     duty : numpy.ndarray
-        Heater duty 0-255 in layout order, NaN where missing, (n, taxels).
+        Heater duty 0-255 in layout order, NaN where missing or not known yet
+        (`skin.frame.Frame.duty_known`), (n, taxels).
     host_times : numpy.ndarray
         Host time of each sample, s (``time.monotonic`` clock): the ``Frame.host_time`` of the
         frame whose device time it keeps, (n,).
@@ -210,6 +211,8 @@ class FrameAssembler:
                     continue
                 counts[i, idx] = f.counts[addr]
                 duty[i, idx] = f.duty[addr]
+                if f.duty_known is not None:  # a duty not heard yet is not known (NaN)
+                    duty[i, idx[~f.duty_known[addr]]] = np.nan
                 if f.force is not None:
                     if force is None:
                         force = np.full((n, self._n), np.nan)

@@ -120,7 +120,8 @@ HEATER_STEP = 0.45
 #: With the heater's duty given (`OnsetDetector.process`'s ``duty``), a fall is allowed the
 #: heater's own fall where the taxel's duty lies below what its body still holds: the duty
 #: through the body's slowest mode (``DetectorState.duty_lag``). A taxel's first duty is taken
-#: as a step down of `HEATER_STEP` just then (what its heater did before is not known).
+#: as the steepest step down just then, a `HEATER_STEP` share of the duty before it (what its
+#: heater did before is not known).
 #: The fall tests `OnsetDetector.trace` gives margins of (statistic over threshold): the
 #: CUSUM (not stale), the CUSUM gone stale (gathering longer than ``stale``: reset, no
 #: alarm), the slow channel (its fall below the slow average, counted once it began) and the
@@ -684,8 +685,9 @@ class DetectorState:
     board's) the variance of what the common mode leaves of a free taxel's departure, K^2;
     on a gated board, the mean square of each reading's step from its smoothed one, K^2.
     ``duty`` is each taxel's last heater duty given (`OnsetDetector.process`'s ``duty``; NaN:
-    none yet) and ``duty_lag`` that duty through the sensor body's slowest mode (what the
-    heater's excess is settling from; NaN: no duty given).
+    none yet), ``duty_lag`` that duty through the sensor body's slowest mode (what the
+    heater's excess is settling from; NaN: no duty given) and ``duty_top`` the largest duty
+    given (the heated rise's duty: the scale of the lag's kelvins).
     """
 
     level: np.ndarray
@@ -721,6 +723,7 @@ class DetectorState:
     common_var: np.ndarray
     duty: np.ndarray
     duty_lag: np.ndarray
+    duty_top: np.ndarray
 
     def copy(self) -> DetectorState:
         """Return a deep copy."""
@@ -763,20 +766,24 @@ class DetectorTrace:
 
 
 def _heater_step(duty: np.ndarray, s: DetectorState, gain: float) -> None:
-    """Take one sample's heater duties into ``s``: the duty and its lag (``duty_lag``).
+    """Take one sample's heater duties into ``s``: the duty, its lag and the largest one.
 
     ``gain`` is the lag's per-sample gain (one sample period over the body's slowest mode).
-    A taxel's first duty starts its lag as though the duty had just stepped down by
-    `HEATER_STEP`; NaN (not known) leaves both as they were.
+    A taxel's first duty starts its lag as though the duty had just stepped down by the
+    steepest step (`HEATER_STEP` of the duty before, ``duty / (1 - HEATER_STEP)``); the largest
+    duty starts at the first. NaN (not known: a lost duty message) leaves all three as they
+    were.
     """
     known = np.isfinite(duty)
     first = known & np.isnan(s.duty_lag)
     if np.count_nonzero(first):
         np.copyto(s.duty_lag, duty / (1.0 - HEATER_STEP), where=first)
+        np.copyto(s.duty_top, duty, where=first)
     with np.errstate(invalid="ignore"):
         step = (duty - s.duty_lag) * gain
     np.add(s.duty_lag, step, out=s.duty_lag, where=known)
     np.copyto(s.duty, duty, where=known)
+    np.fmax(s.duty_top, s.duty, out=s.duty_top)
 
 
 def common_auto(sensor: object) -> bool:
@@ -1253,6 +1260,7 @@ class OnsetDetector:
             common_var=np.full(n, self._room_var),
             duty=nan.copy(),
             duty_lag=nan.copy(),
+            duty_top=nan.copy(),
         )
 
     def process(
@@ -1278,12 +1286,17 @@ class OnsetDetector:
             Each taxel's heater duty at each sample (any unit; NaN: not known), as the frames
             carry it. Given, a fall is allowed the heater's own fall only where the taxel's
             duty lies below its lag through the body's slowest mode (``duty_lag``): at
-            ``heated_rise / heater_mode`` times the share of the lagged duty lost, so a
-            taxel whose heater held its duty has no heater fall to fear, and one that
-            stepped down a minute ago a fading one. Not given (or NaN), every fall is
-            allowed the steepest step's (``heater_rate``). A loop-held heater
+            ``heated_rise / heater_mode`` times the lag's excess over the duty in units of
+            the largest duty given (``duty_top``, taken as the heated rise's), so a taxel
+            whose heater held its duty has no heater fall to fear, one that stepped down a
+            minute ago a fading one, one switched off long ago none; a taxel's first duty
+            is taken as the steepest step down just then. The lag steps once a
+            sample, at the sensor's nominal rate (a hole in the samples does not advance
+            it). A NaN duty after a known one keeps the last (a lost duty message); none
+            known yet (or ``duty`` not given): every fall is allowed the steepest step's
+            (``heater_rate``). A loop-held heater
             (``sensor.heater == "pid"``) has no such allowance (its loop envelope holds its
-            steps): there it changes nothing. The pipeline passes the frames' duty;
+            steps): there it is not used. The pipeline passes the frames' duty;
             ``skin evaluate-onset`` a simulated stream's (``--no-duty``: none). On those
             streams it finds 1-3 points more of the 5-sigma contacts on paper and fast-film,
             with no more false alarms (the CHANGELOG gives the figures).
@@ -1302,7 +1315,7 @@ class OnsetDetector:
         taus = self._taus(groups)
         work = _scratch(self.n_taxels)
         limits = self._limits()
-        if duty is None:
+        if duty is None or self.envelope is not None:  # a loop-held heater's: not used
             for t, y in zip(np.asarray(times, dtype=float).tolist(), temperature, strict=True):
                 self._step(t, y, s, events, taus, groups, work=work, limits=limits)
             return events, s
@@ -1354,6 +1367,8 @@ class OnsetDetector:
         row: list | None = [] if margins else None
         work = _scratch(self.n_taxels)
         limits = self._limits()
+        if self.envelope is not None:  # a loop-held heater's: not used (as in `process`)
+            duty = None
         if duty is not None:
             duty = np.asarray(duty, dtype=float).reshape(len(times), self.n_taxels)
         for i, (t, y) in enumerate(zip(times.tolist(), temperature, strict=True)):
@@ -1960,13 +1975,14 @@ class OnsetDetector:
             np.multiply(self.gust_depth, gusty, out=gusty)
             heater = np.multiply(self.heater_rate, since, out=tmp)
             if duty:
-                # the heater's own fall where its duty is known: ``rise / mode`` times the share
-                # of the duty the body still holds that the heater lost (``duty_lag``), 0 where
-                # it held or rose; NaN (no duty known): the steepest step's, as without it
+                # the heater's own fall where its duty is known: ``rise / mode`` times what the
+                # body still holds over the duty (``duty_lag - duty``) in units of the largest
+                # duty (``duty_top``: the heated rise's), 0 where it held or rose, or never
+                # heated; NaN (no duty known): the steepest step's, as without it
                 lost = np.subtract(s.duty_lag, s.duty, out=w.flat)
                 np.maximum(lost, 0.0, out=lost)
-                np.divide(lost, s.duty_lag, out=lost, where=s.duty_lag > 0.0)
-                np.copyto(lost, 0.0, where=~(s.duty_lag > 0.0))
+                np.divide(lost, s.duty_top, out=lost, where=s.duty_top > 0.0)
+                np.copyto(lost, 0.0, where=~(s.duty_top > 0.0))
                 lost *= self.sensor.heated_rise / self.heater_mode
                 lost *= since
                 np.copyto(heater, lost, where=np.isfinite(s.duty_lag))
