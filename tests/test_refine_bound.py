@@ -11,6 +11,7 @@ import pytest
 from skin.bench.onset_eval import onset_error_target
 from skin.bench.refine_bound import (
     VARIANTS,
+    drift_covariance,
     efficient_sd,
     fisher_matrix,
     median_draws,
@@ -73,6 +74,49 @@ def test_nuisances_only_raise_the_bound() -> None:
     assert efficient_sd(j) == pytest.approx(1.0 / math.sqrt(4.0 - 0.5))
 
 
+def test_the_room_and_the_air_through_no_filter_give_their_closed_forms() -> None:
+    """The paper's sensor reads the room and the air as they are (no loop, lag or smoothing):
+    the room's walk from the history's start, (min(i, k) + 1) D / fs, plus the flutter's AR(1),
+    its stationary sd the simulator's FLUTTER, both from rest."""
+    from skin.bench.refine_bound import DRIFT_HISTORY
+    from skin.bench.streams import FLUTTER, FLUTTER_TAU
+    from skin.stream.onset import AMBIENT_DRIFT
+
+    sensor = load_sensor("paper")
+    fs, n = sensor.sample_rate, 60
+    got = drift_covariance(sensor, n)
+    first = math.ceil(DRIFT_HISTORY * FLUTTER_TAU * fs)  # the window's first sample
+    i = first + np.arange(n)
+    lo = np.minimum.outer(i, i)
+    room = (lo + 1) * AMBIENT_DRIFT / fs
+    a = math.exp(-1.0 / (FLUTTER_TAU * fs))
+    flutter = (2.0 * FLUTTER_TAU * fs * (1.0 - a) ** 2 * FLUTTER**2
+               * a ** np.abs(np.subtract.outer(i, i)) * (1.0 - a ** (2 * (lo + 1)))
+               / (1.0 - a * a))
+    np.testing.assert_allclose(got, room + flutter, rtol=1e-9)
+    assert np.sqrt(flutter[-1, -1]) == pytest.approx(FLUTTER, rel=0.01)  # settled
+    # too long for a dense covariance: not computed
+    assert drift_covariance(load_sensor("fast-film"), 2000) is None
+
+
+def test_the_drift_is_noise_the_bound_adds_to_its_own() -> None:
+    # a zero covariance added: the banded solve's information, densely
+    rng = np.random.default_rng(1)
+    kernel, center = smoothing_kernel(load_sensor("low-cost"))
+    pad = max(center, kernel.size - 1 - center)
+    cols = rng.normal(size=(50 + 2 * pad, 3))
+    assert np.allclose(fisher_matrix(cols, 0.2, kernel, center, pad, np.zeros((50, 50))),
+                       fisher_matrix(cols, 0.2, kernel, center, pad), rtol=1e-8)
+    # the room and the air on a low-cost contact: a bound no lower than without them
+    sensor = load_sensor("low-cost")
+    fs = sensor.sample_rate
+    t = np.arange(120) / fs
+    template = -1.5 * (1.0 - np.exp(-t / 1.2)) ** 2
+    drift = drift_covariance(sensor, 130)
+    got = onset_crb(template, fs, 0.2, -30, 100, kernel, center, drift)
+    assert got["gain_offset"] < got["gain_offset_drift"] < math.inf
+
+
 def test_monte_carlo_medians_of_half_normal_errors() -> None:
     sd = np.full(101, 0.01)  # 101 contacts of sd 10 ms: the median |error| is near 6.745 ms
     med = median_draws(sd, 4000, np.random.default_rng(1))
@@ -110,7 +154,7 @@ def test_the_command_and_evaluate_onset_give_the_same_target_and_library_error(c
                 "detected"} <= set(b)
         assert 0.0 <= b["p_meets_target"] <= 1.0
     sd = {name: run["bounds"][name]["sd_ms_median"] for name in VARIANTS}
-    assert sd["known"] <= sd["gain"] <= sd["gain_offset"]
+    assert sd["known"] <= sd["gain"] <= sd["gain_offset"] <= sd["gain_offset_drift"]
     assert skin_main(["bench", "refine-bound", "--sensors", "low-cost", "--seeds", "0",
                       *common, "--draws", "200"]) == 0
     text = capsys.readouterr().out

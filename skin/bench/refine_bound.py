@@ -17,22 +17,29 @@ response's time derivative (``numpy.gradient`` of the template on its sample gri
 the onset). The Fisher information is ``J = D^T (H H^T)^-1 D / sigma^2`` with ``D`` the
 smoothed derivatives ``H dmu/dtheta`` as columns; the bound on the standard deviation of the
 onset is ``1 / sqrt`` of the efficient information on ``t0`` (the Schur complement of the
-nuisances' block: the nuisances projected out). Four variants (`crb_variants`):
+nuisances' block: the nuisances projected out). Five variants (`VARIANTS`):
 
 ``known``
     everything but the onset known (``A`` and ``b``): the lowest bound;
 ``gain``
     the amplitude unknown too;
 ``gain_offset``
-    the amplitude and the baseline offset unknown: the closest of the four to what the
+    the amplitude and the baseline offset unknown: the closest of the noise-only ones to what the
     library's refinement estimates (it fits a level and the response's size, and more: a
     closing rate, a heater term, a slope; unknown shape only raises the bound);
+``gain_offset_drift``
+    as ``gain_offset``, with the room's random walk (`skin.stream.onset.AMBIENT_DRIFT`, the
+    simulator's and the detector's) and the air's flutter (`skin.bench.streams.FLUTTER`)
+    through the sensor's loop, lag and smoothing added to the noise, as the streams put them
+    on the reading (`drift_covariance`): the Gaussian part of the streams' disturbances (the
+    gusts and heater switches, neither Gaussian nor stationary, still left out). Dense
+    covariances: not computed where the window and its history exceed `DRIFT_MAX_SAMPLES`;
 ``known_credited``
     as ``known``, on the window in which `skin evaluate-onset` credits an alarm to the
     contact (``EARLY`` before the onset to the end of `skin.bench.onset_eval.release_window`
     after the release): the samples after the release add information on the onset too.
 
-The other three use the samples the library's refinement can use when it dates the onset
+The other four use the samples the library's refinement can use when it dates the onset
 (`skin.stream.onset_refine.refine_span`: the span ``search`` before the coarse onset and the
 ``horizon`` after it, and no sample past the release, `skin.stream.tracking.refine_member`):
 from ``search`` before the onset to ``search + horizon`` after it (its grid puts the onset
@@ -53,7 +60,8 @@ These bound *unbiased* estimators only. A biased estimator, or one with a prior 
 (a Bayesian one, or a fit that shrinks towards the coarse onset), can beat them; the library's
 refinement is a least-squares fit over a grid and need not be unbiased. The bound is the
 information the samples carry under the model's assumptions (the template exact, no
-disturbances: no gusts, drift or heater switching, the noise Gaussian); it is a local bound
+disturbances but ``gain_offset_drift``'s drift and flutter: no gusts or heater switching, the
+noise Gaussian); it is a local bound
 (small errors), not a global one: ambiguity between far-apart onsets is not in it. A median
 under the target by the bound says physics does not rule the target out; one over it says no
 unbiased estimator meets it on that stream at that probability.
@@ -67,7 +75,15 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 #: The bound's variants, in order.
-VARIANTS = ("known", "gain", "gain_offset", "known_credited")
+VARIANTS = ("known", "gain", "gain_offset", "gain_offset_drift", "known_credited")
+#: ``gain_offset_drift``: the room's walk and the air's flutter start this many of the slowest
+#: time constant they pass through (the sensor's loop, lag, smoothing, the flutter's own)
+#: before the window; what came earlier moves the window by a near constant, which the
+#: bound's offset takes.
+DRIFT_HISTORY = 8.0
+#: ... and the variant is not computed (None) where the window and that history span more
+#: samples than this (its covariances are dense: fast-film's 1 kHz windows).
+DRIFT_MAX_SAMPLES = 3000
 #: Monte-Carlo medians drawn at a time (memory: this times the contacts).
 _CHUNK = 2000
 
@@ -92,7 +108,7 @@ def _smoothed(x: np.ndarray, kernel: np.ndarray, center: int) -> np.ndarray:
 
 
 def fisher_matrix(columns: np.ndarray, sigma: float, kernel: np.ndarray | None = None,
-                  center: int = 0, pad: int = 0) -> np.ndarray:
+                  center: int = 0, pad: int = 0, extra: np.ndarray | None = None) -> np.ndarray:
     """Return the Fisher information of a Gaussian signal in smoothed white noise.
 
     Parameters
@@ -107,6 +123,10 @@ def fisher_matrix(columns: np.ndarray, sigma: float, kernel: np.ndarray | None =
         The smoothing (`smoothing_kernel`); None: no smoothing.
     pad : int
         Raw samples each side of the window.
+    extra : numpy.ndarray, optional
+        (n, n): a further noise covariance on the window's (smoothed) samples, K^2
+        (`drift_covariance`); then the information is ``D^T (sigma^2 H H^T + extra)^-1 D``,
+        solved densely.
 
     Returns
     -------
@@ -121,13 +141,22 @@ def fisher_matrix(columns: np.ndarray, sigma: float, kernel: np.ndarray | None =
     n = cols.shape[0] - 2 * pad
     if n < 1:
         raise ValueError("the window holds no sample")
-    if kernel is None or np.asarray(kernel).size == 1:
+    if extra is None and (kernel is None or np.asarray(kernel).size == 1):
         gain = 1.0 if kernel is None else float(np.asarray(kernel)[0])
         d = gain * cols[pad:pad + n]
         return d.T @ d / (gain**2 * sigma**2)
-    h = np.asarray(kernel, dtype=float)
+    h = np.ones(1) if kernel is None else np.asarray(kernel, dtype=float)
     d = np.column_stack([_smoothed(c, h, center) for c in cols.T])[pad:pad + n]
     r = np.correlate(h, h, "full")[h.size - 1:]  # the smoothed noise's autocovariance
+    if extra is not None:
+        from scipy.linalg import cho_factor, cho_solve, toeplitz
+
+        if np.shape(extra) != (n, n):
+            raise ValueError(f"extra must be ({n}, {n}), got {np.shape(extra)}")
+        lags = np.zeros(n)
+        lags[:min(r.size, n)] = r[:n]
+        cov = sigma**2 * toeplitz(lags) + np.asarray(extra, dtype=float)
+        return d.T @ cho_solve(cho_factor(cov), d)
     band = min(r.size - 1, n - 1)
     ab = np.zeros((band + 1, n))
     for k in range(band + 1):
@@ -149,7 +178,8 @@ def efficient_sd(info: np.ndarray) -> float:
 
 
 def onset_crb(template: np.ndarray, fs: float, sigma: float, start: int, stop: int,
-              kernel: np.ndarray | None = None, center: int = 0) -> dict[str, float]:
+              kernel: np.ndarray | None = None, center: int = 0,
+              drift: np.ndarray | None = None) -> dict[str, float]:
     """Return the Cramér-Rao bounds on an onset's sd from the raw samples ``start..stop-1``.
 
     Parameters
@@ -166,11 +196,15 @@ def onset_crb(template: np.ndarray, fs: float, sigma: float, start: int, stop: i
         before the onset).
     kernel, center
         The smoothing (`smoothing_kernel`); None: none.
+    drift : numpy.ndarray, optional
+        The disturbances' covariance on the window's samples (`drift_covariance`, at least
+        ``stop - start`` square: its leading block is taken); adds ``gain_offset_drift``.
 
     Returns
     -------
     dict
-        ``known``, ``gain`` and ``gain_offset`` (s; see the module docstring).
+        ``known``, ``gain`` and ``gain_offset`` (s; see the module docstring), and with
+        ``drift`` ``gain_offset_drift``.
     """
     m = np.asarray(template, dtype=float)
     if stop <= start:
@@ -189,8 +223,60 @@ def onset_crb(template: np.ndarray, fs: float, sigma: float, start: int, stop: i
     deriv = -slope[1:-1]  # d mu / d t0 = -m'(t - t0)
     cols = np.column_stack([deriv, mu, np.ones(idx.size)])
     info = fisher_matrix(cols, sigma, h, center, pad)
-    return {"known": efficient_sd(info[:1, :1]), "gain": efficient_sd(info[:2, :2]),
-            "gain_offset": efficient_sd(info)}
+    out = {"known": efficient_sd(info[:1, :1]), "gain": efficient_sd(info[:2, :2]),
+           "gain_offset": efficient_sd(info)}
+    if drift is not None:
+        n = stop - start
+        out["gain_offset_drift"] = efficient_sd(
+            fisher_matrix(cols, sigma, h, center, pad, np.asarray(drift)[:n, :n]))
+    return out
+
+
+def drift_covariance(sensor: object, n: int) -> np.ndarray | None:
+    """Return the room's walk and the air's flutter as the sensor reads them: (n, n), K^2.
+
+    On ``n`` consecutive samples at the sensor's rate: the room's random walk at
+    `skin.stream.onset.AMBIENT_DRIFT` K^2/s and the air's flutter (white noise of
+    `skin.bench.streams.FLUTTER` K, scaled by the sensor's heated rise over the paper's,
+    through a first-order lag of `skin.bench.streams.FLUTTER_TAU` s, at that sd), each through
+    the sensor's loop and lag (`skin.models.sensors.apply_dynamics`) and its smoothing, as
+    `skin.bench.streams` puts them on the reading; both begin `DRIFT_HISTORY` of the slowest
+    time constant involved before the window (a non-causal smoothing sees past its end too).
+    None where that spans more than `DRIFT_MAX_SAMPLES`.
+    """
+    from scipy.signal import lfilter
+
+    from skin.bench.streams import FLUTTER, FLUTTER_TAU
+    from skin.models.sensors import apply_dynamics, load_sensor, smooth
+    from skin.stream.onset import AMBIENT_DRIFT
+
+    fs = float(sensor.sample_rate)
+    span = {"none": 0.0, "moving-average": sensor.smoothing_window / fs,
+            "savgol": sensor.smoothing_window / fs,
+            "low-pass": 1.0 / (2.0 * math.pi * sensor.smoothing_cutoff)}[sensor.smoothing]
+    slowest = max(FLUTTER_TAU, sensor.lag, span,
+                  sensor.control_time if sensor.heater == "pid" else 0.0)
+    history = math.ceil(DRIFT_HISTORY * slowest * fs)
+    after = sensor.smoothing_impulse().size // 2
+    total = history + n + after
+    if total > DRIFT_MAX_SAMPLES:
+        return None
+    unit = np.zeros((total + 1, total))  # a zero first row: the filters start settled at 0
+    unit[1:] = np.eye(total)
+
+    def read(x: np.ndarray) -> np.ndarray:  # the reading's rows of the window
+        y = smooth(apply_dynamics(x, sensor, fs, axis=0), sensor, axis=0, fs=fs)
+        return y[1 + history:1 + history + n]
+
+    room = read(np.cumsum(unit, axis=0))  # a unit step from each sample on
+    cov = (AMBIENT_DRIFT / fs) * (room @ room.T)
+    del room
+    a = math.exp(-1.0 / (FLUTTER_TAU * fs))
+    flutter = read(lfilter([1.0 - a], [1.0, -a], unit, axis=0)
+                   * math.sqrt(2.0 * FLUTTER_TAU * fs))
+    scale = sensor.heated_rise / load_sensor("paper").heated_rise
+    cov += (FLUTTER * scale) ** 2 * (flutter @ flutter.T)
+    return cov
 
 
 def contact_bounds(stream: object, sensor: object, which: Sequence[int],
@@ -213,13 +299,20 @@ def contact_bounds(stream: object, sensor: object, which: Sequence[int],
     kernel, center = smoothing_kernel(sensor)
     search, horizon = refine_span(sensor)
     out = {v: np.full(len(which), np.inf) for v in VARIANTS}
-    for i, k in enumerate(which):
+    windows = []
+    for k in which:
         c, m = stream.contacts[k], stream.templates[k]
         first = math.ceil(c.onset * fs)  # the template's sample 0
         start = math.ceil((c.onset - search) * fs) - first
         stop = min(math.ceil(c.release * fs), math.ceil((c.onset + search + horizon) * fs))
-        stop = min(max(stop - first, 1), max(m.size, 1))
-        for name, sd in onset_crb(m, fs, sigma, start, stop, kernel, center).items():
+        windows.append((first, start, min(max(stop - first, 1), max(m.size, 1))))
+    # one covariance for the longest window: a shorter one's is its leading block
+    drift = drift_covariance(sensor, max(b - a for _, a, b in windows)) if windows else None
+    if drift is None:
+        out["gain_offset_drift"][:] = np.nan  # not computed
+    for i, (k, (first, start, stop)) in enumerate(zip(which, windows, strict=True)):
+        c, m = stream.contacts[k], stream.templates[k]
+        for name, sd in onset_crb(m, fs, sigma, start, stop, kernel, center, drift).items():
             out[name][i] = sd
         early = math.ceil((c.onset - EARLY) * fs) - first
         out["known_credited"][i] = onset_crb(m, fs, sigma, early, max(m.size, 1), kernel,
@@ -301,6 +394,11 @@ def measure_refine_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
     variants = {}
     for name in VARIANTS:
         sd = sds[name]
+        if sd.size and np.all(np.isnan(sd)):  # not computed (`drift_covariance`: too long)
+            none = {"median_ms": None, "p5_p95_ms": None, "p_meets_target": None}
+            variants[name] = {"sd_ms_median": None, "contacts_inf": 0, **none,
+                              "detected": dict(none)}
+            continue
         variants[name] = {
             "sd_ms_median": _ms(1e3 * float(np.median(sd))) if sd.size else None,
             "contacts_inf": int(np.sum(~np.isfinite(sd))),
@@ -309,6 +407,7 @@ def measure_refine_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
         }
     lib = np.array([abs(errors[k]) for k in which if flags[k]], dtype=float)
     ratio = lib / sds["gain_offset"][found] if lib.size else np.zeros(0)
+    drifted = lib / sds["gain_offset_drift"][found] if lib.size else np.zeros(0)
     return {
         "sensor": sensor.name, "seed": seed, "fs": stream.fs, "minutes": minutes,
         "taxels": taxels, "raw_noise_k": round(float(stream.raw_noise), 6),
@@ -325,5 +424,9 @@ def measure_refine_bound(sensor: object, seed: int = 0, minutes: float = 15.0,
                                                if lib.size else None),
         "library_error_over_gain_offset_sd_median": (round(float(np.median(ratio)), 3)
                                                      if ratio.size else None),
+        # ... and of the bound with the room's drift and the air's flutter (None: not computed)
+        "library_error_over_gain_offset_drift_sd_median": (
+            round(float(np.median(drifted)), 3)
+            if drifted.size and not np.all(np.isnan(drifted)) else None),
         "draws": draws, "bounds": variants,
     }

@@ -71,6 +71,10 @@ VISIBLE = 0.1
 BOUND_FALSE_ALARMS = 0.1
 #: How much a gust cools a taxel's face, K (drawn uniformly per gust).
 GUST_DEPTH = (0.05, 0.4)
+#: The air's flutter: white noise of this sd, K (scaled as the gusts), through a first-order lag
+#: of `FLUTTER_TAU` s and scaled back to this sd (band-limited noise).
+FLUTTER = 0.01
+FLUTTER_TAU = 0.5
 
 
 @dataclass(frozen=True)
@@ -624,7 +628,7 @@ disturbances, tau, warm, warm_margin
     adc_rng = rng  # the readout noise comes last
     a_lag = np.exp(-1.0 / (tau * fs))
     excess_z = (a_lag * np.full(n_taxels, full_excess))[None, :]
-    a_flutter = np.exp(-1.0 / (0.5 * fs))
+    a_flutter = np.exp(-1.0 / (FLUTTER_TAU * fs))
     flutter_z = (a_flutter * np.zeros(n_taxels))[None, :]
     duty_now = np.ones(n_taxels)
     amb_sum = 0.0
@@ -664,10 +668,10 @@ disturbances, tau, warm, warm_margin
                 shape = np.where(s < hold, 1.0 - np.exp(-s / rise),
                                  (1.0 - np.exp(-hold / rise)) * np.exp(-(s - hold) / rise))
                 gust[:, j] -= depth * scale * shape
-            flutter = flutter_rng.normal(0.0, 0.01 * scale, (m, n_taxels))
+            flutter = flutter_rng.normal(0.0, FLUTTER * scale, (m, n_taxels))
             flutter, flutter_z = lfilter([1.0 - a_flutter], [1.0, -a_flutter], flutter, axis=0,
                                          zi=flutter_z)
-            gust += flutter * np.sqrt(2 * 0.5 * fs)
+            gust += flutter * np.sqrt(2 * FLUTTER_TAU * fs)
             if not air:  # drawn all the same: every other draw stays as it is
                 gust[:] = 0.0
         excess, excess_z = lfilter([1.0 - a_lag], [1.0, -a_lag], full_excess * duty, axis=0,
