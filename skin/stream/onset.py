@@ -1136,7 +1136,8 @@ class OnsetDetector:
         self._hole = 1.5 / fs
         self.heater_rate = HEATER_STEP * rise / mode
         # with the duty given: the heater's excess settles through the body's slowest mode,
-        # falling at ``rise / mode`` times the share of its duty it lost (`_heater_step`)
+        # falling at ``rise / mode`` times the duty's lag over the duty, in units of the
+        # largest duty (`_heater_step`)
         self.heater_mode = mode
         self._duty_gain = -math.expm1(-1.0 / (fs * mode))
         # a loop-held sensor's: the disturbances as its reading shows them, through the loop
@@ -1290,13 +1291,13 @@ class OnsetDetector:
             the largest duty given (``duty_top``, taken as the heated rise's), so a taxel
             whose heater held its duty has no heater fall to fear, one that stepped down a
             minute ago a fading one, one switched off long ago none; a taxel's first duty
-            is taken as the steepest step down just then. The lag steps once a
-            sample, at the sensor's nominal rate (a hole in the samples does not advance
-            it). A NaN duty after a known one keeps the last (a lost duty message); none
-            known yet (or ``duty`` not given): every fall is allowed the steepest step's
-            (``heater_rate``). A loop-held heater
-            (``sensor.heater == "pid"``) has no such allowance (its loop envelope holds its
-            steps): there it is not used. The pipeline passes the frames' duty;
+            is taken as the steepest step down just then. The lag steps once a sample, at
+            the sensor's nominal rate (a hole in the samples does not advance it). A NaN
+            duty after a known one keeps the last (a lost duty message); none known yet (or
+            ``duty`` not given): every fall is allowed the steepest step's
+            (``heater_rate``). A loop-held heater (``sensor.heater == "pid"``) has no such
+            allowance (its loop envelope holds its steps): there it is not used. The
+            pipeline passes the frames' duty;
             ``skin evaluate-onset`` a simulated stream's (``--no-duty``: none). On those
             streams it finds 1-3 points more of the 5-sigma contacts on paper and fast-film,
             with no more false alarms (the CHANGELOG gives the figures).
