@@ -117,11 +117,11 @@ DISTURBANCE = {"threshold": 0.4 / _PAPER_RISE, "rise_threshold": 0.6 / _PAPER_RI
 GUST_DEPTH = 0.4 / _PAPER_RISE
 GUST_RISE = 1.0
 HEATER_STEP = 0.45
-#: With the heater's duty given (`OnsetDetector.process`'s ``duty``), a fall is allowed the
-#: heater's own fall where the taxel's duty lies below what its body still holds: the duty
-#: through the body's slowest mode (``DetectorState.duty_lag``). A taxel's first duty is taken
-#: as the steepest step down just then, a `HEATER_STEP` share of the duty before it (what its
-#: heater did before is not known).
+# With the heater's duty given (`OnsetDetector.process`'s ``duty``), a fall is allowed the
+# heater's own fall where the taxel's duty lies below what its body still holds: the duty
+# through the body's slowest mode (``DetectorState.duty_lag``). A taxel's first duty is taken
+# as the steepest step down just then, a `HEATER_STEP` share of the duty before it (what its
+# heater did before is not known).
 #: The fall tests `OnsetDetector.trace` gives margins of (statistic over threshold): the
 #: CUSUM (not stale), the CUSUM gone stale (gathering longer than ``stale``: reset, no
 #: alarm), the slow channel (its fall below the slow average, counted once it began) and the
