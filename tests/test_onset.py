@@ -352,12 +352,14 @@ def test_a_low_cost_streams_first_reading_raises_no_slow_alarm():
     assert seeded == 2
 
 
-def _heater_stepping_down(seed: int = 0):
-    """16 fast-film taxels, their heater duty stepping down by 0.3 at 40 s (taxels 0-7).
+def _heater_stepping_down(seed: int = 0, seconds: float = 35.0):
+    """16 fast-film taxels, their heater duty stepping down by 0.3 at 20 s (taxels 0-7).
 
     Two thirds of the largest step (`HEATER_STEP`), through the body's slowest mode (the
     detector's ``heater_rate`` at the largest step): on fast-film (a mode of 11 s) its fall
-    outruns the gust envelope, and only the heater's allowance holds it.
+    outruns the gust envelope, and only the heater's allowance holds it. 20 s is past the
+    detector's warm-up; a detector told the duty held raises its onsets within 3 s of the
+    step, and the 15 s after it are over a mode of the fall.
     """
     from skin.models.sensors import load_sensor
     from skin.stream.onset import HEATER_STEP
@@ -367,24 +369,26 @@ def _heater_stepping_down(seed: int = 0):
     mode = HEATER_STEP * sensor.heated_rise / det.heater_rate
     rng = np.random.default_rng(seed)
     fs = sensor.sample_rate
-    t = np.arange(0, 60, 1 / fs)
+    t = np.arange(0, seconds, 1 / fs)
     duty = np.ones((t.size, 16))
-    duty[t >= 40.0, :8] = 0.7
-    fall = 0.3 * sensor.heated_rise * -np.expm1(-np.clip(t - 40.0, 0, None) / mode)
+    duty[t >= 20.0, :8] = 0.7
+    fall = 0.3 * sensor.heated_rise * -np.expm1(-np.clip(t - 20.0, 0, None) / mode)
     y = 25.0 + sensor.heated_rise + np.zeros((t.size, 16))
     y[:, :8] -= fall[:, None]
     y += rng.normal(0.0, sensor.delivered_noise(25.0 + sensor.heated_rise), y.shape)
     return det, t, y, duty
 
 
-def test_a_heater_step_down_the_duty_shows_is_no_contact_and_chunks_do_not_matter():
+def test_a_heater_step_down_the_duty_shows_is_no_contact():
+    # (chunks, in place and trace with a duty: tests/test_onset_pinned.py's "paper-duty")
     det, t, y, duty = _heater_stepping_down()
     events, state = det.process(t, y, det.initial_state(), duty=duty)
     assert [e for e in events if e.kind == "onset"] == []
     assert [e for e in det.process(t, y, det.initial_state())[0] if e.kind == "onset"] == []
     # told the duty held, the same fall is a contact on the stepped taxels: the allowance
-    # is what holds it
-    held, _ = det.process(t, y, det.initial_state(), duty=np.ones_like(duty))
+    # is what holds it (dated within 0.2 s of the step, raised within 3 s)
+    k = np.searchsorted(t, 25.0)
+    held, _ = det.process(t[:k], y[:k], det.initial_state(), duty=np.ones_like(duty[:k]))
     assert {e.taxel for e in held if e.kind == "onset"} == set(range(8))
     # the duty through the body's slowest mode, the first one taken as the steepest step
     # down just then (from 1 / (1 - HEATER_STEP)): the closed form of a first-order lag,
@@ -395,32 +399,23 @@ def test_a_heater_step_down_the_duty_shows_is_no_contact_and_chunks_do_not_matte
     before = 1.0 / (1.0 - HEATER_STEP) - 1.0
     held = 1.0 + before * decay ** t.size
     np.testing.assert_allclose(state.duty_lag[8:], held, rtol=1e-9)
-    k = np.searchsorted(t, 40.0)
+    k = np.searchsorted(t, 20.0)
     stepped = 0.7 + (1.0 + before * decay**k - 0.7) * decay ** (t.size - k)
     np.testing.assert_allclose(state.duty_lag[:8], stepped, rtol=1e-9)
     assert np.all(state.duty_top == 1.0)  # the largest duty given: the heated rise's
-    # chunked, in place, and through trace: the same events and state
-    s2 = det.initial_state()
-    got = []
-    for k in range(0, t.size, 7):
-        ev, s2 = det.process(t[k:k + 7], y[k:k + 7], s2, in_place=True, duty=duty[k:k + 7])
-        got += ev
-    tr = det.trace(t, y, duty=duty)
-    assert got == events == tr.events
-    for f in fields(state):
-        np.testing.assert_array_equal(getattr(s2, f.name), getattr(state, f.name))
-        np.testing.assert_array_equal(getattr(tr.state, f.name), getattr(state, f.name))
 
 
 def test_without_the_duty_every_fall_keeps_the_heaters_allowance():
     # a duty of NaN (not known) is no duty: the same events and state as none given
-    det, t, y, duty = _heater_stepping_down(1)
+    det, t, y, duty = _heater_stepping_down(1, seconds=22.0)
     none, s0 = det.process(t, y, det.initial_state())
     nan, s1 = det.process(t, y, det.initial_state(), duty=np.full_like(duty, np.nan))
     assert none == nan
     assert np.all(np.isnan(s1.duty_lag)) and np.all(np.isnan(s1.duty))
     assert np.all(np.isnan(s1.duty_top))
-    np.testing.assert_array_equal(s0.cusum, s1.cusum)
+    for f in fields(s0):
+        if not f.name.startswith("duty"):
+            np.testing.assert_array_equal(getattr(s1, f.name), getattr(s0, f.name))
 
 
 def test_a_heater_switched_off_long_ago_has_no_fall_to_allow():

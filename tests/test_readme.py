@@ -136,6 +136,7 @@ CI_SIZES = [
     (("skin", "bench", "onset-shape"), ["--minutes", "1", "--taxels", "2"]),
     (("skin", "bench", "delay-bound"), ["--minutes", "1", "--taxels", "2", "--check-hours",
                                         "0.01", "--null-hours", "0.25"]),
+    (("skin", "bench", "response-noise"), ["--seeds", "0", "--duration", "20", "--taxels", "8"]),
     (("skin", "bench", "refine-bound"), ["--minutes", "2", "--taxels", "4", "--seeds", "0",
                                          "--draws", "200"]),
     (("skin", "bench", "tracking"), ["--pairs", "2"]),

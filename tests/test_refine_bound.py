@@ -169,3 +169,36 @@ def test_refine_bound_refuses_bad_input_before_the_work(bad, capsys) -> None:
     assert skin_main(["bench", "refine-bound", "--sensors", "paper", *bad]) == 2
     named = bad[1] if bad[0] == "--sensors" else bad[0]  # the message names the problem
     assert named in capsys.readouterr().err
+
+
+def test_each_contacts_bounds_are_its_own_whatever_else_is_asked() -> None:
+    """``contact_bounds`` gives a contact the same bounds alone as among others: its windows
+    (the refinement's and evaluate-onset's credit window) are its own, not a neighbour's
+    (a variable leaked from one loop into the next went unseen by the tests before)."""
+    from skin.bench.delay_bound import onset_stream
+    from skin.bench.refine_bound import contact_bounds
+
+    sensor = load_sensor("paper")
+    stream = onset_stream(sensor, 0, 2.0, 4)
+    which = [k for k, c in enumerate(stream.contacts) if np.isfinite(c.visible_after)]
+    assert len(which) >= 3
+    onsets = {round(stream.contacts[k].onset * stream.fs) % 7 for k in which}
+    assert len(onsets) > 1  # onsets at different sample phases: the windows differ
+    which = which[::-1]  # latest first: a window taken from another contact shows
+    together = contact_bounds(stream, sensor, which)
+    for i, k in enumerate(which):
+        alone = contact_bounds(stream, sensor, [k])
+        for name in VARIANTS:
+            np.testing.assert_allclose(alone[name], together[name][i:i + 1], rtol=1e-12,
+                                       err_msg=f"{name}, contact {k}")
+    # and known_credited is evaluate-onset's whole credit window, from EARLY before the onset
+    from skin.bench.onset_eval import EARLY
+
+    kernel, center = smoothing_kernel(sensor)
+    for i, k in enumerate(which):
+        c, m = stream.contacts[k], stream.templates[k]
+        first = math.ceil(c.onset * stream.fs)
+        early = math.ceil((c.onset - EARLY) * stream.fs) - first
+        want = onset_crb(m, stream.fs, float(stream.raw_noise), early, m.size, kernel,
+                         center)["known"]
+        assert together["known_credited"][i] == pytest.approx(want, rel=1e-12)
