@@ -418,6 +418,38 @@ def test_without_the_duty_every_fall_keeps_the_heaters_allowance():
             np.testing.assert_array_equal(getattr(s1, f.name), getattr(s0, f.name))
 
 
+def test_a_brief_touch_during_a_heaters_fall_is_released_with_the_duty():
+    """A touch of 0.5 s, 8 s after the heater stepped down by 0.3 (fast-film, a mode of
+    11 s): once the object has left, the reading goes on falling with the heater, so it never
+    came back from its in-contact extreme and the contact was held past the stream's end (on
+    paper seed 5's long stream, 3 of its 4 contacts missed as still in contact: 10-40 s after
+    brief touches). With the duty the extreme and the return are judged with the heater's own
+    fall put back: every taxel is released as the held-duty ones are, within 0.5 s."""
+    from skin.models.sensors import load_sensor
+
+    sensor = load_sensor("fast-film")
+    det = OnsetDetector(16, sensor=sensor)
+    rise, mode = sensor.heated_rise, det.heater_mode
+    t = np.arange(0.0, 34.0, 1.0 / sensor.sample_rate)
+    duty = np.ones((t.size, 16))
+    duty[t >= 20.0, :8] = 0.7
+    y = 25.0 + rise + np.zeros((t.size, 16))
+    y[:, :8] -= 0.3 * rise * -np.expm1(-np.clip(t - 20.0, 0.0, None) / mode)[:, None]
+    on, off = 28.0, 28.5  # the touch: 3 % of the heated rise, approached with 0.2 s
+    touch = np.where(t < on, 0.0, np.where(t < off, -np.expm1(-(t - on) / 0.2),
+                                            -np.expm1(-(off - on) / 0.2) * np.exp(-(t - off))))
+    y -= 0.03 * rise * touch[:, None]
+    y += np.random.default_rng(0).normal(0.0, sensor.delivered_noise(25.0 + rise), y.shape)
+    events, state = det.process(t, y, det.initial_state(), duty=duty)
+    assert sorted((e.taxel, e.kind) for e in events) == sorted(
+        (k, kind) for k in range(16) for kind in ("onset", "release"))
+    for e in events:
+        assert (on - 0.1 < e.time < on + 0.2) if e.kind == "onset" else (
+            off - 0.3 < e.time < off + 0.1 and e.detected_at < off + 0.5), e
+    assert not state.in_contact.any()
+    assert np.all(state.heater_fall == 0.0) and np.all(state.extreme_fall == 0.0)
+
+
 def test_a_heater_switched_off_long_ago_has_no_fall_to_allow():
     """The heater's allowance is the lag's excess over the duty in units of the largest duty
     (the heated rise's): a heater off for many of the body's modes has none left, so a slow

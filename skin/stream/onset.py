@@ -687,7 +687,11 @@ class DetectorState:
     ``duty`` is each taxel's last heater duty given (`OnsetDetector.process`'s ``duty``; NaN:
     none yet), ``duty_lag`` that duty through the sensor body's slowest mode (what the
     heater's excess is settling from; NaN: no duty given) and ``duty_top`` the largest duty
-    given (the heated rise's duty: the scale of the lag's kelvins).
+    given (the heated rise's duty: the scale of the lag's kelvins). ``heater_fall`` is how far
+    the heater's own change has taken the reading down since the contact's onset (its rate
+    from ``duty_lag - duty`` as the fall allowance's, signed; 0 while free or with no duty
+    known), K, and ``extreme_fall`` its value at the extreme: a contact's extreme and its end
+    are judged on the reading with the heater's change put back (`OnsetDetector._release`).
     """
 
     level: np.ndarray
@@ -724,6 +728,8 @@ class DetectorState:
     duty: np.ndarray
     duty_lag: np.ndarray
     duty_top: np.ndarray
+    heater_fall: np.ndarray
+    extreme_fall: np.ndarray
 
     def copy(self) -> DetectorState:
         """Return a deep copy."""
@@ -1140,6 +1146,7 @@ class OnsetDetector:
         # largest duty (`_heater_step`)
         self.heater_mode = mode
         self._duty_gain = -math.expm1(-1.0 / (fs * mode))
+        self._heater_fall_rate = rise / mode  # K/s per unit of the lag's excess (of duty_top)
         # a loop-held sensor's: the disturbances as its reading shows them, through the loop
         # (`loop_envelope`). The closed form above over-allowed a heater step there (0.86 K
         # over the slow window for at most 0.10 K) and a gust (0.29 K for 0.12 K), and under-
@@ -1262,6 +1269,8 @@ class OnsetDetector:
             duty=nan.copy(),
             duty_lag=nan.copy(),
             duty_top=nan.copy(),
+            heater_fall=np.zeros(n),
+            extreme_fall=np.zeros(n),
         )
 
     def process(
@@ -1295,8 +1304,12 @@ class OnsetDetector:
             the sensor's nominal rate (a hole in the samples does not advance it). A NaN
             duty after a known one keeps the last (a lost duty message); none known yet (or
             ``duty`` not given): every fall is allowed the steepest step's
-            (``heater_rate``). A loop-held heater (``sensor.heater == "pid"``) has no such
-            allowance (its loop envelope holds its steps): there it is not used. The
+            (``heater_rate``). In contact, the same rate, signed, is the heater's own change
+            (``DetectorState.heater_fall``), put back before the contact's extreme and its
+            return are judged: a brief touch after a step down is released when the object
+            leaves, not held while the heater goes on cooling the reading. A loop-held heater
+            (``sensor.heater == "pid"``) has no such allowance (its loop envelope holds its
+            steps): there it is not used. The
             pipeline passes the frames' duty;
             ``skin evaluate-onset`` a simulated stream's (``--no-duty``: none). On those
             streams it finds 1-3 points more of the 5-sigma contacts on paper and fast-film,
@@ -1984,7 +1997,7 @@ class OnsetDetector:
                 np.maximum(lost, 0.0, out=lost)
                 np.divide(lost, s.duty_top, out=lost, where=s.duty_top > 0.0)
                 np.copyto(lost, 0.0, where=~(s.duty_top > 0.0))
-                lost *= self.sensor.heated_rise / self.heater_mode
+                lost *= self._heater_fall_rate
                 lost *= since
                 np.copyto(heater, lost, where=np.isfinite(s.duty_lag))
             gusty += heater
@@ -2089,6 +2102,7 @@ class OnsetDetector:
             s.direction[alarm] = -1.0
             s.direction[rise_alarm] = 1.0
             s.extreme[onset] = s.smooth[onset]
+            s.heater_fall[onset] = s.extreme_fall[onset] = 0.0
             s.t_extreme[onset] = t
             # from the onset on (or a reheat's rebound), the baseline follows the trend from
             # where the reading is now: the change since the CUSUM left zero (t0), over at
@@ -2163,26 +2177,53 @@ class OnsetDetector:
         # release: the smoothed temperature returns clearly from its in-contact extreme, or
         # its departure stops short of the in-contact trend
         if any_contact:
-            self._release(t, s, events, contact, sigma, warm, stopped, tmp)
+            if duty:
+                # the heater's own change while in contact, put back before the extreme and
+                # the end are judged: after a step down a mode ago the reading goes on
+                # falling once the object has left, and a brief touch was held for 10-40 s
+                # (paper seed 5: 3 of its 4 contacts missed as still in contact)
+                rate = np.subtract(s.duty_lag, s.duty, out=w.flat)
+                np.divide(rate, s.duty_top, out=rate, where=s.duty_top > 0.0)
+                np.copyto(rate, 0.0, where=~(s.duty_top > 0.0) | ~np.isfinite(s.duty_lag))
+                rate *= self._heater_fall_rate
+                rate *= dt
+                np.add(s.heater_fall, rate, out=s.heater_fall, where=contact)
+            self._release(t, s, events, contact, sigma, warm, stopped, tmp, duty)
         np.copyto(s.t_last, t, where=live)
 
     def _release(self, t: float, s: DetectorState, events: list[OnsetEvent],
                  touching: np.ndarray, sigma: np.ndarray, warm: np.ndarray,
-                 stopped: np.ndarray, tmp: np.ndarray) -> None:
+                 stopped: np.ndarray, tmp: np.ndarray, duty: bool = False) -> None:
         """End the contacts whose reading came back, or whose departure stopped short.
 
         ``touching``: the taxels in contact before this sample (not those whose onset it is);
-        ``tmp`` is overwritten.
+        ``tmp`` is overwritten. With ``duty``, the extreme and the return are those of the
+        reading with the heater's own change since the onset put back (``heater_fall``).
         """
         d = s.direction
-        np.subtract(s.smooth, s.extreme, out=tmp)
-        tmp *= d  # ``d * (smooth - extreme)``
-        further = touching & (tmp > 0)
+        if duty:
+            # ``d * ((smooth + heater_fall) - (extreme + extreme_fall))``
+            away = np.add(s.smooth, s.heater_fall, out=tmp)
+            away -= s.extreme
+            away -= s.extreme_fall
+            away *= d
+            further = touching & (away > 0)
+            np.copyto(s.extreme_fall, s.heater_fall, where=further)
+            returned = -away
+        else:
+            np.subtract(s.smooth, s.extreme, out=tmp)
+            tmp *= d  # ``d * (smooth - extreme)``
+            further = touching & (tmp > 0)
+            returned = None
         np.copyto(s.extreme, s.smooth, where=further)
         np.copyto(s.t_extreme, t, where=further)
+        if returned is None:
+            returned = d * (s.extreme - s.smooth)
+        else:  # (from the extreme just taken: 0 where it moved further)
+            np.copyto(returned, 0.0, where=further)
         back = np.multiply(4, sigma, out=tmp)
         np.maximum(self.release_rise, back, out=back)
-        returned = touching & (d * (s.extreme - s.smooth) > back)
+        returned = touching & (returned > back)
         stopped = stopped & touching & ~returned
         released = returned | stopped
         if not np.count_nonzero(released):
@@ -2210,3 +2251,5 @@ class OnsetDetector:
         s.slow[r] = s.medium[r] = s.smooth[r]
         s.slow_start[r] = np.nan
         s.ref_level[r] = np.nan
+        s.heater_fall[r] = 0.0
+        s.extreme_fall[r] = 0.0
