@@ -1309,8 +1309,7 @@ class OnsetDetector:
             return are judged: a brief touch after a step down is released when the object
             leaves, not held while the heater goes on cooling the reading. A loop-held heater
             (``sensor.heater == "pid"``) has no such allowance (its loop envelope holds its
-            steps): there it is not used. The
-            pipeline passes the frames' duty;
+            steps): there it is not used. The pipeline passes the frames' duty;
             ``skin evaluate-onset`` a simulated stream's (``--no-duty``: none). On those
             streams it finds 1-3 points more of the 5-sigma contacts on paper and fast-film,
             with no more false alarms (the CHANGELOG gives the figures).
