@@ -212,7 +212,7 @@ class _Scratch:
     """
 
     ROWS = ("dt", "tmp", "part", "pred", "resid", "sigma", "allowance", "slack", "g", "u",
-            "fall", "since", "drop", "margin", "flat", "gusty", "err")
+            "fall", "since", "drop", "margin", "flat", "gusty", "err", "heater")
 
     def __init__(self, n: int) -> None:
         for name, row in zip(self.ROWS, np.empty((len(self.ROWS), n)), strict=True):
@@ -1856,6 +1856,16 @@ class OnsetDetector:
             np.copyto(resid, 0.0, where=quiet)
         sigma = np.maximum(s.var, floor2, out=w.sigma)
         np.sqrt(sigma, out=sigma)
+        if duty:
+            # the heater's own change of the reading where its duty is known, K/s (a fall
+            # positive): ``rise / mode`` times what the body still holds over the duty
+            # (``duty_lag - duty``) in units of the largest duty (``duty_top``: the heated
+            # rise's); 0 where never heated, or no duty known yet (``duty_top`` NaN). The fall
+            # allowance takes its falls, a contact's end both signs
+            heater_slope = np.subtract(s.duty_lag, s.duty, out=w.heater)
+            np.divide(heater_slope, s.duty_top, out=heater_slope, where=s.duty_top > 0.0)
+            np.copyto(heater_slope, 0.0, where=~(s.duty_top > 0.0))
+            heater_slope *= self._heater_fall_rate
         allowance = w.allowance
         if self.loop_common:
             # the room's leftover in the noise estimate had covered the fastest gusts, which
@@ -1988,15 +1998,9 @@ class OnsetDetector:
             np.multiply(self.gust_depth, gusty, out=gusty)
             heater = np.multiply(self.heater_rate, since, out=tmp)
             if duty:
-                # the heater's own fall where its duty is known: ``rise / mode`` times what the
-                # body still holds over the duty (``duty_lag - duty``) in units of the largest
-                # duty (``duty_top``: the heated rise's), 0 where it held or rose, or never
-                # heated; NaN (no duty known): the steepest step's, as without it
-                lost = np.subtract(s.duty_lag, s.duty, out=w.flat)
-                np.maximum(lost, 0.0, out=lost)
-                np.divide(lost, s.duty_top, out=lost, where=s.duty_top > 0.0)
-                np.copyto(lost, 0.0, where=~(s.duty_top > 0.0))
-                lost *= self._heater_fall_rate
+                # the heater's own fall where its duty is known (0 where it held or rose);
+                # none known yet: the steepest step's, as without the duty
+                lost = np.maximum(heater_slope, 0.0, out=w.flat)
                 lost *= since
                 np.copyto(heater, lost, where=np.isfinite(s.duty_lag))
             gusty += heater
@@ -2181,45 +2185,33 @@ class OnsetDetector:
                 # the end are judged: after a step down a mode ago the reading goes on
                 # falling once the object has left, and a brief touch was held for 10-40 s
                 # (paper seed 5: 3 of its 4 contacts missed as still in contact)
-                rate = np.subtract(s.duty_lag, s.duty, out=w.flat)
-                np.divide(rate, s.duty_top, out=rate, where=s.duty_top > 0.0)
-                np.copyto(rate, 0.0, where=~(s.duty_top > 0.0) | ~np.isfinite(s.duty_lag))
-                rate *= self._heater_fall_rate
-                rate *= dt
-                np.add(s.heater_fall, rate, out=s.heater_fall, where=contact)
-            self._release(t, s, events, contact, sigma, warm, stopped, tmp, duty)
+                heater_slope *= dt
+                np.add(s.heater_fall, heater_slope, out=s.heater_fall, where=contact)
+            self._release(t, s, events, contact, sigma, warm, stopped, tmp)
         np.copyto(s.t_last, t, where=live)
 
     def _release(self, t: float, s: DetectorState, events: list[OnsetEvent],
                  touching: np.ndarray, sigma: np.ndarray, warm: np.ndarray,
-                 stopped: np.ndarray, tmp: np.ndarray, duty: bool = False) -> None:
+                 stopped: np.ndarray, tmp: np.ndarray) -> None:
         """End the contacts whose reading came back, or whose departure stopped short.
 
         ``touching``: the taxels in contact before this sample (not those whose onset it is);
-        ``tmp`` is overwritten. With ``duty``, the extreme and the return are those of the
-        reading with the heater's own change since the onset put back (``heater_fall``).
+        ``tmp`` is overwritten. The extreme and the return are those of the reading with the
+        heater's own change since the onset put back (``heater_fall``: 0 with no duty told).
         """
         d = s.direction
-        if duty:
-            # ``d * ((smooth + heater_fall) - (extreme + extreme_fall))``
-            away = np.add(s.smooth, s.heater_fall, out=tmp)
-            away -= s.extreme
-            away -= s.extreme_fall
-            away *= d
-            further = touching & (away > 0)
-            np.copyto(s.extreme_fall, s.heater_fall, where=further)
-            returned = -away
-        else:
-            np.subtract(s.smooth, s.extreme, out=tmp)
-            tmp *= d  # ``d * (smooth - extreme)``
-            further = touching & (tmp > 0)
-            returned = None
+        # ``d * ((smooth + heater_fall) - (extreme + extreme_fall))``: where the reading moved
+        # further, the new extreme; elsewhere minus the return from it (a taxel that moved
+        # further has returned by less than nothing, never past ``back``)
+        away = np.add(s.smooth, s.heater_fall, out=tmp)
+        away -= s.extreme
+        away -= s.extreme_fall
+        away *= d
+        further = touching & (away > 0)
+        returned = np.negative(away)
         np.copyto(s.extreme, s.smooth, where=further)
+        np.copyto(s.extreme_fall, s.heater_fall, where=further)
         np.copyto(s.t_extreme, t, where=further)
-        if returned is None:
-            returned = d * (s.extreme - s.smooth)
-        else:  # (from the extreme just taken: 0 where it moved further)
-            np.copyto(returned, 0.0, where=further)
         back = np.multiply(4, sigma, out=tmp)
         np.maximum(self.release_rise, back, out=back)
         returned = touching & (returned > back)
