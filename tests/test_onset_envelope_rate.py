@@ -25,6 +25,17 @@ def test_the_restarted_test_crosses_no_more_often_than_one_test_a_sample():
     assert out["flat_sigmas"] == pytest.approx(11.14, abs=0.01)  # 8 x 0.927 / 0.666
 
 
+def test_with_the_faster_reading_the_union_still_crosses_less_than_one_test_a_sample():
+    # fast-film's detector also tests the fall on a reading smoothed over ~3 ms: two tests a
+    # sample at one z, whose union is counted; it stays under the one-test bound the z is
+    # the quantile of (16 taxel-hours at --hours 0.5: 0.0625 per taxel-hour at z 5.43)
+    out = envelope_false_alarms("fast-film", hours=0.02, taxels=16, seed=2)
+    assert out["envelope_tau"] == pytest.approx(0.00293, abs=1e-5)
+    for z in (3.0, 3.5):
+        assert 0.4 * out["per_sample_bound"][z] < out["rate"][z] < out["per_sample_bound"][z]
+    assert envelope_false_alarms("low-cost", hours=0.001, taxels=2)["envelope_tau"] is None
+
+
 def test_skin_bench_envelope_rate_prints_one_json_document(capsys):
     assert main(["bench", "envelope-rate", "--sensor", "low-cost", "--hours", "0.02",
                  "--taxels", "4", "--json"]) == 0

@@ -15,7 +15,10 @@ episode holds at most one). The detector's margin, once settled, is the smaller 
 table's and the flat one's (8 sigmas of the reading): a fall crosses it when it crosses
 either, so an episode counts with the flat margin (``rate_with_flat``) when its largest
 ``drop / (sd[since] x resid)`` exceeds ``z`` or its largest ``drop / flat`` exceeds 1 (the
-union of the two tests, counted, not bounded by their sum). It models the detector's test,
+union of the two tests, counted, not bounded by their sum). A detector with a faster reading
+(``envelope_tau``: a sensor faster than the paper's) tests the same fall on it too, against
+its own noise table and flat margin at the same ``z``: an episode's largest is then the larger
+of the two readings' (their union, counted). It models the detector's test,
 not the detector: the running
 noise estimate's excess (``beyond``), the noise floor and the baseline's freezing while the
 CUSUM gathers are left out, and the reference slides on the nominal residual sd. A fit of
@@ -69,7 +72,9 @@ def envelope_false_alarms(sensor: object, hours: float, taxels: int = 64, seed: 
         the flat margin too (the detector's: the smaller of the two once settled):
         ``rate_with_flat`` {z: rate}, ``rate_flat_alone`` (the flat margin alone, the
         ``envelope_noise=False`` detector's test on noise) and ``rate_at_z_per_sample_with_flat``;
-        ``flat_sigmas``, the flat margin in units of the residual's noise.
+        ``flat_sigmas``, the flat margin in units of the residual's noise; ``envelope_tau``,
+        the detector's faster reading's smoothing, s (None: it has none), whose fall counts
+        too (the union, in every figure but ``rate_flat_alone``).
     """
     from scipy.signal import lfilter
 
@@ -85,9 +90,18 @@ def envelope_false_alarms(sensor: object, hours: float, taxels: int = 64, seed: 
     dt = 1.0 / fs
     _, sd, resid = drop_noise(sensor, det.smooth_tau, det.level_tau, det.slope_tau,
                               det.slow_tau)
+    fast = det.envelope_tau is not None
+    if fast:
+        _, sd_fast, resid_fast = drop_noise(sensor, det.smooth_tau, det.level_tau,
+                                            det.slope_tau, det.slow_tau, det.envelope_tau)
+        g_f = -math.expm1(-dt / det.envelope_tau)
+        zi_fast = np.zeros((1, taxels))
     # the flat margin, in units of the delivered noise: 8 x the larger of the running
     # estimate (settled: the residual's) and the smoothed reading's noise
     flat = FLAT_SIGMAS * max(resid, average_noise(sensor, det.smooth_tau))
+    # the faster reading's: scaled as the detector scales it
+    flat_fast = (flat * average_noise(sensor, det.envelope_tau)
+                 / average_noise(sensor, det.smooth_tau) if fast else np.inf)
     h = sensor.smoothing_impulse()
     h = h / np.sqrt(np.sum(h**2))  # the delivered reading's noise: 1
     g_s, g_l, g_b = (-math.expm1(-dt / tau) for tau in (det.smooth_tau, det.level_tau,
@@ -103,8 +117,10 @@ def envelope_false_alarms(sensor: object, hours: float, taxels: int = 64, seed: 
     ref_k = np.zeros(taxels, dtype=np.int64)
     worst = np.full(taxels, -np.inf)
     worst_flat = np.full(taxels, -np.inf)
+    worst_fast_flat = np.full(taxels, -np.inf)  # (the faster reading's flat margin)
     kept: list[np.ndarray] = []
     kept_flat: list[np.ndarray] = []
+    kept_fast_flat: list[np.ndarray] = []
     k_max = sd.size - 1
     low = min(ladder)
     k = 0
@@ -113,23 +129,35 @@ def envelope_false_alarms(sensor: object, hours: float, taxels: int = 64, seed: 
         tail = w[w.shape[0] - (h.size - 1):]
         x = np.stack([np.convolve(c, h, mode="valid") for c in w.T], axis=1)
         a, zi = lfilter([g_s], [1.0, g_s - 1.0], x, axis=0, zi=zi)
-        for ai in a:
+        if fast:
+            b, zi_fast = lfilter([g_f], [1.0, g_f - 1.0], x, axis=0, zi=zi_fast)
+        for i, ai in enumerate(a):
             pred = level + slope * dt
             since = k - ref_k
-            drop = ref_level + np.minimum(ref_slope, 0.0) * (since * dt) - ai
+            ref = ref_level + np.minimum(ref_slope, 0.0) * (since * dt)
+            drop = ref - ai
             u = drop / (sd[np.minimum(since, k_max)] * resid)
             np.maximum(worst, u, out=worst, where=np.isfinite(u))
             np.maximum(worst_flat, drop / flat, out=worst_flat, where=np.isfinite(drop))
+            if fast:
+                drop_fast = ref - b[i]
+                u = drop_fast / (sd_fast[np.minimum(since, k_max)] * resid_fast)
+                np.maximum(worst, u, out=worst, where=np.isfinite(u))
+                np.maximum(worst_fast_flat, drop_fast / flat_fast, out=worst_fast_flat,
+                           where=np.isfinite(drop_fast))
             # the detector's restart: within 2 sigmas of the residual, or past the window
             slide = ~(drop > 2.0 * resid) | (since * dt > det.slow_tau)
             if slide.any():
                 if k >= settle:
                     ended, ended_flat = worst[slide], worst_flat[slide]
-                    keep = (ended > low) | (ended_flat > 1.0)
+                    ended_fast_flat = worst_fast_flat[slide]
+                    keep = (ended > low) | (ended_flat > 1.0) | (ended_fast_flat > 1.0)
                     kept.append(ended[keep])
                     kept_flat.append(ended_flat[keep])
+                    kept_fast_flat.append(ended_fast_flat[keep])
                 worst[slide] = -np.inf
                 worst_flat[slide] = -np.inf
+                worst_fast_flat[slide] = -np.inf
                 ref_level[slide] = pred[slide]
                 ref_slope[slide] = slope[slide]
                 ref_k[slide] = k
@@ -143,6 +171,9 @@ def envelope_false_alarms(sensor: object, hours: float, taxels: int = 64, seed: 
     tops = np.concatenate(kept) if kept else np.zeros(0)
     tops_flat = np.concatenate(kept_flat) if kept_flat else np.zeros(0)
     over_flat = tops_flat > 1.0
+    # with the faster reading's flat margin too (the detector's union; flat alone: without)
+    either = over_flat | (np.concatenate(kept_fast_flat) > 1.0 if kept_fast_flat
+                          else np.zeros(0, dtype=bool))
     rate = {float(z): float(np.count_nonzero(tops > z) / taxel_hours) for z in ladder}
     normal = NormalDist()
     bound = {float(z): fs * 3600.0 * (1.0 - normal.cdf(z)) for z in ladder}
@@ -158,8 +189,9 @@ def envelope_false_alarms(sensor: object, hours: float, taxels: int = 64, seed: 
             "z_per_sample": z_sample, "z_fit": z_fit,
             "rate_at_z_per_sample": float(np.count_nonzero(tops > z_sample) / taxel_hours),
             "flat_sigmas": flat / resid,
-            "rate_with_flat": {float(z): float(np.count_nonzero((tops > z) | over_flat)
+            "rate_with_flat": {float(z): float(np.count_nonzero((tops > z) | either)
                                                / taxel_hours) for z in ladder},
             "rate_flat_alone": float(np.count_nonzero(over_flat) / taxel_hours),
             "rate_at_z_per_sample_with_flat": float(
-                np.count_nonzero((tops > z_sample) | over_flat) / taxel_hours)}
+                np.count_nonzero((tops > z_sample) | either) / taxel_hours),
+            "envelope_tau": det.envelope_tau}
