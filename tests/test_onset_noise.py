@@ -208,6 +208,14 @@ def test_evaluate_onset_per_sensor_reports_the_issue_figures(capsys):
     knobbed = json.loads(capsys.readouterr().out)
     assert "envelope sigmas 5, smooth tau 0.01" in knobbed["source"]
     assert "noise-table envelope margin" in knobbed["source"]
+    # fast-film's faster envelope reading follows the smoothing: 0.01 s x 0.098, one sample
+    assert knobbed["envelope_tau"] == pytest.approx(0.001)
+    assert "envelope's faster reading 1.0 ms" in knobbed["source"]
+    assert main(["evaluate-onset", "--sensor", "fast-film", "--taxels", "2", "--minutes", "0.5",
+                 "--envelope-tau", "0", "--json"]) == 0
+    off = json.loads(capsys.readouterr().out)
+    assert off["envelope_tau"] is None and "envelope tau 0," in off["source"]
+    assert main(["evaluate-onset", "--sensor", "fast-film", "--envelope-tau", "-1"]) == 2
     assert main(["evaluate-onset", "--flat-envelope", "--taxels", "2", "--minutes", "0.5",
                  "--json"]) == 0
     assert "flat envelope margin" in json.loads(capsys.readouterr().out)["source"]

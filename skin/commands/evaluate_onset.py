@@ -109,6 +109,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--smooth-tau", type=float, default=None, metavar="S",
                     help="the detector's smoothing time constant, s (default max(0.03 s, one "
                          "sample); diagnosis)")
+    ev.add_argument("--envelope-tau", type=float, default=None, metavar="S",
+                    help="the gust-envelope test's second, faster reading's smoothing, s; 0: "
+                         "none (default: the smoothing shortened with the sensor's response "
+                         "time where that is at most half of it: fast-film 2.9 ms; else none). "
+                         "Diagnosis: --envelope-tau 0 gives the detector without it")
     ev.add_argument("--json", action="store_true", help="print one JSON document")
     ev.set_defaults(func=main)
 
@@ -248,6 +253,9 @@ def main(args: argparse.Namespace) -> int:
 
     if any(v is not None and not v > 0 for v in (args.envelope_sigmas, args.smooth_tau)):
         raise SkinError("--envelope-sigmas and --smooth-tau must be positive")
+    if args.envelope_tau is not None and not args.envelope_tau >= 0:
+        raise SkinError(f"--envelope-tau must be >= 0 s (0: no faster reading), "
+                        f"got {args.envelope_tau}")
     if args.duty is None:
         args.duty = not args.data
     if args.duty and args.data:
@@ -326,7 +334,8 @@ def main(args: argparse.Namespace) -> int:
     elif sensor is not None:
         source += f", sensor {sensor.name}"
     knobs = {k: v for k, v in (("envelope_sigmas", args.envelope_sigmas),
-                               ("smooth_tau", args.smooth_tau)) if v is not None}
+                               ("smooth_tau", args.smooth_tau),
+                               ("envelope_tau", args.envelope_tau)) if v is not None}
     if args.flat_envelope:
         knobs["envelope_noise"] = False
     detector = OnsetDetector(temperature.shape[1], sensor=judged, sigma=sigma,
@@ -334,6 +343,8 @@ def main(args: argparse.Namespace) -> int:
                                           else args.common_mode), **knobs)
     source += "".join(f", {k.replace('_', ' ')} {v:g}" for k, v in knobs.items()
                       if k != "envelope_noise")
+    if detector.envelope_tau is not None:
+        source += f", envelope's faster reading {1e3 * detector.envelope_tau:.1f} ms"
     source += ", common mode" if detector.common_active else ", no common mode"
     if duty is not None:
         source += (", heater duty told" if detector.envelope is None
@@ -360,7 +371,7 @@ def main(args: argparse.Namespace) -> int:
             by_material[name] = {"contacts": len(counted),
                                  "detected": int(sum(flags[k] for k in counted))}
     doc = {"machine": machine(), "source": source, "common_mode": detector.common_active,
-           "duty": duty is not None,
+           "duty": duty is not None, "envelope_tau": detector.envelope_tau,
            **result,
            "wall_time": round(time.monotonic() - started, 2)}
     if by_material is not None:
