@@ -31,6 +31,8 @@ def test_with_the_faster_reading_the_union_still_crosses_less_than_one_test_a_sa
     # the quantile of (16 taxel-hours at --hours 0.5: 0.0625 per taxel-hour at z 5.43)
     out = envelope_false_alarms("fast-film", hours=0.02, taxels=16, seed=2)
     assert out["envelope_tau"] == pytest.approx(0.00293, abs=1e-5)
+    # the detector's z: the quantile of half the target per sample (two tests share it)
+    assert out["z_per_sample"] == pytest.approx(5.555, abs=1e-3)
     for z in (3.0, 3.5):
         assert 0.4 * out["per_sample_bound"][z] < out["rate"][z] < out["per_sample_bound"][z]
     assert envelope_false_alarms("low-cost", hours=0.001, taxels=2)["envelope_tau"] is None

@@ -51,8 +51,11 @@ def main(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(out))
         return 0
+    tests = ("one test a sample" if out["envelope_tau"] is None else
+             f"two tests a sample: the smoothed reading and one over "
+             f"{1e3 * out['envelope_tau']:.1f} ms")
     print(f"sensor {out['sensor']}: {out['taxel_hours']} taxel-hours of noise; detector's z "
-          f"{out['z_per_sample']:.3f} (one test a sample), counted there "
+          f"{out['z_per_sample']:.3f} ({tests}), counted there "
           f"{out['rate_at_z_per_sample']:.3g} per taxel-hour (target {out['false_alarm_rate']})"
           + ("" if out["z_fit"] is None else f"; fitted z for the target {out['z_fit']:.3f}"))
     print(f"  with the flat margin too ({out['flat_sigmas']:.2f} residual sigmas; the smaller "

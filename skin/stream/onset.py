@@ -86,12 +86,12 @@ follows from the taxel's noise and the sensor description (`skin.models.sensors`
 - Time constants of the baseline and the slow channel, and the warm-up, stretch with the
   sensor's response time when it is slower than the paper's (a slow sensor's contact
   departs slowly, and its baseline takes as much longer to catch the reading's trend).
-- A sensor faster than the paper's by more than half (fast-film) has the gust-envelope test
-  read the fall on a second, faster reading as well: smoothed over the detector's smoothing
+- A sensor at least twice as fast as the paper's (fast-film) has the gust-envelope test read
+  the fall on a second, faster reading as well: smoothed over the detector's smoothing
   shortened with the response time (at least one sample, ``envelope_tau``), against that
-  reading's own noise at the same ``z`` (a fast contact stands out of it sooner; the smoothed
-  reading's test still catches the slow ones). The union's crossings on noise are counted,
-  not bounded (`skin bench envelope-rate`).
+  reading's own noise, each reading's ``z`` for half the false-alarm target (a fast contact
+  stands out of it sooner; the smoothed reading's test still catches the slow ones). The
+  union's crossings on noise are counted, not bounded (`skin bench envelope-rate`).
 - A sensor body whose slowest thermal mode (62.5 s for the paper's, scaled by l^2 / alpha) is
   faster than the paper's brings heater steps and drift to the thermistor faster: the CUSUM
   thresholds grow with the mode's speed, the slow channel's with what the mode moves within
@@ -971,9 +971,11 @@ class OnsetDetector:
         with ``envelope_noise`` and not on a loop-held sensor. Default: ``smooth_tau`` times
         the sensor's response time over the paper's, at least one sample, where that is at
         most half ``smooth_tau`` (fast-film: 2.9 ms against 30 ms); else none (``0``: none).
-        On fast-film's held-out streams it lowers the median delay / floor 1.70 -> 1.52 with
-        no lower detection and no more false alarms (CHANGELOG); the union's crossings on noise
-        stay under one test a sample (`skin bench envelope-rate --sensor fast-film`).
+        The two readings share the false-alarm target: each one's ``z`` (unless
+        ``envelope_sigmas`` is given) is the quantile of half of it per sample. On fast-film's
+        held-out streams it lowers the median delay / floor 1.70-1.72 -> 1.53-1.54 with no
+        lower detection (CHANGELOG); the union's crossings on noise are counted by `skin bench
+        envelope-rate --sensor fast-film`.
     gust_depth : float, optional
         The air's deepest gust, K (default: `GUST_DEPTH` of the sensor's heated rise, the
         simulator's family, `skin.bench.streams`: not a measured figure of any real air).
