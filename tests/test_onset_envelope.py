@@ -397,6 +397,13 @@ def test_a_sensor_faster_than_the_papers_has_its_fall_read_sooner_on_a_faster_re
     assert sum(raised[None][k] < raised[0.0][k] for k in range(16)) >= 12
     with pytest.raises(ValueError, match="envelope_tau"):
         OnsetDetector(4, sensor=sensor, envelope_tau=-1.0)
+    # asked where it cannot read: a clear error, not a reading silently left out
+    for kind in ({"envelope_noise": False}, {"gust_envelope": False}):
+        with pytest.raises(ValueError, match="needs the gust-envelope test"):
+            OnsetDetector(4, sensor=sensor, envelope_tau=0.003, **kind)
+        assert OnsetDetector(4, sensor=sensor, **kind).envelope_tau is None
+    with pytest.raises(ValueError, match="pid-logger: pid"):
+        OnsetDetector(4, sensor="pid-logger", envelope_tau=0.01)
 
 
 def _start_up(n_taxels: int, seed: int, duration: float = 4.0):

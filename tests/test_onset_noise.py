@@ -216,6 +216,8 @@ def test_evaluate_onset_per_sensor_reports_the_issue_figures(capsys):
     off = json.loads(capsys.readouterr().out)
     assert off["envelope_tau"] is None and "envelope tau 0," in off["source"]
     assert main(["evaluate-onset", "--sensor", "fast-film", "--envelope-tau", "-1"]) == 2
+    assert main(["evaluate-onset", "--sensor", "fast-film", "--envelope-tau", "0.003",
+                 "--flat-envelope"]) == 2
     assert main(["evaluate-onset", "--flat-envelope", "--taxels", "2", "--minutes", "0.5",
                  "--json"]) == 0
     assert "flat envelope margin" in json.loads(capsys.readouterr().out)["source"]

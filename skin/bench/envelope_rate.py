@@ -3,7 +3,8 @@
 With ``envelope_noise`` the onset detector (`skin.stream.onset.OnsetDetector`) raises a fall
 ``ref_level + min(ref_slope, 0) x since - smooth`` deeper than ``z`` times its own noise at
 the time since the reference (`skin.stream.onset.drop_noise`), ``z`` the Gaussian quantile of
-the false-alarm target per sample: one test a sample. But the reference restarts (it slides
+the false-alarm target per sample: one test a sample (with a faster reading, two, each at
+the quantile of half the target). But the reference restarts (it slides
 with the baseline while the reading stays within 2 sigmas of it, and after the slow window),
 and a fall is measured from wherever it last restarted: a union over reference times. This
 counts what that restarted test does on the table's own noise process, settled: white readout

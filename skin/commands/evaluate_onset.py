@@ -256,6 +256,9 @@ def main(args: argparse.Namespace) -> int:
     if args.envelope_tau is not None and not args.envelope_tau >= 0:
         raise SkinError(f"--envelope-tau must be >= 0 s (0: no faster reading), "
                         f"got {args.envelope_tau}")
+    if args.envelope_tau and args.flat_envelope:
+        raise SkinError("--envelope-tau reads the envelope's noise table: not with "
+                        "--flat-envelope")
     if args.duty is None:
         args.duty = not args.data
     if args.duty and args.data:
@@ -280,6 +283,10 @@ def main(args: argparse.Namespace) -> int:
         from skin.models.sensors import load_sensor
 
         sensor = load_sensor(args.sensor)  # a bad file fails before the work starts
+        if args.envelope_tau and sensor.heater == "pid":
+            raise SkinError(f"--envelope-tau: a PID-held sensor's ({sensor.name}) envelope "
+                            f"test allows the disturbances through its loop (loop_envelope), "
+                            f"which has no faster reading")
     if args.data:
         times, temperature, truth, fs, source = _from_trials(args.data)
         contacts = duty = None
@@ -338,9 +345,12 @@ def main(args: argparse.Namespace) -> int:
                                ("envelope_tau", args.envelope_tau)) if v is not None}
     if args.flat_envelope:
         knobs["envelope_noise"] = False
-    detector = OnsetDetector(temperature.shape[1], sensor=judged, sigma=sigma,
-                             common_mode=(False if args.data and args.common_mode is None
-                                          else args.common_mode), **knobs)
+    try:
+        detector = OnsetDetector(temperature.shape[1], sensor=judged, sigma=sigma,
+                                 common_mode=(False if args.data and args.common_mode is None
+                                              else args.common_mode), **knobs)
+    except ValueError as e:  # a knob the sensor's detector cannot take (a PID-held one's)
+        raise SkinError(str(e)) from None
     source += "".join(f", {k.replace('_', ' ')} {v:g}" for k, v in knobs.items()
                       if k != "envelope_noise")
     if detector.envelope_tau is not None:

@@ -1208,14 +1208,20 @@ class OnsetDetector:
                          if gust_envelope and sensor.heater == "pid" else None)
         # the faster reading's test (``envelope_tau``): a sensor faster than the paper's
         # has the smoothing shortened with its response time, at least one sample; one
-        # not under half the smoothing's adds a test and no speed, and is left out
+        # not under half the smoothing's adds a test and no speed, and is left out. It reads
+        # the noise table's envelope test: none without it, nor on a loop-held sensor
         self.envelope_tau = None
+        table_test = gust_envelope and self.envelope_noise and self.envelope is None
         if envelope_tau is None:
             envelope_tau = max(1.0 / fs, self.smooth_tau * min(
                 1.0, sensor.response_time / _PAPER_RESPONSE))
-            if not envelope_tau <= 0.5 * self.smooth_tau:
+            if not (envelope_tau <= 0.5 * self.smooth_tau and table_test):
                 envelope_tau = 0.0
-        if envelope_tau > 0.0 and self.envelope is None and self.envelope_noise:
+        elif envelope_tau > 0.0 and not table_test:
+            raise ValueError(f"envelope_tau ({envelope_tau} s) needs the gust-envelope test with "
+                             f"its noise table (gust_envelope and envelope_noise) on a sensor "
+                             f"whose heater is not PID-held ({sensor.name}: {sensor.heater})")
+        if envelope_tau > 0.0:
             self.envelope_tau = float(envelope_tau)
             _, self._fast_sd, fast = drop_noise(sensor, self.smooth_tau, self.level_tau,
                                                 self.slope_tau, slow_tau_now,
