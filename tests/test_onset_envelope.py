@@ -278,19 +278,25 @@ def test_the_loop_envelope_is_read_only_and_a_zero_false_alarm_rate_is_finite():
         drift[0] = 1.0
 
 
+def _smooth_falls(n_taxels: int, seed: int):
+    """fast-film taxels whose reading falls 1.5 K (a critically damped 70 ms approach) from
+    onsets spread over 4.0-4.1 s, in the sensor's smoothed readout noise, 6 s in all."""
+    sensor = load_sensor("fast-film")
+    fs = sensor.sample_rate
+    t = np.arange(round(6.0 * fs)) / fs
+    on = 4.0 + np.linspace(0.0, 0.1, n_taxels)
+    s = np.maximum(t[:, None] - on[None, :], 0.0)
+    fall = 1.5 * (1.0 - (1.0 + s / 0.07) * np.exp(-s / 0.07))
+    noise = smooth(np.random.default_rng(seed).normal(0.0, sensor.noise_kelvin(35.0),
+                                                      (t.size, n_taxels)), sensor, axis=0)
+    return sensor, t, on, 35.0 - fall + noise
+
+
 def test_the_envelope_margin_sets_when_a_smooth_fall_is_raised():
     # the same smooth fall on fast-film, without gusts: the envelope test's noise margin is
     # what the fall must clear beyond the gust and heater allowance, so a smaller margin
     # raises every onset no later, and most earlier (the margin is most of fast-film's delay)
-    sensor = load_sensor("fast-film")
-    fs = sensor.sample_rate
-    t = np.arange(round(6.0 * fs)) / fs
-    on = 4.0 + np.linspace(0.0, 0.1, 16)
-    s = np.maximum(t[:, None] - on[None, :], 0.0)
-    fall = 1.5 * (1.0 - (1.0 + s / 0.07) * np.exp(-s / 0.07))
-    noise = smooth(np.random.default_rng(4).normal(0.0, sensor.noise_kelvin(35.0),
-                                                   (t.size, 16)), sensor, axis=0)
-    y = 35.0 - fall + noise
+    sensor, t, on, y = _smooth_falls(16, seed=4)
     raised = {}
     for z in (8.0, 5.0):
         det = OnsetDetector(16, sensor=sensor, envelope_sigmas=z, envelope_noise=False)
@@ -351,15 +357,7 @@ def test_the_noise_margin_is_smaller_early_and_larger_late_and_chunk_invariant()
         k = int(np.ceil(since / det._drop_step))
         margin = det.envelope_sigmas * det._drop_sd[k] * det._resid_sigma[0]
         assert (margin < 8.0 * det.smoothed_sigma[0]) == smaller
-    sensor = load_sensor("fast-film")
-    fs = sensor.sample_rate
-    t = np.arange(round(6.0 * fs)) / fs
-    on = 4.0 + np.linspace(0.0, 0.1, 8)
-    s = np.maximum(t[:, None] - on[None, :], 0.0)
-    fall = 1.5 * (1.0 - (1.0 + s / 0.07) * np.exp(-s / 0.07))
-    noise = smooth(np.random.default_rng(5).normal(0.0, sensor.noise_kelvin(35.0),
-                                                   (t.size, 8)), sensor, axis=0)
-    y = 35.0 - fall + noise
+    sensor, t, _, y = _smooth_falls(8, seed=5)
     det = OnsetDetector(8, sensor=sensor, envelope_noise=True)
     whole, _ = det.process(t, y, det.initial_state())
     assert sorted(e.taxel for e in whole if e.kind == "onset") == list(range(8))
@@ -376,15 +374,7 @@ def test_a_sensor_faster_than_the_papers_has_its_fall_read_sooner_on_a_faster_re
     # fast table, 8 of its sigmas flat); a fast contact's fall is raised sooner, a slow one
     # as before (the smoothed reading's test still runs); the worst gust raises nothing
     # (`test_the_worst_gust_raises_no_onset_and_with_a_heater_step_no_envelope_onset`)
-    sensor = load_sensor("fast-film")
-    fs = sensor.sample_rate
-    t = np.arange(round(6.0 * fs)) / fs
-    on = 4.0 + np.linspace(0.0, 0.1, 16)
-    s = np.maximum(t[:, None] - on[None, :], 0.0)
-    fall = 1.5 * (1.0 - (1.0 + s / 0.07) * np.exp(-s / 0.07))
-    noise = smooth(np.random.default_rng(6).normal(0.0, sensor.noise_kelvin(35.0),
-                                                   (t.size, 16)), sensor, axis=0)
-    y = 35.0 - fall + noise
+    sensor, t, on, y = _smooth_falls(16, seed=6)
     raised = {}
     for tau in (None, 0.0):
         det = OnsetDetector(16, sensor=sensor, envelope_tau=tau)
