@@ -643,7 +643,9 @@ def test_fast_film_reference_touches_are_dated_with_their_heater_drain():
 
     touches, left, err, sensors = _found_touches("fast-film", 6)
     assert len(touches) == 12 and not any(left.values())
-    assert np.all(np.abs(err) <= 0.010) and abs(np.median(err)) <= 0.004
+    # errors fall on the 1 ms sample grid: a median of -4 ms may read a float's rounding
+    # either side of it (-6..-3 ms here, median -4)
+    assert np.all(np.abs(err) <= 0.010) and abs(np.median(err)) <= 0.004 + 1e-9
     assert 0.010 < onset_search(sensors[0])  # the fit can take it from there
 
 
