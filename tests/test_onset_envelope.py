@@ -75,8 +75,9 @@ def test_a_smooth_fall_beyond_the_gust_envelope_is_an_onset_the_cusum_misses():
         assert e.detected_at - on[k] < 3.0
 
 
-# low-cost: its own medium average; pid-logger: the loop's envelope
-@pytest.mark.parametrize("preset", ["paper", "low-cost", "pid-logger"])
+# low-cost: its own medium average; pid-logger: the loop's envelope; fast-film: the faster
+# reading (``DetectorState.fast``) carried across chunks, holes and a late start
+@pytest.mark.parametrize("preset", ["paper", "low-cost", "pid-logger", "fast-film"])
 @pytest.mark.parametrize("sizes", [[1] * 50 + [333, 7], [4000, 1]])
 def test_gust_envelope_is_chunk_invariant(sizes, preset):
     sensor = load_sensor(preset)
@@ -96,8 +97,9 @@ def test_gust_envelope_is_chunk_invariant(sizes, preset):
         i += size
     assert events == whole and any(e.kind == "onset" for e in whole)
     for name in ("ref_level", "ref_slope", "ref_t", "cusum", "slow", "medium", "var",
-                 "t_first"):
+                 "t_first", "fast"):
         np.testing.assert_array_equal(getattr(state, name), getattr(last, name))
+    assert np.all(np.isfinite(state.fast)) == (det.envelope_tau is not None)
 
 
 @pytest.mark.parametrize("preset", ["paper", "low-cost", "pid-logger", "fast-film"])
