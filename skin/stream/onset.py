@@ -931,7 +931,8 @@ class OnsetDetector:
     envelope_sigmas : float, optional
         The gust-envelope test's noise margin, in sigmas. With ``envelope_noise`` (the
         default): the ``z`` the noise table is scaled by (default the Gaussian quantile of
-        ``false_alarm_rate`` per sample, 4.7-5.4); the cap and the margin before the filters
+        ``false_alarm_rate`` per sample, 4.7-5.4; with a faster reading, ``envelope_tau``, of
+        half of it: fast-film 5.55); the cap and the margin before the filters
         settle stay `FLAT_SIGMAS` (8) flat sigmas: where ``z`` x the table exceeds them the
         flat margin applies, so a larger ``z`` brings the margin closer to the flat one.
         Without it (default 8): sigmas of the reading it looks at (its running noise
