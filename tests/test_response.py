@@ -119,6 +119,8 @@ def test_check_contact_noise_and_response() -> None:
 
     quiet = verdict(free + noise)
     assert not quiet.responded and quiet.taxels == 1
+    # each grid point's gain (2 materials x 4 conductances), the best of them the gain
+    assert quiet.gains.shape == (8,) and quiet.gains.max() == quiet.gain
     assert verdict(free + noise - 1.0 * shape[0] / np.abs(shape[0]).max()).responded
 
 
@@ -310,6 +312,11 @@ def test_contact_free_windows_pass_at_most_nominally_on_a_smoothed_sensor() -> N
         nominal = 2.0 * norm.sf(float(tail))
         assert c["windows"] > 300
         assert c["passed"] <= binom.ppf(0.999, c["windows"], nominal), (tail, c)
+        # each grid point alone (one test, the single threshold, which the best's Šidák
+        # threshold only raises): a window the best passes in has a point that passes alone
+        points = np.asarray(c["points_passed"])
+        assert points.size == 48 and np.all(points <= c["windows"])
+        assert c["passed"] <= points.sum()
 
 
 @pytest.mark.parametrize("bad", [["--seeds", "-1"], ["--duration", "3"],
@@ -326,6 +333,8 @@ def test_response_noise_gives_no_interval_where_no_window_was_tested() -> None:
     from skin.bench.response_noise import summarise
 
     run = {"sensor": "paper", "counts": {"1": {"3.0": {"windows": 0, "passed": 0,
-                                                       "untested": 0}}}}
+                                                       "untested": 0,
+                                                       "points_passed": [0, 0]}}}}
     (row, *_) = summarise([run])
     assert row["windows"] == 0 and row["ratio"] is None and row["ratio_ci95"] is None
+    assert row["point_ratio"] is None

@@ -21,7 +21,11 @@ measure it, the shipped table's classified materials; one fit per window, each t
 threshold on its gain (`skin.stream.response.threshold`). The 5-sigma tail is too rare to
 count; the 2- and 3-sigma tails are counted, with a 95 % Clopper-Pearson interval on the pass
 rate (windows of one taxel overlap in nothing; windows of neighbouring columns share the
-room's drift, so the interval is somewhat narrow).
+room's drift, so the interval is somewhat narrow). Each grid point (material, conductance) is
+also held alone to the single test's threshold (``points_passed``; `summarise`'s
+``point_ratio``): a point above nominal shows the single test's tail heavy for that shape,
+whatever the grid's correction does, and the best above nominal with every point under it
+shows the grid's correction short.
 """
 
 from __future__ import annotations
@@ -93,7 +97,8 @@ def measure_response_noise(sensor: Any, seed: int, duration: float = 60.0, taxel
     -------
     dict
         ``counts``: for each group size (str) and tail (str, sigmas), ``windows`` tested,
-        ``passed``, ``untested`` (no taxel with samples enough); ``dof_median`` (the noise's
+        ``passed``, ``untested`` (no taxel with samples enough), ``points_passed`` (per grid
+        point, the windows where it alone passes the single test's threshold); ``dof_median`` (the noise's
         degrees of freedom where the verdict gives them).
     """
     from skin.bench.streams import simulate_stream
@@ -101,7 +106,7 @@ def measure_response_noise(sensor: Any, seed: int, duration: float = 60.0, taxel
     from skin.models import load_materials
     from skin.models.sensors import load_sensor
     from skin.stream.onset_refine import refine_span
-    from skin.stream.response import check_contact, threshold
+    from skin.stream.response import H_POINTS, check_contact, threshold
 
     sensor = load_sensor(sensor)
     table = load_materials()
@@ -120,7 +125,9 @@ def measure_response_noise(sensor: Any, seed: int, duration: float = 60.0, taxel
             plan += [(size, cols, t) for t in _windows(stream, cols, (search, PHANTOM_SECONDS),
                                                        rng)]
     counts: dict[str, dict[str, dict[str, int]]] = {
-        str(s): {f"{a:g}": {"windows": 0, "passed": 0, "untested": 0} for a in TAILS}
+        str(s): {f"{a:g}": {"windows": 0, "passed": 0, "untested": 0,
+                            "points_passed": [0] * (len(effusivities) * H_POINTS)}
+                 for a in TAILS}
         for s in sizes}
     dofs: list[float] = []
     for i, (size, cols, onset) in enumerate(plan):
@@ -139,6 +146,10 @@ def measure_response_noise(sensor: Any, seed: int, duration: float = 60.0, taxel
                 continue
             row["windows"] += 1
             row["passed"] += int(v.gain > threshold(v.taxels, tail, v.dof, v.tests))
+            # each grid point alone: one test, held to the single test's threshold
+            alone = v.gains > threshold(v.taxels, tail, v.dof)
+            row["points_passed"] = [k + int(a) for k, a in zip(row["points_passed"], alone,
+                                                                 strict=True)]
         if progress is not None and (i % 50 == 0 or i + 1 == len(plan)):
             progress(i + 1, len(plan))
     return {"sensor": sensor.name, "seed": seed, "duration": duration, "taxels": taxels,
@@ -148,33 +159,42 @@ def measure_response_noise(sensor: Any, seed: int, duration: float = 60.0, taxel
 
 
 def summarise(runs: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Pool runs (seeds) per sensor, group size and tail: pass rate / nominal with its CI."""
-    rows: dict[tuple[str, str, str], list[int]] = {}
+    """Pool runs (seeds) per sensor, group size and tail: pass rate / nominal with its CI.
+
+    Each row also gives ``point_ratio``: the grid's points each held alone to the single
+    test's threshold, their pass rates over nominal (least, median, largest over the points).
+    Above 1 the single test's tail is heavier than nominal for those points' shapes, whatever
+    the grid's correction does; the best's ``ratio`` is the grid's correction on top of it.
+    """
+    rows: dict[tuple[str, str, str], list] = {}
+
+    def add(key: tuple[str, str, str], c: dict) -> None:
+        acc = rows.setdefault(key, [0, 0, 0, np.zeros(len(c["points_passed"]), dtype=int)])
+        acc[0] += c["windows"]
+        acc[1] += c["passed"]
+        acc[2] += c["untested"]
+        acc[3] = acc[3] + np.asarray(c["points_passed"], dtype=int)
+
     for r in runs:
         for size, tails in r["counts"].items():
             for tail, c in tails.items():
-                acc = rows.setdefault((r["sensor"], size, tail), [0, 0, 0])
-                acc[0] += c["windows"]
-                acc[1] += c["passed"]
-                acc[2] += c["untested"]
-    for r in runs:  # all sizes pooled
-        for tail in {t for c in r["counts"].values() for t in c}:
-            acc = rows.setdefault((r["sensor"], "all", tail), [0, 0, 0])
-            for tails in r["counts"].values():
-                c = tails[tail]
-                acc[0] += c["windows"]
-                acc[1] += c["passed"]
-                acc[2] += c["untested"]
+                add((r["sensor"], size, tail), c)
+                add((r["sensor"], "all", tail), c)  # all sizes pooled
     out = []
-    for (name, size, tail), (n, k, untested) in rows.items():
+    for (name, size, tail), (n, k, untested, points) in rows.items():
         nominal = 2.0 * float(norm.sf(float(tail)))
         lo, hi = clopper_pearson(k, n)
+        each = points / n / nominal if n else None
         out.append({"sensor": name, "taxels": size, "sigmas": float(tail), "windows": n,
                     "passed": k, "untested": untested, "nominal": round(nominal, 5),
                     "rate": round(k / n, 5) if n else None,
                     "ratio": round(k / n / nominal, 2) if n else None,
                     # none tested: no interval (it would be 1 / nominal, not a measurement)
                     "ratio_ci95": ([round(lo / nominal, 2), round(hi / nominal, 2)] if n
-                                   else None)})
+                                   else None),
+                    "point_ratio": ([round(float(np.min(each)), 2),
+                                     round(float(np.median(each)), 2),
+                                     round(float(np.max(each)), 2)]
+                                    if each is not None and each.size else None)})
     out.sort(key=lambda r: (r["sensor"], r["taxels"] != "all", r["taxels"], r["sigmas"]))
     return out
