@@ -98,8 +98,8 @@ def measure_response_noise(sensor: Any, seed: int, duration: float = 60.0, taxel
     dict
         ``counts``: for each group size (str) and tail (str, sigmas), ``windows`` tested,
         ``passed``, ``untested`` (no taxel with samples enough), ``points_passed`` (per grid
-        point, the windows where it alone passes the single test's threshold); ``dof_median`` (the noise's
-        degrees of freedom where the verdict gives them).
+        point, the windows where it alone passes the single test's threshold);
+        ``dof_median`` (the noise's degrees of freedom where the verdict gives them).
     """
     from skin.bench.streams import simulate_stream
     from skin.commands.evaluate_onset import MATERIALS
@@ -124,7 +124,7 @@ def measure_response_noise(sensor: Any, seed: int, duration: float = 60.0, taxel
             cols = list(range(g * size, (g + 1) * size))
             plan += [(size, cols, t) for t in _windows(stream, cols, (search, PHANTOM_SECONDS),
                                                        rng)]
-    counts: dict[str, dict[str, dict[str, int]]] = {
+    counts: dict[str, dict[str, dict[str, Any]]] = {
         str(s): {f"{a:g}": {"windows": 0, "passed": 0, "untested": 0,
                             "points_passed": [0] * (len(effusivities) * H_POINTS)}
                  for a in TAILS}
