@@ -317,6 +317,9 @@ def test_contact_free_windows_pass_at_most_nominally_on_a_smoothed_sensor() -> N
         points = np.asarray(c["points_passed"])
         assert points.size == 48 and np.all(points <= c["windows"])
         assert c["passed"] <= points.sum()
+    # the cost: the stream's real touches, force-dated at their onsets, show a response
+    assert out["real"]["contacts"] >= 4
+    assert out["real"]["responded"] == out["real"]["contacts"]
 
 
 @pytest.mark.parametrize("bad", [["--seeds", "-1"], ["--duration", "3"],
@@ -330,7 +333,7 @@ def test_response_noise_refuses_bad_input_before_the_work(bad, capsys) -> None:
 
 
 def test_response_noise_gives_no_interval_where_no_window_was_tested() -> None:
-    from skin.bench.response_noise import summarise
+    from skin.bench.response_noise import summarise, summarise_real
 
     run = {"sensor": "paper", "counts": {"1": {"3.0": {"windows": 0, "passed": 0,
                                                        "untested": 0,
@@ -338,3 +341,7 @@ def test_response_noise_gives_no_interval_where_no_window_was_tested() -> None:
     (row, *_) = summarise([run])
     assert row["windows"] == 0 and row["ratio"] is None and row["ratio_ci95"] is None
     assert row["point_ratio"] is None
+    run["real"] = {"contacts": 0, "responded": 0}
+    (real,) = summarise_real([run])
+    assert real["rate"] is None and real["rate_ci95"] is None
+

@@ -68,13 +68,17 @@ def _windows(stream: Any, cols: Sequence[int], span: tuple[float, float],
     return out
 
 
-def _member(stream: Any, col: int, onset: float, search: float) -> tuple[Any, tuple]:
-    """Return the tracker's samples of taxel ``col`` around a phantom onset, and its triple."""
+def _member(stream: Any, col: int, onset: float, search: float,
+            seconds: float = PHANTOM_SECONDS) -> tuple[Any, tuple]:
+    """Return the tracker's samples of taxel ``col`` around a force onset, and its triple.
+
+    The force held ``seconds`` (a phantom's `PHANTOM_SECONDS`; a real contact's duration).
+    """
     from skin.stream.tracking import TaxelSamples
 
     k0 = int(np.searchsorted(stream.times, onset))  # the force's onset: a sample instant
     t0 = float(stream.times[k0])
-    release = t0 + PHANTOM_SECONDS
+    release = t0 + seconds
     sel = (stream.times >= t0 - search) & (stream.times <= release)
     t, y = stream.times[sel], stream.temperature[sel, col]
     baseline = float(stream.temperature[k0, col])
@@ -152,9 +156,21 @@ def measure_response_noise(sensor: Any, seed: int, duration: float = 60.0, taxel
                                                                  strict=True)]
         if progress is not None and (i % 50 == 0 or i + 1 == len(plan)):
             progress(i + 1, len(plan))
+    # the cost: the stream's real contacts, each force-dated at its onset on its own taxel,
+    # that show a response at the pipeline's tail (`RESPONSE_SIGMAS`)
+    real = {"contacts": 0, "responded": 0}
+    for c in stream.contacts:
+        if c.onset - search < stream.times[0] or c.release >= stream.times[-1]:
+            continue
+        m, triple = _member(stream, c.taxel, c.onset, search, c.release - c.onset)
+        v = check_contact([m], [triple], [sensor], np.full(1, sigma_white),
+                          float(np.mean(m.ambient)), effusivities)
+        if v.taxels:
+            real["contacts"] += 1
+            real["responded"] += int(v.responded)
     return {"sensor": sensor.name, "seed": seed, "duration": duration, "taxels": taxels,
             "air": air,
-            "search": round(search, 3), "counts": counts,
+            "search": round(search, 3), "counts": counts, "real": real,
             "dof_median": round(float(np.median(dofs)), 1) if dofs else None}
 
 
@@ -197,4 +213,24 @@ def summarise(runs: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
                                      round(float(np.max(each)), 2)]
                                     if each is not None and each.size else None)})
     out.sort(key=lambda r: (r["sensor"], r["taxels"] != "all", r["taxels"], r["sigmas"]))
+    return out
+
+
+def summarise_real(runs: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Pool runs (seeds) per sensor: the real contacts that show a response, with a 95 % CI.
+
+    The check's cost beside its false passes: a real contact the force alone dated that
+    shows no response is answered "unknown".
+    """
+    pooled: dict[str, list[int]] = {}
+    for r in runs:
+        acc = pooled.setdefault(r["sensor"], [0, 0])
+        acc[0] += r["real"]["contacts"]
+        acc[1] += r["real"]["responded"]
+    out = []
+    for name, (n, k) in pooled.items():
+        lo, hi = clopper_pearson(k, n)
+        out.append({"sensor": name, "contacts": n, "responded": k,
+                    "rate": round(k / n, 3) if n else None,
+                    "rate_ci95": [round(lo, 3), round(hi, 3)] if n else None})
     return out

@@ -51,10 +51,11 @@ def main(args: argparse.Namespace) -> int:
     import time
 
     from skin.bench import machine
-    from skin.bench.response_noise import measure_response_noise, summarise
+    from skin.bench.response_noise import measure_response_noise, summarise, summarise_real
     from skin.errors import SkinError
     from skin.models.sensors import load_sensor, load_sensors
     from skin.progress import Progress
+    from skin.stream.response import RESPONSE_SIGMAS
 
     if args.duration <= 0 or args.taxels < 1 or args.group < 1 or args.rate < 0:
         raise SkinError("--duration, --taxels and --group must be positive, --rate >= 0")
@@ -80,10 +81,10 @@ def main(args: argparse.Namespace) -> int:
                 name, seed, args.duration, args.taxels, sizes, args.rate, args.air,
                 progress=lambda d, n, label=label: progress.bar(d, n, label, started)))
     progress.done()
-    rows = summarise(runs)
+    rows, real = summarise(runs), summarise_real(runs)
     out = {"machine": machine(), "sensors": sensors, "seeds": args.seeds,
            "duration": args.duration, "taxels": args.taxels, "air": args.air, "runs": runs,
-           "rows": rows,
+           "rows": rows, "real": real,
            "wall_time": round(time.monotonic() - started, 2)}
     if args.json:
         print(json.dumps(out))
@@ -103,6 +104,12 @@ def main(args: argparse.Namespace) -> int:
               + ("  -" if r["point_ratio"] is None
                  else "  " + " / ".join(f"{v:.2f}" for v in r["point_ratio"]))
               + (f" ({r['untested']} untested)" if r["untested"] else ""))
+    print(f"real contacts, each force-dated at its onset on its own taxel, showing a response "
+          f"at {RESPONSE_SIGMAS:g} sigma (the cost: those that do not are answered unknown):")
+    for r in real:
+        print(f"  {r['sensor']:<12} {r['responded']} of {r['contacts']}"
+              + ("" if r["rate"] is None else
+                 f" ({r['rate']:.3f}, 95 % CI {r['rate_ci95'][0]:.3f}-{r['rate_ci95'][1]:.3f})"))
     for r in runs:
         if r["dof_median"] is not None:
             print(f"  {r['sensor']} seed {r['seed']}: noise dof median {r['dof_median']}")
