@@ -345,3 +345,32 @@ def test_response_noise_gives_no_interval_where_no_window_was_tested() -> None:
     (real,) = summarise_real([run])
     assert real["rate"] is None and real["rate_ci95"] is None
 
+
+def test_a_pid_sensors_free_model_has_the_bodys_slow_mode_too() -> None:
+    """A PID loop takes a taxel's slow reheating off the reading only in part: the free model
+    of a PID-held sensor relaxes with the loop's and the body's time constants, and fits the
+    body's reheating through the loop, lag and smoothing, seconds after a release, to well
+    within the noise (the loop's alone left 16 times more; contact-free windows then passed
+    3 sigma at 2-3x nominal: `skin bench response-noise --sensors pid-logger`). Other heaters
+    keep the one relaxation."""
+    from skin.models.sensors import apply_dynamics, load_sensor, smooth
+    from skin.stream.response import free_columns, relaxations
+
+    pid = load_sensor("pid-logger")
+    assert relaxations(pid) == (pid.control_time, pid.reheat_time_constant)
+    for name in ("paper", "fast-film", "low-cost"):
+        other = load_sensor(name)
+        assert relaxations(other) == (other.reheat_time_constant,)
+    fs = pid.sample_rate
+    t = np.arange(0.0, 60.0, 1.0 / fs)
+    body = np.where(t < 10.0, 0.0, -np.exp(-(t - 10.0) / pid.reheat_time_constant))  # 1 K
+    y = smooth(apply_dynamics(body, pid, fs), pid)
+    sel = (t >= 15.0) & (t < 21.5)
+    tau, y = t[sel] - 19.0, y[sel]
+    sigma = pid.noise_kelvin(35.0)
+
+    def left(relax: tuple[float, ...]) -> float:
+        base = free_columns(tau, relax)
+        return float(np.sqrt(np.mean((y - base @ (base.T @ y)) ** 2))) / sigma
+
+    assert left(relaxations(pid)) < 0.005 < 0.01 < left((pid.control_time,))
