@@ -208,9 +208,10 @@ def relaxations(sensor: object) -> tuple[float, ...]:
     """Return the time constants a free taxel's reading relaxes with, s.
 
     The body's ``reheat_time_constant``; with a PID-held heater the loop's ``control_time``
-    too: the loop takes the body's slow reheating off the reading only in part (its
-    high-pass leaves a slow decay whose curvature over a window is comparable to pid-logger's
-    noise), so both modes are free.
+    as well: the loop takes the body's slow reheating off the reading only in part (its
+    high-pass leaves the body's mode in the reading, most in the seconds after a release).
+    With the loop's mode alone the free model left it as a misfit: pid-logger's contact-free
+    windows passed 3 sigma at about 2x nominal (`skin bench response-noise`; CHANGELOG).
     """
     if sensor.heater == "pid":
         return float(sensor.control_time), float(sensor.reheat_time_constant)
@@ -226,7 +227,7 @@ def free_columns(tau: np.ndarray, relax: float | Sequence[float],
 
     With ``room`` (the room's temperature as the sensor reads it and the sensor's start-up
     transients, `room_column`: (n,) or (n, k)), those too (a room that drifts moves the
-    reading with it). Returns an orthonormal basis (n, <= 3 + k) of
+    reading with it). Returns an orthonormal basis (n, <= 2 + len(relax) + k) of
     their span (a relaxation much slower than the window is a trend already, a steady room a
     level: the rank drops, not the fit).
     """
