@@ -252,11 +252,6 @@ def main(args: argparse.Namespace) -> int:
     from skin.bench.onset_eval import evaluate_onsets, release_window
     from skin.bench.streams import GUST_DEPTH
 
-    if any(v is not None and not v > 0 for v in (args.envelope_sigmas, args.smooth_tau)):
-        raise SkinError("--envelope-sigmas and --smooth-tau must be positive")
-    if args.envelope_tau is not None and not args.envelope_tau >= 0:
-        raise SkinError(f"--envelope-tau must be >= 0 s (0: no faster reading), "
-                        f"got {args.envelope_tau}")
     if args.duty is None:
         args.duty = not args.data
     if args.duty and args.data:
@@ -288,10 +283,11 @@ def main(args: argparse.Namespace) -> int:
                                ("envelope_tau", args.envelope_tau)) if v is not None}
     if args.flat_envelope:
         knobs["envelope_noise"] = False
-    try:  # knobs the sensor's detector cannot take (--envelope-tau on a PID-held one) fail now
-        OnsetDetector(1, sensor=sensor, **knobs)
+    try:  # knobs the detector refuses (not positive; --envelope-tau on a PID-held sensor)
+        OnsetDetector(1, sensor=sensor, **knobs)  # fail now, before any simulation
     except ValueError as e:
-        raise SkinError(str(e)) from None
+        raise SkinError(f"the detector's options (--envelope-sigmas, --smooth-tau, "
+                        f"--envelope-tau, --flat-envelope): {e}") from None
     if args.data:
         times, temperature, truth, fs, source = _from_trials(args.data)
         contacts = duty = None
