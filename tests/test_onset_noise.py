@@ -390,3 +390,30 @@ def test_the_noise_estimate_starts_from_the_readings_not_the_floor(seed):
     events, state = det.process(t, y, det.initial_state())
     assert len([e for e in events if e.kind == "onset"]) <= 1
     assert np.median(np.sqrt(state.var)) > 10 * float(np.median(det.noise_floor))
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "known: the running noise estimate starts at the floor (a third of the smoothed reading's "
+    "noise on paper), so the CUSUM's allowance stays under the design its threshold is set for "
+    "in a stream's first seconds, and a dip of the room raises onsets on many taxels at once "
+    "(paper seed 4: 11 of 64 quiet taxels 1.9 s in). Started at the residual's nominal noise "
+    "none are raised (paper seed 4, 64 taxels x 30 min: false alarms 12 -> 1), but weak early "
+    "touches are then missed where the hotter start found them (scene seed 8: the forearm at "
+    "4.5 s split into two contacts, and the run's skin prior then lost): see the CHANGELOG's "
+    "known limitations"))
+def test_a_heated_taxels_first_seconds_raise_no_onset_from_the_rooms_drift():
+    from skin.bench.streams import simulate_stream
+    from skin.models import load_materials
+
+    sensor = load_sensor("paper")
+    det = OnsetDetector(64, sensor=sensor, boards=np.repeat(np.arange(4), 16),
+                        common_mode=True)
+    glass = load_materials()["glass"]
+    raised = {}
+    for seed in (1, 3, 4):  # contact-free, with the room's drift, the air and heater switches
+        st = simulate_stream([glass], n_taxels=64, duration=10.0, contacts_per_minute=1e-6,
+                             disturbances=True, seed=seed, sensor=sensor)
+        assert st.contacts == []
+        events = det.trace(st.times, st.temperature, duty=st.duty()).events
+        raised[seed] = [e for e in events if e.kind == "onset"]
+    assert raised == {1: [], 3: [], 4: []}
