@@ -396,8 +396,9 @@ def test_the_noise_estimate_starts_from_the_readings_not_the_floor(seed):
     "known: the running noise estimate starts at the floor (a third of the smoothed reading's "
     "noise on paper), so the CUSUM's allowance stays under the design its threshold is set for "
     "in a stream's first seconds, and a dip of the room raises onsets on many taxels at once "
-    "(paper seed 4: 11 of 64 quiet taxels 1.9 s in). Started at the residual's nominal noise "
-    "none are raised (paper seed 4, 64 taxels x 30 min: false alarms 12 -> 1), but weak early "
+    "(paper seed 4: 11 of 64 quiet taxels, raised 2.0-2.3 s in). Started at the residual's "
+    "nominal noise none are raised (paper seed 4, 64 taxels x 30 min: false alarms 12 -> 1), "
+    "but weak early "
     "touches are then missed where the hotter start found them (scene seed 8: the forearm at "
     "4.5 s split into two contacts, and the run's skin prior then lost): see the CHANGELOG's "
     "known limitations"))
