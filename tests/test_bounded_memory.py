@@ -128,7 +128,10 @@ def test_a_soak_stopped_at_its_wall_limit_reports_what_it_reached():
     assert r["frames_sent"] == r["frames_received"] + r["in_flight"]
     # only the touches that ended before the stop count
     assert r["touches"] < 6 * 60 and r["contacts"] <= r["touches"] + 1
-    assert len(r["contacts_per_bin"]) == int(r["seconds_simulated"] // 60)
+    # whole minutes reached, from the unrounded time: the report's seconds are rounded to 0.1
+    # s, so a stop at 59.96 s reads 60.0 with no whole minute yet (a CI run stopped there)
+    reached = r["seconds_simulated"]
+    assert int((reached - 0.05) // 60) <= len(r["contacts_per_bin"]) <= int(reached // 60)
 
 
 def test_a_soak_stopped_by_ctrl_c_reports_what_it_reached():
